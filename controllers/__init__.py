@@ -1,0 +1,1 @@
+"""Classical controllers and tuners (installed as ``ehas_controllers``)."""

@@ -1,0 +1,66 @@
+"""The ``ehas`` command line.
+
+Each subcommand lives in its own module, which defines ``add_arguments(parser)``
+and ``run(args) -> int``.  Those modules keep heavy imports (numba kernels,
+torch, matplotlib) inside ``run`` so that building the parser stays cheap.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# command name -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("ehas_env.demo", "run the main job on embedded defaults and write results/demo/"),
+    "size": ("ehas_env.sizing_cli", "the book's chapter-1 sizing calculations"),
+    "simulate": ("ehas_env.simulate_cli", "simulate one closed-loop run of the plant and write it as a run file"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ehas",
+        description="Electro-hydraulic actuation systems toolkit.",
+    )
+    from ehas_env import __version__
+
+    parser.add_argument("--version", action="version", version=f"ehas {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (module_name, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.set_defaults(_module=module_name)
+        module = _load(module_name)
+        if module is not None:
+            module.add_arguments(p)
+    return parser
+
+
+def _load(module_name: str):
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name == module_name:
+            return None  # command not built in this checkout
+        raise
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    module = _load(args._module)
+    if module is None:
+        parser.error(f"command '{args.command}' is not available in this installation")
+    try:
+        return int(module.run(args) or 0)
+    except (ValueError, FileNotFoundError) as exc:
+        # Bad input: one clear line, no traceback.
+        print(f"ehas {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,25 @@
+"""Transport delay between the command and the valve."""
+from .base import Effect, Param
+
+
+class TransportDelay(Effect):
+    name = "transport_delay"
+    title = "transport delay of the command"
+    params = (
+        Param("tau", "s", 0.003, (0.0, 0.05), "delay from the controller's output to the valve (assumed: DAC, amplifier, bus)",
+              typical=(0.002, 0.01)),
+    )
+    main_param = "tau"
+    explanation = (
+        "Controllers, fieldbuses and amplifiers add latency: the valve receives the command computed tau "
+        "seconds ago. It adds a phase lag of 360 f tau degrees that grows with frequency and eats the "
+        "loop's phase margin."
+    )
+    signature = (
+        "the response is shifted by tau: residual looks like tau times the derivative of the signal; "
+        "cross-correlation of residual and current peaks at lag tau; phase error grows with frequency."
+    )
+
+    @classmethod
+    def apply(cls, values, slots):
+        slots["tau"] += values["tau"]

@@ -1,0 +1,1 @@
+"""Learned controllers: stable-baselines3 training (installed as ``ehas_train``)."""
