@@ -15,6 +15,16 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("ehas_env.demo", "run the main job on embedded defaults and write results/demo/"),
     "size": ("ehas_env.sizing_cli", "the book's chapter-1 sizing calculations"),
     "simulate": ("ehas_env.simulate_cli", "simulate one closed-loop run of the plant and write it as a run file"),
+    "perf": ("ehas_env.perf_cli", "speed benchmark of the environment (writes results/perf.md, perf.json)"),
+    "tune": ("ehas_controllers.tune_cli", "tune the classical controller (model-based, optimiser, relay, schedule)"),
+    "bench": ("ehas_controllers.bench_cli", "% position error benchmark of controllers over the 63 conditions"),
+    "excite": ("ehas_env.excite_cli", "excitation signals (chirp, PRBS, PRMS, multisine) through the valve test"),
+    "identify": ("ehas_env.identify_cli", "continuous-time transfer-function fit of a valve run"),
+    "curves": ("ehas_env.curves_cli", "valve characteristic curves and Bode plots"),
+    "simulate-campaign": ("ehas_env.campaign_cli", "generate a synthetic measurement campaign"),
+    "compare": ("ehas_env.compare_cli", "compare the model with a measurement campaign"),
+    "diagnose": ("ehas_env.diagnose_cli", "find which physical effect the model is missing"),
+    "train": ("ehas_train.train_cli", "train a learned controller with stable-baselines3"),
 }
 
 
