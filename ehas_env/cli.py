@@ -17,7 +17,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("ehas_env.simulate_cli", "simulate one closed-loop run of the plant and write it as a run file"),
     "perf": ("ehas_env.perf_cli", "speed benchmark of the environment (writes results/perf.md, perf.json)"),
     "tune": ("ehas_controllers.tune_cli", "tune the classical controller (model-based, optimiser, relay, schedule)"),
-    "bench": ("ehas_controllers.bench_cli", "% position error benchmark of controllers over the 63 conditions"),
+    "bench": ("ehas_controllers.bench_cli", "percent position error benchmark of controllers over the 63 conditions"),
     "excite": ("ehas_env.excite_cli", "excitation signals (chirp, PRBS, PRMS, multisine) through the valve test"),
     "identify": ("ehas_env.identify_cli", "continuous-time transfer-function fit of a valve run"),
     "curves": ("ehas_env.curves_cli", "valve characteristic curves and Bode plots"),
