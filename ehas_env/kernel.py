@@ -341,6 +341,32 @@ def run_open_loop(s, P, cmd, dt, nsub, hist, out):
 
 
 @njit(cache=True)
+def reference_point(ref, t):
+    """theta_ref and its first three derivatives (deg, deg/s^k) at t.
+
+    ref = (amplitude deg, f Hz, phase rad[, ramp s]).  With a ramp time T > 0
+    the amplitude fades in with the smoothstep 10x^3 - 15x^4 + 6x^5, x = t/T, so
+    the command starts at rest: a rig operator never steps a heavy inertia to
+    full sine velocity at t = 0.
+    """
+    amp, w, ph = ref[0], 2.0 * math.pi * ref[1], ref[2]
+    T = ref[3] if ref.shape[0] > 3 else 0.0
+    s, s1, s2, s3 = 1.0, 0.0, 0.0, 0.0
+    if T > 0.0 and t < T:
+        x = max(t, 0.0) / T
+        s = x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+        s1 = 30.0 * x * x * (1.0 - x) * (1.0 - x) / T
+        s2 = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / (T * T)
+        s3 = (60.0 - 360.0 * x + 360.0 * x * x) / (T * T * T)
+    sn, cs = math.sin(w * t + ph), math.cos(w * t + ph)
+    r = amp * s * sn
+    rd = amp * (s1 * sn + s * w * cs)
+    rdd = amp * (s2 * sn + 2.0 * s1 * w * cs - s * w * w * sn)
+    rddd = amp * (s3 * sn + 3.0 * s2 * w * cs - 3.0 * s1 * w * w * sn - s * w * w * w * cs)
+    return r, rd, rdd, rddd
+
+
+@njit(cache=True)
 def quantize(x, lsb):
     if lsb <= 0.0:
         return x
@@ -352,7 +378,8 @@ def run_rig_controller(s, P, gains, ref, dt, nsub, hist, theta_noise, sensor, ou
     """Closed loop with the rig's PI + velocity/acceleration feed-forward controller.
 
     gains = (Kp mA/deg, Ki mA/(deg s), Kv mA/(deg/s), Ka mA/(deg/s^2), Kj mA/(deg/s^3),
-    Kdp mA/bar, dp_hp rad/s); ref = (amplitude deg, frequency Hz, phase rad);
+    Kdp mA/bar, dp_hp rad/s); ref = (amplitude deg, frequency Hz, phase rad[, ramp s]),
+    see :func:`reference_point`;
     sensor = (theta ADC lsb deg, DAC lsb mA, LVDT gain error, i_max of the
     controller output mA).  The controller runs at 1/dt with zero-order hold,
     clamps its output and stops integrating while clamped (anti-windup).  A
@@ -366,19 +393,13 @@ def run_rig_controller(s, P, gains, ref, dt, nsub, hist, theta_noise, sensor, ou
     tmp = np.empty_like(s)
     n = out.shape[0]
     kp, ki, kv, ka, kj, kdp, whp = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6]
-    amp, w, ph = ref[0], 2.0 * math.pi * ref[1], ref[2]
     adc, dac, gain_err, u_max = sensor[0], sensor[1], sensor[2], sensor[3]
     integ = 0.0
     dp_lp = 0.0
     hist[:] = 0.0
     for k in range(n):
         measure(s, P, out[k])
-        t = k * dt
-        wt = w * t + ph
-        r = amp * math.sin(wt)
-        rd = amp * w * math.cos(wt)
-        rdd = -amp * w * w * math.sin(wt)
-        rddd = -amp * w * w * w * math.cos(wt)
+        r, rd, rdd, rddd = reference_point(ref, k * dt)
         th = math.degrees(out[k, O_THETA]) * (1.0 + gain_err) + theta_noise[k]
         th = quantize(th, adc)
         out[k, O_SENSED] = th

@@ -323,9 +323,9 @@ class Plant:
             self._python_loop(controller, ref, s, hist, noise, out)
             ctrl_meta = {"name": type(controller).__name__, "repr": repr(controller), "rate_hz": 1.0 / self.dt}
         t = np.arange(n) * self.dt
-        theta_ref = np.asarray(ref(t)[0], dtype=float)
+        theta_ref = np.atleast_1d(np.asarray(ref(t)[0], dtype=float))
         return self._result(out, kind="closed_loop", theta_ref=theta_ref, rng=rng,
-                            extra_meta={"reference": {"amplitude_deg": ref.amplitude_deg, "freq_hz": ref.freq_hz},
+                            extra_meta={"reference": ref.to_dict(),
                                         "controller": ctrl_meta})
 
     def _python_loop(self, controller, ref, s, hist, noise, out):
@@ -335,17 +335,17 @@ class Plant:
         dac = self.sensors.current_lsb
         if hasattr(controller, "reset"):
             controller.reset()
-        w = 2.0 * math.pi * ref.freq_hz
+        ref_vec = ref.kernel_vector()
         for k in range(out.shape[0]):
             K.measure(s, self._P, out[k])
             t = k * self.dt
-            r, rd, rdd = (float(v) for v in ref(t))
+            r, rd, rdd, rddd = K.reference_point(ref_vec, t)
             th = math.degrees(out[k, K.O_THETA]) * gain + noise[k]
             if lsb > 0:
                 th = lsb * math.floor(th / lsb + 0.5)
             out[k, K.O_SENSED] = th
             meas = {"t": t, "theta_deg": th, "theta_ref_deg": r, "theta_ref_dot": rd, "theta_ref_ddot": rdd,
-                    "theta_ref_dddot": -w * w * rd, "p_a_bar": s[4] / BAR, "p_b_bar": s[5] / BAR, "p_s_bar": s[6] / BAR}
+                    "theta_ref_dddot": rddd, "p_a_bar": s[4] / BAR, "p_b_bar": s[5] / BAR, "p_s_bar": s[6] / BAR}
             u = float(controller.act(meas))
             if not math.isfinite(u):
                 raise ValueError(f"controller {type(controller).__name__} returned a non-finite current {u!r} at t = {t:g} s")

@@ -1,0 +1,25 @@
+"""Shared test fixtures: where the read-only reference material lives."""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+
+SHARED = Path(__file__).resolve().parents[2] / "shared"
+BOOK = SHARED / "data" / "book"
+
+
+def read_book_csv(name: str) -> list[dict[str, str]]:
+    """Rows of one of the book's tables in ../shared (independent truth for tests)."""
+    path = BOOK / name
+    if not path.exists():
+        pytest.skip(f"reference data {path} not available")
+    with path.open() as fh:
+        lines = [ln for ln in fh if not ln.startswith("#")]
+    return list(csv.DictReader(lines))
+
+
+@pytest.fixture(scope="session")
+def book_loads():
+    return read_book_csv("analytic_loads.csv")
