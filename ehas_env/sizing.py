@@ -38,24 +38,20 @@ from typing import Sequence
 
 import numpy as np
 
+from .rig import BAR, CRANK_RADIUS, DEG, HALF_STROKE, LPM, SUPPLY_PRESSURE  # noqa: F401  (re-exported)
+
 # --- unit conversions (exact by definition unless noted) -------------------------
-BAR = 1.0e5  # Pa per bar
 PSI = 6894.757293168361  # Pa per psi (lbf/in^2)
-LPM = 1.0e-3 / 60.0  # m^3/s per litre/minute
 US_GALLON = 3.785411784e-3  # m^3 per US gallon (the book rounds to 3.785 L)
 GPM = US_GALLON / 60.0  # m^3/s per US gallon/minute
 HORSEPOWER = 745.6998715822702  # W per mechanical horsepower (550 ft lbf/s)
 HYDRAULIC_HP_DIVISOR = 1714.0  # GPM psi per hp: 550*12 in lbf/s / (231 in^3/gal / 60 s), book
-DEG = math.pi / 180.0  # rad per degree
 
 # --- the rig (book, via rig.md) -----------------------------------------------------
-CRANK_RADIUS = 0.05  # m, book
 TOTAL_DISC_INERTIA = 2.68  # kg m^2 for all 7 sets (14 discs), book
 MAX_DISC_SETS = 7  # book: 1..7 sets of two discs
 DISC_SET_INERTIA = TOTAL_DISC_INERTIA / MAX_DISC_SETS  # kg m^2; book rounds to 0.383 (see module notes)
 ACTUATOR_AREA = 7.658e-4  # m^2, net piston area used by the book's tables
-HALF_STROKE = 0.035  # m, book: 70 mm stroke, centred
-SUPPLY_PRESSURE = 220.0 * BAR  # Pa, book
 SAFETY_FACTOR = 1.5  # -, book's factor of safety on the actuator force
 
 # The book's load and flow tables (1.1-1.6) and its design point.
