@@ -14,6 +14,7 @@ import sys
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("ehas_env.demo", "run the main job on embedded defaults and write results/demo/"),
     "size": ("ehas_env.sizing_cli", "the book's chapter-1 sizing calculations"),
+    "effects": ("ehas_env.effects_cli", "list the effects library, or explain one effect"),
     "simulate": ("ehas_env.simulate_cli", "simulate one closed-loop run of the plant and write it as a run file"),
     "perf": ("ehas_env.perf_cli", "speed benchmark of the environment (writes results/perf.md, perf.json)"),
     "tune": ("ehas_controllers.tune_cli", "tune the classical controller (model-based, optimiser, relay, schedule)"),
