@@ -20,6 +20,14 @@ State vector (:data:`STATE_NAMES`)::
     6 ps      supply pressure, Pa (a state only with supply droop)
     7 xp      piston position, m (differs from r sin(theta) only with backlash)
     8 vp      piston velocity, m/s
+    9 theta_a armature (torque-motor) rotation, rad    } white-box valve only
+   10 omega_a its rate, rad/s                          } (valve_model = 1)
+
+The valve is the identified grey box (slot ``valve_model`` = 0, states 2-3) or
+the first-principles white box of :mod:`ehas_env.white_box_valve`
+(``valve_model`` = 1): then state 2 holds q_c = K3 x_v (the spool position in
+flow units, so the orifice law and the outputs are shared), state 3 stays 0 and
+states 9-10 carry the armature.
 
 A plain-Python twin of :func:`derivatives` lives in ``ehas_env.reference_rhs``
 and the tests hold the two together.
@@ -31,7 +39,7 @@ import math
 import numpy as np
 from numba import njit
 
-STATE_NAMES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp")
+STATE_NAMES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "theta_a", "omega_a")
 N_STATES = len(STATE_NAMES)
 
 # Parameter-vector slots.  Base slots come from RigParams; the rest are the
@@ -70,6 +78,24 @@ SLOTS = (
     "k_joint",  # N/m, joint contact stiffness (backlash)
     "c_joint",  # N s/m, joint contact damping (backlash)
     "m_backlash",  # kg, minimum piston mass used with backlash
+    # white-box valve (ehas_env.white_box_valve; appended, so earlier indices never move)
+    "valve_model",  # 0: identified grey box (K, wn, zeta), 1: white box
+    "wb_Kt",  # N m/mA, torque-motor gain
+    "wb_Kw",  # N m/m, feedback-wire torque per spool displacement
+    "wb_Kf",  # N m/rad, armature stiffness
+    "wb_Ja",  # kg m^2, armature-flapper inertia
+    "wb_Ba",  # N m s/rad, armature damping
+    "wb_r",  # m, lever from the armature pivot to the nozzles
+    "wb_Av",  # m^2, spool end area
+    "wb_K2",  # m^2/s, nozzle-flapper flow gain at wb_p_ref
+    "wb_p_ref",  # Pa, pilot supply at which wb_K2 holds
+    "wb_K3",  # m^2/s, spool flow gain at the rated drop
+    "wb_xf0",  # m, null nozzle-flapper gap
+    "wb_kff",  # m, steady flow force coefficient 0.43 w (F = kff dP x_v)
+    "wb_bff",  # N s/(m sqrt(Pa)), transient flow force coefficient Cd w L sqrt(2 rho)
+    "wb_AN",  # m^2, nozzle area (pilot pressure force on the flapper)
+    "wb_kjet",  # m, flapper jet negative spring 8 pi Cdf^2 x_f0 (k = kjet Ps)
+    "wb_xv_max",  # m, spool stops
 )
 IDX = {name: k for k, name in enumerate(SLOTS)}
 N_SLOTS = len(SLOTS)
@@ -79,7 +105,11 @@ I_INERTIA, I_RADIUS, I_AREA, I_HALF_STROKE, I_SUPPLY, I_DROP, I_BETA, I_VDEAD = 
 I_K, I_WN, I_ZETA, I_IMAX, I_DEADBAND, I_BIAS, I_TAU = range(8, 15)
 I_FC, I_FC_S, I_FS_S, I_VS_S, I_B, I_VTANH, I_CLEAK, I_CEXT = range(15, 23)
 I_DROOP, I_QPUMP, I_VACC, I_P0, I_VLINE, I_MP, I_DELTA, I_KJ, I_CJ, I_MBL = range(23, 33)
-assert N_SLOTS == 33
+I_VALVE_MODEL, I_WB_KT, I_WB_KW, I_WB_KF, I_WB_JA, I_WB_BA, I_WB_R, I_WB_AV = range(33, 41)
+I_WB_K2, I_WB_PREF, I_WB_K3, I_WB_XF0, I_WB_KFF, I_WB_BFF, I_WB_AN, I_WB_KJET, I_WB_XVMAX = range(41, 50)
+assert N_SLOTS == 50
+assert SLOTS[I_VALVE_MODEL] == "valve_model" and SLOTS[I_WB_XVMAX] == "wb_xv_max"
+WHITE_BOX = 1.0  # valve_model value of the white-box valve
 
 # Output channels written by the simulators (SI)
 # theta/omega are what the LVDT sees (piston position through asin(x/r));
@@ -121,6 +151,9 @@ def land_flows(qc, pa, pb, ps, P):
 @njit(cache=True)
 def friction_force(v, P):
     """Seal friction on the piston (a force opposing v), N."""
+    if P[I_FC] == 0.0 and P[I_FC_S] == 0.0 and P[I_FS_S] == 0.0:
+        # no dry friction: skip the sign function, the hot path's costliest call (same result)
+        return -(P[I_B] * v)
     vt = P[I_VTANH]
     sgn = math.tanh(v / vt)
     f = P[I_FC] * sgn + P[I_B] * v
@@ -138,8 +171,57 @@ def valve_accel(qc, qcd, i_valve, P):
 
 
 @njit(cache=True, inline="always")
+def white_box_rates(s, i_valve, ps, p_load, P):
+    """(theta_a', omega_a', q_c') of the white-box valve; see ehas_env.white_box_valve.
+
+    Armature: Ja th'' = Kt i - (Kf - r^2 kjet Ps) th - Ba th' - Kw x_v - r A_N P_p;
+    pilot flow K2 r th - Kc P_p fills the spool ends (A_v x_v'), spool force
+    A_v P_p = kff dP x_v + bff sqrt(dP) x_v' (flow forces), dP = Ps - sign(x_v) P_L;
+    K2 grows with sqrt(Ps), Kc = K2 x_f0 / Ps.  State 2 holds q_c = K3 x_v.
+    """
+    k3 = P[I_WB_K3]
+    xv = s[2] / k3
+    th = s[9]
+    ps_pilot = max(ps, 1.0e5)  # the pilot law needs a supply; 1 bar floor
+    k2 = P[I_WB_K2] * math.sqrt(ps_pilot / P[I_WB_PREF])
+    kc = k2 * P[I_WB_XF0] / ps_pilot
+    dpv = ps - math.copysign(1.0, xv) * p_load
+    if dpv < 0.0:
+        dpv = 0.0
+    k_flow = P[I_WB_KFF] * dpv
+    b_flow = P[I_WB_BFF] * math.sqrt(dpv)
+    av, r = P[I_WB_AV], P[I_WB_R]
+    xv_dot = (k2 * r * th - kc * k_flow * xv / av) / (av + kc * b_flow / av)
+    p_pilot = (k_flow * xv + b_flow * xv_dot) / av
+    torque = (P[I_WB_KT] * i_valve - (P[I_WB_KF] - r * r * P[I_WB_KJET] * ps) * th - P[I_WB_BA] * s[10]
+              - P[I_WB_KW] * xv - r * P[I_WB_AN] * p_pilot)
+    return s[10], torque / P[I_WB_JA], k3 * xv_dot
+
+
+@njit(cache=True, inline="always")
 def spool_stops(s, P):
-    """Spool at its end stops for |q_c| >= i_max K: clip q_c, zero q_c' outward."""
+    """Spool at its end stops for |q_c| >= i_max K: clip q_c, zero q_c' outward.
+
+    White box: the spool stops at +-wb_xv_max and the flapper stops on a nozzle
+    (|theta_a| = x_f0 / r, outward rate zeroed).
+    """
+    if P[I_VALVE_MODEL] == WHITE_BOX:
+        qw = P[I_WB_K3] * P[I_WB_XVMAX]
+        s[3] = 0.0
+        if s[2] > qw:
+            s[2] = qw
+        elif s[2] < -qw:
+            s[2] = -qw
+        tm = P[I_WB_XF0] / P[I_WB_R]
+        if s[9] >= tm:
+            s[9] = tm
+            if s[10] > 0.0:
+                s[10] = 0.0
+        elif s[9] <= -tm:
+            s[9] = -tm
+            if s[10] < 0.0:
+                s[10] = 0.0
+        return
     qmax = P[I_K] * P[I_IMAX]
     if s[2] >= qmax:
         s[2] = qmax
@@ -157,8 +239,14 @@ def derivatives(s, i_valve, P, ds):
     theta, omega, qc, qcd, pa, pb, ps, xp, vp = s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8]
     r, A = P[I_RADIUS], P[I_AREA]
     c, sn = math.cos(theta), math.sin(theta)
-    ds[2] = qcd
-    ds[3] = valve_accel(qc, qcd, i_valve, P)
+    if P[I_VALVE_MODEL] == WHITE_BOX:
+        ds[9], ds[10], ds[2] = white_box_rates(s, i_valve, ps, pa - pb, P)
+        ds[3] = 0.0
+    else:
+        ds[2] = qcd
+        ds[3] = valve_accel(qc, qcd, i_valve, P)
+        ds[9] = 0.0
+        ds[10] = 0.0
 
     qa_in, qb_in, q_supply = land_flows(qc, pa, pb, ps, P)
     leak = P[I_CLEAK] * (pa - pb)
@@ -236,12 +324,14 @@ def project(s, P):
             if s[8] * s[7] > 0.0:
                 s[8] = 0.0
     else:
-        th_end = math.asin(min(P[I_HALF_STROKE] / r, 1.0))
-        if abs(s[0]) >= th_end:
-            hit = True
-            s[0] = math.copysign(th_end, s[0])
-            if s[1] * s[0] > 0.0:
-                s[1] = 0.0
+        ratio = min(P[I_HALF_STROKE] / r, 1.0)
+        if abs(s[0]) >= ratio:  # asin(x) >= x: only past this can the crank reach a stroke end (saves the asin)
+            th_end = math.asin(ratio)
+            if abs(s[0]) >= th_end:
+                hit = True
+                s[0] = math.copysign(th_end, s[0])
+                if s[1] * s[0] > 0.0:
+                    s[1] = 0.0
         s[7] = r * math.sin(s[0])
         s[8] = r * math.cos(s[0]) * s[1]
     return hit
@@ -250,7 +340,7 @@ def project(s, P):
 @njit(cache=True)
 def rk4_substep(s, i_valve, P, h, k1, k2, k3, k4, tmp):
     """One classical RK4 step of length h (s updated in place)."""
-    n = s.shape[0]
+    n = N_STATES  # a compile-time constant, so the loops unroll (s always has N_STATES entries)
     derivatives(s, i_valve, P, k1)
     for j in range(n):
         tmp[j] = s[j] + 0.5 * h * k1[j]
@@ -430,9 +520,13 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
 
     Two lands in series share the supply drop, so the metered flow is
     q_c * sqrt(supply / rated_drop).  out[k] = (flow m^3/s, q_c m^3/s, valve current mA).
-    The valve uses the same state slots 2, 3 as the full plant.
+    The valve uses the same state slots 2, 3 (grey box) or 2, 9, 10 (white
+    box, no load pressure across the joined ports) as the full plant.
     """
     s = np.zeros(N_STATES)
+    if P[I_VALVE_MODEL] == WHITE_BOX:
+        _white_box_valve_test(s, P, cmd, dt, nsub, supply, hist, out)
+        return
     h = dt / nsub
     tau = P[I_TAU]
     scale = math.sqrt(max(supply, 0.0) / P[I_DROP])
@@ -452,4 +546,33 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
             a4 = valve_accel(q + h * (qd + 0.5 * h * a2), qd + h * a3, i_v, P)
             s[2] = q + h / 6.0 * (qd + 2.0 * (qd + 0.5 * h * a1) + 2.0 * (qd + 0.5 * h * a2) + qd + h * a3)
             s[3] = qd + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            spool_stops(s, P)
+
+
+@njit(cache=True)
+def _white_box_valve_test(s, P, cmd, dt, nsub, supply, hist, out):
+    """run_valve_test for the white-box valve: RK4 on (q_c, theta_a, omega_a)."""
+    h = dt / nsub
+    tau = P[I_TAU]
+    scale = math.sqrt(max(supply, 0.0) / P[I_DROP])
+    tmp = np.zeros(N_STATES)
+    hist[:] = 0.0
+    for k in range(cmd.shape[0]):
+        out[k, 0] = s[2] * scale
+        out[k, 1] = s[2]
+        hist[k % hist.shape[0]] = cmd[k]
+        for j in range(nsub):
+            i_v = valve_current(delayed_command(hist, k, j, nsub, dt, tau, 0.0), P)
+            if j == 0:
+                out[k, 2] = i_v
+            a1, b1, c1 = white_box_rates(s, i_v, supply, 0.0, P)
+            tmp[9], tmp[10], tmp[2] = s[9] + 0.5 * h * a1, s[10] + 0.5 * h * b1, s[2] + 0.5 * h * c1
+            a2, b2, c2 = white_box_rates(tmp, i_v, supply, 0.0, P)
+            tmp[9], tmp[10], tmp[2] = s[9] + 0.5 * h * a2, s[10] + 0.5 * h * b2, s[2] + 0.5 * h * c2
+            a3, b3, c3 = white_box_rates(tmp, i_v, supply, 0.0, P)
+            tmp[9], tmp[10], tmp[2] = s[9] + h * a3, s[10] + h * b3, s[2] + h * c3
+            a4, b4, c4 = white_box_rates(tmp, i_v, supply, 0.0, P)
+            s[9] += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            s[10] += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+            s[2] += h / 6.0 * (c1 + 2.0 * c2 + 2.0 * c3 + c4)
             spool_stops(s, P)

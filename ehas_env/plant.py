@@ -205,11 +205,29 @@ class Plant:
         RK4 sub-steps per period (>= 10 recommended: the chambers are stiff).
     seed : int, optional
         Seed of the sensor noise; same seed -> bit-identical runs.
+    valve : {"grey_box", "white_box"}
+        The servo valve: the book's identified transfer function (default) or
+        the first-principles model of :mod:`ehas_env.white_box_valve` (torque
+        motor, armature, nozzle-flapper, spool, feedback wire, flow forces).
+        The ``valve_dynamics`` effect recalibrates the grey box only.
+    white_box : WhiteBoxValve, optional
+        Parameters of the white-box valve (default: the book's, see that module).
     """
 
+    VALVES = ("grey_box", "white_box")
+
     def __init__(self, disc_sets: int = 3, effects=None, *, inertia: float | None = None, rig: RigParams | None = None,
-                 sensors: Sensors | None = None, dt: float = 1.0e-3, substeps: int = 10, seed: int | None = None):
+                 sensors: Sensors | None = None, dt: float = 1.0e-3, substeps: int = 10, seed: int | None = None,
+                 valve: str = "grey_box", white_box=None):
         check_disc_sets(disc_sets)
+        if valve not in self.VALVES:
+            raise ValueError(f"valve must be one of {', '.join(self.VALVES)}, got {valve!r}")
+        from .white_box_valve import WhiteBoxValve
+
+        if white_box is not None and not isinstance(white_box, WhiteBoxValve):
+            raise ValueError(f"white_box must be a WhiteBoxValve, got {type(white_box).__name__}")
+        self.valve = valve
+        self.white_box = white_box if white_box is not None else WhiteBoxValve()
         rig = rig or RigParams()
         rig = rig.replace(disc_sets=int(disc_sets), inertia=disc_sets * INERTIA_PER_SET)
         if inertia is not None:
@@ -231,7 +249,8 @@ class Plant:
 
     def __repr__(self) -> str:
         eff = ", ".join(f"{n}({', '.join(f'{k}={v:g}' for k, v in p.items())})" for n, p in self.effects.items())
-        return f"Plant(disc_sets={self.rig.disc_sets}, inertia={self.rig.inertia:g} kg m^2, effects=[{eff}])"
+        valve = ", valve=white_box" if self.valve == "white_box" else ""
+        return f"Plant(disc_sets={self.rig.disc_sets}, inertia={self.rig.inertia:g} kg m^2, effects=[{eff}]{valve})"
 
     # -- parameters -------------------------------------------------------
     def slots(self) -> dict[str, float]:
@@ -242,6 +261,8 @@ class Plant:
                  rated_drop=r.rated_drop, beta=r.beta, dead_volume=r.dead_volume, K=r.K * LPM, wn=r.wn, zeta=r.zeta,
                  i_max=r.i_max, v_tanh=V_TANH, V_line=V_LINE, k_joint=K_JOINT, c_joint=C_JOINT, m_backlash=M_BACKLASH,
                  vs_s=1.0)
+        s.update(self.white_box.kernel_slots())
+        s["valve_model"] = K.WHITE_BOX if self.valve == "white_box" else 0.0
         for name, values in self.effects.items():
             REGISTRY[name].apply(values, s)
         if s["delta"] > 0.0:
@@ -296,7 +317,8 @@ class Plant:
         gains by default) or any object with ``reset()`` and
         ``act(measurement: dict) -> current mA`` called every ``dt`` with the keys
         ``t, theta_deg, theta_ref_deg, theta_ref_dot, theta_ref_ddot, theta_ref_dddot,
-        p_a_bar, p_b_bar, p_s_bar`` (deg, deg/s, deg/s^2, deg/s^3, bar).
+        p_a_bar, p_b_bar, p_s_bar`` (deg, deg/s, deg/s^2, deg/s^3, bar), plus the
+        reference's ``amplitude_deg`` (learned controllers normalise the error by it).
         The run lasts ``duration`` s, or ``cycles`` reference periods.
         """
         controller = RigController.book() if controller is None else controller
@@ -336,6 +358,7 @@ class Plant:
         if hasattr(controller, "reset"):
             controller.reset()
         ref_vec = ref.kernel_vector()
+        amp = float(ref.amplitude_deg)
         for k in range(out.shape[0]):
             K.measure(s, self._P, out[k])
             t = k * self.dt
@@ -345,7 +368,8 @@ class Plant:
                 th = lsb * math.floor(th / lsb + 0.5)
             out[k, K.O_SENSED] = th
             meas = {"t": t, "theta_deg": th, "theta_ref_deg": r, "theta_ref_dot": rd, "theta_ref_ddot": rdd,
-                    "theta_ref_dddot": rddd, "p_a_bar": s[4] / BAR, "p_b_bar": s[5] / BAR, "p_s_bar": s[6] / BAR}
+                    "theta_ref_dddot": rddd, "p_a_bar": s[4] / BAR, "p_b_bar": s[5] / BAR, "p_s_bar": s[6] / BAR,
+                    "amplitude_deg": amp}
             u = float(controller.act(meas))
             if not math.isfinite(u):
                 raise ValueError(f"controller {type(controller).__name__} returned a non-finite current {u!r} at t = {t:g} s")
@@ -378,6 +402,8 @@ class Plant:
             logged["flow_lpm"] = self.sensors.measure_channel(flow, "flow", rng)
         meta = {"kind": "valve_open_loop", "supply_bar": supply_bar, "effects": self.effects,
                 "sensors": self.sensors.to_dict()}
+        if self.valve != "grey_box":
+            meta["valve"] = self.valve
         return ValveTestResult(t=t, current_mA=cmd, flow_lpm=flow, valve_current_mA=out[:, 2], meta=meta, logged=logged)
 
     def _result(self, out, *, kind, theta_ref=None, rng=None, extra_meta=None) -> SimResult:
@@ -393,6 +419,8 @@ class Plant:
         res.meta = {"kind": kind, "disc_sets": self.rig.disc_sets, "inertia_kgm2": self.rig.inertia,
                     "supply_bar": self.rig.supply / BAR, "effects": self.effects, "sensors": self.sensors.to_dict(),
                     "dt": self.dt, "substeps": self.substeps, **(extra_meta or {})}
+        if self.valve != "grey_box":
+            res.meta["valve"] = self.valve
         if not self.sensors.is_ideal:
             rng = rng if rng is not None else np.random.default_rng(self.seed)
             m = self.sensors.measure_channel

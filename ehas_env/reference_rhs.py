@@ -25,9 +25,18 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     half = p["rated_drop"] / 2.0
     d = {}
 
-    # identified valve:  q'' = wn^2 (K i - q) - 2 zeta wn q'
-    d["qc"] = qcd
-    d["qc_dot"] = p["wn"] ** 2 * (p["K"] * i_valve_mA - qc) - 2.0 * p["zeta"] * p["wn"] * qcd
+    if p.get("valve_model", 0.0) == 1.0:
+        # white-box valve (ehas_env.white_box_valve): q_c = K3 x_v, armature states
+        from .white_box_valve import slot_rates
+
+        d["theta_a"], d["omega_a"], d["qc"] = slot_rates(state["theta_a"], state["omega_a"], qc, i_valve_mA, ps,
+                                                         pa - pb, p)
+        d["qc_dot"] = 0.0
+    else:
+        # identified valve:  q'' = wn^2 (K i - q) - 2 zeta wn q'
+        d["qc"] = qcd
+        d["qc_dot"] = p["wn"] ** 2 * (p["K"] * i_valve_mA - qc) - 2.0 * p["zeta"] * p["wn"] * qcd
+        d["theta_a"] = d["omega_a"] = 0.0
 
     # per-land orifice law, tank at 0
     if qc >= 0.0:

@@ -5,9 +5,11 @@ from .base import Effect, Param
 class PistonMass(Effect):
     name = "piston_mass"
     title = "moving mass of the piston and rod"
+    # typical 5-30 kg: piston, rod, rod eye and the in-line load cell of a 31 mm bore, 70 mm stroke
+    # actuator (the former 20-120 kg is more than such an actuator carries)
     params = (
         Param("m", "kg", 5.0, (0.0, 500.0), "mass of piston, rod and rod eye (assumed: steel, 70 mm stroke)",
-              typical=(20.0, 120.0)),
+              typical=(5.0, 30.0)),
     )
     main_param = "m"
     explanation = (

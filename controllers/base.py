@@ -1,0 +1,212 @@
+"""The one controller interface shared by classical controllers and learned agents.
+
+A controller is anything with
+
+* ``kind`` - ``"classical"`` or ``"learned"`` (the benchmark's ``kind`` column);
+* ``name`` - a short label for tables;
+* ``reset()`` - forget the internal state (integrator, filters) before a run;
+* ``act(measurement) -> float`` - the command current in mA for one control
+  period.  ``measurement`` is exactly the dict the plant's closed loop passes
+  (``ehas_env.plant.Plant._python_loop``): :data:`MEASUREMENT_KEYS` in deg,
+  deg/s^k and bar;
+* ``save(path)`` / ``load(path)`` - a file that ``ehas bench``, ``ehas tune`` and the
+  environment accept;
+* a readable ``repr`` of its gains with units.
+
+Classical controllers can also say which :class:`ehas_env.plant.RigController`
+they are for a given plant (:meth:`Controller.rig_gains`), so simulations take
+the compiled closed loop (``ehas_env.kernel.run_rig_controller`` and the
+batched :mod:`ehas_controllers.batch_sim`) instead of calling ``act`` from
+Python every millisecond.
+
+Files are found by type in two registries:
+
+* :data:`LOADERS` maps a file suffix (``".json"``; ``"/"`` for a folder) to a
+  loader ``path -> Controller``, or to a lazy ``"module:function"`` string;
+* :data:`CONTROLLER_TYPES` maps the ``"type"`` field of a controller JSON to a
+  factory ``dict -> Controller``.
+
+Adding learned agents is one line, e.g.
+``register_loader(".zip", "ehas_train.agent:load_agent")``.
+
+Examples
+--------
+>>> from ehas_controllers.base import controller_from_dict
+>>> c = controller_from_dict({"type": "piff", "gains": {"Kp": 1.0, "Ki": 2.0, "Kv": 0.0178, "Ka": 0.0002}})
+>>> c.kind, round(c.act({"t": 0.0, "theta_deg": -1.0, "theta_ref_deg": 0.0, "theta_ref_dot": 0.0,
+...     "theta_ref_ddot": 0.0, "theta_ref_dddot": 0.0, "p_a_bar": 110.0, "p_b_bar": 110.0, "p_s_bar": 220.0}), 6)
+('classical', 1.002)
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import math
+from abc import ABC, abstractmethod
+from pathlib import Path
+from typing import Callable
+
+#: keys of the measurement dict passed to :meth:`Controller.act` (deg, deg/s^k, bar, s)
+MEASUREMENT_KEYS = ("t", "theta_deg", "theta_ref_deg", "theta_ref_dot", "theta_ref_ddot", "theta_ref_dddot",
+                    "p_a_bar", "p_b_bar", "p_s_bar")
+#: the ``format`` field of controller JSON files
+FILE_FORMAT = "ehas-controller"
+FILE_VERSION = 1
+KINDS = ("classical", "learned")
+
+
+class Controller(ABC):
+    """Base class of every controller (see the module docstring for the contract)."""
+
+    kind: str = "classical"
+    name: str = "controller"
+
+    def reset(self) -> None:
+        """Forget internal state before a new run (default: stateless)."""
+
+    @abstractmethod
+    def act(self, measurement: dict) -> float:
+        """Command current in mA for the period starting at ``measurement["t"]``."""
+
+    def for_plant(self, disc_sets: int) -> "Controller":
+        """The controller to use on a plant with ``disc_sets`` sets (gain schedules pick theirs)."""
+        return self
+
+    def rig_gains(self, disc_sets: int | None = None):
+        """This controller as an :class:`ehas_env.plant.RigController` for the compiled loop, or None."""
+        return None
+
+    def to_dict(self) -> dict:
+        """JSON-able description; :func:`controller_from_dict` rebuilds the controller from it."""
+        raise NotImplementedError(f"{type(self).__name__} cannot be written as a controller JSON")
+
+    def save(self, path, *, command: str | None = None, metrics: dict | None = None, notes: dict | None = None) -> Path:
+        """Write the controller as JSON, atomically.
+
+        ``command`` (the command line that regenerates the file), ``metrics``
+        (e.g. ``mean_rms_error_pct``) and ``notes`` (tuner report) are stored beside
+        the gains.  Returns the path.
+        """
+        from ehas_env.files import atomic_write_text
+
+        data = {"format": FILE_FORMAT, "version": FILE_VERSION, **self.to_dict()}
+        if command:
+            data["command"] = command
+        if metrics:
+            data["metrics"] = metrics
+            if "mean_rms_error_pct" in metrics:
+                data["mean_rms_error_pct"] = metrics["mean_rms_error_pct"]
+        if notes:
+            data["notes"] = notes
+        return atomic_write_text(Path(path), json.dumps(_jsonable(data), indent=2) + "\n")
+
+    @classmethod
+    def load(cls, path) -> "Controller":
+        """Load a controller file of any registered type (see :func:`load_controller`)."""
+        return load_controller(path)
+
+
+def check_measurement(measurement: dict, who: str) -> None:
+    """Raise a clear error naming the missing key if ``measurement`` lacks one of :data:`MEASUREMENT_KEYS`."""
+    for key in MEASUREMENT_KEYS:
+        if key not in measurement:
+            raise ValueError(f"{who}.act: measurement has no '{key}'; expected the keys {', '.join(MEASUREMENT_KEYS)}")
+
+
+# -- registries -----------------------------------------------------------------
+CONTROLLER_TYPES: dict[str, Callable[[dict], Controller]] = {}
+LOADERS: dict[str, Callable | str] = {}
+#: modules imported before loading so that they can register their types/loaders
+PLUGIN_MODULES: list[str] = ["ehas_controllers.piff", "ehas_train.agent"]  # ehas_train.agent: learned agents
+
+
+def register_type(name: str):
+    """Class decorator: ``cls.from_dict`` builds controllers whose JSON ``type`` is ``name``."""
+
+    def deco(cls):
+        CONTROLLER_TYPES[name] = cls.from_dict
+        cls.type_name = name
+        return cls
+
+    return deco
+
+
+def register_loader(suffix: str, loader: Callable | str) -> None:
+    """Load files ending in ``suffix`` (``"/"``: folders) with ``loader(path)`` or ``"module:function"``."""
+    LOADERS[suffix.lower()] = loader
+
+
+def _import_plugins() -> None:
+    for name in PLUGIN_MODULES:
+        try:
+            importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:
+                raise
+
+
+def controller_from_dict(data: dict) -> Controller:
+    """Rebuild a controller from its JSON description (the ``type`` field picks the factory)."""
+    _import_plugins()
+    if not isinstance(data, dict):
+        raise ValueError(f"controller description must be a JSON object, got {type(data).__name__}")
+    kind = data.get("type")
+    if kind is None and "gains" in data:
+        kind = "piff"  # a bare gains file
+    if kind not in CONTROLLER_TYPES:
+        raise ValueError(f"controller 'type' {kind!r} is unknown; known types: {', '.join(sorted(CONTROLLER_TYPES))}")
+    return CONTROLLER_TYPES[kind](data)
+
+
+def _load_json(path: Path) -> Controller:
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"controller file {path}: not valid JSON ({exc})") from None
+    if isinstance(data, dict) and data.get("format", FILE_FORMAT) != FILE_FORMAT:
+        raise ValueError(f"controller file {path}: 'format' is {data.get('format')!r}, expected {FILE_FORMAT!r}")
+    try:
+        ctrl = controller_from_dict(data)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise ValueError(f"controller file {path}: {exc}") from None
+    ctrl.source = str(path)
+    return ctrl
+
+
+register_loader(".json", _load_json)
+
+
+def load_controller(path) -> Controller:
+    """Load a controller from ``path``, choosing the loader by the file's suffix.
+
+    Raises FileNotFoundError for a missing file and ValueError for an unknown type.
+    """
+    _import_plugins()
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"controller file {path} does not exist")
+    key = "/" if path.is_dir() else path.suffix.lower()
+    loader = LOADERS.get(key)
+    if loader is None:
+        known = ", ".join(sorted(LOADERS))
+        raise ValueError(f"controller file {path}: no loader for '{key}' files; known types: {known}")
+    if isinstance(loader, str):
+        module, _, func = loader.partition(":")
+        loader = getattr(importlib.import_module(module), func)
+    ctrl = loader(path)
+    kind = getattr(ctrl, "kind", None)
+    if kind not in KINDS:
+        raise ValueError(f"controller file {path}: loaded object has kind {kind!r}, expected one of {KINDS}")
+    return ctrl
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if hasattr(obj, "item") and callable(obj.item):  # numpy scalars
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj

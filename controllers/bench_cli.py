@@ -1,0 +1,96 @@
+"""``ehas bench``: the % position error benchmark of any list of controllers.
+
+    ehas bench                                   # the book's gains + each tuner's result
+    ehas bench results/controllers/*.json        # these controllers
+    ehas bench ctrl.json --model my_rig.json     # on a calibrated model's plant
+
+Controller files are loaded by type (``ehas_controllers.base.load_controller``):
+controller JSONs (``ehas tune``) today; learned agents register their loader.
+With no files, the tuners' results are read from ``OUT/controllers/`` where
+present and tuned (with ``ehas tune``'s defaults) and saved there otherwise.
+"""
+from __future__ import annotations
+
+import argparse
+import shlex
+from pathlib import Path
+
+DEFAULT_TUNERS = (  # (file stem, ehas tune arguments)
+    ("model", ["--method", "model"]),
+    ("relay", ["--method", "relay"]),
+    ("optimize", ["--method", "optimize"]),
+    ("schedule_model", ["--method", "schedule", "--base", "model"]),
+    ("schedule_optimize", ["--method", "schedule", "--base", "optimize"]),
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("controllers", nargs="*", metavar="CONTROLLER_FILE",
+                        help="controller files (default: the book's gains plus each tuner's result)")
+    parser.add_argument("--out", default="results", help="output folder (default results)")
+    parser.add_argument("--model", default=None, help="model file whose plant to run (ehas_env.model_file)")
+    parser.add_argument("--cycles", type=float, default=5.0, help="reference periods per run, first excluded (default 5)")
+    parser.add_argument("--no-robustness", action="store_true", help="skip the robustness table (13 x 63 runs per controller)")
+    parser.add_argument("--no-book", action="store_true", help="leave the book's baseline gains out")
+    parser.add_argument("--retune", action="store_true", help="with no files: re-run the tuners even if their files exist")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def default_controllers(out: Path, retune: bool, progress: bool) -> list:
+    """The tuners' results under ``out/controllers`` (tuned and saved when missing)."""
+    from .base import load_controller
+    from .tune_cli import add_arguments as tune_args
+    from .tune_cli import run as tune_run
+
+    ctrls = []
+    for stem, argv in DEFAULT_TUNERS:
+        path = out / "controllers" / f"{stem}.json"
+        if retune or not path.exists():
+            p = argparse.ArgumentParser(prog="ehas tune")
+            tune_args(p)
+            targs = p.parse_args(argv + ["--out", str(path)] + ([] if progress else ["--no-progress"]))
+            print(f"[bench] tuning: ehas tune {' '.join(shlex.quote(a) for a in [*argv, '--out', str(path)])}", flush=True)
+            tune_run(targs)
+        ctrls.append(load_controller(path))
+    return ctrls
+
+
+def run(args) -> int:
+    from .base import load_controller
+    from .benchmark import run_benchmark
+    from .piff import PIFF
+    from .tune_cli import plant_kwargs_from_model
+
+    out = Path(args.out)
+    if not (args.cycles > 2):
+        raise ValueError(f"--cycles must be > 2 (the first is warm-up, then whole cycles), got {args.cycles!r}")
+    plant_kw = plant_kwargs_from_model(args.model)
+    controllers = [] if args.no_book else [PIFF.book()]
+    if args.controllers:
+        controllers += [load_controller(p) for p in args.controllers]
+    else:
+        controllers += default_controllers(out, args.retune, not args.no_progress)
+    if not controllers:
+        raise ValueError("no controllers to benchmark (--no-book and no files)")
+    parts = ["ehas", "bench", *args.controllers]
+    if args.out != "results":
+        parts += ["--out", args.out]
+    if args.model:
+        parts += ["--model", args.model]
+    if args.cycles != 5.0:
+        parts += ["--cycles", f"{args.cycles:g}"]
+    for flag in ("no_robustness", "no_book"):
+        if getattr(args, flag):
+            parts.append("--" + flag.replace("_", "-"))
+    command = " ".join(shlex.quote(p) for p in parts)
+    res = run_benchmark(controllers, out, cycles=args.cycles, plant_kwargs=plant_kw, robustness=not args.no_robustness,
+                        command=command, progress=not args.no_progress)
+    t = res["timing"]
+    print(f"63-condition grid for one controller: {t['best_s']:.2f} s (first run {t['first_s']:.2f} s; target < 10 s)")
+    print(f"{'controller':<28} {'kind':<9} {'mean rms %':>10} {'worst rms %':>11} {'30/3/7 rms %':>12} {'stroke hits':>11} {'book beaten':>11}")
+    for name, s in res["summary"].items():
+        print(f"{name:<28} {s['kind']:<9} {s['mean_rms_error_pct']:>10.3f} {s['worst_rms_error_pct']:>11.3f} "
+              f"{s['rms_30deg_3hz_7sets']:>12.3f} {s['stroke_end_hits']:>11d} {s['book_wins']:>9d}/7")
+    print("(rms_error_pct: 100 RMS(theta_ref - theta)/amplitude over whole cycles after the first)")
+    print(f"wrote {out / 'benchmark.csv'}, {out / 'benchmark.md'}, heatmaps and {out / 'benchmark_timing.json'}")
+    return 0

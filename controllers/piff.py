@@ -1,0 +1,327 @@
+"""The rig's PI + feed-forward controller, its model-inversion and pressure-feedback variants, gain schedules.
+
+One law covers the three controllers of the issue (RMC70-like, 1 kHz, zero-order hold)::
+
+    i = Kp e + Ki int(e) + Kv r' + Ka r'' + Kj r''' - Kdp dP_L,      e = theta_ref - theta
+
+* **PI + velocity/acceleration feed-forward** (the rig's controller, ``Kj = Kdp = 0``);
+* **model-inversion feed-forward**: ``Kj != 0``, the jerk term that inverts the
+  valve's second-order lag (and the chambers' compliance);
+* **load-pressure feedback** ``Kdp != 0``: static (``dp_hp = 0``) or "dynamic",
+  high-passed at ``dp_hp`` rad/s so that only pressure *changes* are fed back -
+  the hydraulic engineer's classic way to damp a heavy inertia's resonance.
+
+The output is clipped to +-``i_max`` with conditional-integration anti-windup
+and optionally quantized to a ``output_bits`` DAC (the rig's RMC70: 12 bits over
++-20 mA).  :meth:`PIFF.act` is a Python twin of the compiled loop
+``ehas_env.kernel.run_rig_controller``; :meth:`PIFF.rig_gains` hands the same
+gains to the compiled loop.
+
+Examples
+--------
+>>> from ehas_controllers.piff import PIFF
+>>> c = PIFF.book()
+>>> c
+PIFF 'book' [PI+FF]: Kp=1 mA/deg, Ki=2 mA/(deg s), Kv=0.01778 mA/(deg/s), Ka=0.0002296 mA/(deg/s^2)
+>>> c.rig_gains().Kp
+1.0
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .base import Controller, check_measurement, register_type
+
+#: gain name -> unit (the order of ehas_env.plant.RigController)
+GAIN_UNITS = {
+    "Kp": "mA/deg",
+    "Ki": "mA/(deg s)",
+    "Kv": "mA/(deg/s)",
+    "Ka": "mA/(deg/s^2)",
+    "Kj": "mA/(deg/s^3)",
+    "Kdp": "mA/bar",
+    "dp_hp": "rad/s",
+}
+GAIN_NAMES = tuple(GAIN_UNITS)
+DAC_SPAN_MA = 40.0  # +-20 mA output span (rig.md: RMC70 12-bit current output)
+
+
+@register_type("piff")
+@dataclass
+class PIFF(Controller):
+    """PI + velocity/acceleration(/jerk) feed-forward with optional load-pressure feedback.
+
+    Attributes
+    ----------
+    Kp : float
+        Proportional gain, mA/deg.
+    Ki : float
+        Integral gain, mA/(deg s).
+    Kv : float
+        Velocity feed-forward, mA/(deg/s) (book: 1/56.25, the inverse of the
+        plant's no-load velocity gain).
+    Ka : float
+        Acceleration feed-forward, mA/(deg/s^2).
+    Kj : float
+        Jerk feed-forward, mA/(deg/s^3) (model inversion; 0 on the rig).
+    Kdp : float
+        Load-pressure feedback, mA/bar (0: off).
+    dp_hp : float
+        Corner of the pressure feedback's first-order high-pass, rad/s (0: static).
+    i_max : float
+        Output limit, mA (rig: +-20 mA servo amplifier).
+    output_bits : int
+        DAC resolution of the output over +-20 mA (rig: 12); 0: unquantized.
+    rate_hz : float
+        Sample rate, Hz (rig: 1 kHz).
+    name : str
+        Label in tables and files.
+    """
+
+    Kp: float = 1.0
+    Ki: float = 2.0
+    Kv: float = 1.0 / 56.25
+    Ka: float = (1.0 / 56.25) * 2.0 * 0.691 / 107.0
+    Kj: float = 0.0
+    Kdp: float = 0.0
+    dp_hp: float = 0.0
+    i_max: float = 20.0
+    output_bits: int = 0
+    rate_hz: float = 1000.0
+    name: str = "PI+FF"
+    kind = "classical"
+    _integ: float = field(default=0.0, init=False, repr=False, compare=False)
+    _dp_lp: float = field(default=0.0, init=False, repr=False, compare=False)
+    _checked: bool = field(default=False, init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        for name in (*GAIN_NAMES, "i_max", "rate_hz"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"PIFF: {name} must be a finite number in {GAIN_UNITS.get(name, '')}, got {v!r}".rstrip())
+            setattr(self, name, float(v))
+        if self.dp_hp < 0:
+            raise ValueError(f"PIFF: dp_hp must be >= 0 rad/s (0: static pressure feedback), got {self.dp_hp!r}")
+        if not 0 < self.i_max <= 20.0:
+            raise ValueError(f"PIFF: i_max must be in (0, 20] mA (the servo amplifier's range), got {self.i_max!r}")
+        if self.rate_hz <= 0:
+            raise ValueError(f"PIFF: rate_hz must be positive, got {self.rate_hz!r}")
+        if not (isinstance(self.output_bits, int) and 0 <= self.output_bits <= 24):
+            raise ValueError(f"PIFF: output_bits must be an integer 0..24 (0: no DAC quantization), got {self.output_bits!r}")
+
+    # -- constructors ---------------------------------------------------------
+    @classmethod
+    def book(cls) -> "PIFF":
+        """The reference model's baseline: Kp 1, Ki 2, Kv 1/56.25, Ka = Kv 2 zeta / wn."""
+        return cls(name="book")
+
+    @classmethod
+    def from_rig_controller(cls, rc, name: str = "PI+FF") -> "PIFF":
+        """Wrap an :class:`ehas_env.plant.RigController`."""
+        return cls(**{k: getattr(rc, k) for k in GAIN_NAMES}, rate_hz=rc.rate_hz, name=name)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "PIFF":
+        gains = data.get("gains", data)
+        if not isinstance(gains, dict):
+            raise ValueError("'gains' must be an object of gain name -> number")
+        unknown = set(gains) - set(GAIN_NAMES)
+        if unknown:
+            raise ValueError(f"unknown gain(s) {', '.join(sorted(unknown))}; expected some of {', '.join(GAIN_NAMES)}")
+        kw = {k: gains[k] for k in GAIN_NAMES if k in gains}
+        for key in ("i_max", "output_bits", "rate_hz", "name"):
+            if key in data:
+                kw[key] = data[key]
+        return cls(**kw)
+
+    def to_dict(self) -> dict:
+        return {"type": self.type_name, "kind": self.kind, "name": self.name, "variant": self.variant,
+                "gains": self.gains(), "units": dict(GAIN_UNITS), "i_max": self.i_max,
+                "output_bits": self.output_bits, "rate_hz": self.rate_hz}
+
+    # -- description ------------------------------------------------------------
+    def gains(self) -> dict[str, float]:
+        return {k: getattr(self, k) for k in GAIN_NAMES}
+
+    def with_gains(self, **gains) -> "PIFF":
+        """A copy with some gains replaced (state reset)."""
+        return replace(self, **gains)
+
+    @property
+    def variant(self) -> str:
+        """``PI+FF``, ``PI+FF+jerk``, with ``+dP static`` / ``+dP dynamic`` for pressure feedback."""
+        v = "PI+FF+jerk" if self.Kj != 0.0 else "PI+FF"
+        if self.Kdp != 0.0:
+            v += " +dP dynamic" if self.dp_hp > 0 else " +dP static"
+        return v
+
+    def __repr__(self) -> str:
+        shown = [k for k in GAIN_NAMES if k in ("Kp", "Ki", "Kv", "Ka") or getattr(self, k) != 0.0]
+        if self.Kdp == 0.0 and "dp_hp" in shown:
+            shown.remove("dp_hp")
+        text = ", ".join(f"{k}={getattr(self, k):.4g} {GAIN_UNITS[k]}" for k in shown)
+        extra = []
+        if self.output_bits:
+            extra.append(f"{self.output_bits}-bit output")
+        if self.i_max != 20.0:
+            extra.append(f"+-{self.i_max:g} mA")
+        return f"PIFF '{self.name}' [{self.variant}]: {text}" + (f" ({', '.join(extra)})" if extra else "")
+
+    # -- the compiled path ------------------------------------------------------
+    def rig_gains(self, disc_sets: int | None = None):
+        from ehas_env.plant import RigController
+
+        return RigController(**self.gains(), rate_hz=self.rate_hz)
+
+    @property
+    def dac_lsb(self) -> float:
+        """Output quantization step, mA (0: none)."""
+        return DAC_SPAN_MA / 2**self.output_bits if self.output_bits else 0.0
+
+    # -- the Python twin of kernel.run_rig_controller ---------------------------
+    def reset(self) -> None:
+        self._integ = 0.0
+        self._dp_lp = 0.0
+        self._checked = False
+
+    def act(self, measurement: dict) -> float:
+        """Current command, mA (same arithmetic as ``kernel.run_rig_controller``)."""
+        m = measurement
+        if not self._checked:
+            check_measurement(m, "PIFF")
+            self._checked = True
+        dt = 1.0 / self.rate_hz
+        e = m["theta_ref_deg"] - m["theta_deg"]
+        dp = m["p_a_bar"] - m["p_b_bar"]
+        if self.dp_hp > 0.0:
+            self._dp_lp += dt * self.dp_hp * (dp - self._dp_lp)
+            dp_fb = dp - self._dp_lp
+        else:
+            dp_fb = dp
+        u_ff = (self.Kv * m["theta_ref_dot"] + self.Ka * m["theta_ref_ddot"] + self.Kj * m["theta_ref_dddot"]
+                - self.Kdp * dp_fb)
+        u_max = self.i_max
+        u = self.Kp * e + self.Ki * (self._integ + e * dt) + u_ff
+        if (-u_max < u < u_max) or (u >= u_max and e < 0.0) or (u <= -u_max and e > 0.0):
+            self._integ += e * dt
+        u = self.Kp * e + self.Ki * self._integ + u_ff
+        u = min(max(u, -u_max), u_max)
+        lsb = self.dac_lsb
+        if lsb > 0.0:
+            u = lsb * math.floor(u / lsb + 0.5)
+        return u
+
+
+@register_type("schedule")
+class GainSchedule(Controller):
+    """PIFF gains scheduled on the number of disc sets (the load inertia).
+
+    ``entries`` maps disc sets (1..7) to a :class:`PIFF`; a plant between two
+    scheduled points gets gains interpolated linearly in the inertia (disc
+    sets), one outside them the nearest entry's.  ``act`` needs the plant known:
+    call :meth:`select` (or use :meth:`for_plant`, which returns the PIFF).
+
+    Examples
+    --------
+    >>> s = GainSchedule({1: PIFF(Kp=1.0), 3: PIFF(Kp=2.0)}, name="demo")
+    >>> s.for_plant(2).Kp, s.for_plant(7).Kp
+    (1.5, 2.0)
+    """
+
+    kind = "classical"
+
+    def __init__(self, entries: dict, name: str = "schedule", basis: str = ""):
+        if not entries:
+            raise ValueError("GainSchedule needs at least one entry disc_sets -> PIFF")
+        clean = {}
+        for key, ctrl in entries.items():
+            n = int(key)
+            if str(n) != str(key).strip() and n != key:
+                raise ValueError(f"GainSchedule: key {key!r} is not a number of disc sets")
+            if not 1 <= n <= 7:
+                raise ValueError(f"GainSchedule: disc sets {n} outside 1..7")
+            if not isinstance(ctrl, PIFF):
+                raise ValueError(f"GainSchedule: entry {n} must be a PIFF, got {type(ctrl).__name__}")
+            clean[n] = ctrl
+        self.entries = dict(sorted(clean.items()))
+        self.name = name
+        self.basis = basis
+        self._active: PIFF | None = None
+
+    @property
+    def variant(self) -> str:
+        return "schedule of " + ", ".join(sorted({c.variant for c in self.entries.values()}))
+
+    def for_plant(self, disc_sets: int) -> PIFF:
+        keys = list(self.entries)
+        n = float(disc_sets)
+        if n <= keys[0]:
+            base = self.entries[keys[0]]
+            return replace(base, name=f"{self.name}@{disc_sets}")
+        if n >= keys[-1]:
+            base = self.entries[keys[-1]]
+            return replace(base, name=f"{self.name}@{disc_sets}")
+        hi = next(k for k in keys if k >= n)
+        lo = max(k for k in keys if k <= n)
+        if hi == lo:
+            return replace(self.entries[lo], name=f"{self.name}@{disc_sets}")
+        w = (n - lo) / (hi - lo)
+        a, b = self.entries[lo], self.entries[hi]
+        gains = {k: (1 - w) * getattr(a, k) + w * getattr(b, k) for k in GAIN_NAMES}
+        return replace(a, **gains, name=f"{self.name}@{disc_sets}")
+
+    def select(self, disc_sets: int) -> "GainSchedule":
+        """Use the gains for ``disc_sets`` in :meth:`act` from now on."""
+        self._active = self.for_plant(disc_sets)
+        return self
+
+    def rig_gains(self, disc_sets: int | None = None):
+        if disc_sets is None:
+            if self._active is None:
+                raise ValueError(f"GainSchedule '{self.name}': which disc sets? pass disc_sets or call select() first")
+            return self._active.rig_gains()
+        return self.for_plant(disc_sets).rig_gains()
+
+    def reset(self) -> None:
+        if self._active is not None:
+            self._active.reset()
+
+    def act(self, measurement: dict) -> float:
+        if self._active is None:
+            raise ValueError(f"GainSchedule '{self.name}': no plant selected; call select(disc_sets) before act()")
+        return self._active.act(measurement)
+
+    def to_dict(self) -> dict:
+        return {"type": self.type_name, "kind": self.kind, "name": self.name, "variant": self.variant,
+                "basis": self.basis, "units": dict(GAIN_UNITS),
+                "entries": {str(n): {"gains": c.gains(), "variant": c.variant, "i_max": c.i_max,
+                                     "output_bits": c.output_bits, "rate_hz": c.rate_hz}
+                            for n, c in self.entries.items()}}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "GainSchedule":
+        entries = data.get("entries")
+        if not isinstance(entries, dict) or not entries:
+            raise ValueError("a schedule needs 'entries': {disc_sets: {gains: {...}}}")
+        name = data.get("name", "schedule")
+        return cls({k: PIFF.from_dict({**v, "name": f"{name}@{k}"}) for k, v in entries.items()}, name=name,
+                   basis=data.get("basis", ""))
+
+    def __repr__(self) -> str:
+        lines = [f"GainSchedule '{self.name}' over disc sets {list(self.entries)}" + (f" ({self.basis})" if self.basis else "")]
+        for n, c in self.entries.items():
+            lines.append(f"  {n} sets: " + repr(c).split(": ", 1)[1])
+        return "\n".join(lines)
+
+
+def gains_table(ctrl) -> list[tuple[str, float, str]]:
+    """(gain, value, unit) rows of a PIFF, for printing."""
+    return [(k, getattr(ctrl, k), GAIN_UNITS[k]) for k in GAIN_NAMES]
+
+
+def as_array(ctrl: PIFF) -> np.ndarray:
+    """The gains in ``kernel.run_rig_controller`` order."""
+    return np.array([getattr(ctrl, k) for k in GAIN_NAMES], dtype=float)

@@ -1,0 +1,297 @@
+"""A trained agent as a controller: load, act deterministically, evaluate.
+
+An agent folder (what ``ehas train`` writes) holds ``model.zip`` (the policy),
+``vecnormalize.pkl`` (observation statistics, when used) and ``config.json``
+(the resolved training configuration: environment, action hold and scale,
+residual base controller).  A bare stable-baselines3 ``.zip`` loads too (no
+normalisation, the default environment settings).
+
+Loading warns (:class:`PickleWarning`): stable-baselines3 zips and the
+normalisation statistics hold Python pickles, which can execute arbitrary code
+when loaded - load agents only from trusted sources.
+
+``ehas bench`` finds agents through the controller registry of
+``ehas_controllers.base``: importing this module registers agent folders and
+``.zip`` files.
+"""
+from __future__ import annotations
+
+import copy
+import io
+import json
+import pickle
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import envs as E
+from .config import algo_class, config_from_resolved, parse_config
+
+PICKLE_WARNING = ("agent files ({what}) are Python pickles, which can execute arbitrary code when loaded: "
+                  "load agents only from trusted sources")
+
+
+class PickleWarning(UserWarning):
+    """Loading an agent file unpickles it: trusted sources only."""
+
+
+class LearnedController:
+    """A trained stable-baselines3 policy behind the shared controller interface.
+
+    Build one with :func:`load_agent`.  :meth:`act` takes the measurement dict
+    the plant's closed loop passes to every controller and returns a current in
+    mA (deterministic policy); bulk evaluation goes through the environment
+    (``ehas_train.evaluate``).
+
+    Attributes
+    ----------
+    kind : str
+        ``"learned"`` (the benchmark's ``kind`` column).
+    name : str
+        Name of the agent (its folder's name).
+    variant : str
+        Algorithm and mode, e.g. ``SAC residual``.
+    cfg : TrainConfig
+        The configuration it was trained with.
+    """
+
+    kind = "learned"
+
+    def __init__(self, model, cfg, controller_desc=None, obs_stats=None, name: str = "agent", path: str | None = None):
+        self.model = model
+        self.cfg = cfg
+        self.controller_desc = controller_desc
+        self.obs_stats = obs_stats
+        self.name = name
+        self.path = path
+        self.disc_sets: int | None = None
+        self._observer = None
+
+    @classmethod
+    def load(cls, path, warn: bool = True) -> "LearnedController":
+        """See :func:`load_agent`."""
+        return load_agent(path, warn=warn)
+
+    def save(self, path) -> Path:
+        """Write the agent folder (``model.zip``, ``vecnormalize.pkl``, ``config.json``) to ``path``."""
+        from ehas_env.files import atomic_write_bytes, atomic_write_text
+
+        path = Path(path)
+        path.mkdir(parents=True, exist_ok=True)
+        buf = io.BytesIO()
+        self.model.save(buf)
+        atomic_write_bytes(path / "model.zip", buf.getvalue())
+        if self.obs_stats is not None:
+            atomic_write_bytes(path / "vecnormalize.pkl", pickle.dumps(self.obs_stats))
+        resolved = {**self.cfg.to_dict(), "controller_resolved": self.controller_desc}
+        atomic_write_text(path / "config.json", json.dumps(resolved, indent=2, default=str))
+        return path
+
+    @property
+    def variant(self) -> str:
+        return f"{self.cfg.algo.upper()}{' residual' if self.cfg.residual else ' direct'}"
+
+    def __repr__(self) -> str:
+        base = ""
+        if self.cfg.residual:
+            base = f" on {(self.controller_desc or {}).get('source', 'book')}"
+        return (f"LearnedController '{self.name}' [{self.variant}{base}]: action held {self.cfg.action_repeat} ms, "
+                f"+-{self.cfg.action_scale_mA:g} mA")
+
+    # -- acting ------------------------------------------------------------
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        """Observation(s) as the policy saw them in training (running-statistics normalisation)."""
+        obs = np.asarray(obs, dtype=np.float32)
+        if self.obs_stats is None:
+            return obs
+        return self.obs_stats.normalize_obs(obs)
+
+    def predict(self, obs: np.ndarray) -> np.ndarray:
+        """Deterministic action(s), in [-1, 1], for raw environment observation(s) of shape (n, n_obs)."""
+        action, _ = self.model.predict(self.normalize(obs), deterministic=True)
+        return action
+
+    def for_plant(self, disc_sets: int) -> "LearnedController":
+        """The agent for a plant of ``disc_sets`` sets (a residual's scheduled base picks its entry)."""
+        twin = copy.copy(self)
+        twin.disc_sets = int(disc_sets)
+        twin._observer = None
+        return twin
+
+    def reset(self) -> None:
+        """Start a new run: clears the observation history used by :meth:`act`."""
+        self._observer = MeasurementObserver(self)
+
+    def act(self, measurement: dict) -> float:
+        """Current in mA for one control period (the plant's closed-loop interface).
+
+        Rebuilds the environment's observation from the measurement dict
+        (:class:`MeasurementObserver`), holds each action for ``action_repeat``
+        periods and, for a residual agent, adds it to its base controller.
+        """
+        if self._observer is None:
+            self.reset()
+        return self._observer.act(measurement)
+
+    # -- evaluation ----------------------------------------------------------
+    def rollout_stats(self, episodes: int, seed: int = 10_000, **env_overrides) -> dict:
+        """Mean return and errors of ``episodes`` deterministic episodes in the training distribution."""
+        env = E.make_env(self.cfg, controller_desc=self.controller_desc, **env_overrides)
+        returns, rms, peak = [], [], []
+        for ep in range(episodes):
+            obs, _ = env.reset(seed=seed + ep)
+            ret, done, info = 0.0, False, {}
+            while not done:
+                obs, r, term, trunc, info = env.step(self.predict(obs[None, :])[0])
+                ret += float(r)
+                done = term or trunc
+            returns.append(ret)
+            if "rms_error_pct" in info:
+                rms.append(float(info["rms_error_pct"]))
+                peak.append(float(info.get("peak_error_pct", np.nan)))
+        env.close()
+        out = {"episodes": episodes, "mean_return": float(np.mean(returns)), "std_return": float(np.std(returns))}
+        if rms:
+            out["mean_rms_error_pct"] = float(np.mean(rms))
+            out["mean_peak_error_pct"] = float(np.nanmean(peak))
+        return out
+
+
+class MeasurementObserver:
+    """The agent in the plant's closed loop: measurement -> observation -> action -> current.
+
+    The observation and the current come from the environment's own
+    :class:`ehas_env.tracking_env.MeasurementObserver` (the one definition of the
+    observation), built for the agent's environment settings and, for a residual
+    agent, its base controller on this plant (a schedule's entry for
+    ``disc_sets``).  The amplitude that normalises the error is the
+    measurement's ``amplitude_deg`` when the loop provides it
+    (``Plant.simulate_closed_loop`` does), so that the warm-up cycle matches the
+    environment too.  This class holds each action for ``action_repeat``
+    periods and shapes it (``action_shape``), as the training did.
+    """
+
+    def __init__(self, agent: "LearnedController"):
+        cfg = agent.cfg
+        if not E.is_tracking_env(cfg.env_id):
+            raise ValueError(f"act(): the agent was trained on {cfg.env_id}, not {E.EHAS_ID}")
+        if cfg.residual and agent.disc_sets is None and _is_schedule(agent.controller_desc):
+            raise ValueError("act(): the agent's base controller is a gain schedule; call agent.for_plant(disc_sets) "
+                             "first (ehas bench does)")
+        self.agent = agent
+        self.repeat = cfg.action_repeat
+        self.scale = cfg.action_scale_mA / E.RATED_CURRENT_MA
+        self.inner = None
+        self.k = 0
+        self.a_held = 0.0
+
+    def _build(self, m: dict):
+        from ehas_env.tracking_env import MeasurementObserver as EnvObserver
+
+        agent, cfg = self.agent, self.agent.cfg
+        kw = {k: v for k, v in cfg.env_kwargs.items() if k not in ("randomise",)}
+        if "amplitude_deg" in m:
+            kw["amplitude_deg"] = float(m["amplitude_deg"])
+        if agent.disc_sets is not None:
+            kw["disc_sets"] = agent.disc_sets
+        if cfg.residual:
+            base = E.classical_controller(agent.controller_desc)
+            if hasattr(base, "for_plant"):
+                base = base.for_plant(agent.disc_sets if agent.disc_sets is not None else kw.get("disc_sets", 3))
+            rig = base.rig_gains()
+            kw["controller"] = rig if rig is not None else base
+        E.register_ehas()
+        import gymnasium as gym
+
+        return EnvObserver(gym.make(cfg.env_id, **kw))
+
+    def act(self, m: dict) -> float:
+        if self.inner is None:
+            self.inner = self._build(m)
+        obs = self.inner.observation(m)
+        if self.k % self.repeat == 0:
+            a = float(np.clip(self.agent.predict(obs[None, :])[0][0], -1.0, 1.0))
+            self.a_held = min(max(a * self.scale, -1.0), 1.0)
+        self.k += 1
+        a = self.a_held
+        if self.agent.cfg.action_shape != "constant":
+            a *= float(E.authority(self.agent.cfg.action_shape, m))
+        return float(self.inner.current(a, m))
+
+
+def _is_schedule(desc) -> bool:
+    return bool(desc and isinstance(desc.get("data"), dict) and "entries" in desc["data"])
+
+
+def load_agent(path, warn: bool = True) -> LearnedController:
+    """Load an agent folder (or a bare stable-baselines3 ``.zip``).
+
+    Parameters
+    ----------
+    path : path
+        Agent folder written by ``ehas train``, or a ``.zip``.
+    warn : bool
+        Emit the :class:`PickleWarning` (the trainer turns it off for the agent
+        it has just written itself).
+
+    Warns
+    -----
+    PickleWarning
+        Agent files are pickles that can execute code: trusted sources only.
+    """
+    path = Path(path)
+    if path.is_dir():
+        folder, model_path = path, path / "model.zip"
+    else:
+        folder, model_path = path.parent, path
+    if not model_path.is_file():
+        raise FileNotFoundError(f"no agent at {path}: expected a folder holding model.zip, or a .zip file")
+    cfg_path = folder / "config.json"
+    norm_path = folder / "vecnormalize.pkl"
+    in_folder = path.is_dir()
+    if warn:
+        what = ", ".join(p.name for p in (model_path, norm_path) if p.exists() and (in_folder or p == model_path))
+        warnings.warn(PICKLE_WARNING.format(what=what), PickleWarning, stacklevel=2)
+    if in_folder and cfg_path.exists():
+        saved = json.loads(cfg_path.read_text())
+        controller_desc = saved.pop("controller_resolved", None)
+        cfg = config_from_resolved(saved, source=str(cfg_path))
+    else:
+        controller_desc = None
+        cfg = parse_config({"train": {"algo": _algo_of_zip(model_path)}}, source=str(model_path))
+    model = algo_class(cfg.algo).load(model_path, device="cpu")
+    obs_stats = None
+    if in_folder and norm_path.exists():
+        with norm_path.open("rb") as fh:
+            obs_stats = pickle.load(fh)
+        obs_stats.training = False
+        obs_stats.norm_reward = False
+    return LearnedController(model, cfg, controller_desc, obs_stats, name=folder.name if in_folder else path.stem,
+                             path=str(path))
+
+
+def _algo_of_zip(path: Path) -> str:
+    """Algorithm of a bare stable-baselines3 zip (from its stored policy class)."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as z:
+        data = z.read("data").decode("utf-8", errors="replace")
+    for algo, marker in (("sac", "stable_baselines3.sac"), ("td3", "stable_baselines3.td3"),
+                         ("ppo", "ActorCriticPolicy")):
+        if marker in data:
+            return algo
+    raise ValueError(f"{path}: cannot tell which algorithm saved this zip; load its agent folder instead")
+
+
+def _register() -> None:
+    """Let ``ehas_controllers.base.load_controller`` (``ehas bench``) load agent folders and zips."""
+    try:
+        from ehas_controllers import base
+    except ImportError:  # pragma: no cover - the controllers package is part of the project
+        return
+    base.register_loader(".zip", load_agent)
+    base.register_loader("/", load_agent)
+
+
+_register()

@@ -1,0 +1,445 @@
+"""Training configurations: TOML files read with :mod:`tomllib` and validated.
+
+A configuration says *what* is trained (algorithm, direct or residual control,
+environment and its domain randomisation) and *how* (batched environments,
+seeds, steps, checkpoints, observation normalisation, the algorithm's
+hyper-parameters).  Every key is checked: an unknown or ill-typed key is an
+error that names the file, the section and the key.
+
+File layout (every section but ``[train]`` optional)::
+
+    [train]
+    algo = "sac"                # ppo | sac | td3
+    total_steps = 200_000       # environment steps over all batched envs
+    n_envs = 8                  # batched environments
+    seed = 0
+    checkpoint_every = 20_000   # environment steps between checkpoints
+    vecnormalize = true         # running mean/std normalisation of observations
+    norm_reward = false
+    eval_episodes = 7           # deterministic episodes for metrics.json
+
+    [algo]                      # keyword arguments of the stable-baselines3 class
+    learning_rate = 3e-4
+    [algo.policy_kwargs]
+    net_arch = [64, 64]
+    activation_fn = "tanh"      # relu | tanh | elu | leaky_relu
+
+    [env]
+    id = "ehas/Tracking-v0"     # any registered gymnasium id (Pendulum-v1 works)
+    residual = false            # residual RL on top of a classical controller
+    controller = "tuned"        # the residual's base: tuned | book | path/to/controller.json
+    [env.kwargs]                # keyword arguments of the environment
+    cycles = 3
+
+    [randomise]                 # domain randomisation, drawn at every reset
+    disc_sets = [1, 2, 3, 4, 5, 6, 7]
+    amplitude_deg = [10.0, 30.0]    # [low, high] (uniform) or a list of >= 3 values
+    freq_hz = [1.0, 3.0]
+    [randomise.effects]         # optional: effect -> {param = [low, high]}
+    coulomb_friction = { Fc = [0.0, 300.0] }
+
+Examples
+--------
+>>> cfg = load_config(bundled_config("ppo_smoke"))
+>>> cfg.algo, cfg.n_envs > 0
+('ppo', True)
+>>> parse_config({"train": {"algo": "dqn"}}, source="x.toml")
+Traceback (most recent call last):
+...
+ValueError: x.toml: [train] algo must be one of 'ppo', 'sac', 'td3', got 'dqn'
+"""
+from __future__ import annotations
+
+import copy
+import inspect
+import math
+import tomllib
+from dataclasses import asdict, dataclass, field
+from importlib import resources
+from pathlib import Path
+
+ALGOS = ("ppo", "sac", "td3")
+ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
+ACTION_SHAPES = ("constant", "velocity", "power")
+RESIDUAL_BASES = ("tuned", "book")
+# randomised quantities and the bounds each value must respect
+RANDOMISE_KEYS = {
+    "disc_sets": (1, 7),  # sets of discs (book: 1..7)
+    "amplitude_deg": (1e-6, 44.43),  # deg, inside the stroke ends
+    "freq_hz": (1e-6, 50.0),  # Hz (assumed bound: far beyond the valve's band)
+    "cycles": (1e-6, 1e6),  # reference periods per episode
+    "theta0_deg": (-40.0, 40.0),  # initial crank angle, deg
+}
+
+_TRAIN_DEFAULTS = {
+    "algo": None,
+    "total_steps": 100_000,
+    "n_envs": 4,
+    "seed": 0,
+    "checkpoint_every": 10_000,
+    "vecnormalize": True,
+    "norm_reward": False,
+    "clip_obs": 10.0,
+    "eval_episodes": 5,
+    "torch_threads": 1,
+    "vec_env": "dummy",
+    "log_interval_s": 30.0,
+    "validate_every": 0,
+    "validate_conditions": 16,
+}
+
+
+@dataclass
+class TrainConfig:
+    """A validated training configuration (see the module docstring for the file format).
+
+    Attributes
+    ----------
+    algo : str
+        ``ppo``, ``sac`` or ``td3``.
+    total_steps : int
+        Environment steps to train, summed over the batched environments.
+    n_envs : int
+        Environments stepped as one batch.
+    seed : int
+        Seed of the algorithm, the environments and the randomisation.
+    checkpoint_every : int
+        Environment steps between checkpoints (model, normalisation statistics,
+        replay buffer for off-policy algorithms, step count).
+    vecnormalize : bool
+        Normalise observations with running statistics (``VecNormalize``).
+    norm_reward : bool
+        Also normalise rewards (``VecNormalize``).
+    clip_obs : float
+        Clip of the normalised observations.
+    eval_episodes : int
+        Deterministic episodes evaluated at the end for ``metrics.json``.
+    torch_threads : int
+        ``torch.set_num_threads``: the machine has 2 cores; 1 keeps the second free
+        for the environments.
+    vec_env : str
+        ``dummy`` (all environments in this process: the plant steps in ~10 us,
+        far below the learner's cost) or ``subproc``.
+    log_interval_s : float
+        Seconds between progress lines in the log.
+    validate_every : int
+        Agent steps between validations (0: none): the deterministic policy runs
+        ``validate_conditions`` conditions drawn once (seeded) from the
+        ``[randomise]`` ranges - not the benchmark's grid - and the model with the
+        lowest mean rms % error is kept as the result (off-policy training is
+        not monotonic; this is early stopping on held-out conditions).
+    validate_conditions : int
+        Size of that validation set.
+    hyper : dict
+        Keyword arguments of the stable-baselines3 algorithm class.
+    env_id : str
+        Registered gymnasium id.
+    residual : bool
+        Residual control: the action is added to a classical controller's current.
+    controller : str
+        Base controller of residual control: ``tuned``, ``book`` or a JSON path.
+    action_repeat : int
+        Control periods (1 ms) each action is held for: the policy decides at
+        1 kHz / action_repeat while the plant (and the residual's base
+        controller) still runs at 1 kHz.
+    action_penalty : float
+        Reward charged per agent step times the squared action (agent units).
+    action_shape : str
+        Authority of a full action over time (``ehas_train.envs.authority``):
+        ``constant`` (``action_scale_mA`` always), ``velocity`` (scaled by the
+        reference rate) or ``power`` (by the reference rate and the load
+        pressure): a residual that fades where the classical loop is already
+        good, so that the policy's imprecision cannot disturb it there.
+    reward : str
+        ``env`` (the environment's ``-(e/A)^2`` per period) or ``abs``
+        (``-|e|/A``, closer to the benchmark's mean of rms errors; see
+        ``ehas_train.envs.AgentInterface``).
+    action_scale_mA : float
+        Current of a full action (+-1), mA: 20 mA for direct control; a residual
+        needs only a few mA and explores more gently with less.
+    reward_scale : float
+        Factor on the environment's reward (its -(e/A)^2 is ~1e-4 per step at
+        1 % error: too small for the entropy/critic scales of SAC and TD3).
+    env_kwargs : dict
+        Keyword arguments of the environment.
+    randomise : dict
+        Domain randomisation (``disc_sets``, ``amplitude_deg``, ``freq_hz``, ``effects``).
+    source : str
+        Where the configuration came from.
+    """
+
+    algo: str
+    total_steps: int = 100_000
+    n_envs: int = 4
+    seed: int = 0
+    checkpoint_every: int = 10_000
+    vecnormalize: bool = True
+    norm_reward: bool = False
+    clip_obs: float = 10.0
+    eval_episodes: int = 5
+    torch_threads: int = 1
+    vec_env: str = "dummy"
+    log_interval_s: float = 30.0
+    validate_every: int = 0
+    validate_conditions: int = 16
+    hyper: dict = field(default_factory=dict)
+    env_id: str = "ehas/Tracking-v0"
+    residual: bool = False
+    controller: str = "tuned"
+    action_repeat: int = 1
+    action_scale_mA: float = 20.0
+    reward_scale: float = 1.0
+    action_penalty: float = 0.0
+    action_shape: str = "constant"
+    reward: str = "env"
+    env_kwargs: dict = field(default_factory=dict)
+    randomise: dict = field(default_factory=dict)
+    source: str = "<dict>"
+
+    def to_dict(self) -> dict:
+        """Plain, JSON-serialisable form (the resolved config written beside the model)."""
+        return copy.deepcopy(asdict(self))
+
+    def to_file_dict(self) -> dict:
+        """The same structure as the TOML file, for :func:`parse_config`."""
+        d = self.to_dict()
+        train = {k: d[k] for k in _TRAIN_DEFAULTS}
+        env = {"id": d["env_id"], "residual": d["residual"], "controller": d["controller"],
+               "action_repeat": d["action_repeat"], "action_scale_mA": d["action_scale_mA"],
+               "reward_scale": d["reward_scale"], "action_penalty": d["action_penalty"],
+               "action_shape": d["action_shape"], "reward": d["reward"], "kwargs": d["env_kwargs"]}
+        return {"train": train, "algo": d["hyper"], "env": env, "randomise": d["randomise"]}
+
+    def replace(self, **changes) -> "TrainConfig":
+        """A re-validated copy with ``changes`` applied to [train] keys."""
+        raw = self.to_file_dict()
+        for k, v in changes.items():
+            if k not in _TRAIN_DEFAULTS:
+                raise ValueError(f"replace: unknown [train] key {k!r}")
+            raw["train"][k] = v
+        return parse_config(raw, source=self.source)
+
+
+def config_from_resolved(d: dict, source: str = "<resolved>") -> TrainConfig:
+    """Rebuild a :class:`TrainConfig` from its :meth:`TrainConfig.to_dict` form (an agent's config.json)."""
+    fields_ = {k: v for k, v in d.items() if k in TrainConfig.__dataclass_fields__ and k != "source"}
+    return parse_config(TrainConfig(**fields_).to_file_dict(), source=source)
+
+
+def bundled_config(name: str) -> Path:
+    """Path of a configuration shipped in ``ehas_train/configs`` (``ppo``, ``sac_smoke`` ...).
+
+    Examples
+    --------
+    >>> bundled_config("sac").name
+    'sac.toml'
+    """
+    base = resources.files("ehas_train") / "configs"
+    path = Path(str(base / f"{name}.toml"))
+    if not path.exists():
+        names = sorted(p.stem for p in Path(str(base)).glob("*.toml"))
+        raise FileNotFoundError(f"no bundled config {name!r}; bundled: {', '.join(names)}")
+    return path
+
+
+def load_config(path) -> TrainConfig:
+    """Read and validate a TOML configuration file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"config file {path} does not exist")
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    return parse_config(raw, source=str(path))
+
+
+def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
+    """Validate the parsed TOML ``raw`` and build a :class:`TrainConfig`."""
+    if not isinstance(raw, dict):
+        raise ValueError(f"{source}: expected a table of sections, got {type(raw).__name__}")
+    _no_unknown(raw, ("train", "algo", "env", "randomise"), source, "top level (sections)")
+    train = _table(raw, "train", source, required=True)
+    _no_unknown(train, tuple(_TRAIN_DEFAULTS), source, "[train]")
+    t = {**_TRAIN_DEFAULTS, **train}
+    where = f"{source}: [train]"
+    if t["algo"] not in ALGOS:
+        raise ValueError(f"{where} algo must be one of {', '.join(repr(a) for a in ALGOS)}, got {t['algo']!r}")
+    for key in ("total_steps", "n_envs", "checkpoint_every", "eval_episodes", "torch_threads", "validate_every",
+                "validate_conditions"):
+        _int(t[key], f"{where} {key}", minimum=0 if key in ("eval_episodes", "validate_every") else 1)
+    _int(t["seed"], f"{where} seed", minimum=0)
+    for key in ("vecnormalize", "norm_reward"):
+        if not isinstance(t[key], bool):
+            raise ValueError(f"{where} {key} must be true or false, got {t[key]!r}")
+    for key in ("clip_obs", "log_interval_s"):
+        _positive(t[key], f"{where} {key}")
+    if t["vec_env"] not in ("dummy", "subproc"):
+        raise ValueError(f"{where} vec_env must be 'dummy' or 'subproc', got {t['vec_env']!r}")
+
+    hyper = copy.deepcopy(_table(raw, "algo", source))
+    _check_hyper(t["algo"], hyper, source)
+
+    env = _table(raw, "env", source)
+    _no_unknown(env, ("id", "residual", "controller", "action_repeat", "action_scale_mA", "reward_scale",
+                      "action_penalty", "action_shape", "reward", "kwargs"),
+                source, "[env]")
+    env_id = env.get("id", "ehas/Tracking-v0")
+    if not isinstance(env_id, str) or not env_id:
+        raise ValueError(f"{source}: [env] id must be a gymnasium id string, got {env_id!r}")
+    residual = env.get("residual", False)
+    if not isinstance(residual, bool):
+        raise ValueError(f"{source}: [env] residual must be true or false, got {residual!r}")
+    controller = env.get("controller", "tuned")
+    if not isinstance(controller, str) or not controller:
+        raise ValueError(f"{source}: [env] controller must be 'tuned', 'book' or a path to a controller JSON, "
+                         f"got {controller!r}")
+    action_repeat = _int(env.get("action_repeat", 1), f"{source}: [env] action_repeat", minimum=1)
+    action_scale = _positive(env.get("action_scale_mA", 20.0), f"{source}: [env] action_scale_mA")
+    if action_scale > 20.0:
+        raise ValueError(f"{source}: [env] action_scale_mA must be <= 20 mA (the servo amplifier's limit), "
+                         f"got {action_scale!r}")
+    reward_scale = _positive(env.get("reward_scale", 1.0), f"{source}: [env] reward_scale")
+    action_penalty = env.get("action_penalty", 0.0)
+    if isinstance(action_penalty, bool) or not isinstance(action_penalty, (int, float)) or not action_penalty >= 0:
+        raise ValueError(f"{source}: [env] action_penalty must be a number >= 0, got {action_penalty!r}")
+    action_shape = env.get("action_shape", "constant")
+    if action_shape not in ACTION_SHAPES:
+        raise ValueError(f"{source}: [env] action_shape must be one of {', '.join(repr(a) for a in ACTION_SHAPES)}, "
+                         f"got {action_shape!r}")
+    reward = env.get("reward", "env")
+    if reward not in ("env", "abs"):
+        raise ValueError(f"{source}: [env] reward must be 'env' or 'abs', got {reward!r}")
+    env_kwargs = copy.deepcopy(_table(env, "kwargs", f"{source}: [env]"))
+    if "controller" in env_kwargs:
+        raise ValueError(f"{source}: [env.kwargs] controller: set the residual's base with [env] controller instead")
+
+    randomise = copy.deepcopy(_table(raw, "randomise", source))
+    _check_randomise(randomise, source)
+    return TrainConfig(
+        algo=t["algo"], total_steps=t["total_steps"], n_envs=t["n_envs"], seed=t["seed"],
+        checkpoint_every=t["checkpoint_every"], vecnormalize=t["vecnormalize"], norm_reward=t["norm_reward"],
+        clip_obs=float(t["clip_obs"]), eval_episodes=t["eval_episodes"], torch_threads=t["torch_threads"],
+        vec_env=t["vec_env"], log_interval_s=float(t["log_interval_s"]), validate_every=t["validate_every"],
+        validate_conditions=t["validate_conditions"], hyper=hyper, env_id=env_id,
+        residual=residual, controller=controller, action_repeat=action_repeat, action_scale_mA=action_scale,
+        reward_scale=reward_scale, action_penalty=float(action_penalty), action_shape=action_shape,
+        reward=reward, env_kwargs=env_kwargs, randomise=randomise, source=source,
+    )
+
+
+# -- checks -----------------------------------------------------------------
+def _table(raw: dict, key: str, source: str, required: bool = False) -> dict:
+    if key not in raw:
+        if required:
+            raise ValueError(f"{source}: missing section [{key}]")
+        return {}
+    value = raw[key]
+    if not isinstance(value, dict):
+        raise ValueError(f"{source}: [{key}] must be a table, got {type(value).__name__}")
+    return value
+
+
+def _no_unknown(table: dict, allowed, source: str, where: str) -> None:
+    for key in table:
+        if key not in allowed:
+            raise ValueError(f"{source}: {where} unknown key {key!r}; allowed: {', '.join(allowed)}")
+
+
+def _int(value, where: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ValueError(f"{where} must be an integer >= {minimum}, got {value!r}")
+    return value
+
+
+def _positive(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{where} must be a positive number, got {value!r}")
+    return float(value)
+
+
+def algo_class(algo: str):
+    """The stable-baselines3 class of ``algo``."""
+    import stable_baselines3 as sb3
+
+    return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
+
+
+# constructor arguments the trainer sets itself
+_RESERVED = ("policy", "env", "seed", "tensorboard_log", "verbose", "device", "_init_setup_model", "action_noise")
+
+
+def _check_hyper(algo: str, hyper: dict, source: str) -> None:
+    cls = algo_class(algo)
+    params = inspect.signature(cls.__init__).parameters
+    allowed = [p for p in params if p not in ("self",) + _RESERVED] + ["action_noise_std"]
+    for key, value in hyper.items():
+        if key in _RESERVED:
+            raise ValueError(f"{source}: [algo] {key} is set by the trainer, remove it")
+        if key not in allowed:
+            raise ValueError(f"{source}: [algo] unknown hyper-parameter {key!r} for {cls.__name__}; "
+                             f"allowed: {', '.join(sorted(allowed))}")
+    if "action_noise_std" in hyper:
+        if algo == "ppo":
+            raise ValueError(f"{source}: [algo] action_noise_std applies to sac/td3, not ppo")
+        _positive(hyper["action_noise_std"], f"{source}: [algo] action_noise_std")
+    pk = hyper.get("policy_kwargs", {})
+    if not isinstance(pk, dict):
+        raise ValueError(f"{source}: [algo.policy_kwargs] must be a table, got {pk!r}")
+    if "activation_fn" in pk and pk["activation_fn"] not in ACTIVATIONS:
+        raise ValueError(f"{source}: [algo.policy_kwargs] activation_fn must be one of {', '.join(ACTIVATIONS)}, "
+                         f"got {pk['activation_fn']!r}")
+    if "net_arch" in pk:
+        na = pk["net_arch"]
+        ok = isinstance(na, list) and all(isinstance(n, int) and n > 0 for n in na)
+        ok = ok or (isinstance(na, dict) and all(isinstance(v, list) and all(isinstance(n, int) and n > 0 for n in v)
+                                                 for v in na.values()))
+        if not ok:
+            raise ValueError(f"{source}: [algo.policy_kwargs] net_arch must be a list of positive layer sizes "
+                             f"(or a table of such lists), got {na!r}")
+    for key in ("learning_rate", "gamma", "tau"):
+        if key in hyper:
+            _positive(hyper[key], f"{source}: [algo] {key}")
+
+
+def _check_randomise(rnd: dict, source: str) -> None:
+    _no_unknown(rnd, tuple(RANDOMISE_KEYS) + ("effects",), source, "[randomise]")
+    for key, (lo, hi) in RANDOMISE_KEYS.items():
+        if key not in rnd:
+            continue
+        values = rnd[key]
+        where = f"{source}: [randomise] {key}"
+        if not (isinstance(values, list) and len(values) == 2):
+            raise ValueError(f"{where} must be a [low, high] range (drawn uniformly at each reset), got {values!r}")
+        for v in values:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi:
+                raise ValueError(f"{where} values must be numbers in [{lo:g}, {hi:g}], got {v!r}")
+        if key == "disc_sets" and not all(isinstance(v, int) for v in values):
+            raise ValueError(f"{where} must be integers [low, high] (inclusive), got {values!r}")
+        if values[0] > values[1]:
+            raise ValueError(f"{where} range [low, high] has low > high: {values!r}")
+    effects = rnd.get("effects", {})
+    if not isinstance(effects, dict):
+        raise ValueError(f"{source}: [randomise.effects] must be a table effect -> \"typical\" or {{param = [low, high]}}")
+    if effects:
+        from ehas_env.effects import REGISTRY
+
+        for name, params in effects.items():
+            where = f"{source}: [randomise.effects] {name}"
+            if name not in REGISTRY:
+                raise ValueError(f"{where}: unknown effect; known: {', '.join(sorted(REGISTRY))}")
+            if params == "typical":
+                continue
+            if not isinstance(params, dict):
+                raise ValueError(f"{where} must be \"typical\" or a table param -> [low, high]")
+            for pname, rng in params.items():
+                try:
+                    par = REGISTRY[name].param(pname)
+                except (KeyError, ValueError):
+                    raise ValueError(f"{where}: unknown parameter {pname!r}; known: "
+                                     f"{', '.join(p.name for p in REGISTRY[name].params)}") from None
+                values = rng if isinstance(rng, list) else [rng]
+                if isinstance(rng, list) and not (len(rng) == 2 and rng[0] <= rng[1]):
+                    raise ValueError(f"{where}.{pname} must be a [low, high] range in {par.unit} or one value, got {rng!r}")
+                for v in values:
+                    par.check(name, v)

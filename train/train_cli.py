@@ -1,0 +1,110 @@
+"""``ehas train``: train a learned controller with stable-baselines3.
+
+Examples::
+
+    ehas train --algo sac --residual --config train/configs/residual_sac.toml --out runs/residual_sac
+    ehas train --algo ppo --out runs/ppo --total-steps 20000          # bundled train/configs/ppo.toml
+    ehas train --algo ppo --out runs/ppo --resume --total-steps 40000 # continue to 40k steps
+"""
+from __future__ import annotations
+
+import argparse
+
+ALGOS = ("ppo", "sac", "td3")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--algo", required=True, choices=ALGOS, help="algorithm")
+    parser.add_argument("--residual", action="store_true",
+                        help="residual RL: the action is added to the tuned classical controller's current")
+    parser.add_argument("--config", metavar="FILE",
+                        help="TOML config (default: the bundled ALGO.toml, or residual_ALGO.toml with --residual)")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output folder (model, statistics, metrics)")
+    parser.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
+    parser.add_argument("--total-steps", type=int, metavar="N", help="override [train] total_steps")
+    parser.add_argument("--seed", type=int, metavar="S", help="override [train] seed")
+    parser.add_argument("--n-envs", type=int, metavar="N", help="override [train] n_envs")
+    parser.add_argument("--max-minutes", type=float, metavar="M",
+                        help="wall-clock budget: stop (and save) after M minutes even before --total-steps")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs")
+    parser.add_argument("--drop-checkpoints", action="store_true",
+                        help="remove DIR/checkpoints once training completes (keeps the output small)")
+
+
+def resolve_config(args):
+    """The configuration the arguments ask for (bundled default, overrides applied)."""
+    from .config import bundled_config, load_config
+
+    if args.config:
+        cfg = load_config(args.config)
+    else:
+        name = f"residual_{args.algo}" if args.residual else args.algo
+        cfg = load_config(bundled_config(name))
+    if cfg.algo != args.algo:
+        raise ValueError(f"--config {cfg.source} trains {cfg.algo!r} but --algo is {args.algo!r}; "
+                         "pass a config for that algorithm")
+    changes = {}
+    if args.total_steps is not None:
+        changes["total_steps"] = args.total_steps
+    if args.seed is not None:
+        changes["seed"] = args.seed
+    if args.n_envs is not None:
+        changes["n_envs"] = args.n_envs
+    if changes:
+        cfg = cfg.replace(**changes)
+    if args.residual and not cfg.residual:
+        from .config import parse_config
+
+        raw = cfg.to_file_dict()
+        raw["env"]["residual"] = True
+        cfg = parse_config(raw, source=cfg.source)
+    return cfg
+
+
+def _command(args) -> str:
+    """The ``ehas train`` command line that reproduces this run (without --resume)."""
+    import shlex
+
+    parts = ["ehas", "train", "--algo", args.algo]
+    if args.residual:
+        parts.append("--residual")
+    if args.config:
+        parts += ["--config", args.config]
+    parts += ["--out", args.out]
+    for flag, value in (("--total-steps", args.total_steps), ("--seed", args.seed), ("--n-envs", args.n_envs),
+                        ("--max-minutes", args.max_minutes)):
+        if value is not None:
+            parts += [flag, str(value)]
+    for flag in ("no_tensorboard", "drop_checkpoints"):
+        if getattr(args, flag):
+            parts.append("--" + flag.replace("_", "-"))
+    return " ".join(shlex.quote(p) for p in parts)
+
+
+def run(args) -> int:
+    import logging
+    import sys
+
+    from .trainer import TrainingInterrupted, train
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
+    cfg = resolve_config(args)
+    try:
+        metrics = train(cfg, args.out, resume=args.resume, progress=not args.no_progress,
+                        tensorboard=not args.no_tensorboard, keep_checkpoints=not args.drop_checkpoints,
+                        command=_command(args), max_minutes=args.max_minutes)
+    except TrainingInterrupted as exc:
+        print(f"ehas train: {exc}", file=sys.stderr)
+        return 130
+    ev = metrics.get("final_evaluation", {})
+    line = (f"trained {cfg.algo}{' residual' if cfg.residual else ''}: {metrics['num_timesteps']} steps in "
+            f"{metrics['train_time_s']:.0f} s -> {args.out}")
+    if metrics.get("stopped_by_time_limit"):
+        line += f" (stopped by --max-minutes {args.max_minutes:g} before {cfg.total_steps} steps)"
+    if "mean_rms_error_pct" in ev:
+        line += f"; deterministic evaluation: mean rms error {ev['mean_rms_error_pct']:.3f} %"
+    elif "mean_return" in ev:
+        line += f"; deterministic evaluation: mean return {ev['mean_return']:.4g}"
+    print(line)
+    return 0
