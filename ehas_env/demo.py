@@ -19,7 +19,7 @@ from pathlib import Path
 # project; each function takes the output folder and returns markdown.
 SECTIONS = (
     ("Tuned classical controller on the book's rig conditions", "ehas_controllers.benchmark", "demo_section"),
-    ("Model vs measurement: diagnosing a campaign with a hidden effect", "ehas_env.diagnosis", "demo_section"),
+    ("Model vs measurement: diagnosing a campaign with a hidden effect", "ehas_env.diagnose_cli", "demo_section"),
 )
 
 
@@ -83,7 +83,9 @@ def run(args) -> int:
     for title, section in plan:
         t0 = time.perf_counter()
         print(f"[demo] {title} ...", flush=True)
-        body = section(out)
+        body = section(out).strip()
+        if body.startswith("#"):  # the section's own title: ours stands above it
+            body = body.split("\n", 1)[1] if "\n" in body else ""
         parts += [f"## {title}", "", body.strip(), "", f"_({time.perf_counter() - t0:.1f} s)_", ""]
         atomic_write_text(out / "README.md", "\n".join(parts))
     print(f"[demo] wrote {out / 'README.md'}")
