@@ -87,10 +87,8 @@ def _closed_loop(s, P, gains, ref, kind, dt, nsub, n, hist, noise, sensor, k0, k
     k4v = np.empty_like(s)
     tmp = np.empty_like(s)
     out = np.zeros(K.N_OUT)
-    kp, ki, kv, ka, kj, kdp, whp = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6]
     adc, dac, gain_err, u_max = sensor[0], sensor[1], sensor[2], sensor[3]
-    integ = 0.0
-    dp_lp = 0.0
+    mem = np.zeros(2)
     hist[:] = 0.0
     se2 = 0.0
     emax = 0.0
@@ -110,20 +108,8 @@ def _closed_loop(s, P, gains, ref, kind, dt, nsub, n, hist, noise, sensor, k0, k
         th_true = math.degrees(out[K.O_THETA])
         th = th_true * (1.0 + gain_err) + noise[k]
         th = K.quantize(th, adc)
-        e = r - th
         dp = (s[4] - s[5]) * 1e-5
-        if whp > 0.0:
-            dp_lp += dt * whp * (dp - dp_lp)
-            dp_fb = dp - dp_lp
-        else:
-            dp_fb = dp
-        u_ff = kv * rd + ka * rdd + kj * rddd - kdp * dp_fb
-        u = kp * e + ki * (integ + e * dt) + u_ff
-        if (u < u_max and u > -u_max) or (u >= u_max and e < 0.0) or (u <= -u_max and e > 0.0):
-            integ += e * dt
-        u = kp * e + ki * integ + u_ff
-        u = min(max(u, -u_max), u_max)
-        u = K.quantize(u, dac)
+        u = K.quantize(K.rig_control_law(gains, r - th, rd, rdd, rddd, dp, dt, u_max, mem), dac)
         # metrics: tracking on the true (LVDT) angle as ehas_env.metrics does
         if k >= k0 and k < k1:
             et = r - th_true

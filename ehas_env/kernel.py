@@ -463,6 +463,30 @@ def quantize(x, lsb):
     return lsb * math.floor(x / lsb + 0.5)
 
 
+@njit(cache=True, inline="always")
+def rig_control_law(gains, e, rd, rdd, rddd, dp, dt, u_max, mem):
+    """The rig controller's output for the error e (deg), mA, clipped to +-u_max.
+
+    gains as in :func:`run_rig_controller`; rd, rdd, rddd: the reference's
+    derivatives; dp: load pressure, bar; mem = [integral of e, low-passed dp],
+    updated in place.  The integral stops while the output is clamped and the
+    error would drive it further (anti-windup).
+    """
+    kp, ki, kv, ka, kj, kdp, whp = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6]
+    if whp > 0.0:
+        # first-order high-pass: feed back only the pressure's changes
+        mem[1] += dt * whp * (dp - mem[1])
+        dp_fb = dp - mem[1]
+    else:
+        dp_fb = dp
+    u_ff = kv * rd + ka * rdd + kj * rddd - kdp * dp_fb
+    u = kp * e + ki * (mem[0] + e * dt) + u_ff
+    if (u < u_max and u > -u_max) or (u >= u_max and e < 0.0) or (u <= -u_max and e > 0.0):
+        mem[0] += e * dt
+    u = kp * e + ki * mem[0] + u_ff
+    return min(max(u, -u_max), u_max)
+
+
 @njit(cache=True)
 def run_rig_controller(s, P, gains, ref, dt, nsub, hist, theta_noise, sensor, out):
     """Closed loop with the rig's PI + velocity/acceleration feed-forward controller.
@@ -482,10 +506,8 @@ def run_rig_controller(s, P, gains, ref, dt, nsub, hist, theta_noise, sensor, ou
     k4 = np.empty_like(s)
     tmp = np.empty_like(s)
     n = out.shape[0]
-    kp, ki, kv, ka, kj, kdp, whp = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6]
     adc, dac, gain_err, u_max = sensor[0], sensor[1], sensor[2], sensor[3]
-    integ = 0.0
-    dp_lp = 0.0
+    mem = np.zeros(2)
     hist[:] = 0.0
     for k in range(n):
         measure(s, P, out[k])
@@ -493,20 +515,7 @@ def run_rig_controller(s, P, gains, ref, dt, nsub, hist, theta_noise, sensor, ou
         th = math.degrees(out[k, O_THETA]) * (1.0 + gain_err) + theta_noise[k]
         th = quantize(th, adc)
         out[k, O_SENSED] = th
-        e = r - th
-        dp = (s[4] - s[5]) * 1e-5
-        if whp > 0.0:
-            # first-order high-pass: feed back only the pressure's changes
-            dp_lp += dt * whp * (dp - dp_lp)
-            dp_fb = dp - dp_lp
-        else:
-            dp_fb = dp
-        u_ff = kv * rd + ka * rdd + kj * rddd - kdp * dp_fb
-        u = kp * e + ki * (integ + e * dt) + u_ff
-        if (u < u_max and u > -u_max) or (u >= u_max and e < 0.0) or (u <= -u_max and e > 0.0):
-            integ += e * dt
-        u = kp * e + ki * integ + u_ff
-        u = min(max(u, -u_max), u_max)
+        u = rig_control_law(gains, r - th, rd, rdd, rddd, (s[4] - s[5]) * 1e-5, dt, u_max, mem)
         u = quantize(u, dac)
         out[k, O_CURRENT] = u
         hist[k % hist.shape[0]] = u
