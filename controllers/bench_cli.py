@@ -3,6 +3,11 @@
     ehas bench                                   # the book's gains + each tuner's result
     ehas bench results/controllers/*.json        # these controllers
     ehas bench ctrl.json --model my_rig.json     # on a calibrated model's plant
+    ehas bench ctrl.json --executor ray --address auto   # simulations on a Ray cluster
+
+The executor options (``--executor``, ``--workers``, ``--address``) change where
+the simulations run, not their results, so the regenerating command written into
+the files leaves them out.
 
 Controller files are loaded by type (``ehas_controllers.base.load_controller``):
 controller JSONs (``ehas tune``) today; learned agents register their loader.
@@ -34,6 +39,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-book", action="store_true", help="leave the book's baseline gains out")
     parser.add_argument("--retune", action="store_true", help="with no files: re-run the tuners even if their files exist")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    from ehas_env.executors import add_executor_arguments
+
+    add_executor_arguments(parser)
 
 
 def default_controllers(out: Path, retune: bool, progress: bool) -> list:
@@ -56,6 +64,8 @@ def default_controllers(out: Path, retune: bool, progress: bool) -> list:
 
 
 def run(args) -> int:
+    from ehas_env.executors import executor_from_args
+
     from .base import load_controller
     from .benchmark import run_benchmark
     from .piff import PIFF
@@ -84,7 +94,8 @@ def run(args) -> int:
             parts.append("--" + flag.replace("_", "-"))
     command = " ".join(shlex.quote(p) for p in parts)
     res = run_benchmark(controllers, out, cycles=args.cycles, plant_kwargs=plant_kw, robustness=not args.no_robustness,
-                        command=command, progress=not args.no_progress)
+                        command=command, progress=not args.no_progress,
+                        executor=executor_from_args(args))
     t = res["timing"]
     print(f"63-condition grid for one controller: {t['best_s']:.2f} s (first run {t['first_s']:.2f} s; target < 10 s)")
     print(f"{'controller':<28} {'kind':<9} {'mean rms %':>10} {'worst rms %':>11} {'30/3/7 rms %':>12} {'stroke hits':>11} {'book beaten':>11}")

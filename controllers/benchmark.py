@@ -103,6 +103,46 @@ def evaluate_controller(controller, conditions, *, cycles: float = DEFAULT_CYCLE
     return rows
 
 
+def grid_task(task) -> list[dict]:
+    """One unit of benchmark work, run by an executor (local process or Ray worker).
+
+    ``task`` is ``(controller, conditions, cycles, plant_kwargs)``; returns
+    :func:`evaluate_controller`'s rows.  Module-level and free of shared state so
+    it pickles to any worker; every condition's sensor noise is seeded by the
+    condition's plant, so the rows do not depend on where or with what the
+    conditions were batched.
+    """
+    controller, conditions, cycles, plant_kwargs = task
+    return evaluate_controller(controller, conditions, cycles=cycles, plant_kwargs=plant_kwargs)
+
+
+def evaluate_many(jobs, *, cycles: float, plant_kwargs: dict | None, executor=None, desc: str = "grid") -> list[list[dict]]:
+    """Rows of each ``(controller, conditions)`` job, through ``executor`` (default: in this process).
+
+    Each job is split by disc set so a cluster has parts to share out; the rows
+    come back in the job's condition order.
+    """
+    from ehas_env.executors import LocalExecutor
+
+    executor = executor or LocalExecutor(workers=1, progress=False)
+    tasks, owner = [], []
+    for j, (ctrl, conds) in enumerate(jobs):
+        conds = list(conds)
+        for n in sorted({c.disc_sets for c in conds}):
+            part = [c for c in conds if c.disc_sets == n]
+            tasks.append((ctrl, part, cycles, plant_kwargs))
+            owner.append(j)
+    parts = executor.map(grid_task, tasks, desc=desc)
+    out: list[list[dict]] = [[] for _ in jobs]
+    by_cond = [dict() for _ in jobs]
+    for j, (task, rows) in enumerate(zip(tasks, parts)):
+        for c, r in zip(task[1], rows):
+            by_cond[owner[j]][c] = r
+    for j, (_, conds) in enumerate(jobs):
+        out[j] = [by_cond[j][c] for c in conds]
+    return out
+
+
 def _merge_effects(plant_kwargs, effects: dict) -> dict:
     kw = dict(plant_kwargs or {})
     base = kw.pop("effects", None) or {}
@@ -136,13 +176,14 @@ def time_grid(controller, *, cycles: float = DEFAULT_CYCLES, plant_kwargs: dict 
 # -- the whole benchmark --------------------------------------------------------------
 def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant_kwargs: dict | None = None,
                   robustness: bool = True, command: str = "ehas bench", progress: bool = True,
-                  disc_sets=DISC_SETS) -> dict:
+                  disc_sets=DISC_SETS, executor=None) -> dict:
     """Evaluate ``controllers`` and write the benchmark files into ``out_dir``. Returns a summary dict.
 
     ``disc_sets`` narrows the grid (tests); the timing always covers the full 63 conditions.
+    ``executor`` (:mod:`ehas_env.executors`) runs the simulations: in this process by
+    default, or local worker processes / a Ray cluster; the files are the same either
+    way and only this (the driver) process writes them.
     """
-    from tqdm import tqdm
-
     from ehas_env.files import atomic_write_text
 
     out = Path(out_dir)
@@ -153,11 +194,13 @@ def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant
     conds = grid(disc_sets, FREQS, AMPLITUDES)
     timing = time_grid(next((c for c in controllers if has_compiled_form(c)), controllers[0]), cycles=cycles,
                        plant_kwargs=plant_kwargs)
-    batch = Batch(conds, cycles=cycles, plant_kwargs=plant_kwargs)
-    results = {}
-    for ctrl, name in tqdm(list(zip(controllers, names)), desc="grid", disable=not progress, leave=False):
-        results[name] = evaluate_controller(ctrl, conds, cycles=cycles, plant_kwargs=plant_kwargs, batch=batch,
-                                            progress=progress)
+    if executor is None:
+        from ehas_env.executors import LocalExecutor
+
+        executor = LocalExecutor(workers=1, progress=progress)
+    rows = evaluate_many([(c, conds) for c in controllers], cycles=cycles, plant_kwargs=plant_kwargs,
+                         executor=executor, desc="grid")
+    results = dict(zip(names, rows))
     book = [(c, b) for c, b in book_conditions() if c.disc_sets in disc_sets]
     # every book test is a grid condition: look its row up
     book_rows = {name: [next(r for r in results[name] if (r["disc_sets"], r["freq_hz"], r["amplitude_deg"]) ==
@@ -165,12 +208,15 @@ def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant
     robust = {}
     if robustness:
         effects = typical_effects()
-        for eff_name, params in tqdm(list(effects.items()), desc="robustness", disable=not progress, leave=False):
+        keys, jobs = [], []
+        for eff_name, params in effects.items():
             eff_conds = grid(disc_sets, FREQS, AMPLITUDES, effects={eff_name: params})
-            eff_batch = Batch(eff_conds, cycles=cycles, plant_kwargs=plant_kwargs)
             for ctrl, name in zip(controllers, names):
-                rows = evaluate_controller(ctrl, eff_conds, cycles=cycles, plant_kwargs=plant_kwargs, batch=eff_batch)
-                robust[(eff_name, name)] = _summary(rows)
+                keys.append((eff_name, name))
+                jobs.append((ctrl, eff_conds))
+        for key, rows in zip(keys, evaluate_many(jobs, cycles=cycles, plant_kwargs=plant_kwargs, executor=executor,
+                                                 desc="robustness")):
+            robust[key] = _summary(rows)
         for name in names:
             robust[("none", name)] = _summary(results[name])
 

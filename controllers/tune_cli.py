@@ -4,6 +4,7 @@
     ehas tune --method optimize                            # one set of gains for the whole grid
     ehas tune --method relay --disc-sets 7
     ehas tune --method schedule --base optimize            # per-disc-set gains
+    ehas tune --method optimize --starts 4 --executor ray  # 4 optimiser starts side by side on Ray
 
 The file (default ``results/controllers/<method>.json``) holds the gains with
 their units, the tuner's report, the command that regenerates it and the
@@ -65,6 +66,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--objective", choices=("mean", "worst"), default="mean", help="mean or worst rms %% error (default mean)")
     g.add_argument("--max-evals", type=int, default=200, help="objective evaluations per optimisation (default 200)")
     g.add_argument("--start", default=None, help="controller JSON to start from (default: the model-based design)")
+    g.add_argument("--starts", type=int, default=1,
+                   help="optimise from this many starts (the first unperturbed, the others seeded perturbations "
+                        "of it) and keep the best; the starts are independent tasks for --executor (default 1)")
+    g.add_argument("--seed", type=int, default=0, help="seed of the perturbed starts (default 0)")
     g = parser.add_argument_group("relay")
     g.add_argument("--rule", choices=("zn", "tl"), default="tl",
                    help="PI rule: tl Tyreus-Luyben (default: more gain margin), zn Ziegler-Nichols")
@@ -73,6 +78,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--base", choices=("model", "optimize", "relay"), default="optimize",
                    help="tuner run at each disc set (default optimize)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    from ehas_env.executors import add_executor_arguments
+
+    add_executor_arguments(parser)
 
 
 def command_of(args) -> str:
@@ -96,6 +104,8 @@ def command_of(args) -> str:
             parts += ["--dp-hp", f"{args.dp_hp:g}"]
     if method == "optimize":
         parts += ["--objective", args.objective, "--max-evals", str(args.max_evals)]
+        if getattr(args, "starts", 1) != 1:
+            parts += ["--starts", str(args.starts), "--seed", str(args.seed)]
         if args.start:
             parts += ["--start", args.start]
     elif method == "relay":
@@ -138,10 +148,13 @@ def _check(args) -> None:
             raise ValueError(f"--amplitude: {exc}") from None
     if args.max_evals < 1:
         raise ValueError(f"--max-evals must be >= 1, got {args.max_evals}")
+    if getattr(args, "starts", 1) < 1:
+        raise ValueError(f"--starts must be >= 1, got {args.starts}")
 
 
 def tune(args):
     """Run the tuner ``args`` describe; returns a :class:`~ehas_controllers.tuners.TuneResult`."""
+    from ehas_env.executors import executor_from_args
     from ehas_env.plant import Plant
 
     from . import tuners as T
@@ -174,8 +187,13 @@ def tune(args):
             plant=Plant(disc_sets=max(sets), **plant_kw), **model_kw).controller
         if args.start and not hasattr(start, "Kp"):
             raise ValueError(f"--start {args.start}: the optimiser starts from a single PIFF controller, got {start.name}")
-        return T.tune_optimize(start, grid(sets, freqs, amps), objective=args.objective, max_evals=args.max_evals,
-                               plant_kwargs=plant_kw, progress=progress)
+        starts = getattr(args, "starts", 1)
+        if starts == 1 and getattr(args, "executor", "local") == "local":
+            return T.tune_optimize(start, grid(sets, freqs, amps), objective=args.objective, max_evals=args.max_evals,
+                                   plant_kwargs=plant_kw, progress=progress)
+        return T.tune_optimize_multistart(start, grid(sets, freqs, amps), starts=starts, seed=args.seed,
+                                          executor=executor_from_args(args), objective=args.objective,
+                                          max_evals=args.max_evals, plant_kwargs=plant_kw)
     # schedule
     sets = [args.disc_sets] if args.disc_sets else list(range(1, 8))
     if args.base == "model":
@@ -185,7 +203,7 @@ def tune(args):
                                rule=args.rule, relay_mA=args.relay_mA, **op)
     return T.tune_schedule("optimize", sets, freqs=freqs, amplitudes=amps, objective=args.objective,
                            max_evals=args.max_evals, plant_kwargs=plant_kw, progress=progress,
-                           start_kwargs=model_kw)
+                           start_kwargs=model_kw, executor=executor_from_args(args))
 
 
 def out_path(args) -> str:

@@ -392,6 +392,69 @@ def tune_optimize(start: PIFF | None = None, conditions=None, *, objective: str 
     return TuneResult(ctrl, report, lines)
 
 
+def optimize_task(task) -> TuneResult:
+    """One optimisation, run by an executor: ``task = (start, conditions, tune_optimize kwargs)``.
+
+    Module-level and self-contained (the start gains fix the run: Nelder-Mead and
+    the simulations are deterministic) so it gives the same result in any process.
+    """
+    start, conditions, kwargs = task
+    return tune_optimize(start, conditions, **{**kwargs, "progress": False})
+
+
+#: spread of the multi-start perturbation: each varied gain is multiplied by exp(N(0, sigma)) (assumed: about
+#: +-30 %, wide enough to reach another basin of the bumpy objective, narrow enough to stay stable)
+START_SPREAD = 0.3
+
+
+def perturbed_starts(start: PIFF, starts: int, seed: int = 0) -> list[PIFF]:
+    """``start`` and ``starts - 1`` seeded perturbations of its non-zero gains.
+
+    Examples
+    --------
+    >>> s = perturbed_starts(PIFF.book(), 3, seed=1)
+    >>> len(s), s[0] == PIFF.book(), s[1] == perturbed_starts(PIFF.book(), 2, seed=1)[1]
+    (3, True, True)
+    """
+    import dataclasses
+
+    if starts < 1:
+        raise ValueError(f"starts must be >= 1, got {starts!r}")
+    rng = np.random.default_rng(seed)
+    out = [start]
+    for _ in range(starts - 1):
+        factors = np.exp(rng.normal(0.0, START_SPREAD, size=len(GAIN_NAMES)))
+        out.append(dataclasses.replace(start, **{k: getattr(start, k) * f for k, f in zip(GAIN_NAMES, factors)
+                                                 if k != "dp_hp" and getattr(start, k)}))
+    return out
+
+
+def tune_optimize_multistart(start: PIFF, conditions, *, starts: int = 1, seed: int = 0, executor=None,
+                             **kwargs) -> TuneResult:
+    """:func:`tune_optimize` from ``start`` and ``starts - 1`` perturbed starts; the best result wins.
+
+    The optimisations are independent tasks for ``executor`` (:mod:`ehas_env.executors`;
+    default: one after the other in this process), so a cluster runs them side by side
+    with the same outcome.  Ties go to the earlier start.
+    """
+    from ehas_env.executors import LocalExecutor
+
+    executor = executor or LocalExecutor(workers=1, progress=False)
+    conditions = list(conditions) if conditions is not None else grid(disc_sets=[3])
+    cands = perturbed_starts(start, starts, seed)
+    results = executor.map(optimize_task, [(c, conditions, kwargs) for c in cands], desc="optimiser starts")
+    if len(results) == 1:
+        return results[0]
+    js = [r.report["objective_best"] for r in results]
+    k = int(np.argmin(js))
+    best = results[k]
+    best.report = {**best.report, "starts": starts, "start_seed": seed, "best_start": k,
+                   "objective_best_per_start": js}
+    best.lines = best.lines + [f"best of {starts} starts (seed {seed}): start {k}; per start " +
+                               ", ".join(f"{j:.4g}" for j in js)]
+    return best
+
+
 # -- 3. relay --------------------------------------------------------------------
 def relay_experiment(plant=None, *, disc_sets: int = 3, relay_mA: float = 1.0, hysteresis_deg: float = 0.0,
                      duration_s: float = 4.0) -> dict:
@@ -471,14 +534,15 @@ METHODS = ("model", "optimize", "relay")
 
 def tune_schedule(method: str = "optimize", disc_sets=range(1, 8), *, freqs=(1.0, 2.0, 3.0),
                   amplitudes=(10.0, 20.0, 30.0), plants: dict | None = None, plant_kwargs: dict | None = None,
-                  start_kwargs: dict | None = None, progress: bool = True, **kwargs) -> TuneResult:
+                  start_kwargs: dict | None = None, progress: bool = True, executor=None, **kwargs) -> TuneResult:
     """Tune with ``method`` at each disc set and schedule the gains on the inertia.
 
     ``plants`` (disc sets -> Plant) replaces the baseline rig for "model" and "relay";
     ``plant_kwargs`` are the optimiser's Plant arguments.  For "optimize" each disc
     set's optimiser starts from that set's model-based design (``start_kwargs`` go
     to :func:`tune_model_based`) and minimises over that set's ``freqs`` x
-    ``amplitudes``.  Other ``kwargs`` go to the tuner.
+    ``amplitudes``; the sets are independent tasks for ``executor``
+    (:mod:`ehas_env.executors`, default: in this process).  Other ``kwargs`` go to the tuner.
     """
     from ehas_env.plant import Plant
 
@@ -486,16 +550,28 @@ def tune_schedule(method: str = "optimize", disc_sets=range(1, 8), *, freqs=(1.0
         raise ValueError(f"schedule method must be one of {', '.join(METHODS)}, got {method!r}")
     disc_sets = list(disc_sets)
     entries, reports, lines = {}, {}, [f"gain schedule ({method}) over disc sets {disc_sets}"]
+    optimised = {}
+    if method == "optimize":
+        # the disc sets' optimisations are independent: one executor task each (same results anywhere)
+        from ehas_env.executors import LocalExecutor
+
+        ex = executor or LocalExecutor(workers=1, progress=progress)
+        tasks = []
+        for n in disc_sets:
+            plant = (plants or {}).get(n) or Plant(disc_sets=n, **(plant_kwargs or {}))
+            start = tune_model_based(plant=plant, **(start_kwargs or {})).controller
+            tasks.append((start, grid(disc_sets=[n], freqs=freqs, amplitudes=amplitudes),
+                          {"plant_kwargs": plant_kwargs, **kwargs}))
+        optimised = dict(zip(disc_sets, ex.map(optimize_task, tasks, desc="schedule (disc sets)")))
     for n in disc_sets:
-        plant = (plants or {}).get(n) or Plant(disc_sets=n, **(plant_kwargs or {}))
         if method == "model":
+            plant = (plants or {}).get(n) or Plant(disc_sets=n, **(plant_kwargs or {}))
             res = tune_model_based(plant=plant, **kwargs)
         elif method == "relay":
+            plant = (plants or {}).get(n) or Plant(disc_sets=n, **(plant_kwargs or {}))
             res = tune_relay(plant=plant, **kwargs)
         else:
-            start = tune_model_based(plant=plant, **(start_kwargs or {})).controller
-            res = tune_optimize(start, grid(disc_sets=[n], freqs=freqs, amplitudes=amplitudes),
-                                plant_kwargs=plant_kwargs, progress=progress, **kwargs)
+            res = optimised[n]
         entries[n] = res.controller
         reports[n] = res.report
         lines += [f"  {n} sets: " + res.lines[0]] + ["  " + ln for ln in res.lines[1:]]

@@ -71,6 +71,14 @@ def main(argv: list[str] | None = None) -> int:
         # Bad input: one clear line, no traceback.
         print(f"ehas {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:
+        from .executors import TaskFailed
+
+        if not isinstance(exc, TaskFailed):
+            raise
+        # a task of a sweep failed on every attempt (ehas_env.executors): say which, no traceback
+        print(f"ehas {args.command}: error: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

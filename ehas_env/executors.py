@@ -17,6 +17,7 @@ Examples
 from __future__ import annotations
 
 import concurrent.futures as cf
+import inspect
 import os
 from dataclasses import dataclass
 from typing import Callable, Sequence
@@ -138,8 +139,14 @@ class RayExecutor:
     def map(self, fn: Callable, tasks: Sequence, desc: str = "tasks") -> list:
         ray = self._init()
         tasks = list(tasks)
-        remote = ray.remote(max_retries=self.retries, retry_exceptions=False)(fn)
-        refs = [remote.remote(t) for t in tasks]
+        opts = dict(max_retries=self.retries, retry_exceptions=False)
+        if inspect.isfunction(fn):
+            remote = ray.remote(**opts)(fn)
+            refs = [remote.remote(t) for t in tasks]
+        else:  # ray.remote takes only functions: partials and callable objects go through a trampoline
+            remote = ray.remote(**opts)(_apply)
+            fn_ref = ray.put(fn)
+            refs = [remote.remote(fn_ref, t) for t in tasks]
         index = {ref: i for i, ref in enumerate(refs)}
         results: dict[int, object] = {}
         remaining = list(refs)
@@ -180,8 +187,13 @@ def add_executor_arguments(parser) -> None:
 
 
 def executor_from_args(args):
+    """The executor :func:`add_executor_arguments`' options ask for (``--no-progress`` is honoured)."""
     return make_executor(getattr(args, "executor", "local"), workers=getattr(args, "workers", None),
-                         address=getattr(args, "address", None))
+                         address=getattr(args, "address", None), progress=not getattr(args, "no_progress", False))
+
+
+def _apply(fn, task):
+    return fn(task)
 
 
 def _label(task) -> str:

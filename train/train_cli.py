@@ -5,6 +5,7 @@ Examples::
     ehas train --algo sac --residual --config train/configs/residual_sac.toml --out runs/residual_sac
     ehas train --algo ppo --out runs/ppo --total-steps 20000          # bundled train/configs/ppo.toml
     ehas train --algo ppo --out runs/ppo --resume --total-steps 40000 # continue to 40k steps
+    ehas train --sweep --config sweep.toml --out runs/sweep --executor ray  # hyper-parameter sweep on Ray Tune
 """
 from __future__ import annotations
 
@@ -14,12 +15,19 @@ ALGOS = ("ppo", "sac", "td3")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--algo", required=True, choices=ALGOS, help="algorithm")
+    parser.add_argument("--algo", choices=ALGOS, help="algorithm (required unless --sweep: the config names it)")
     parser.add_argument("--residual", action="store_true",
                         help="residual RL: the action is added to the tuned classical controller's current")
     parser.add_argument("--config", metavar="FILE",
                         help="TOML config (default: the bundled ALGO.toml, or residual_ALGO.toml with --residual)")
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder (model, statistics, metrics)")
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="output folder (model, statistics, metrics; with --sweep: the trials and best config)")
+    parser.add_argument("--sweep", action="store_true",
+                        help="hyper-parameter sweep over the [sweep] table of --config (ehas_train.sweep): one "
+                             "training per trial, results and best_config.toml in --out")
+    from ehas_env.executors import add_executor_arguments
+
+    add_executor_arguments(parser)
     parser.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
     parser.add_argument("--total-steps", type=int, metavar="N", help="override [train] total_steps")
     parser.add_argument("--seed", type=int, metavar="S", help="override [train] seed")
@@ -82,12 +90,49 @@ def _command(args) -> str:
     return " ".join(shlex.quote(p) for p in parts)
 
 
+def run_sweep_command(args) -> int:
+    """``ehas train --sweep``: every trial through the executor; the driver writes --out."""
+    import shlex
+
+    from ehas_env.executors import executor_from_args
+
+    from .sweep import load_sweep, run_sweep
+
+    if not args.config:
+        raise ValueError("--sweep needs --config FILE with a [sweep] table (see ehas_train.sweep)")
+    for flag in ("resume", "residual"):
+        if getattr(args, flag):
+            raise ValueError(f"--{flag} does not combine with --sweep (put it in the config file)")
+    for flag in ("total_steps", "seed", "n_envs", "max_minutes"):
+        if getattr(args, flag) is not None:
+            raise ValueError(f"--{flag.replace('_', '-')} does not combine with --sweep: set it in the config "
+                             "file or sweep it in [sweep.space]")
+    spec = load_sweep(args.config)
+    algo = spec.base.get("train", {}).get("algo")
+    if args.algo is not None and algo != args.algo:
+        raise ValueError(f"--config {args.config} trains {algo!r} but --algo is {args.algo!r}")
+    # where the trials run does not change their results: the executor options stay out of the command
+    command = " ".join(shlex.quote(p) for p in ["ehas", "train", "--sweep", "--config", args.config, "--out", args.out])
+    res = run_sweep(spec, args.out, executor=executor_from_args(args), command=command)
+    for r in res["trials"]:
+        obj = "-" if r["objective"] is None else f"{r['objective']:.4g}"
+        print(f"trial {r['trial']}: {spec.metric} {obj}  " + ", ".join(f"{k}={v}" for k, v in r["params"].items()))
+    if res["best"] is not None:
+        print(f"best: trial {res['best']} -> {args.out}/best_config.toml")
+    print(f"wrote {args.out}/sweep_trials.csv, sweep_results.json, README.md")
+    return 0
+
+
 def run(args) -> int:
     import logging
     import sys
 
     from .trainer import TrainingInterrupted, train
 
+    if getattr(args, "sweep", False):
+        return run_sweep_command(args)
+    if args.algo is None:
+        raise ValueError("--algo is required (ppo, sac or td3)")
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
     cfg = resolve_config(args)
     try:
