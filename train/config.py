@@ -242,16 +242,20 @@ def bundled_config(name: str) -> Path:
     return path
 
 
-def load_config(path) -> TrainConfig:
-    """Read and validate a TOML configuration file."""
+def read_toml(path) -> dict:
+    """The parsed TOML file ``path``; clear errors for a missing or malformed file."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"config file {path} does not exist")
     try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{path}: not valid TOML: {exc}") from None
-    return parse_config(raw, source=str(path))
+
+
+def load_config(path) -> TrainConfig:
+    """Read and validate a TOML configuration file."""
+    return parse_config(read_toml(path), source=str(path))
 
 
 def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:

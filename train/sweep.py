@@ -55,7 +55,6 @@ import re
 import shutil
 import tempfile
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -81,14 +80,9 @@ class SweepSpec:
 
 def load_sweep(path) -> SweepSpec:
     """Read a config file with a ``[sweep]`` table."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"config file {path} does not exist")
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML: {exc}") from None
-    return parse_sweep(raw, str(path))
+    from .config import read_toml
+
+    return parse_sweep(read_toml(path), str(path))
 
 
 def parse_sweep(raw: dict, source: str = "<dict>") -> SweepSpec:
