@@ -272,18 +272,24 @@ def _fmt(x: float) -> str:
 
 
 def _csv(controllers, names, results, command) -> str:
+    blocks = [(name, getattr(ctrl, "kind", "?"), getattr(ctrl, "variant", ""), results[name])
+              for ctrl, name in zip(controllers, names)]
+    return rows_csv(blocks, f"% position error benchmark, regenerate with: {command}")
+
+
+def rows_csv(blocks, title: str) -> str:
+    """Benchmark-format CSV (:data:`CSV_COLUMNS`) of (name, kind, variant, rows) blocks under a ``# title`` line."""
     buf = io.StringIO()
-    buf.write(f"# % position error benchmark, regenerate with: {command}\n")
+    buf.write(f"# {title}\n")
     buf.write("# rms_error_pct / peak_error_pct: 100 RMS / max (theta_ref - theta) / amplitude over whole cycles after "
               "the first; max_current_mA, saturation_frac, peak_delta_p_bar, hit_stroke_end over the whole run\n")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
-    for ctrl, name in zip(controllers, names):
-        for r in results[name]:
-            w.writerow([name, getattr(ctrl, "kind", "?"), getattr(ctrl, "variant", ""), r["disc_sets"],
-                        f"{r['freq_hz']:g}", f"{r['amplitude_deg']:g}", f"{r['rms_error_pct']:.6g}",
-                        f"{r['peak_error_pct']:.6g}", f"{r['max_current_mA']:.4g}", f"{r['saturation_frac']:.4g}",
-                        f"{r['peak_delta_p_bar']:.4g}", int(bool(r["hit_stroke_end"]))])
+    for name, kind, variant, rows in blocks:
+        for r in rows:
+            w.writerow([name, kind, variant, r["disc_sets"], f"{r['freq_hz']:g}", f"{r['amplitude_deg']:g}",
+                        f"{r['rms_error_pct']:.6g}", f"{r['peak_error_pct']:.6g}", f"{r['max_current_mA']:.4g}",
+                        f"{r['saturation_frac']:.4g}", f"{r['peak_delta_p_bar']:.4g}", int(bool(r["hit_stroke_end"]))])
     return buf.getvalue()
 
 

@@ -26,8 +26,6 @@ Command line::
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import json
 import sys
 import time
@@ -35,15 +33,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ehas_controllers.batch_sim import DEFAULT_CYCLES, METRICS
+from ehas_controllers.benchmark import AMPLITUDES, CSV_COLUMNS, DISC_SETS, FREQS  # noqa: F401
+from ehas_controllers.benchmark import rows_csv as benchmark_rows_csv
+
 from . import envs as E
 
-DISC_SETS = tuple(range(1, 8))
-FREQS = (1.0, 2.0, 3.0)
-AMPLITUDES = (10.0, 20.0, 30.0)
-DEFAULT_CYCLES = 5.0  # as ehas_controllers.batch_sim.DEFAULT_CYCLES: one warm-up, whole cycles measured
 I_MAX = 20.0  # mA, servo amplifier (rig.md)
-METRICS = ("rms_error_pct", "peak_error_pct", "max_current_mA", "saturation_frac", "peak_delta_p_bar", "hit_stroke_end")
-CSV_COLUMNS = ("controller", "kind", "variant", "disc_sets", "freq_hz", "amplitude_deg", *METRICS)
 DESIGN_POINT = (7, 3.0, 30.0)  # disc sets, Hz, deg: the rig's design point (rig.md)
 
 
@@ -177,18 +173,8 @@ def summary(rows: list[dict]) -> dict:
 # -- files ---------------------------------------------------------------------------
 def rows_csv(named_rows: list[tuple[str, str, str, list[dict]]], command: str) -> str:
     """Benchmark-format CSV of (name, kind, variant, rows) blocks."""
-    buf = io.StringIO()
-    buf.write(f"# learned vs classical controllers through ehas/Tracking-v0, regenerate with: {command}\n")
-    buf.write("# rms_error_pct / peak_error_pct: 100 RMS / max (theta_ref - theta) / amplitude over whole cycles after "
-              "the first; max_current_mA, saturation_frac, peak_delta_p_bar, hit_stroke_end over the whole run\n")
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
-    for name, kind, variant, rows in named_rows:
-        for r in rows:
-            w.writerow([name, kind, variant, r["disc_sets"], f"{r['freq_hz']:g}", f"{r['amplitude_deg']:g}",
-                        f"{r['rms_error_pct']:.6g}", f"{r['peak_error_pct']:.6g}", f"{r['max_current_mA']:.4g}",
-                        f"{r['saturation_frac']:.4g}", f"{r['peak_delta_p_bar']:.4g}", int(bool(r["hit_stroke_end"]))])
-    return buf.getvalue()
+    return benchmark_rows_csv(named_rows, f"learned vs classical controllers through ehas/Tracking-v0, "
+                                          f"regenerate with: {command}")
 
 
 def _grid_md(rows) -> list[str]:
