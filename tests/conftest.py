@@ -23,3 +23,13 @@ def read_book_csv(name: str) -> list[dict[str, str]]:
 @pytest.fixture(scope="session")
 def book_loads():
     return read_book_csv("analytic_loads.csv")
+
+
+@pytest.fixture(scope="module")
+def ray_local(request):
+    """A local Ray instance with 2 CPUs; the test module's functions are shipped by value."""
+    ray = pytest.importorskip("ray")
+    ray.cloudpickle.register_pickle_by_value(request.module)
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
+    yield ray
+    ray.shutdown()

@@ -3,7 +3,6 @@ retried or reported, never dropped."""
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -63,15 +62,6 @@ def test_task_error_names_the_task():
 def test_unknown_executor():
     with pytest.raises(ValueError, match="--executor must be 'local' or 'ray'"):
         make_executor("dask")
-
-
-@pytest.fixture(scope="module")
-def ray_local():
-    ray = pytest.importorskip("ray")
-    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
-    yield ray
-    ray.shutdown()
 
 
 def test_ray_gives_the_local_results(ray_local):

@@ -75,15 +75,6 @@ class Sabotaged:
 
 # -- fixtures ---------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def ray_local():
-    ray = pytest.importorskip("ray")
-    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
-    yield ray
-    ray.shutdown()
-
-
-@pytest.fixture(scope="module")
 def book_file(tmp_path_factory):
     from ehas_controllers.piff import PIFF
 
