@@ -7,15 +7,15 @@ A controller is anything with
 * ``reset()`` - forget the internal state (integrator, filters) before a run;
 * ``act(measurement) -> float`` - the command current in mA for one control
   period.  ``measurement`` is exactly the dict the plant's closed loop passes
-  (``ehas_env.plant.Plant._python_loop``): :data:`MEASUREMENT_KEYS` in deg,
+  (``ehas_env.simulation.plant.Plant._python_loop``): :data:`MEASUREMENT_KEYS` in deg,
   deg/s^k and bar;
 * ``save(path)`` / ``load(path)`` - a file that ``ehas bench``, ``ehas tune`` and the
   environment accept;
 * a readable ``repr`` of its gains with units.
 
-Classical controllers can also say which :class:`ehas_env.plant.RigController`
+Classical controllers can also say which :class:`ehas_env.simulation.plant.RigController`
 they are for a given plant (:meth:`Controller.rig_gains`), so simulations take
-the compiled closed loop (``ehas_env.kernel.run_rig_controller`` and the
+the compiled closed loop (``ehas_env.physics.kernel.run_rig_controller`` and the
 batched :mod:`ehas_controllers.batch_sim`) instead of calling ``act`` from
 Python every millisecond.
 
@@ -73,7 +73,7 @@ class Controller(ABC):
         return self
 
     def rig_gains(self, disc_sets: int | None = None):
-        """This controller as an :class:`ehas_env.plant.RigController` for the compiled loop, or None."""
+        """This controller as an :class:`ehas_env.simulation.plant.RigController` for the compiled loop, or None."""
         return None
 
     def to_dict(self) -> dict:
@@ -87,7 +87,7 @@ class Controller(ABC):
         (e.g. ``mean_rms_error_pct``) and ``notes`` (tuner report) are stored beside
         the gains.  Returns the path.
         """
-        from ehas_env.files import atomic_write_text
+        from ehas_env.output.files import atomic_write_text
 
         data = {"format": FILE_FORMAT, "version": FILE_VERSION, **self.to_dict()}
         if command:

@@ -1,15 +1,15 @@
 """Batched closed-loop simulation: many conditions and controllers in one serial numba loop.
 
-Built on ``ehas_env.kernel`` (``advance``, ``measure``, ``reference_point``): the
+Built on ``ehas_env.physics.kernel`` (``advance``, ``measure``, ``reference_point``): the
 controller law is the one of ``kernel.run_rig_controller`` (PI + velocity /
 acceleration / jerk feed-forward, load-pressure feedback, anti-windup, DAC), the
-plant is :class:`ehas_env.plant.Plant`'s parameter vector with any effects.  Each
+plant is :class:`ehas_env.simulation.plant.Plant`'s parameter vector with any effects.  Each
 condition is simulated from rest and only its metrics are kept, so a grid of
 hundreds of runs needs no trace memory.
 
 Metrics per condition (``METRICS``):
 
-* ``rms_error_pct``, ``peak_error_pct``: as ``ehas_env.metrics`` - 100 RMS / max of
+* ``rms_error_pct``, ``peak_error_pct``: as ``ehas_env.simulation.metrics`` - 100 RMS / max of
   (theta_ref - theta) / amplitude over whole reference cycles after the first;
 * ``max_current_mA``: largest |command| over the whole run;
 * ``saturation_frac``: fraction of the run's periods with the command at +-i_max;
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from ehas_env import kernel as K
+from ehas_env.physics import kernel as K
 
 METRICS = ("rms_error_pct", "peak_error_pct", "max_current_mA", "saturation_frac", "peak_delta_p_bar", "hit_stroke_end")
 N_METRICS = len(METRICS)
@@ -110,7 +110,7 @@ def _closed_loop(s, P, gains, ref, kind, dt, nsub, n, hist, noise, sensor, k0, k
         th = K.quantize(th, adc)
         dp = (s[4] - s[5]) * 1e-5
         u = K.quantize(K.rig_control_law(gains, r - th, rd, rdd, rddd, dp, dt, u_max, mem), dac)
-        # metrics: tracking on the true (LVDT) angle as ehas_env.metrics does
+        # metrics: tracking on the true (LVDT) angle as ehas_env.simulation.metrics does
         if k >= k0 and k < k1:
             et = r - th_true
             se2 += et * et
@@ -190,12 +190,12 @@ class Batch:
         Plants and references.
     cycles : float
         Reference periods per run (the first is warm-up).
-    sensors : ehas_env.sensors.Sensors, optional
+    sensors : ehas_env.simulation.sensors.Sensors, optional
         Measurement chain of every plant (ideal by default).
     seed : int
         Seed of the sensor noise (per condition: the same noise as ``Plant(seed=seed)``).
     plant_kwargs : dict, optional
-        Extra :class:`ehas_env.plant.Plant` keyword arguments (e.g. a model file's ``rig``).
+        Extra :class:`ehas_env.simulation.plant.Plant` keyword arguments (e.g. a model file's ``rig``).
     step : bool
         Step references of ``amplitude_deg`` at t = 0 instead of sines (``cycles`` then counts
         periods of ``1/freq_hz`` for the duration; metrics use the same window).
@@ -203,10 +203,10 @@ class Batch:
 
     def __init__(self, conditions, *, cycles: float = DEFAULT_CYCLES, sensors=None, seed: int = 0,
                  plant_kwargs: dict | None = None, step: bool = False):
-        from ehas_env.effects import resolve_effects
-        from ehas_env.metrics import steady_window
-        from ehas_env.plant import TAU_MAX, Plant
-        from ehas_env.reference import SineReference
+        from ehas_env.physics.effects import resolve_effects
+        from ehas_env.simulation.metrics import steady_window
+        from ehas_env.simulation.plant import TAU_MAX, Plant
+        from ehas_env.simulation.reference import SineReference
 
         self.conditions = list(conditions)
         if not self.conditions:

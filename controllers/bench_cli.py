@@ -33,13 +33,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("controllers", nargs="*", metavar="CONTROLLER_FILE",
                         help="controller files (default: the book's gains plus each tuner's result)")
     parser.add_argument("--out", default="results", help="output folder (default results)")
-    parser.add_argument("--model", default=None, help="model file whose plant to run (ehas_env.model_file)")
+    parser.add_argument("--model", default=None, help="model file whose plant to run (ehas_env.measurement.model_file)")
     parser.add_argument("--cycles", type=float, default=5.0, help="reference periods per run, first excluded (default 5)")
     parser.add_argument("--no-robustness", action="store_true", help="skip the robustness table (13 x 63 runs per controller)")
     parser.add_argument("--no-book", action="store_true", help="leave the book's baseline gains out")
     parser.add_argument("--retune", action="store_true", help="with no files: re-run the tuners even if their files exist")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
-    from ehas_env.executors import add_executor_arguments
+    from ehas_env.simulation.executors import add_executor_arguments
 
     add_executor_arguments(parser)
 
@@ -64,7 +64,7 @@ def default_controllers(out: Path, retune: bool, progress: bool) -> list:
 
 
 def run(args) -> int:
-    from ehas_env.executors import executor_from_args
+    from ehas_env.simulation.executors import executor_from_args
 
     from .base import load_controller
     from .benchmark import run_benchmark

@@ -3,7 +3,7 @@
 Grid: 7 disc sets x {1, 2, 3} Hz x {10, 20, 30} deg, each run from rest for
 :data:`~ehas_controllers.batch_sim.DEFAULT_CYCLES` reference periods (the
 amplitude fades in over the first, which is excluded as warm-up).  Metric, as
-``ehas_env.metrics`` defines it: ``rms_error_pct = 100 RMS(theta_ref - theta) /
+``ehas_env.simulation.metrics`` defines it: ``rms_error_pct = 100 RMS(theta_ref - theta) /
 amplitude`` over whole cycles after the first (primary) and ``peak_error_pct``
 likewise with the maximum.  The book never defines its "% pos error"; we put
 our rms figure beside its number and say so in every table.
@@ -41,7 +41,7 @@ RMS_TARGET_PCT = 5.0  # the issue's target at 30 deg / 3 Hz / 7 sets
 
 def book_conditions() -> list[tuple[Condition, float]]:
     """The book's 7 rig tests as (condition, the book's measured % error); discs = 2 x disc sets."""
-    from ehas_env.book_tables import rig_tests
+    from ehas_env.book.tables import rig_tests
 
     return [(Condition(int(r.disc_sets), float(r.freq_hz), float(r.amplitude_deg)), float(r.pos_error_percent))
             for r in rig_tests()]
@@ -53,7 +53,7 @@ def typical_effects() -> dict[str, dict[str, float]]:
     (The arithmetic middle, also for log-scale parameters; parameters without a
     typical range keep their default.)
     """
-    from ehas_env.effects import REGISTRY
+    from ehas_env.physics.effects import REGISTRY
 
     out = {}
     for name, eff in sorted(REGISTRY.items()):
@@ -88,7 +88,7 @@ def evaluate_controller(controller, conditions, *, cycles: float = DEFAULT_CYCLE
         return batch.rows(batch.run(G, i_max=imax, dac_lsb=dac))
     from tqdm import tqdm
 
-    from ehas_env.plant import Plant
+    from ehas_env.simulation.plant import Plant
 
     rows = []
     for c in tqdm(list(conditions), desc=f"{getattr(controller, 'name', 'controller')} (Python loop)",
@@ -122,7 +122,7 @@ def evaluate_many(jobs, *, cycles: float, plant_kwargs: dict | None, executor=No
     Each job is split by disc set so a cluster has parts to share out; the rows
     come back in the job's condition order.
     """
-    from ehas_env.executors import LocalExecutor
+    from ehas_env.simulation.executors import LocalExecutor
 
     executor = executor or LocalExecutor(workers=1, progress=False)
     tasks, owner = [], []
@@ -180,11 +180,11 @@ def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant
     """Evaluate ``controllers`` and write the benchmark files into ``out_dir``. Returns a summary dict.
 
     ``disc_sets`` narrows the grid (tests); the timing always covers the full 63 conditions.
-    ``executor`` (:mod:`ehas_env.executors`) runs the simulations: in this process by
+    ``executor`` (:mod:`ehas_env.simulation.executors`) runs the simulations: in this process by
     default, or local worker processes / a Ray cluster; the files are the same either
     way and only this (the driver) process writes them.
     """
-    from ehas_env.files import atomic_write_text
+    from ehas_env.output.files import atomic_write_text
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -195,7 +195,7 @@ def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant
     timing = time_grid(next((c for c in controllers if has_compiled_form(c)), controllers[0]), cycles=cycles,
                        plant_kwargs=plant_kwargs)
     if executor is None:
-        from ehas_env.executors import LocalExecutor
+        from ehas_env.simulation.executors import LocalExecutor
 
         executor = LocalExecutor(workers=1, progress=progress)
     rows = evaluate_many([(c, conds) for c in controllers], cycles=cycles, plant_kwargs=plant_kwargs,
@@ -319,7 +319,7 @@ def heatmap(rows, path, title: str = "", command: str = "ehas bench") -> Path:
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
 
-    from ehas_env.files import atomic_write_bytes
+    from ehas_env.output.files import atomic_write_bytes
 
     cols = [(f, a) for f in FREQS for a in AMPLITUDES]
     sets = tuple(sorted({r["disc_sets"] for r in rows}))
@@ -381,7 +381,7 @@ def _markdown(controllers, names, results, book, book_rows, robust, timing, summ
               disc_sets, plant_kwargs=None) -> str:
     L = [f"# % position error benchmark", "",
          f"Regenerate with `{command}`.", "",
-         "Metric (the book never defines its \"% pos error\"; this project does, `ehas_env.metrics`): "
+         "Metric (the book never defines its \"% pos error\"; this project does, `ehas_env.simulation.metrics`): "
          "**rms_error_pct** = 100 · RMS(θ_ref − θ) / θ_amp over whole reference cycles after the first "
          "(primary), **peak_error_pct** likewise with max |θ_ref − θ|. "
          f"Each run: {cycles:g} reference periods from rest, amplitude faded in over the first (warm-up, excluded). "
@@ -450,7 +450,7 @@ def demo_section(outdir) -> str:
     Writes ``tuned_controller.json`` and ``tuned_vs_book.csv`` into ``outdir`` and
     returns a markdown summary.
     """
-    from ehas_env.files import atomic_write_text
+    from ehas_env.output.files import atomic_write_text
 
     from .piff import PIFF
     from .tuners import tune_schedule

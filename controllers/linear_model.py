@@ -37,7 +37,7 @@ import math
 import control
 import numpy as np
 
-from ehas_env.rig import BAR, LPM
+from ehas_env.physics.rig import BAR, LPM
 
 
 class LinearPlant:
@@ -45,7 +45,7 @@ class LinearPlant:
 
     Parameters
     ----------
-    plant : ehas_env.plant.Plant, optional
+    plant : ehas_env.simulation.plant.Plant, optional
         Plant whose parameter slots (effects included) are linearised; default
         ``Plant(disc_sets)``.
     disc_sets : int
@@ -65,7 +65,7 @@ class LinearPlant:
     def __init__(self, plant=None, *, disc_sets: int = 3, theta_deg: float = 0.0, load_bar: float = 0.0,
                  flow_lpm: float = 0.0, rate_hz: float = 1000.0, pade_order: int = 2):
         if plant is None:
-            from ehas_env.plant import Plant
+            from ehas_env.simulation.plant import Plant
 
             plant = Plant(disc_sets=disc_sets)
         s = plant.slots()  # supply droop, backlash, deadband and dry friction have no small-signal term here
@@ -254,7 +254,7 @@ def operating_flow_lpm(amplitude_deg: float, freq_hz: float, rig=None) -> float:
     >>> round(operating_flow_lpm(30.0, 3.0), 2)     # 22.65 LPM peak actuator flow at the design point
     8.14
     """
-    from ehas_env.rig import RigParams
+    from ehas_env.physics.rig import RigParams
 
     rig = rig or RigParams()
     w = 2.0 * math.pi * freq_hz

@@ -14,7 +14,7 @@ One law covers the three controllers of the issue (RMC70-like, 1 kHz, zero-order
 The output is clipped to +-``i_max`` with conditional-integration anti-windup
 and optionally quantized to a ``output_bits`` DAC (the rig's RMC70: 12 bits over
 +-20 mA).  :meth:`PIFF.act` is a Python twin of the compiled loop
-``ehas_env.kernel.run_rig_controller``; :meth:`PIFF.rig_gains` hands the same
+``ehas_env.physics.kernel.run_rig_controller``; :meth:`PIFF.rig_gains` hands the same
 gains to the compiled loop.
 
 Examples
@@ -35,7 +35,7 @@ import numpy as np
 
 from .base import Controller, check_measurement, register_type
 
-#: gain name -> unit (the order of ehas_env.plant.RigController)
+#: gain name -> unit (the order of ehas_env.simulation.plant.RigController)
 GAIN_UNITS = {
     "Kp": "mA/deg",
     "Ki": "mA/(deg s)",
@@ -120,7 +120,7 @@ class PIFF(Controller):
 
     @classmethod
     def from_rig_controller(cls, rc, name: str = "PI+FF") -> "PIFF":
-        """Wrap an :class:`ehas_env.plant.RigController`."""
+        """Wrap an :class:`ehas_env.simulation.plant.RigController`."""
         return cls(**{k: getattr(rc, k) for k in GAIN_NAMES}, rate_hz=rc.rate_hz, name=name)
 
     @classmethod
@@ -172,7 +172,7 @@ class PIFF(Controller):
 
     # -- the compiled path ------------------------------------------------------
     def rig_gains(self, disc_sets: int | None = None):
-        from ehas_env.plant import RigController
+        from ehas_env.simulation.plant import RigController
 
         return RigController(**self.gains(), rate_hz=self.rate_hz)
 

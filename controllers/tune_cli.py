@@ -46,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--amplitude", type=float, default=None,
                         help="reference amplitude, deg: as --freq (operating point default 20; conditions default 10, 20, 30)")
     parser.add_argument("--out", default=None, help="controller JSON to write (default results/controllers/METHOD.json)")
-    parser.add_argument("--model", default=None, help="model file whose plant to tune on (ehas_env.model_file)")
+    parser.add_argument("--model", default=None, help="model file whose plant to tune on (ehas_env.measurement.model_file)")
     g = parser.add_argument_group("model-based")
     g.add_argument("--phase-margin", type=float, default=50.0, help="phase-margin target, deg (default 50)")
     g.add_argument("--bandwidth", type=float, default=None, help="crossover target, Hz (default: highest meeting the margins)")
@@ -78,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--base", choices=("model", "optimize", "relay"), default="optimize",
                    help="tuner run at each disc set (default optimize)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
-    from ehas_env.executors import add_executor_arguments
+    from ehas_env.simulation.executors import add_executor_arguments
 
     add_executor_arguments(parser)
 
@@ -116,13 +116,13 @@ def command_of(args) -> str:
 
 
 def plant_kwargs_from_model(path) -> dict:
-    """Plant keyword arguments from a model file (``ehas_env.model_file.load_model``), imported lazily."""
+    """Plant keyword arguments from a model file (``ehas_env.measurement.model_file.load_model``), imported lazily."""
     if path is None:
         return {}
     try:
-        from ehas_env.model_file import load_model
+        from ehas_env.measurement.model_file import load_model
     except ImportError:
-        raise ValueError(f"--model {path}: model files need ehas_env.model_file.load_model, which this "
+        raise ValueError(f"--model {path}: model files need ehas_env.measurement.model_file.load_model, which this "
                          "installation does not have yet") from None
     kw = load_model(path)
     if not isinstance(kw, dict):
@@ -131,8 +131,8 @@ def plant_kwargs_from_model(path) -> dict:
 
 
 def _check(args) -> None:
-    from ehas_env.reference import check_amplitude
-    from ehas_env.rig import check_disc_sets
+    from ehas_env.simulation.reference import check_amplitude
+    from ehas_env.physics.rig import check_disc_sets
 
     if args.disc_sets is not None:
         try:
@@ -154,8 +154,8 @@ def _check(args) -> None:
 
 def tune(args):
     """Run the tuner ``args`` describe; returns a :class:`~ehas_controllers.tuners.TuneResult`."""
-    from ehas_env.executors import executor_from_args
-    from ehas_env.plant import Plant
+    from ehas_env.simulation.executors import executor_from_args
+    from ehas_env.simulation.plant import Plant
 
     from . import tuners as T
     from .base import load_controller
@@ -243,7 +243,7 @@ def write_folder_readme(folder) -> None:
     """(Re)write ``folder/README.md``: each controller JSON there and the command that regenerates it."""
     import json
 
-    from ehas_env.files import atomic_write_text
+    from ehas_env.output.files import atomic_write_text
 
     folder = Path(folder)
     lines = ["# Tuned controllers", "", "Controller files written by `ehas tune` (loaded by `ehas bench` and the "

@@ -194,12 +194,12 @@ def tune_model_based(disc_sets: int = 3, *, phase_margin_deg: float = 50.0, band
     plant with its pressure feedback and sample-and-hold over ``ff_band_hz``
     (:func:`feedforward_from_model`), at the same operating flow: the orifice law's
     flow loss ``Kc |q_c| P_L`` does not change sign with the flow, so its mean acts as
-    a linear leak that the acceleration feed-forward must make up for.  ``plant`` (an ``ehas_env.plant.Plant``) replaces the baseline rig.
+    a linear leak that the acceleration feed-forward must make up for.  ``plant`` (an ``ehas_env.simulation.plant.Plant``) replaces the baseline rig.
     """
     if pressure_feedback not in PRESSURE_FEEDBACK:
         raise ValueError(f"pressure_feedback must be one of {', '.join(PRESSURE_FEEDBACK)}, got {pressure_feedback!r}")
     if plant is None:
-        from ehas_env.plant import Plant
+        from ehas_env.simulation.plant import Plant
 
         plant = Plant(disc_sets=disc_sets)
     disc_sets = plant.rig.disc_sets
@@ -255,7 +255,7 @@ def save_bode(loop, plant_tf, path, title: str = "", note: str = ""):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ehas_env.files import atomic_write_bytes
+    from ehas_env.output.files import atomic_write_bytes
     import io
 
     w = np.geomspace(1.0, 3000.0, 800)
@@ -433,11 +433,11 @@ def tune_optimize_multistart(start: PIFF, conditions, *, starts: int = 1, seed: 
                              **kwargs) -> TuneResult:
     """:func:`tune_optimize` from ``start`` and ``starts - 1`` perturbed starts; the best result wins.
 
-    The optimisations are independent tasks for ``executor`` (:mod:`ehas_env.executors`;
+    The optimisations are independent tasks for ``executor`` (:mod:`ehas_env.simulation.executors`;
     default: one after the other in this process), so a cluster runs them side by side
     with the same outcome.  Ties go to the earlier start.
     """
-    from ehas_env.executors import LocalExecutor
+    from ehas_env.simulation.executors import LocalExecutor
 
     executor = executor or LocalExecutor(workers=1, progress=False)
     conditions = list(conditions) if conditions is not None else grid(disc_sets=[3])
@@ -466,8 +466,8 @@ def relay_experiment(plant=None, *, disc_sets: int = 3, relay_mA: float = 1.0, h
     gain ``Ku = 4 d / (pi a)`` (describing function; ``sqrt(a^2 - eps^2)`` with
     hysteresis).  The first third of the run is discarded as the transient.
     """
-    from ehas_env import kernel as K
-    from ehas_env.plant import TAU_MAX, Plant
+    from ehas_env.physics import kernel as K
+    from ehas_env.simulation.plant import TAU_MAX, Plant
 
     from .batch_sim import run_relay
 
@@ -509,7 +509,7 @@ def tune_relay(disc_sets: int = 3, *, rule: str = "tl", relay_mA: float = 1.0, h
     if rule not in PI_RULES:
         raise ValueError(f"rule must be one of {', '.join(PI_RULES)}, got {rule!r}")
     if plant is None:
-        from ehas_env.plant import Plant
+        from ehas_env.simulation.plant import Plant
 
         plant = Plant(disc_sets=disc_sets)
     rel = relay_experiment(plant, relay_mA=relay_mA, hysteresis_deg=hysteresis_deg)
@@ -542,9 +542,9 @@ def tune_schedule(method: str = "optimize", disc_sets=range(1, 8), *, freqs=(1.0
     set's optimiser starts from that set's model-based design (``start_kwargs`` go
     to :func:`tune_model_based`) and minimises over that set's ``freqs`` x
     ``amplitudes``; the sets are independent tasks for ``executor``
-    (:mod:`ehas_env.executors`, default: in this process).  Other ``kwargs`` go to the tuner.
+    (:mod:`ehas_env.simulation.executors`, default: in this process).  Other ``kwargs`` go to the tuner.
     """
-    from ehas_env.plant import Plant
+    from ehas_env.simulation.plant import Plant
 
     if method not in METHODS:
         raise ValueError(f"schedule method must be one of {', '.join(METHODS)}, got {method!r}")
@@ -553,7 +553,7 @@ def tune_schedule(method: str = "optimize", disc_sets=range(1, 8), *, freqs=(1.0
     optimised = {}
     if method == "optimize":
         # the disc sets' optimisations are independent: one executor task each (same results anywhere)
-        from ehas_env.executors import LocalExecutor
+        from ehas_env.simulation.executors import LocalExecutor
 
         ex = executor or LocalExecutor(workers=1, progress=progress)
         tasks = []

@@ -13,15 +13,15 @@ def register_envs() -> None:
     """Register ``ehas/Tracking-v0`` with gymnasium (single and vector entry points).
 
     The TimeLimit is a safety cap: episodes end by themselves (truncated) after
-    ``cycles`` reference periods, 3000 steps by default; see ehas_env.tracking_env.
+    ``cycles`` reference periods, 3000 steps by default; see ehas_env.env.tracking_env.
     """
     import gymnasium
 
     if "ehas/Tracking-v0" not in gymnasium.registry:
         gymnasium.register(
             id="ehas/Tracking-v0",
-            entry_point="ehas_env.tracking_env:TrackingEnv",
-            vector_entry_point="ehas_env.vector_env:TrackingVectorEnv",
+            entry_point="ehas_env.env.tracking_env:TrackingEnv",
+            vector_entry_point="ehas_env.env.vector_env:TrackingVectorEnv",
             max_episode_steps=60_000,
         )
 

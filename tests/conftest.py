@@ -2,9 +2,13 @@
 from __future__ import annotations
 
 import csv
+import sys
 from pathlib import Path
 
 import pytest
+
+# test modules in the layer folders import read_book_csv from here
+sys.path.insert(0, str(Path(__file__).parent))
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 BOOK = SHARED / "data" / "book"

@@ -75,7 +75,7 @@ class LearnedController:
 
     def save(self, path) -> Path:
         """Write the agent folder (``model.zip``, ``vecnormalize.pkl``, ``config.json``) to ``path``."""
-        from ehas_env.files import atomic_write_bytes, atomic_write_text
+        from ehas_env.output.files import atomic_write_bytes, atomic_write_text
 
         path = Path(path)
         path.mkdir(parents=True, exist_ok=True)
@@ -162,7 +162,7 @@ class MeasurementObserver:
     """The agent in the plant's closed loop: measurement -> observation -> action -> current.
 
     The observation and the current come from the environment's own
-    :class:`ehas_env.tracking_env.MeasurementObserver` (the one definition of the
+    :class:`ehas_env.env.tracking_env.MeasurementObserver` (the one definition of the
     observation), built for the agent's environment settings and, for a residual
     agent, its base controller on this plant (a schedule's entry for
     ``disc_sets``).  The amplitude that normalises the error is the
@@ -187,7 +187,7 @@ class MeasurementObserver:
         self.a_held = 0.0
 
     def _build(self, m: dict):
-        from ehas_env.tracking_env import MeasurementObserver as EnvObserver
+        from ehas_env.env.tracking_env import MeasurementObserver as EnvObserver
 
         agent, cfg = self.agent, self.agent.cfg
         kw = {k: v for k, v in cfg.env_kwargs.items() if k not in ("randomise",)}

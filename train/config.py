@@ -426,7 +426,7 @@ def _check_randomise(rnd: dict, source: str) -> None:
     if not isinstance(effects, dict):
         raise ValueError(f"{source}: [randomise.effects] must be a table effect -> \"typical\" or {{param = [low, high]}}")
     if effects:
-        from ehas_env.effects import REGISTRY
+        from ehas_env.physics.effects import REGISTRY
 
         for name, params in effects.items():
             where = f"{source}: [randomise.effects] {name}"

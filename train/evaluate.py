@@ -1,7 +1,7 @@
 """Learned controllers on the benchmark's 63 conditions and the book's rig tests, through the environment.
 
 Agents are evaluated in the environment they were trained in
-(``ehas/Tracking-v0``), batched: one :class:`ehas_env.vector_env.TrackingVectorEnv`
+(``ehas/Tracking-v0``), batched: one :class:`ehas_env.env.vector_env.TrackingVectorEnv`
 per disc-set count holds that count's conditions (its residual base compiled
 in), and the policy acts on all of them in one forward pass.  Each condition
 runs from rest for the benchmark's number of reference periods, and the rows
@@ -10,7 +10,7 @@ carry the benchmark's columns (``ehas_controllers.benchmark.CSV_COLUMNS``) with
 
 * ``rms_error_pct``, ``peak_error_pct``: the environment's episode metric -
   100 RMS / max (theta_ref - theta) / amplitude over the whole cycles after the
-  first, as ``ehas_env.metrics`` and the benchmark define it;
+  first, as ``ehas_env.simulation.metrics`` and the benchmark define it;
 * ``max_current_mA``, ``saturation_frac`` (share of periods at +-20 mA),
   ``peak_delta_p_bar`` (|P_A - P_B|) and ``hit_stroke_end`` over the whole run.
 
@@ -50,7 +50,7 @@ def grid_conditions() -> list[tuple[int, float, float]]:
 
 def book_conditions() -> list[tuple[tuple[int, float, float], float]]:
     """The book's 7 rig tests: ((disc sets, Hz, deg), the book's % pos error)."""
-    from ehas_env.book_tables import rig_tests
+    from ehas_env.book.tables import rig_tests
 
     return [((int(r.disc_sets), float(r.freq_hz), float(r.amplitude_deg)), float(r.pos_error_percent))
             for r in rig_tests()]
@@ -80,7 +80,7 @@ def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: fl
     list of dict
         One row per condition, in the order given, with :data:`METRICS`.
     """
-    from ehas_env.vector_env import TrackingVectorEnv
+    from ehas_env.env.vector_env import TrackingVectorEnv
 
     E.register_ehas()
     kw = {k: v for k, v in cfg.env_kwargs.items() if k not in ("disc_sets", "amplitude_deg", "freq_hz", "randomise")}
@@ -200,7 +200,7 @@ def run(agent_paths, out_dir, *, classical=None, cycles: float = DEFAULT_CYCLES,
     agent's learning curve into ``curves_dir`` (default
     ``results/learning_curves``).
     """
-    from ehas_env.files import atomic_write_bytes, atomic_write_text
+    from ehas_env.output.files import atomic_write_bytes, atomic_write_text
 
     from .agent import load_agent
 
@@ -269,7 +269,7 @@ def run(agent_paths, out_dir, *, classical=None, cycles: float = DEFAULT_CYCLES,
 
 def write_agent_readme(path, summary_row: dict, base_row: dict | None, eval_command: str) -> Path:
     """README.md of a shipped agent folder: what it is, the command that retrains it, its training time, its figures."""
-    from ehas_env.files import atomic_write_text
+    from ehas_env.output.files import atomic_write_text
 
     from .agent import load_agent
 
@@ -306,7 +306,7 @@ def write_agent_readme(path, summary_row: dict, base_row: dict | None, eval_comm
           "**Security:** `model.zip` and `vecnormalize.pkl` contain Python pickles, which can execute arbitrary code "
           "when loaded. Load agents only from trusted sources (`load_agent` warns).", "",
           "```python", "from ehas_train.agent import load_agent", f"agent = load_agent('{path}')  # warns: pickles",
-          "from ehas_env.plant import Plant",
+          "from ehas_env.simulation.plant import Plant",
           "run = Plant(disc_sets=7).simulate_closed_loop(agent.for_plant(7), amplitude_deg=30, freq_hz=3, cycles=5)",
           "print(run.tracking_errors())", "```", "",
           f"As a controller file: `ehas bench {path}`.", ""]
@@ -315,7 +315,7 @@ def write_agent_readme(path, summary_row: dict, base_row: dict | None, eval_comm
 
 def write_agents_index(agent_paths, agents, summaries, command: str, results_dir) -> None:
     """README.md of the folder(s) holding the agents: one line per agent with its command and figures."""
-    from ehas_env.files import atomic_write_text
+    from ehas_env.output.files import atomic_write_text
 
     folders = {}
     for p, agent in zip(agent_paths, agents):

@@ -220,9 +220,9 @@ def run_sweep(spec: SweepSpec, out, *, executor=None, command: str = "ehas train
     """Run every trial of ``spec`` through ``executor`` and write the sweep files into ``out``.
 
     Returns ``{"trials": [...], "best": index or None, "failed": [...]}``; raises
-    :class:`ehas_env.executors.TaskFailed` (after writing what finished) when a trial failed.
+    :class:`ehas_env.simulation.executors.TaskFailed` (after writing what finished) when a trial failed.
     """
-    from ehas_env.executors import LocalExecutor, RayExecutor, TaskFailed
+    from ehas_env.simulation.executors import LocalExecutor, RayExecutor, TaskFailed
 
     values = draw_trials(spec)
     tasks = [(i, trial_config(spec, v, i)) for i, v in enumerate(values)]
@@ -279,7 +279,7 @@ def _ray_tune(tasks, executor, retries: int) -> list[tuple[str, dict]]:
 
 
 def _write(spec: SweepSpec, out: Path, rows: list, best, command: str) -> None:
-    from ehas_env.files import atomic_write_text
+    from ehas_env.output.files import atomic_write_text
 
     out.mkdir(parents=True, exist_ok=True)
     buf = io.StringIO()

@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sweep", action="store_true",
                         help="hyper-parameter sweep over the [sweep] table of --config (ehas_train.sweep): one "
                              "training per trial, results and best_config.toml in --out")
-    from ehas_env.executors import add_executor_arguments
+    from ehas_env.simulation.executors import add_executor_arguments
 
     add_executor_arguments(parser)
     parser.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
@@ -94,7 +94,7 @@ def run_sweep_command(args) -> int:
     """``ehas train --sweep``: every trial through the executor; the driver writes --out."""
     import shlex
 
-    from ehas_env.executors import executor_from_args
+    from ehas_env.simulation.executors import executor_from_args
 
     from .sweep import load_sweep, run_sweep
 

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ehas_env.files import atomic_write_bytes, atomic_write_text
+from ehas_env.output.files import atomic_write_bytes, atomic_write_text
 
 from .config import TrainConfig, algo_class
 from . import envs as E

@@ -1,0 +1,260 @@
+"""``ehas identify``: a continuous-time transfer function fitted to a valve run.
+
+    ehas identify RUN.csv --poles 2 --zeros 0 [--input current_mA --output flow_lpm]
+                  [--json FILE] [--out DIR]
+
+prints the coefficients, K, wn, zeta (2-pole models) and the fit % (NRMSE, as
+MATLAB's ``compare``), and writes into DIR (default ``results/identify/RUN/``)
+the measured-vs-simulated overlay, the Bode plot (with the data's own
+spectral estimate where it is coherent) and the residual analysis (MATLAB
+``resid``: autocorrelation of the residuals and their cross-correlation with
+the input, 99 % bands).  ``--num/--den`` instead evaluate a given transfer
+function: alone they print its K, wn, zeta; with a run they report its fit on it.
+
+The plotting functions here are reused by :mod:`ehas_env.identification.book_valve`.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import shlex
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run", nargs="?", help="run file (measurement format CSV); optional with --num/--den")
+    parser.add_argument("--poles", type=int, default=2, help="number of poles (default 2)")
+    parser.add_argument("--zeros", type=int, default=0, help="number of zeros (default 0)")
+    parser.add_argument("--input", default="current_mA", help="input column (default current_mA)")
+    parser.add_argument("--output", default="flow_lpm", help="output column (default flow_lpm)")
+    parser.add_argument("--intersample", choices=("zoh", "foh"), default="zoh",
+                        help="input between samples: held (zoh, the format's convention, default) or linear (foh)")
+    parser.add_argument("--initial-state", choices=("zero", "estimate"), default="zero",
+                        help="start the model at rest (default) or also fit its initial state")
+    parser.add_argument("--num", help="evaluate this numerator instead of fitting, e.g. '14567.29'")
+    parser.add_argument("--den", help="... over this denominator, e.g. '1,147.83,11449.86'")
+    parser.add_argument("--json", help="write {num, den, K, wn, zeta, fit_percent, ...} to this file")
+    parser.add_argument("--out", help="folder for the plots (default results/identify/RUN)")
+    parser.add_argument("--no-plots", action="store_true", help="write no plots")
+    parser.add_argument("--max-lag", type=int, default=25, help="lags of the residual analysis (default 25)")
+    parser.add_argument("--timing", action="store_true", help="repeat the fit 5 times and print the median wall time")
+
+
+def _command(args) -> str:
+    """The command line that regenerates this output, from the parsed arguments."""
+    parts = ["ehas", "identify"] + ([args.run] if args.run else [])
+    if args.num is not None:
+        parts += ["--num", args.num, "--den", args.den]
+    else:
+        parts += ["--poles", str(args.poles), "--zeros", str(args.zeros)]
+    for flag, value, default in (("--input", args.input, "current_mA"), ("--output", args.output, "flow_lpm"),
+                                 ("--intersample", args.intersample, "zoh"),
+                                 ("--initial-state", args.initial_state, "zero"), ("--json", args.json, None),
+                                 ("--out", args.out, None)):
+        if value != default:
+            parts += [flag, str(value)]
+    return " ".join(shlex.quote(p) for p in parts)
+
+
+def _coeffs(text: str, what: str) -> list[float]:
+    try:
+        vals = [float(v) for v in text.replace(" ", ",").split(",") if v]
+    except ValueError:
+        raise ValueError(f"--{what}: expected comma-separated numbers, got {text!r}") from None
+    if not vals or not all(math.isfinite(v) for v in vals):
+        raise ValueError(f"--{what}: expected finite comma-separated numbers, got {text!r}")
+    return vals
+
+
+def run(args) -> int:
+    import json
+
+    import numpy as np
+
+    from ehas_env.identification import fit as ID
+    from ehas_env.output.files import atomic_write_text
+
+    if args.run is None and (args.num is None or args.den is None):
+        raise ValueError("give a run file to identify, or --num and --den to evaluate a transfer function")
+    if (args.num is None) != (args.den is None):
+        raise ValueError("--num and --den go together")
+    command = _command(args)
+
+    given = None
+    if args.num is not None:
+        import control
+
+        num, den = _coeffs(args.num, "num"), _coeffs(args.den, "den")
+        if len(num) > len(den):
+            raise ValueError(f"--num/--den: improper transfer function (numerator degree {len(num) - 1} > "
+                             f"denominator degree {len(den) - 1})")
+        den_arr = np.asarray(den) / den[0]
+        num_arr = np.asarray(num) / den[0]
+        given = control.tf(num_arr, den_arr)
+        print(f"G(s) = ({ID.format_poly(num_arr)}) / ({ID.format_poly(den_arr)})")
+        result = {"num": num_arr.tolist(), "den": den_arr.tolist()}
+        if len(den) == 3:
+            so = ID.second_order_parameters(num_arr, den_arr)
+            print(f"K = {so['K']:.4f}, wn = {so['wn']:.2f} rad/s ({so['wn'] / (2 * math.pi):.2f} Hz), "
+                  f"zeta = {so['zeta']:.3f}")
+            result.update(so)
+        else:
+            result.update({"K": ID.dc_gain(num_arr, den_arr), "wn": None, "zeta": None})
+        print(f"poles: {', '.join(f'{p:.4g}' for p in np.roots(den_arr))}")
+        if args.run is None:
+            result["fit_percent"] = None
+            if args.json:
+                atomic_write_text(args.json, json.dumps(result, indent=2) + "\n")
+                print(f"wrote {args.json}")
+            return 0
+
+    data = ID.read_columns(args.run, args.input, args.output)
+    if given is not None:
+        y_sim = ID.simulate_tf(given, data.t, data.u, intersample=args.intersample)
+        est = ID.TFEstimate(tf=given, num=num_arr, den=den_arr, n_poles=len(den) - 1,
+                            n_zeros=len(np.trim_zeros(num_arr, "f")) - 1, fit_percent=ID.fit_percent(data.y, y_sim),
+                            data=data, y_sim=y_sim, intersample=args.intersample, x0=np.zeros(len(den) - 1))
+        print(f"fit on {args.run}: {est.fit_percent:.2f} % (NRMSE, {args.intersample} input)")
+    else:
+        est = ID.tfest(data, n_poles=args.poles, n_zeros=args.zeros, intersample=args.intersample,
+                       initial_state=args.initial_state)
+        print(est.summary())
+    ra = ID.residual_analysis(est.residuals, data.u, max_lag=min(args.max_lag, data.n - 1))
+    print(f"  {ra.verdict()}")
+    if args.timing and given is None:
+        import time
+
+        times = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            ID.tfest(data, n_poles=args.poles, n_zeros=args.zeros, intersample=args.intersample,
+                     initial_state=args.initial_state)
+            times.append(time.perf_counter() - t0)
+        print(f"  timing: median {np.median(times):.3f} s over 5 fits of {data.n} samples "
+              f"(min {min(times):.3f}, max {max(times):.3f})")
+    if args.json:
+        atomic_write_text(args.json, json.dumps(est.to_json_dict(), indent=2) + "\n")
+        print(f"wrote {args.json}")
+    if not args.no_plots:
+        out = Path(args.out) if args.out else Path("results/identify") / Path(args.run).stem
+        label = f"{est.n_poles}p{est.n_zeros}z"
+        files = [plot_overlay(est, out / "overlay.png", title=f"{Path(args.run).name}: {label} model"),
+                 plot_bode([(label, est.tf)], out / "bode.png", data=data,
+                           title=f"{Path(args.run).name}: {label} model and the data's spectral estimate"),
+                 plot_residuals(ra, out / "residuals.png", title=f"{Path(args.run).name}: residuals of the {label} model")]
+        md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", est.summary(),
+              f"  {ra.verdict()}", "```", "", "Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
+        files.append(atomic_write_text(out / "identify.md", "\n".join(md)))
+        print(f"wrote {', '.join(str(f) for f in files)}")
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# figures
+# ---------------------------------------------------------------------------
+
+def _save(fig, path) -> Path:
+    from ehas_env.output.plots import _pyplot
+
+    plt = _pyplot()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    fig.tight_layout()
+    fig.savefig(tmp, dpi=90)
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
+def plot_overlay(est, path, title: str = "") -> Path:
+    """Measured and simulated output, and their difference, against time."""
+    from ehas_env.output.plots import _pyplot
+
+    plt = _pyplot()
+    d = est.data
+    fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    ax[0].plot(d.t, d.y, lw=0.7, label=f"measured {d.output_name}")
+    ax[0].plot(d.t, est.y_sim, lw=0.9, label=f"simulated (fit {est.fit_percent:.1f} %)")
+    ax[0].set_ylabel(d.output_name)
+    ax[0].legend(loc="upper right")
+    ax[1].plot(d.t, est.residuals, lw=0.6, color="C3")
+    ax[1].set_ylabel("measured - simulated")
+    ax[1].set_xlabel("t, s")
+    if title:
+        ax[0].set_title(title)
+    return _save(fig, path)
+
+
+def spectral_estimate(data, nperseg: int | None = None):
+    """Non-parametric frequency response of the data, H = P_uy / P_uu (Welch), and its coherence.
+
+    Returns (f Hz, H complex, coherence); use only where the coherence is high.
+    """
+    import numpy as np
+    from scipy import signal
+
+    fs = 1.0 / data.dt
+    nperseg = nperseg or int(min(data.n, max(256, 2 ** int(np.log2(data.n / 4)))))
+    f, puu = signal.welch(data.u, fs=fs, nperseg=nperseg)
+    _, puy = signal.csd(data.u, data.y, fs=fs, nperseg=nperseg)
+    _, coh = signal.coherence(data.u, data.y, fs=fs, nperseg=nperseg)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = puy / puu
+    # the measured output at t_k reflects the input held over the previous sample: undo that half-sample
+    h = h * np.exp(1j * np.pi * f / fs)
+    return f, h, coh
+
+
+def plot_bode(models, path, data=None, title: str = "", f_range=None, coherence_min: float = 0.9) -> Path:
+    """Bode plot of ``[(label, TransferFunction), ...]``, with the data's spectral estimate if given."""
+    import numpy as np
+
+    from ehas_env.output.plots import _pyplot
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    lo, hi = f_range or (0.1, 200.0)
+    if data is not None:
+        f, h, coh = spectral_estimate(data)
+        ok = (coh >= coherence_min) & (f > 0) & (f <= 0.5 / data.dt)
+        if ok.any():
+            ax[0].semilogx(f[ok], 20 * np.log10(np.abs(h[ok])), ".", ms=3, color="0.5",
+                           label=f"data (Welch, coherence >= {coherence_min:g})")
+            ax[1].semilogx(f[ok], np.degrees(np.unwrap(np.angle(h[ok]))), ".", ms=3, color="0.5")
+        hi = min(hi, 0.5 / data.dt)
+    f = np.geomspace(lo, hi, 400)
+    for label, sys_ in models:
+        num, den = np.squeeze(sys_.num[0][0]), np.squeeze(sys_.den[0][0])
+        g = np.polyval(np.atleast_1d(num), 2j * np.pi * f) / np.polyval(np.atleast_1d(den), 2j * np.pi * f)
+        ax[0].semilogx(f, 20 * np.log10(np.abs(g)), label=label)
+        ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(g))), label=label)
+    ax[0].set_ylabel("magnitude, dB")
+    ax[1].set_ylabel("phase, deg")
+    ax[1].set_xlabel("frequency, Hz")
+    for a in ax:
+        a.grid(True, which="both", alpha=0.3)
+    ax[0].legend(loc="lower left", fontsize=8)
+    if title:
+        ax[0].set_title(title, fontsize=10)
+    return _save(fig, path)
+
+
+def plot_residuals(ra, path, title: str = "") -> Path:
+    """MATLAB-``resid``-style figure: residual autocorrelation and input cross-correlation, 99 % bands."""
+    from ehas_env.output.plots import _pyplot
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(2, 1, figsize=(8, 6))
+    ax[0].stem(ra.lags, ra.auto, basefmt=" ")
+    ax[0].axhspan(-ra.auto_band, ra.auto_band, color="C0", alpha=0.15, label="99 % band (white)")
+    ax[0].set_ylabel("autocorrelation of residuals")
+    ax[0].set_xlabel("lag, samples")
+    ax[0].legend(loc="upper right", fontsize=8)
+    ax[1].stem(ra.cross_lags, ra.cross, basefmt=" ")
+    ax[1].axhspan(-ra.cross_band, ra.cross_band, color="C0", alpha=0.15, label="99 % band (independent)")
+    ax[1].set_ylabel("cross-corr. input -> residual")
+    ax[1].set_xlabel("lag, samples (> 0: residual after input)")
+    ax[1].legend(loc="upper right", fontsize=8)
+    ax[0].set_title((title + "\n" if title else "") + ra.verdict(), fontsize=9)
+    return _save(fig, path)

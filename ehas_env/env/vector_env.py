@@ -1,0 +1,218 @@
+"""Batched ``ehas/Tracking-v0``: N environments stepped in one compiled loop.
+
+A native :class:`gymnasium.vector.VectorEnv`: the N plants live in two float
+arrays (see :mod:`ehas_env.env.batch_kernel`) and one numba call steps them all
+with the very code of the single environment, so environment ``i`` of a batch
+seeded ``s`` follows exactly the episodes of ``TrackingEnv`` reset with seed
+``s + i`` and given the same actions.  Settings, spaces, reward and
+termination are those of :mod:`ehas_env.env.tracking_env`; the differences:
+
+* autoreset ``NEXT_STEP`` (gymnasium's default): the step after an episode's
+  end resets that environment and returns its first observation, reward 0;
+* ``max_episode_steps`` (passed by ``gymnasium.make_vec``) truncates longer
+  episodes, as the single environment's TimeLimit does;
+* ``info`` holds each unscaled quantity as an array over the environments and,
+  for the environments whose episode ended, ``rms_error_pct``,
+  ``peak_error_pct``, ``metric_complete``, ``episode_steps`` with their
+  ``_key`` masks;
+* the base controller of residual mode must be a ``RigController`` (compiled);
+* rows are stepped by one serial numba loop (the default, fastest on the
+  shared 2-core machine: ``ehas perf`` measures both) or, with
+  ``parallel=True``, by a ``prange`` loop on every core, which pays only when
+  the cores are free; both give the same numbers.
+
+Examples
+--------
+>>> import gymnasium, numpy as np, ehas_env
+>>> envs = gymnasium.make_vec("ehas/Tracking-v0", num_envs=4, vectorization_mode="vector_entry_point")
+>>> obs, info = envs.reset(seed=0)
+>>> obs.shape
+(4, 13)
+>>> obs, rew, term, trunc, info = envs.step(np.zeros((4, 1), np.float32))
+>>> float(np.abs(info["theta_deg"]).max())
+0.0
+"""
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ehas_env.env import batch_kernel as bk
+from ehas_env.env import parts
+from ehas_env.physics import kernel as K
+from ehas_env.simulation.plant import TAU_MAX, RigController
+from ehas_env.env.tracking_env import ACTION_SPACE, EpisodePacker, observation_space, step_settings
+
+
+
+class TrackingVectorEnv(VectorEnv):
+    """N tracking environments in one compiled loop (see the module docstring).
+
+    Parameters
+    ----------
+    num_envs : int
+        Number of environments.
+    max_episode_steps : int, optional
+        Truncate episodes after this many steps (``gymnasium.make_vec`` passes
+        the registration's cap).
+    parallel : bool
+        Step the rows on every core (numba ``prange``) instead of one serial loop.
+    **kwargs
+        The settings of :class:`~ehas_env.env.tracking_env.TrackingEnv` (episode
+        defaults, ``randomise``, ``controller``, reward weights, ``preview_ms``,
+        ``dt``, ``substeps``, ``plant_kwargs``).
+    """
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, *, max_episode_steps: int | None = None, parallel: bool = False,
+                 disc_sets: int = 3, amplitude_deg: float = 20.0, freq_hz: float = 1.0, cycles: float = 3.0,
+                 effects=None, sensors=None, theta0_deg: float = 0.0, reference=None, randomise: dict | None = None,
+                 controller=None, rate_penalty: float = 0.01, termination_penalty: float = 1.0,
+                 preview_ms=(10.0, 20.0, 50.0), dt: float = 1.0e-3, substeps: int = 10,
+                 plant_kwargs: dict | None = None, render_mode: str | None = None):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if max_episode_steps is not None and (not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
+        if render_mode is not None:
+            raise ValueError("TrackingVectorEnv does not render; render a single TrackingEnv instead")
+        if controller is not None and not isinstance(controller, RigController):
+            raise ValueError("the vector env's residual mode takes a RigController (compiled into the step); "
+                             f"got {type(controller).__name__}: use TrackingEnv for controllers called in Python")
+        self.num_envs = int(num_envs)
+        self.render_mode = None
+        self.max_episode_steps = max_episode_steps
+        self.parallel = bool(parallel)
+        self._st = step_settings(controller, rate_penalty, termination_penalty, preview_ms, dt, substeps, plant_kwargs)
+        self._defaults = {"disc_sets": disc_sets, "amplitude_deg": amplitude_deg, "freq_hz": freq_hz,
+                          "cycles": cycles, "effects": effects, "sensors": sensors, "theta0_deg": theta0_deg,
+                          "reference": reference, "randomise": randomise}
+        self._packer = EpisodePacker(self._st)
+        self._packer(parts.draw_episode(self._defaults, None, np.random.default_rng(0)))  # fail early
+
+        self.single_observation_space = observation_space(self._st.n_obs)
+        self.single_action_space = ACTION_SPACE
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+
+        n = self.num_envs
+        self._X = np.zeros((n, bk.x_length(K.history_length(TAU_MAX, self._st.dt))))
+        self._C = np.zeros((n, bk.N_CONST))
+        self._W = np.zeros((n, *bk.W_SHAPE))
+        self._obs = np.zeros((n, self._st.n_obs), np.float32)
+        self._raw = np.zeros((n, bk.N_RAW))
+        self._rew = np.zeros(n)
+        self._n_done = 0  # environments whose episode ended at the last step (reset at the next)
+        self._done = np.zeros(n, bool)
+        self._rngs: list = [None] * n
+        self._options: dict | None = None
+        self._all = np.ones(n, bool)
+        self._all.flags.writeable = False
+        self._raw_masks = {"_" + name: self._all for name in bk.RAW_NAMES}
+        self._started = False
+
+    # -- gymnasium API ------------------------------------------------------
+    def reset(self, *, seed=None, options: dict | None = None):
+        """Reset every environment (or those of ``options["reset_mask"]``).
+
+        ``seed``: an int (environment i gets ``seed + i``), a list of N seeds
+        (None entries draw fresh entropy) or None.  ``options`` hold episode
+        settings, as for ``TrackingEnv.reset``; they stay in force for the
+        automatic resets that follow.
+        """
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        mask = self._all if mask is None else np.asarray(mask, bool)
+        if mask.shape != (self.num_envs,):
+            raise ValueError(f"reset_mask must be a boolean array of shape ({self.num_envs},), got shape {mask.shape}")
+        if seed is None:
+            seeds = [None] * self.num_envs
+        elif isinstance(seed, (int, np.integer)):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"seed must be an int, None or a list of {self.num_envs} seeds, got {len(seeds)}")
+        if seed is not None or not self._started:
+            for i in np.flatnonzero(mask):
+                self._rngs[i] = seeding.np_random(seeds[i])[0]
+            if seed is not None:
+                self._np_random, self._np_random_seed = seeding.np_random(seeds[0])
+        self._options = options
+        self._started = True
+        self._reset_rows(mask)
+        self._done = self._done & ~mask
+        self._n_done = int(self._done.sum())
+        return self._obs.copy(), self._raw_info()
+
+    def step(self, actions):
+        a = np.asarray(actions, dtype=np.float64)
+        if a.size != self.num_envs:
+            raise ValueError(f"actions must hold one value per environment, shape ({self.num_envs}, 1); got shape {a.shape}")
+        a = a.reshape(self.num_envs)
+        if not np.isfinite(a).all():
+            i = np.flatnonzero(~np.isfinite(a))
+            raise ValueError(f"actions of environments {i[:10].tolist()} are not finite ({a[i[0]]!r}): expected "
+                             "normalised currents in [-1, 1] (NaN and inf are refused, out-of-range values are clipped)")
+        if not self._started:
+            raise RuntimeError("step() before reset()")
+        if self._n_done:
+            resetting = self._done.copy()
+            self._reset_rows(resetting)
+            active = ~resetting
+        else:
+            active = self._all
+        terminated = np.empty(self.num_envs, bool)
+        truncated = np.empty(self.num_envs, bool)
+        self._n_done = bk.batch_step(self._X, self._C, self._W, a, active, self._obs, self._raw, self._rew,
+                                     terminated, truncated, parallel=self.parallel)
+        info = self._raw_info()
+        if self._n_done:
+            self._done = terminated | truncated
+            self._final_info(info, self._done)
+        else:
+            self._done[:] = False  # the rows reset at this step are done with
+        return self._obs.copy(), self._rew.copy(), terminated, truncated, info
+
+    def close_extras(self, **kwargs):
+        pass
+
+    # -- helpers --------------------------------------------------------------
+    def _reset_rows(self, mask: np.ndarray):
+        idx = np.flatnonzero(mask)
+        for i in idx:
+            if self._rngs[i] is None:
+                self._rngs[i] = seeding.np_random(None)[0]
+            ep = parts.draw_episode(self._defaults, self._options, self._rngs[i])
+            C, _ = self._packer(ep)
+            if self.max_episode_steps is not None:
+                C[bk.C_NSTEPS] = min(C[bk.C_NSTEPS], self.max_episode_steps)
+            self._C[i] = C
+        bk.batch_reset(self._X, self._C, self._W, mask, self._obs, self._raw)
+
+    def _raw_info(self) -> dict:
+        info = dict(zip(bk.RAW_NAMES, self._raw.T.copy()))
+        info.update(self._raw_masks)
+        return info
+
+    def _final_info(self, info: dict, done: np.ndarray):
+        n = self.num_envs
+        rms = np.zeros(n)
+        peak = np.zeros(n)
+        complete = np.zeros(n, bool)
+        steps = np.zeros(n, np.int64)
+        for i in np.flatnonzero(done):
+            m = parts.episode_metrics(self._X[i], self._C[i])
+            rms[i], peak[i], complete[i] = m["rms_error_pct"], m["peak_error_pct"], m["metric_complete"]
+            steps[i] = int(self._X[i, bk.X_K])
+        for key, val in (("rms_error_pct", rms), ("peak_error_pct", peak), ("metric_complete", complete),
+                         ("episode_steps", steps)):
+            info[key] = val
+            info["_" + key] = done.copy()
+
+    def episode_metrics(self, i: int) -> dict:
+        """rms/peak % position error of environment ``i``'s episode so far."""
+        return parts.episode_metrics(self._X[i], self._C[i])

@@ -1,0 +1,505 @@
+"""Measurement campaigns: reading, validating and writing folders of runs.
+
+A campaign is a folder of runs, each a ``RUN.csv`` (one header line, one row
+per uniformly spaced sample) with a ``RUN.json`` sidecar saying what the run
+was; the format is the project's measurement contract (``measurements.md``,
+README "Measurement files").  :func:`read_campaign` refuses anything that is
+not that format with a message naming the file, the line or key, and what is
+expected; short gaps (at most :data:`MAX_GAP` missing samples in a row) are
+filled by linear interpolation and counted.  :func:`write_campaign` validates
+every run first and writes the folder all at once, so a failure never leaves a
+half-written campaign behind.
+
+Examples
+--------
+>>> import tempfile, numpy as np
+>>> t = np.arange(200) * 1e-3
+>>> cols = {"t": t, "current_mA": np.sin(40 * t), "flow_lpm": 1.27 * np.sin(40 * t)}
+>>> cols["flow_lpm"][50:53] = np.nan          # three lost samples
+>>> meta = {"kind": "valve_open_loop", "supply_bar": 70}
+>>> folder = Path(tempfile.mkdtemp()) / "camp"
+>>> _ = write_campaign(folder, [("valve", cols, meta)])
+>>> camp = read_campaign(folder)
+>>> [r.name for r in camp.runs], camp.runs[0].interpolated
+(['valve'], {'flow_lpm': 3})
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ehas_env.output.files import atomic_write_text
+from ehas_env.physics.rig import MAX_SETS, MIN_SETS, THETA_STROKE_END
+from ehas_env.measurement.runfile import write_run as _write_run_files
+
+#: the format's columns and their units
+COLUMNS = {
+    "t": "s",
+    "current_mA": "mA",
+    "theta_deg": "deg",
+    "theta_ref_deg": "deg",
+    "flow_lpm": "LPM",
+    "p_a_bar": "bar",
+    "p_b_bar": "bar",
+    "p_s_bar": "bar",
+    "load_kN": "kN",
+}
+#: quantity (column name without its unit) -> column name, to name a wrong unit
+_QUANTITY = {name.rsplit("_", 1)[0] if "_" in name else name: name for name in COLUMNS}
+_QUANTITY["theta_ref"] = "theta_ref_deg"
+
+KINDS = ("closed_loop", "valve_open_loop")
+REQUIRED = {
+    "closed_loop": ("t", "current_mA", "theta_deg", "theta_ref_deg"),
+    "valve_open_loop": ("t", "current_mA", "flow_lpm"),
+}
+#: longest run of missing samples that is interpolated; longer gaps are refused
+MAX_GAP = 5
+#: relative tolerance on the sample spacing (loggers write times rounded)
+DT_TOLERANCE = 0.01
+MIN_RATE_HZ = 100.0  # the replay's integrator needs at least 100 Hz sampling
+MIN_SAMPLES = 20
+CONTROLLER_REQUIRED = ("Kp", "Ki", "Kv", "Ka", "rate_hz")
+CONTROLLER_OPTIONAL = ("Kj", "Kdp", "dp_hp")
+#: the logged reference may differ from the sidecar's by this fraction of the amplitude
+REF_TOLERANCE = 0.01
+
+
+class CampaignError(ValueError):
+    """A campaign, run file or sidecar that is not the measurement format."""
+
+
+@dataclass
+class Run:
+    """One validated run.
+
+    Attributes
+    ----------
+    name : str
+        File stem (``RUN`` of ``RUN.csv``).
+    csv_path : Path
+        The CSV it came from (None for runs built in memory).
+    meta : dict
+        The validated sidecar: ``kind``, ``supply_bar`` and, for closed-loop
+        runs, ``disc_sets``, ``reference`` (amplitude_deg, freq_hz, phase_rad,
+        ramp_cycles) and ``controller`` (Kp, Ki, Kv, Ka, Kj, Kdp, dp_hp, rate_hz).
+    t : ndarray
+        Sample times, s, uniform (t0 + k dt).
+    dt : float
+        Sample period, s.
+    columns : dict of ndarray
+        Every logged column but ``t``, gaps filled (engineering units).
+    interpolated : dict
+        Column -> number of missing samples that were interpolated.
+    """
+
+    name: str
+    csv_path: Path | None
+    meta: dict
+    t: np.ndarray
+    dt: float
+    columns: dict[str, np.ndarray]
+    interpolated: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def kind(self) -> str:
+        return self.meta["kind"]
+
+    @property
+    def n(self) -> int:
+        return self.t.size
+
+    @property
+    def duration(self) -> float:
+        return self.n * self.dt
+
+    def label(self) -> str:
+        """Short description: ``3 sets, 20 deg, 1 Hz`` or ``valve, 70 bar``."""
+        m = self.meta
+        if self.kind == "closed_loop":
+            ref = m["reference"]
+            sets = "1 set" if m["disc_sets"] == 1 else f"{m['disc_sets']} sets"
+            return f"{sets}, {ref['amplitude_deg']:g} deg, {ref['freq_hz']:g} Hz"
+        return f"valve, {m['supply_bar']:g} bar"
+
+
+@dataclass
+class Campaign:
+    """A folder of validated runs (sorted by name)."""
+
+    path: Path | None
+    runs: list[Run]
+    ignored: list[str] = field(default_factory=list)
+
+    @property
+    def interpolated_total(self) -> int:
+        return sum(sum(r.interpolated.values()) for r in self.runs)
+
+    def summary(self) -> str:
+        """One line per run plus the interpolation count, for reports."""
+        lines = [f"{len(self.runs)} runs in {self.path}:"]
+        for r in self.runs:
+            gaps = sum(r.interpolated.values())
+            extra = f", {gaps} missing samples interpolated" if gaps else ""
+            lines.append(f"  {r.name}: {r.kind} ({r.label()}), {r.n} samples at {1 / r.dt:g} Hz{extra}")
+        lines.append(f"  {self.interpolated_total} missing samples interpolated in all")
+        return "\n".join(lines)
+
+
+# --- reading ---------------------------------------------------------------------------------
+
+
+def read_campaign(path) -> Campaign:
+    """Read and validate every ``RUN.csv`` + ``RUN.json`` pair of a folder.
+
+    Raises
+    ------
+    FileNotFoundError
+        The folder does not exist.
+    CampaignError
+        No runs, or any run that is not the measurement format (the message
+        names the file, line or key, and what is expected).
+    """
+    folder = Path(path)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"campaign folder {folder} does not exist (expected a folder of RUN.csv + RUN.json pairs)")
+    csvs = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".csv" and p.is_file())
+    if not csvs:
+        raise CampaignError(f"{folder}: no runs found; a campaign is a folder of RUN.csv files, each with a RUN.json sidecar")
+    stems = {p.stem for p in csvs}
+    ignored = sorted(p.name for p in folder.iterdir() if p.suffix.lower() == ".json" and p.stem not in stems)
+    return Campaign(path=folder, runs=[read_run(p) for p in csvs], ignored=ignored)
+
+
+def read_run(csv_path) -> Run:
+    """Read and validate one run (its CSV and the JSON sidecar beside it)."""
+    csv_path = Path(csv_path)
+    json_path = csv_path.with_suffix(".json")
+    if not json_path.is_file():
+        raise CampaignError(f"{csv_path}: sidecar {json_path.name} is missing; every RUN.csv needs a RUN.json saying "
+                            "what the run was (kind, supply_bar, disc_sets, reference, controller)")
+    meta = read_sidecar(json_path)
+    names, data = _parse_csv(csv_path)
+    return validate_run(csv_path.stem, dict(zip(names, data.T)), meta, where=str(csv_path), line_offset=2,
+                        csv_path=csv_path)
+
+
+def read_sidecar(json_path) -> dict:
+    """Parse a RUN.json sidecar (validation happens in :func:`validate_meta`)."""
+    json_path = Path(json_path)
+    try:
+        text = json_path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise CampaignError(f"{json_path}: not UTF-8 text ({exc.reason}); expected a JSON object") from None
+    try:
+        meta = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CampaignError(f"{json_path}: not valid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+    return meta
+
+
+def _parse_csv(csv_path: Path) -> tuple[list[str], np.ndarray]:
+    try:
+        text = csv_path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise CampaignError(f"{csv_path}: not UTF-8 text ({exc.reason}); expected a CSV file") from None
+    lines = text.splitlines()
+    while lines and not lines[-1].strip():
+        lines.pop()
+    if not lines:
+        raise CampaignError(f"{csv_path}: empty file; expected a header line (t,current_mA,...) and one row per sample")
+    names = [c.strip() for c in lines[0].split(",")]
+    check_column_names(names, str(csv_path))
+    width = len(names)
+    data = np.empty((len(lines) - 1, width))
+    for k, line in enumerate(lines[1:]):
+        cells = line.split(",")
+        if len(cells) != width:
+            raise CampaignError(f"{csv_path}, line {k + 2}: {len(cells)} cells, expected {width} (one per column of the header)")
+        for j, cell in enumerate(cells):
+            c = cell.strip()
+            if not c or c.lower() == "nan":
+                data[k, j] = np.nan
+                continue
+            try:
+                v = float(c)
+            except ValueError:
+                raise CampaignError(f"{csv_path}, line {k + 2}, column '{names[j]}': {c!r} is not a number "
+                                    f"(expected {COLUMNS[names[j]]}, or an empty cell for a missing sample)") from None
+            if not math.isfinite(v):
+                raise CampaignError(f"{csv_path}, line {k + 2}, column '{names[j]}': {c!r} is not finite "
+                                    "(leave the cell empty for a missing sample)")
+            data[k, j] = v
+    return names, data
+
+
+def check_column_names(names, where: str) -> None:
+    """Refuse unknown columns, unknown units and duplicates, naming the column."""
+    seen = set()
+    for name in names:
+        if name in seen:
+            raise CampaignError(f"{where}: column '{name}' appears twice in the header")
+        seen.add(name)
+        if name in COLUMNS:
+            continue
+        base, _, unit = name.rpartition("_")
+        if base in _QUANTITY:
+            good = _QUANTITY[base]
+            raise CampaignError(f"{where}: column '{name}' has unit '{unit}', which the format does not know; "
+                                f"expected '{good}' ({COLUMNS[good]})")
+        if name in ("t_s", "time", "time_s", "t_ms"):
+            raise CampaignError(f"{where}: column '{name}': time must be the column 't' in seconds")
+        known = ", ".join(f"{c} ({u})" for c, u in COLUMNS.items())
+        raise CampaignError(f"{where}: unknown column '{name}'; the format's columns are: {known}")
+
+
+# --- validation ------------------------------------------------------------------------------
+
+
+def validate_run(name: str, columns: dict, meta, *, where: str | None = None, line_offset: int = 0,
+                 csv_path: Path | None = None) -> Run:
+    """Validate one run's columns and sidecar; fill short gaps.
+
+    ``line_offset`` converts a sample index into a file line number (2 for a CSV
+    with its header on line 1); 0 names samples instead of lines.
+    """
+    where = where or name
+    check_column_names(list(columns), where)
+    meta = validate_meta(meta, where=(str(Path(where).with_suffix(".json")) if csv_path else f"{where} sidecar"))
+    kind = meta["kind"]
+
+    def at(k: int) -> str:
+        return f"line {k + line_offset}" if line_offset else f"sample {k}"
+
+    missing = [c for c in REQUIRED[kind] if c not in columns]
+    if missing:
+        raise CampaignError(f"{where}: required column '{missing[0]}' is missing; a {kind} run needs "
+                            f"{', '.join(REQUIRED[kind])}")
+    cols = {c: np.asarray(v, dtype=float).ravel() for c, v in columns.items()}
+    lengths = {c: v.size for c, v in cols.items()}
+    if len(set(lengths.values())) > 1:
+        raise CampaignError(f"{where}: columns differ in length {lengths}; expected one value per sample in every column")
+    t = cols.pop("t")
+    if t.size < MIN_SAMPLES:
+        raise CampaignError(f"{where}: {t.size} samples; expected at least {MIN_SAMPLES}")
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise CampaignError(f"{where}, {at(bad[0])}: time 't' is missing; every row needs its sample time in s")
+    d = np.diff(t)
+    back = np.flatnonzero(d <= 0)
+    if back.size:
+        k = back[0] + 1
+        raise CampaignError(f"{where}, {at(k)}: t = {t[k]:.9g} s does not come after {t[k - 1]:.9g} s; "
+                            "rows must be in strictly increasing time order")
+    dt = float(np.median(d))
+    off = np.flatnonzero(np.abs(d - dt) > DT_TOLERANCE * dt)
+    if off.size:
+        k = off[0] + 1
+        raise CampaignError(f"{where}, {at(k)}: time step {d[k - 1]:.6g} s where the run samples every {dt:.6g} s; "
+                            "sampling must be uniform (a gap in time needs its rows, with empty cells)")
+    if 1.0 / dt < MIN_RATE_HZ:
+        raise CampaignError(f"{where}: sampled at {1 / dt:g} Hz; expected at least {MIN_RATE_HZ:g} Hz (rigs log at 1-5 kHz)")
+    t = t[0] + dt * np.arange(t.size)
+
+    interpolated = {}
+    for c, v in cols.items():
+        miss = ~np.isfinite(v)
+        if not miss.any():
+            continue
+        start, length = _longest_gap(miss)
+        if length > MAX_GAP:
+            span = f"{at(start)}" if length == 1 else f"{at(start)} to {at(start + length - 1).split()[-1]}"
+            raise CampaignError(f"{where}, column '{c}': {length} missing samples in a row ({span}); "
+                                f"at most {MAX_GAP} in a row can be interpolated")
+        good = np.flatnonzero(~miss)
+        cols[c] = np.interp(np.arange(v.size), good, v[good])
+        interpolated[c] = int(miss.sum())
+
+    run = Run(name=name, csv_path=csv_path, meta=meta, t=t, dt=dt, columns=cols, interpolated=interpolated)
+    if kind == "closed_loop":
+        _check_reference(run, where, at)
+    return run
+
+
+def _longest_gap(miss: np.ndarray) -> tuple[int, int]:
+    """(start, length) of the longest run of True in ``miss``."""
+    edges = np.diff(np.r_[0, miss.astype(np.int8), 0])
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    k = int(np.argmax(ends - starts))
+    return int(starts[k]), int(ends[k] - starts[k])
+
+
+def _check_reference(run: Run, where: str, at) -> None:
+    """The logged reference must be the sidecar's: the replay regenerates it from there."""
+    ref = reference_of(run)
+    model = ref(run.t - run.t[0])[0]
+    logged = run.columns["theta_ref_deg"]
+    err = np.abs(logged - model)
+    tol = max(REF_TOLERANCE * ref.amplitude_deg, 0.01)
+    if err.max() > tol:
+        k = int(np.argmax(err))
+        r = run.meta["reference"]
+        raise CampaignError(
+            f"{where}, {at(k)}: theta_ref_deg = {logged[k]:.4g} deg, but the sidecar's reference (amplitude_deg "
+            f"{r['amplitude_deg']:g}, freq_hz {r['freq_hz']:g}, phase_rad {r['phase_rad']:g}, ramp_cycles "
+            f"{r['ramp_cycles']:g}) gives {model[k]:.4g} deg at t - t0 = {run.t[k] - run.t[0]:.4g} s; the sidecar must "
+            "describe the reference the controller followed")
+
+
+def reference_of(run: Run):
+    """The run's :class:`~ehas_env.simulation.reference.SineReference` (closed-loop runs)."""
+    from ehas_env.simulation.reference import SineReference
+
+    r = run.meta["reference"]
+    return SineReference(r["amplitude_deg"], r["freq_hz"], phase=r["phase_rad"], ramp_cycles=r["ramp_cycles"])
+
+
+def _number(obj: dict, key: str, where: str, what: str, *, lo=None, hi=None, lo_open=False, default=None,
+            integer=False) -> float:
+    if key not in obj:
+        if default is not None:
+            return default
+        raise CampaignError(f"{where}: key '{key}' is missing; expected {what}")
+    v = obj[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise CampaignError(f"{where}: key '{key}' = {v!r}; expected {what}")
+    if integer and not float(v).is_integer():
+        raise CampaignError(f"{where}: key '{key}' = {v!r}; expected {what}")
+    if (lo is not None and (v < lo or (lo_open and v == lo))) or (hi is not None and v > hi):
+        raise CampaignError(f"{where}: key '{key}' = {v!r}; expected {what}")
+    return int(v) if integer else float(v)
+
+
+def validate_meta(meta, where: str = "sidecar") -> dict:
+    """Check a sidecar and return it normalised (defaults filled, numbers as float).
+
+    Examples
+    --------
+    >>> validate_meta({"kind": "closed_loop", "disc_sets": 9, "supply_bar": 220,
+    ...                "reference": {"amplitude_deg": 20, "freq_hz": 1},
+    ...                "controller": {"Kp": 1, "Ki": 2, "Kv": 0.0178, "Ka": 0.0002, "rate_hz": 1000}})
+    Traceback (most recent call last):
+    ...
+    ehas_env.measurement.campaign.CampaignError: sidecar: key 'disc_sets' = 9; expected an integer number of disc sets from 1 to 7
+    """
+    if not isinstance(meta, dict):
+        raise CampaignError(f"{where}: expected a JSON object {{\"kind\": ..., ...}}, got {type(meta).__name__}")
+    kind = meta.get("kind")
+    if kind not in KINDS:
+        raise CampaignError(f"{where}: key 'kind' = {kind!r}; expected one of {', '.join(KINDS)}")
+    out = dict(meta)
+    out["supply_bar"] = _number(meta, "supply_bar", where, "the supply pressure in bar, in (0, 400]", lo=0.0, hi=400.0,
+                                lo_open=True)
+    if "notes" in meta and not isinstance(meta["notes"], str):
+        raise CampaignError(f"{where}: key 'notes' must be free text (a string)")
+    if kind == "valve_open_loop":
+        return out
+    out["disc_sets"] = _number(meta, "disc_sets", where,
+                               f"an integer number of disc sets from {MIN_SETS} to {MAX_SETS}", lo=MIN_SETS,
+                               hi=MAX_SETS, integer=True)
+    ref = meta.get("reference")
+    if not isinstance(ref, dict):
+        raise CampaignError(f"{where}: key 'reference' is {'missing' if ref is None else repr(ref)}; expected "
+                            "{\"amplitude_deg\": ..., \"freq_hz\": ...}")
+    lim = math.degrees(THETA_STROKE_END)
+    w = f"{where}, reference"
+    out["reference"] = {
+        **ref,
+        "amplitude_deg": _number(ref, "amplitude_deg", w, f"the sine amplitude in deg, in (0, {lim:.2f})", lo=0.0,
+                                 hi=lim - 1e-9, lo_open=True),
+        "freq_hz": _number(ref, "freq_hz", w, "the sine frequency in Hz, in (0, 50]", lo=0.0, hi=50.0, lo_open=True),
+        "phase_rad": _number(ref, "phase_rad", w, "the sine's phase in rad", default=0.0),
+        "ramp_cycles": _number(ref, "ramp_cycles", w, "the fade-in length in reference periods, >= 0", lo=0.0,
+                               default=0.0),
+    }
+    ctrl = meta.get("controller")
+    if not isinstance(ctrl, dict):
+        raise CampaignError(f"{where}: key 'controller' is {'missing' if ctrl is None else repr(ctrl)}; expected the "
+                            "rig controller's gains {\"Kp\": mA/deg, \"Ki\": mA/(deg s), \"Kv\": mA/(deg/s), "
+                            "\"Ka\": mA/(deg/s^2), \"rate_hz\": Hz}")
+    w = f"{where}, controller"
+    allowed = CONTROLLER_REQUIRED + CONTROLLER_OPTIONAL
+    for key in ctrl:
+        if key not in allowed:
+            raise CampaignError(f"{w}: key '{key}' is not a setting of the rig's controller; expected "
+                                f"{', '.join(CONTROLLER_REQUIRED)} and optionally {', '.join(CONTROLLER_OPTIONAL)}")
+    c = {key: _number(ctrl, key, w, "a finite gain") for key in ("Kp", "Ki", "Kv", "Ka")}
+    for key in CONTROLLER_OPTIONAL:
+        c[key] = _number(ctrl, key, w, "a finite gain", default=0.0)
+    c["rate_hz"] = _number(ctrl, "rate_hz", w, f"the controller rate in Hz, at least {MIN_RATE_HZ:g}",
+                           lo=MIN_RATE_HZ)
+    out["controller"] = c
+    return out
+
+
+# --- writing ---------------------------------------------------------------------------------
+
+
+def write_run(stem, columns: dict, meta: dict) -> tuple[Path, Path]:
+    """Validate one run, then write ``stem.csv`` and ``stem.json`` atomically."""
+    stem = Path(stem)
+    validate_run(stem.stem, columns, meta, where=str(stem))
+    return _write_run_files(stem, columns, meta)
+
+
+def write_campaign(folder, runs, extra_files: dict[str, str] | None = None, *, overwrite: bool = False) -> Path:
+    """Write a campaign folder: all runs validated first, then written at once.
+
+    Parameters
+    ----------
+    folder : path
+        The campaign folder; it must not exist or be empty unless ``overwrite``.
+    runs : iterable of (name, columns, meta)
+        Runs as column dicts (``t`` and the format's columns) and sidecars.
+    extra_files : dict, optional
+        File name -> text (a README, a truth file) written beside the runs.
+    overwrite : bool
+        Replace an existing campaign folder.
+
+    The runs are written into a temporary folder beside ``folder`` which is then
+    renamed into place, so a reader sees the whole campaign or none of it.
+    """
+    folder = Path(folder)
+    runs = list(runs)
+    if not runs:
+        raise CampaignError("write_campaign: no runs to write")
+    names = [name for name, _, _ in runs]
+    if len(set(names)) != len(names):
+        raise CampaignError(f"write_campaign: run names repeat: {names}")
+    for name, cols, meta in runs:
+        validate_run(name, cols, meta, where=str(folder / f"{name}.csv"))
+    if folder.exists():
+        if not folder.is_dir():
+            raise CampaignError(f"{folder} exists and is not a folder")
+        if any(folder.iterdir()) and not overwrite:
+            raise CampaignError(f"{folder} already exists and is not empty; choose another folder or overwrite it")
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".tmp", dir=folder.parent))
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it private; a campaign is for sharing
+        for name, cols, meta in runs:
+            _write_run_files(tmp / name, cols, meta)
+        for fname, text in (extra_files or {}).items():
+            atomic_write_text(tmp / fname, text)
+        for f in tmp.iterdir():
+            os.chmod(f, 0o666 & ~umask)
+        if folder.exists():
+            old = folder.with_name(f".{folder.name}.old-{os.getpid()}")
+            os.replace(folder, old)
+            os.replace(tmp, folder)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, folder)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return folder

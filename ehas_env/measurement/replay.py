@@ -1,0 +1,386 @@
+"""Replaying a campaign with the model: simulated signals, residuals and fit %.
+
+Closed-loop runs are re-simulated with the logged controller gains and the
+sidecar's reference (the model's controller computes its own current from the
+simulated angle, so both the angle and the current are outputs to compare);
+valve runs are driven open-loop by the logged current.  The replay's sensors are
+ideal: the rig's controller saw a noisy angle, the model's sees the noise-free
+one.  Everything runs in the compiled kernels (``ehas_env.physics.kernel``), about
+10 ms per 3 s closed-loop run.
+
+The fit of a signal is the NRMSE fit of :func:`ehas_env.simulation.metrics.fit_percent`;
+a campaign's fit per signal is the mean over its runs, and its overall fit the
+mean over signals (measurements.md).  A signal whose measured variation is at
+its noise level (a regulated supply pressure) carries no shape to fit and is
+left out of the fit % (it still counts in the calibration cost).
+
+Examples
+--------
+>>> from ehas_env.cli.campaign import simulate_campaign
+>>> from ehas_env.measurement.campaign import Campaign, validate_run
+>>> runs, truth = simulate_campaign({"coulomb_friction": {"Fc": 350}}, seed=5, duration=1.0,
+...                                 plan=DEFAULT_DOC_PLAN)
+>>> camp = Campaign(None, [validate_run(n, c, m) for n, c, m in runs])
+>>> rep = Replayer(camp)
+>>> base = rep.fit_table(rep.simulate(ModelSpec()))
+>>> true = rep.fit_table(rep.simulate(ModelSpec(effects=truth["effects"])))
+>>> true.overall > base.overall
+True
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit, prange
+
+from ehas_env.physics import kernel as KN
+from ehas_env.measurement.campaign import Campaign, Run, reference_of
+from ehas_env.physics.effects import resolve_effects
+from ehas_env.simulation.metrics import fit_percent
+from ehas_env.simulation.plant import TAU_MAX, Plant
+from ehas_env.physics.rig import BAR, BULK_MODULUS, LPM, VALVE_K, RigParams
+
+DEFAULT_DOC_PLAN = ((2, 15.0, 2.0),)  # a tiny plan for doctests
+
+#: closed-loop signals in the order tables show them
+CL_SIGNALS = ("theta_deg", "current_mA", "flow_lpm", "p_a_bar", "p_b_bar", "p_s_bar", "load_kN")
+VALVE_SIGNALS = ("flow_lpm",)
+#: signals that enter the calibration cost (load_kN is A (P_A - P_B): counted through the pressures)
+COST_SIGNALS = ("theta_deg", "current_mA", "flow_lpm", "p_a_bar", "p_b_bar", "p_s_bar")
+UNITS = {"theta_deg": "deg", "current_mA": "mA", "flow_lpm": "LPM", "p_a_bar": "bar", "p_b_bar": "bar",
+         "p_s_bar": "bar", "load_kN": "kN"}
+#: least noise level assumed per signal (engineering units): keeps the weights finite for ideal
+#: (noise-free) data; about a 16-bit converter's step on each channel's span
+NOISE_FLOOR = {"theta_deg": 2e-3, "current_mA": 2e-3, "flow_lpm": 2e-3, "p_a_bar": 1e-2, "p_b_bar": 1e-2,
+               "p_s_bar": 1e-2, "load_kN": 1e-3}
+#: a signal is informative (enters the fit %) when its std exceeds this many noise levels
+INFORMATIVE = 5.0
+
+
+def noise_level(y: np.ndarray) -> float:
+    """Robust estimate of a signal's white-noise std from its third differences.
+
+    Smooth signals sampled fast have small third differences; white noise of
+    std s gives third differences of std s sqrt(20).  The median absolute
+    deviation keeps spikes out.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(3000) * 1e-3
+    >>> round(noise_level(20 * np.sin(2 * np.pi * t) + rng.normal(0, 0.2, t.size)), 2)
+    0.2
+    """
+    d3 = np.diff(np.asarray(y, dtype=float), 3)
+    if d3.size < 10:
+        return 0.0
+    mad = np.median(np.abs(d3 - np.median(d3)))
+    return float(1.4826 * mad / math.sqrt(20.0))
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """The model to replay: baseline (with recalibrated beta and K) plus effects.
+
+    Attributes
+    ----------
+    effects : dict
+        {effect: {param: value}} (defaults filled for missing params).
+    beta : float
+        Bulk modulus, Pa (the reference model's 1e9 by default); an effect that
+        sets beta (``bulk_modulus``) overrides it.
+    K : float
+        Valve flow gain, LPM/mA (the book's 1.2723); ``valve_dynamics`` overrides it.
+    """
+
+    effects: dict = field(default_factory=dict)
+    beta: float = BULK_MODULUS
+    K: float = VALVE_K
+
+    def resolved(self) -> "ModelSpec":
+        return ModelSpec(resolve_effects(self.effects), float(self.beta), float(self.K))
+
+    def rig(self, supply_bar: float) -> RigParams:
+        return RigParams(beta=self.beta, K=self.K, supply=supply_bar * BAR)
+
+
+@dataclass
+class _Case:
+    """What one run needs for fast replays (arrays built once)."""
+
+    run: Run
+    signals: tuple[str, ...]
+    measured: dict[str, np.ndarray]
+    noise: dict[str, float]
+    dt: float  # simulation period (controller period for closed loop)
+    n_sim: int
+    resample: bool
+    out: np.ndarray
+    hist: np.ndarray
+    gains: np.ndarray | None = None
+    ref: np.ndarray | None = None
+    sensor: np.ndarray | None = None
+    zeros: np.ndarray | None = None
+    theta0: float = 0.0
+    cmd: np.ndarray | None = None
+
+
+@dataclass
+class FitTable:
+    """Fit % of a replay: per run and signal, per signal, overall.
+
+    Attributes
+    ----------
+    per_run : dict
+        run name -> {signal: fit %} (informative signals only).
+    per_signal : dict
+        signal -> mean fit % over the runs that have it.
+    overall : float
+        Mean of ``per_signal``.
+    rms : dict
+        run name -> {signal: RMS residual in the signal's unit} (every compared signal).
+    """
+
+    per_run: dict[str, dict[str, float]]
+    per_signal: dict[str, float]
+    overall: float
+    rms: dict[str, dict[str, float]]
+
+
+class Replayer:
+    """Replays a campaign with any :class:`ModelSpec`; computes residuals and fits.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Validated runs (``ehas_env.measurement.campaign.read_campaign``).
+    substeps : int
+        RK4 sub-steps per control period (10, as the plant's default).
+    """
+
+    def __init__(self, campaign: Campaign, substeps: int = 10):
+        self.campaign = campaign
+        self.substeps = substeps
+        self.cases = [self._case(r) for r in campaign.runs]
+        self.n_evals = 0
+
+    @property
+    def runs(self) -> list[Run]:
+        return self.campaign.runs
+
+    # -- setup ------------------------------------------------------------------------------
+    def _case(self, run: Run) -> _Case:
+        hist = np.zeros(KN.history_length(TAU_MAX, run.dt) + 2)
+        if run.kind == "closed_loop":
+            signals = tuple(s for s in CL_SIGNALS if s in run.columns)
+            measured = {s: run.columns[s] for s in signals}
+            ctrl = run.meta["controller"]
+            dt = 1.0 / ctrl["rate_hz"]
+            resample = abs(dt - run.dt) > 1e-9 * run.dt
+            n_sim = run.n if not resample else int(math.ceil(run.duration / dt)) + 1
+            gains = np.array([ctrl[k] for k in ("Kp", "Ki", "Kv", "Ka", "Kj", "Kdp", "dp_hp")], dtype=float)
+            hist = np.zeros(KN.history_length(TAU_MAX, dt) + 2)
+            case = _Case(run, signals, measured, {}, dt, n_sim, resample, np.zeros((n_sim, KN.N_OUT)), hist,
+                         gains=gains, ref=reference_of(run).kernel_vector(), zeros=np.zeros(n_sim),
+                         theta0=float(run.columns["theta_deg"][0]))
+        else:
+            signals = VALVE_SIGNALS
+            measured = {"flow_lpm": run.columns["flow_lpm"]}
+            case = _Case(run, signals, measured, {}, run.dt, run.n, False, np.zeros((run.n, 3)), hist,
+                         cmd=np.ascontiguousarray(run.columns["current_mA"], dtype=float))
+        case.noise = {s: max(noise_level(y), NOISE_FLOOR[s]) for s, y in measured.items()}
+        return case
+
+    def plant(self, model: ModelSpec, run: Run, dt: float | None = None) -> Plant:
+        """The :class:`Plant` that ``model`` is for this run (disc sets, supply, period)."""
+        sets = run.meta.get("disc_sets", 1)
+        return Plant(disc_sets=sets, effects=model.effects, rig=model.rig(run.meta["supply_bar"]),
+                     dt=dt or run.dt, substeps=self.substeps)
+
+    # -- simulation -------------------------------------------------------------------------
+    def simulate(self, model: ModelSpec, runs=None) -> list[dict[str, np.ndarray] | None]:
+        """Simulated signals of every run (or of the run indices ``runs``) at the logged samples.
+
+        Closed-loop entries also hold ``omega_deg_s`` (model's crank rate), useful
+        as a regressor.  Entries not simulated are None.
+        """
+        self.n_evals += 1
+        out = [None] * len(self.cases)
+        for i, case in enumerate(self.cases):
+            if runs is not None and i not in runs:
+                continue
+            out[i] = self._simulate_case(model, case)
+        return out
+
+    def simulate_many(self, models: list[ModelSpec]) -> list[list[dict[str, np.ndarray]]]:
+        """:meth:`simulate` for several models at once, the closed-loop runs in parallel threads."""
+        self.n_evals += len(models)
+        cl = [i for i, c in enumerate(self.cases) if c.run.kind == "closed_loop"]
+        jobs = [(m, i) for m in range(len(models)) for i in cl]
+        results = [[None] * len(self.cases) for _ in models]
+        if jobs:
+            nmax = max(self.cases[i].n_sim for _, i in jobs)
+            J = len(jobs)
+            S0 = np.empty((J, KN.N_STATES))
+            P = np.empty((J, KN.N_SLOTS))
+            gains = np.empty((J, 7))
+            refs = np.empty((J, 4))
+            dts = np.empty(J)
+            sensors = np.empty((J, 4))
+            lengths = np.empty(J, dtype=np.int64)
+            hl = max(self.cases[i].hist.size for _, i in jobs)
+            for j, (m, i) in enumerate(jobs):
+                case = self.cases[i]
+                plant = self.plant(models[m], case.run, case.dt)
+                S0[j] = plant.initial_state(case.theta0)
+                P[j] = plant.param_vector
+                gains[j] = case.gains
+                refs[j] = case.ref
+                dts[j] = case.dt
+                sensors[j] = (0.0, 0.0, 0.0, plant.rig.i_max)
+                lengths[j] = case.n_sim
+            outs = np.zeros((J, nmax, KN.N_OUT))
+            _batch_closed_loop(S0, P, gains, refs, dts, self.substeps, np.zeros((J, hl)), np.zeros(nmax), sensors,
+                               outs, lengths)
+            for j, (m, i) in enumerate(jobs):
+                results[m][i] = self._closed_loop_signals(self.cases[i], outs[j, :lengths[j]])
+        for m, model in enumerate(models):
+            for i, case in enumerate(self.cases):
+                if case.run.kind != "closed_loop":
+                    results[m][i] = self._simulate_case(model, case)
+        return results
+
+    def _simulate_case(self, model: ModelSpec, case: _Case) -> dict[str, np.ndarray]:
+        run = case.run
+        plant = self.plant(model, run, case.dt)
+        P = plant.param_vector
+        if run.kind == "valve_open_loop":
+            KN.run_valve_test(P, case.cmd, case.dt, self.substeps, run.meta["supply_bar"] * BAR, case.hist, case.out)
+            return {"flow_lpm": case.out[:, 0] / LPM}
+        s = plant.initial_state(case.theta0)
+        sensor = np.array([0.0, 0.0, 0.0, plant.rig.i_max])
+        o = case.out
+        KN.run_rig_controller(s, P, case.gains, case.ref, case.dt, self.substeps, case.hist, case.zeros, sensor, o)
+        return self._closed_loop_signals(case, o)
+
+    def _closed_loop_signals(self, case: _Case, o: np.ndarray) -> dict[str, np.ndarray]:
+        run = case.run
+        sim = {
+            "theta_deg": np.degrees(o[:, KN.O_THETA]),
+            "current_mA": o[:, KN.O_CURRENT].copy(),
+            "flow_lpm": o[:, KN.O_FLOW] / LPM,
+            "p_a_bar": o[:, KN.O_PA] / BAR,
+            "p_b_bar": o[:, KN.O_PB] / BAR,
+            "p_s_bar": o[:, KN.O_PS] / BAR,
+            "load_kN": o[:, KN.O_FORCE] * 1e-3,
+            "omega_deg_s": np.degrees(o[:, KN.O_OMEGA]),
+        }
+        if case.resample:
+            ts = np.arange(case.n_sim) * case.dt
+            tl = run.t - run.t[0]
+            k = np.clip(np.searchsorted(ts, tl, side="right") - 1, 0, case.n_sim - 1)
+            # the current is held between controller samples; the physical signals are smooth
+            sim = {name: (v[k] if name == "current_mA" else np.interp(tl, ts, v)) for name, v in sim.items()}
+        return sim
+
+    # -- residuals and fit ------------------------------------------------------------------
+    def residuals(self, sims) -> list[dict[str, np.ndarray] | None]:
+        """measured - simulated, per run and signal (None for runs not simulated)."""
+        return [None if sim is None else {s: c.measured[s] - sim[s] for s in c.signals}
+                for c, sim in zip(self.cases, sims)]
+
+    def cost_blocks(self, sims, runs=None) -> list[np.ndarray]:
+        """Residuals divided by each signal's noise level, one block per (run, signal) of the cost."""
+        parts = []
+        for i, (case, sim) in enumerate(zip(self.cases, sims)):
+            if sim is None or (runs is not None and i not in runs):
+                continue
+            for s in case.signals:
+                if s in COST_SIGNALS:
+                    parts.append((case.measured[s] - sim[s]) / case.noise[s])
+        return parts
+
+    def cost_vector(self, sims, runs=None) -> np.ndarray:
+        """The blocks of :meth:`cost_blocks` concatenated.
+
+        The sum of squares divided by the vector's length is ~1 when the model
+        explains everything but the sensor noise.
+        """
+        return np.concatenate(self.cost_blocks(sims, runs))
+
+    def cost(self, sims, runs=None) -> float:
+        """Mean squared noise-normalised residual (1.0 = at the noise floor)."""
+        v = self.cost_vector(sims, runs)
+        return float(np.dot(v, v) / v.size)
+
+    def log_cost(self, sims, runs=None) -> float:
+        """Geometric mean over (run, signal) blocks of the mean squared noise-normalised residual.
+
+        Minimising it is maximum likelihood when every run and signal has its own
+        unknown residual level: a run whose residual cannot be matched sample by
+        sample (a limit cycle that noise decides, knocks of a joint with play)
+        then weighs by how much it improves relatively, not by its size.  1.0 is
+        the noise floor.
+        """
+        blocks = self.cost_blocks(sims, runs)
+        n = sum(b.size for b in blocks)
+        return float(np.exp(sum(b.size * np.log(max(float(np.dot(b, b)) / b.size, 1e-300)) for b in blocks) / n))
+
+    def informative(self, case: _Case, signal: str) -> bool:
+        return float(np.std(case.measured[signal])) > INFORMATIVE * case.noise[signal]
+
+    def fit_table(self, sims) -> FitTable:
+        """Fit % per run and signal, per signal (mean over runs) and overall (mean over signals)."""
+        per_run, rms = {}, {}
+        acc: dict[str, list[float]] = {}
+        for case, sim in zip(self.cases, sims):
+            if sim is None:
+                continue
+            name = case.run.name
+            per_run[name], rms[name] = {}, {}
+            for s in case.signals:
+                e = case.measured[s] - sim[s]
+                rms[name][s] = float(np.sqrt(np.mean(e**2)))
+                if self.informative(case, s):
+                    f = fit_percent(case.measured[s], sim[s])
+                    per_run[name][s] = f
+                    acc.setdefault(s, []).append(f)
+        order = [s for s in CL_SIGNALS if s in acc]
+        per_signal = {s: float(np.mean(acc[s])) for s in order}
+        overall = float(np.mean(list(per_signal.values()))) if per_signal else float("nan")
+        return FitTable(per_run, per_signal, overall, rms)
+
+
+@njit(parallel=True, cache=True)
+def _batch_closed_loop(S0, P, gains, refs, dts, nsub, hists, zeros, sensors, outs, lengths):
+    """Closed-loop runs side by side (one per thread): job j is run_rig_controller on row j."""
+    for j in prange(S0.shape[0]):
+        n = lengths[j]
+        KN.run_rig_controller(S0[j], P[j], gains[j], refs[j], dts[j], nsub, hists[j], zeros[:n], sensors[j],
+                              outs[j, :n])
+
+
+def format_fit_tables(tables: dict[str, FitTable], runs=None) -> str:
+    """Plain-text tables: per signal (columns = the models compared), then per run.
+
+    ``tables`` maps a column title (``baseline``, ``+ coulomb_friction``) to its
+    :class:`FitTable`.
+    """
+    titles = list(tables)
+    first = tables[titles[0]]
+    signals = list(first.per_signal)
+    w = max(12, *(len(t) for t in titles))
+    lines = ["fit % (NRMSE) per signal, mean over runs", f"{'signal':<14}" + "".join(f"{t:>{w + 2}}" for t in titles)]
+    for s in signals:
+        lines.append(f"{s:<14}" + "".join(f"{tables[t].per_signal.get(s, float('nan')):>{w + 2}.1f}" for t in titles))
+    lines.append(f"{'overall':<14}" + "".join(f"{tables[t].overall:>{w + 2}.1f}" for t in titles))
+    lines.append("")
+    lines.append("fit % per run")
+    for run in first.per_run:
+        lines.append(f"  {run}")
+        for s in first.per_run[run]:
+            lines.append(f"    {s:<12}" + "".join(f"{tables[t].per_run[run].get(s, float('nan')):>{w + 2}.1f}"
+                                                 for t in titles))
+    return "\n".join(lines)

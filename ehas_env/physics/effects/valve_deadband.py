@@ -1,0 +1,26 @@
+"""Spool overlap seen as a current deadband."""
+from ehas_env.physics.effects.base import Effect, Param
+
+
+class ValveDeadband(Effect):
+    name = "valve_deadband"
+    title = "valve deadband (overlapped spool)"
+    params = (
+        Param("d", "mA", 0.5, (0.0, 10.0), "half-width of the deadband in amplifier current (assumed; the rig's valve has negligible deadband)",
+              typical=(0.3, 1.5)),
+    )
+    main_param = "d"
+    explanation = (
+        "An overlapped spool has lands wider than its ports: the spool must move some distance before any "
+        "port opens. Seen from the amplifier this is a current deadband, i -> sign(i) max(|i| - d, 0): "
+        "small commands give no flow, and every command loses d mA."
+    )
+    signature = (
+        "zero flow while |current| < d (valve runs: flow vs current is flat around zero); in closed "
+        "loop the current residual is a square wave of +-d in phase with the current's sign, and "
+        "position error bumps where the flow reverses."
+    )
+
+    @classmethod
+    def apply(cls, values, slots):
+        slots["deadband"] += values["d"]

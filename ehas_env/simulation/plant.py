@@ -1,0 +1,463 @@
+"""The reference plant: one API for every simulation in the project.
+
+Identified servo valve (amplifier and spool limits) -> per-land orifice law ->
+compressible chambers -> actuator -> 50 mm crank -> disc inertia, with stroke
+ends, exactly as the project's reference model (README, "Plant model") says,
+plus any effects of the library switched on by name.
+
+Examples
+--------
+>>> from ehas_env.simulation.plant import Plant, RigController
+>>> plant = Plant(disc_sets=5, effects={"coulomb_friction": {"Fc": 300}})
+>>> run = plant.simulate_closed_loop(RigController.book(), amplitude_deg=20, freq_hz=1, cycles=3)
+>>> run.tracking_errors()["rms_error_pct"] < 2.0
+True
+>>> round(float(run.theta_deg.max()), 0)
+20.0
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+
+import numpy as np
+
+from ehas_env.physics import kernel as K
+from ehas_env.physics.effects import REGISTRY, resolve_effects
+from ehas_env.simulation.metrics import tracking_errors
+from ehas_env.simulation.reference import SineReference
+from ehas_env.physics.rig import BAR, LPM, INERTIA_PER_SET, RigParams, check_disc_sets
+from ehas_env.measurement.runfile import write_run
+from ehas_env.simulation.sensors import Sensors
+
+#: assumed constants of the general model's optional terms (see the effects)
+V_TANH = 1.0e-3  # m/s, friction sign smoothing (reference model: 1 mm/s)
+V_LINE = 0.5e-3  # m^3, pressure line between pump and valve (assumed: ~3 m of 1/2" hose)
+K_JOINT = 2.0e7  # N/m, rod-crank joint contact stiffness (assumed: steel pin and eye)
+C_JOINT = 3.0e3  # N s/m, joint contact damping (assumed)
+M_BACKLASH = 5.0  # kg, least piston mass used once the joint has play (assumed)
+TAU_MAX = 0.05  # s, longest transport delay the command buffers hold (transport_delay's bound)
+
+
+@dataclass(frozen=True)
+class RigController:
+    """The rig's RMC70-like controller: PI + velocity/acceleration feed-forward.
+
+    ``i = Kp e + Ki int(e) + Kv theta_ref' + Ka theta_ref'' [+ Kj theta_ref''' - Kdp dP_L]``
+    on theta in degrees, sampled at ``rate_hz`` with zero-order hold, output
+    clipped to +-20 mA with anti-windup.
+
+    Attributes
+    ----------
+    Kp : float
+        mA/deg.
+    Ki : float
+        mA/(deg s).
+    Kv : float
+        mA/(deg/s), velocity feed-forward.
+    Ka : float
+        mA/(deg/s^2), acceleration feed-forward.
+    Kj : float
+        mA/(deg/s^3), jerk feed-forward (model inversion of the valve lag; 0 on the rig).
+    Kdp : float
+        mA/bar, load-pressure feedback (0 on the rig).
+    dp_hp : float
+        rad/s, corner of the pressure feedback's high-pass (0: static feedback).
+    rate_hz : float
+        Controller rate, Hz (rig: 1 kHz).
+    """
+
+    Kp: float = 1.0
+    Ki: float = 2.0
+    Kv: float = 1.0 / 56.25
+    Ka: float = (1.0 / 56.25) * 2.0 * 0.691 / 107.0
+    Kj: float = 0.0
+    Kdp: float = 0.0
+    dp_hp: float = 0.0
+    rate_hz: float = 1000.0
+
+    @classmethod
+    def book(cls) -> "RigController":
+        """The reference model's classical baseline: Kp 1, Ki 2, Kv 1/56.25, Ka = Kv 2 zeta / wn."""
+        return cls()
+
+    def gains_vector(self) -> np.ndarray:
+        return np.array([self.Kp, self.Ki, self.Kv, self.Ka, self.Kj, self.Kdp, self.dp_hp], dtype=float)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def __post_init__(self):
+        for name, value in asdict(self).items():
+            if not math.isfinite(value):
+                raise ValueError(f"RigController: {name} must be finite, got {value!r}")
+        if self.rate_hz <= 0:
+            raise ValueError(f"RigController: rate_hz must be positive, got {self.rate_hz!r}")
+
+
+@dataclass
+class SimResult:
+    """Outputs of one simulated run, engineering units.
+
+    Attributes
+    ----------
+    t : ndarray
+        Sample times, s.
+    current_mA : ndarray
+        Command current issued at t_k (held until t_k+1), mA.
+    theta_deg, omega_deg_s : ndarray
+        Crank angle and rate as the LVDT shows them (asin(x/r)), deg, deg/s.
+    theta_crank_deg : ndarray
+        True crank angle, deg (differs from theta_deg only with backlash).
+    flow_lpm : ndarray
+        Valve flow in line A, LPM.
+    p_a_bar, p_b_bar, p_s_bar : ndarray
+        Chamber and supply pressures, bar.
+    load_kN : ndarray
+        A (P_A - P_B), kN.
+    theta_ref_deg : ndarray or None
+        Reference (closed-loop runs).
+    stroke_end : ndarray of bool
+        True where the piston touched a stroke end during the period.
+    meta : dict
+        What the run was (kind, disc_sets, supply_bar, reference, controller, effects, sensors).
+    logged : dict
+        The channels as the rig's DAQ would log them (sensor noise, quantization);
+        equal to the physical outputs with ideal sensors.
+    """
+
+    t: np.ndarray
+    current_mA: np.ndarray
+    theta_deg: np.ndarray
+    omega_deg_s: np.ndarray
+    theta_crank_deg: np.ndarray
+    flow_lpm: np.ndarray
+    p_a_bar: np.ndarray
+    p_b_bar: np.ndarray
+    p_s_bar: np.ndarray
+    load_kN: np.ndarray
+    stroke_end: np.ndarray
+    theta_ref_deg: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+    logged: dict = field(default_factory=dict)
+
+    @property
+    def hit_stroke_end(self) -> bool:
+        return bool(np.any(self.stroke_end))
+
+    def tracking_errors(self) -> dict[str, float]:
+        """rms/peak % position error over whole cycles after the first (closed loop)."""
+        if self.theta_ref_deg is None:
+            raise ValueError("tracking_errors: this run has no reference (open-loop run)")
+        ref = self.meta["reference"]
+        return tracking_errors(self.t, self.theta_ref_deg, self.theta_deg, ref["amplitude_deg"], ref["freq_hz"])
+
+    def columns(self, logged: bool = True) -> dict[str, np.ndarray]:
+        """The run's columns in the measurement format (logged channels by default)."""
+        cols = {
+            "t": self.t,
+            "current_mA": self.current_mA,
+            "theta_deg": self.theta_deg,
+            "flow_lpm": self.flow_lpm,
+            "p_a_bar": self.p_a_bar,
+            "p_b_bar": self.p_b_bar,
+            "p_s_bar": self.p_s_bar,
+            "load_kN": self.load_kN,
+        }
+        if self.theta_ref_deg is not None:
+            cols["theta_ref_deg"] = self.theta_ref_deg
+        if logged:
+            cols.update(self.logged)
+        return cols
+
+    def to_csv(self, path, notes: str = "") -> tuple:
+        """Write ``path`` (.csv) and its JSON sidecar in the measurement format.
+
+        The logged channels are written (what a rig's DAQ would record).
+        Returns the (csv, json) paths.
+        """
+        meta = dict(self.meta)
+        if notes:
+            meta["notes"] = notes
+        return write_run(path, self.columns(logged=True), meta)
+
+
+class Plant:
+    """The rig: baseline reference model plus effects, simulated at fixed step.
+
+    Parameters
+    ----------
+    disc_sets : int
+        Number of disc sets on the crank, 1..7 (0.383 kg m^2 each, book).
+    effects : dict, list of str or str, optional
+        Effects of the library to switch on: ``{"coulomb_friction": {"Fc": 300}}``,
+        ``["viscous_friction"]`` (defaults) or ``"coulomb_friction:Fc=300"``.
+    inertia : float, optional
+        Load inertia in kg m^2, overriding ``disc_sets`` (must be > 0).
+    rig : RigParams, optional
+        Baseline parameters (defaults: the book's rig).
+    sensors : Sensors, optional
+        Measurement chain; ideal (no noise, no quantization) by default.
+    dt : float
+        Control/sample period, s (rig: 1 ms).
+    substeps : int
+        RK4 sub-steps per period (>= 10 recommended: the chambers are stiff).
+    seed : int, optional
+        Seed of the sensor noise; same seed -> bit-identical runs.
+    valve : {"grey_box", "white_box"}
+        The servo valve: the book's identified transfer function (default) or
+        the first-principles model of :mod:`ehas_env.physics.white_box_valve` (torque
+        motor, armature, nozzle-flapper, spool, feedback wire, flow forces).
+        The ``valve_dynamics`` effect recalibrates the grey box only.
+    white_box : WhiteBoxValve, optional
+        Parameters of the white-box valve (default: the book's, see that module).
+    """
+
+    VALVES = ("grey_box", "white_box")
+
+    def __init__(self, disc_sets: int = 3, effects=None, *, inertia: float | None = None, rig: RigParams | None = None,
+                 sensors: Sensors | None = None, dt: float = 1.0e-3, substeps: int = 10, seed: int | None = None,
+                 valve: str = "grey_box", white_box=None):
+        check_disc_sets(disc_sets)
+        if valve not in self.VALVES:
+            raise ValueError(f"valve must be one of {', '.join(self.VALVES)}, got {valve!r}")
+        from ehas_env.physics.white_box_valve import WhiteBoxValve
+
+        if white_box is not None and not isinstance(white_box, WhiteBoxValve):
+            raise ValueError(f"white_box must be a WhiteBoxValve, got {type(white_box).__name__}")
+        self.valve = valve
+        self.white_box = white_box if white_box is not None else WhiteBoxValve()
+        rig = rig or RigParams()
+        rig = rig.replace(disc_sets=int(disc_sets), inertia=disc_sets * INERTIA_PER_SET)
+        if inertia is not None:
+            if not (isinstance(inertia, (int, float)) and math.isfinite(inertia) and inertia > 0):
+                raise ValueError(f"inertia must be a positive number of kg m^2, got {inertia!r}")
+            rig = rig.replace(inertia=float(inertia))
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and 0 < dt <= 0.01):
+            raise ValueError(f"dt must be a sample period in (0, 0.01] s, got {dt!r}")
+        if not (isinstance(substeps, int) and substeps >= 1):
+            raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+        self.rig = rig
+        self.effects = resolve_effects(effects)
+        self.sensors = sensors if sensors is not None else Sensors.ideal()
+        self.dt = float(dt)
+        self.substeps = substeps
+        self.seed = seed
+        self._P = self._param_vector()
+        self._hist_len = K.history_length(TAU_MAX, self.dt)
+
+    def __repr__(self) -> str:
+        eff = ", ".join(f"{n}({', '.join(f'{k}={v:g}' for k, v in p.items())})" for n, p in self.effects.items())
+        valve = ", valve=white_box" if self.valve == "white_box" else ""
+        return f"Plant(disc_sets={self.rig.disc_sets}, inertia={self.rig.inertia:g} kg m^2, effects=[{eff}]{valve})"
+
+    # -- parameters -------------------------------------------------------
+    def slots(self) -> dict[str, float]:
+        """The general model's parameter slots (SI) with the effects applied."""
+        r = self.rig
+        s = dict.fromkeys(K.SLOTS, 0.0)
+        s.update(inertia=r.inertia, radius=r.radius, area=r.area, half_stroke=r.half_stroke, supply=r.supply,
+                 rated_drop=r.rated_drop, beta=r.beta, dead_volume=r.dead_volume, K=r.K * LPM, wn=r.wn, zeta=r.zeta,
+                 i_max=r.i_max, v_tanh=V_TANH, V_line=V_LINE, k_joint=K_JOINT, c_joint=C_JOINT, m_backlash=M_BACKLASH,
+                 vs_s=1.0)
+        s.update(self.white_box.kernel_slots())
+        s["valve_model"] = K.WHITE_BOX if self.valve == "white_box" else 0.0
+        for name, values in self.effects.items():
+            REGISTRY[name].apply(values, s)
+        if s["delta"] > 0.0:
+            # A light piston with seal friction is stiff: keep the friction's sign
+            # smoothing wide enough for the RK4 sub-step (h F / (m v) < 1).
+            f_max = s["Fc"] + max(s["Fs_s"], s["Fc_s"])
+            h = self.dt / self.substeps
+            s["v_tanh"] = max(s["v_tanh"], h * f_max / max(s["m_piston"], s["m_backlash"]))
+        return s
+
+    def _param_vector(self) -> np.ndarray:
+        s = self.slots()
+        return np.array([s[name] for name in K.SLOTS], dtype=float)
+
+    @property
+    def param_vector(self) -> np.ndarray:
+        """Copy of the flat parameter vector the kernels use (layout ``kernel.SLOTS``)."""
+        return self._P.copy()
+
+    def initial_state(self, theta_deg: float = 0.0) -> np.ndarray:
+        """At rest at ``theta_deg`` with P_A = P_B = Ps/2 (reference model)."""
+        s = np.zeros(K.N_STATES)
+        th = math.radians(theta_deg)
+        s[0] = th
+        s[4] = s[5] = 0.5 * self.rig.supply
+        s[6] = self.rig.supply
+        s[7] = self.rig.radius * math.sin(th)
+        return s
+
+    # -- simulation -------------------------------------------------------
+    def simulate(self, current_mA, *, theta0_deg: float = 0.0) -> SimResult:
+        """Open loop: the command current sequence (mA, one value per period dt).
+
+        Examples
+        --------
+        >>> r = Plant(disc_sets=1).simulate(np.zeros(100))
+        >>> float(abs(r.theta_deg).max())
+        0.0
+        """
+        cmd = _check_current(current_mA, "current_mA")
+        out = np.zeros((cmd.size, K.N_OUT))
+        s = self.initial_state(theta0_deg)
+        K.run_open_loop(s, self._P, cmd, self.dt, self.substeps, np.zeros(self._hist_len), out)
+        return self._result(out, kind="open_loop")
+
+    def simulate_closed_loop(self, controller=None, *, amplitude_deg: float = 20.0, freq_hz: float = 1.0,
+                             cycles: float = 3.0, duration: float | None = None, reference=None,
+                             theta0_deg: float = 0.0) -> SimResult:
+        """Closed loop on a sinusoidal reference.
+
+        ``controller`` is a :class:`RigController` (fast compiled loop; the book's
+        gains by default) or any object with ``reset()`` and
+        ``act(measurement: dict) -> current mA`` called every ``dt`` with the keys
+        ``t, theta_deg, theta_ref_deg, theta_ref_dot, theta_ref_ddot, theta_ref_dddot,
+        p_a_bar, p_b_bar, p_s_bar`` (deg, deg/s, deg/s^2, deg/s^3, bar), plus the
+        reference's ``amplitude_deg`` (learned controllers normalise the error by it).
+        The run lasts ``duration`` s, or ``cycles`` reference periods.
+        """
+        controller = RigController.book() if controller is None else controller
+        ref = reference if reference is not None else SineReference(amplitude_deg, freq_hz)
+        if duration is None:
+            if not (math.isfinite(cycles) and cycles > 0):
+                raise ValueError(f"cycles must be a positive number, got {cycles!r}")
+            duration = cycles / ref.freq_hz
+        if not (math.isfinite(duration) and duration > 0):
+            raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
+        n = int(round(duration / self.dt))
+        rng = np.random.default_rng(self.seed)
+        noise = self.sensors.theta_noise(n, rng)
+        out = np.zeros((n, K.N_OUT))
+        s = self.initial_state(theta0_deg)
+        hist = np.zeros(self._hist_len)
+        if isinstance(controller, RigController):
+            if abs(controller.rate_hz * self.dt - 1.0) > 1e-9:
+                raise ValueError(f"controller rate_hz {controller.rate_hz:g} must equal the plant's 1/dt = {1 / self.dt:g} Hz")
+            K.run_rig_controller(s, self._P, controller.gains_vector(), ref.kernel_vector(), self.dt, self.substeps,
+                                 hist, noise, self.sensors.kernel_vector(self.rig.i_max), out)
+            ctrl_meta = {**controller.to_dict()}
+        else:
+            self._python_loop(controller, ref, s, hist, noise, out)
+            ctrl_meta = {"name": type(controller).__name__, "repr": repr(controller), "rate_hz": 1.0 / self.dt}
+        t = np.arange(n) * self.dt
+        theta_ref = np.atleast_1d(np.asarray(ref(t)[0], dtype=float))
+        return self._result(out, kind="closed_loop", theta_ref=theta_ref, rng=rng,
+                            extra_meta={"reference": ref.to_dict(),
+                                        "controller": ctrl_meta})
+
+    def _python_loop(self, controller, ref, s, hist, noise, out):
+        k1, k2, k3, k4, tmp = (np.empty_like(s) for _ in range(5))
+        lsb = self.sensors.theta_lsb
+        gain = 1.0 + self.sensors.lvdt_gain_error
+        dac = self.sensors.current_lsb
+        if hasattr(controller, "reset"):
+            controller.reset()
+        ref_vec = ref.kernel_vector()
+        amp = float(ref.amplitude_deg)
+        for k in range(out.shape[0]):
+            K.measure(s, self._P, out[k])
+            t = k * self.dt
+            r, rd, rdd, rddd = K.reference_point(ref_vec, t)
+            th = math.degrees(out[k, K.O_THETA]) * gain + noise[k]
+            if lsb > 0:
+                th = lsb * math.floor(th / lsb + 0.5)
+            out[k, K.O_SENSED] = th
+            meas = {"t": t, "theta_deg": th, "theta_ref_deg": r, "theta_ref_dot": rd, "theta_ref_ddot": rdd,
+                    "theta_ref_dddot": rddd, "p_a_bar": s[4] / BAR, "p_b_bar": s[5] / BAR, "p_s_bar": s[6] / BAR,
+                    "amplitude_deg": amp}
+            u = float(controller.act(meas))
+            if not math.isfinite(u):
+                raise ValueError(f"controller {type(controller).__name__} returned a non-finite current {u!r} at t = {t:g} s")
+            u = min(max(u, -self.rig.i_max), self.rig.i_max)
+            if dac > 0:
+                u = dac * math.floor(u / dac + 0.5)
+            out[k, K.O_CURRENT] = u
+            hist[k % hist.shape[0]] = u
+            out[k, K.O_STROKE] = float(K.advance(s, self._P, hist, k, self.dt, self.substeps, 0.0, k1, k2, k3, k4, tmp))
+
+    def simulate_valve_test(self, current_mA, *, supply_bar: float = 70.0) -> "ValveTestResult":
+        """The valve alone on the flow bench: control ports joined through the meter.
+
+        Examples
+        --------
+        >>> r = Plant().simulate_valve_test(np.full(2000, 20.0))
+        >>> round(float(r.flow_lpm[-1]), 2)   # K * 20 mA at the rated 70 bar
+        25.45
+        """
+        cmd = _check_current(current_mA, "current_mA")
+        if not (math.isfinite(supply_bar) and supply_bar > 0):
+            raise ValueError(f"supply_bar must be a positive pressure in bar, got {supply_bar!r}")
+        out = np.zeros((cmd.size, 3))
+        K.run_valve_test(self._P, cmd, self.dt, self.substeps, supply_bar * BAR, np.zeros(self._hist_len), out)
+        t = np.arange(cmd.size) * self.dt
+        flow = out[:, 0] / LPM
+        logged = {}
+        if not self.sensors.is_ideal:
+            rng = np.random.default_rng(self.seed)
+            logged["flow_lpm"] = self.sensors.measure_channel(flow, "flow", rng)
+        meta = {"kind": "valve_open_loop", "supply_bar": supply_bar, "effects": self.effects,
+                "sensors": self.sensors.to_dict()}
+        if self.valve != "grey_box":
+            meta["valve"] = self.valve
+        return ValveTestResult(t=t, current_mA=cmd, flow_lpm=flow, valve_current_mA=out[:, 2], meta=meta, logged=logged)
+
+    def _result(self, out, *, kind, theta_ref=None, rng=None, extra_meta=None) -> SimResult:
+        n = out.shape[0]
+        t = np.arange(n) * self.dt
+        theta = np.degrees(out[:, K.O_THETA])
+        res = SimResult(
+            t=t, current_mA=out[:, K.O_CURRENT].copy(), theta_deg=theta, omega_deg_s=np.degrees(out[:, K.O_OMEGA]),
+            theta_crank_deg=np.degrees(out[:, K.O_CRANK]), flow_lpm=out[:, K.O_FLOW] / LPM, p_a_bar=out[:, K.O_PA] / BAR,
+            p_b_bar=out[:, K.O_PB] / BAR, p_s_bar=out[:, K.O_PS] / BAR, load_kN=out[:, K.O_FORCE] * 1e-3,
+            stroke_end=out[:, K.O_STROKE] > 0.5, theta_ref_deg=theta_ref,
+        )
+        res.meta = {"kind": kind, "disc_sets": self.rig.disc_sets, "inertia_kgm2": self.rig.inertia,
+                    "supply_bar": self.rig.supply / BAR, "effects": self.effects, "sensors": self.sensors.to_dict(),
+                    "dt": self.dt, "substeps": self.substeps, **(extra_meta or {})}
+        if self.valve != "grey_box":
+            res.meta["valve"] = self.valve
+        if not self.sensors.is_ideal:
+            rng = rng if rng is not None else np.random.default_rng(self.seed)
+            m = self.sensors.measure_channel
+            pa, pb = m(res.p_a_bar, "pressure", rng), m(res.p_b_bar, "pressure", rng)
+            res.logged = {
+                "theta_deg": out[:, K.O_SENSED].copy() if kind == "closed_loop" else m(res.theta_deg, "theta", rng),
+                "flow_lpm": m(res.flow_lpm, "flow", rng), "p_a_bar": pa, "p_b_bar": pb,
+                "p_s_bar": m(res.p_s_bar, "pressure", rng), "load_kN": self.rig.area * (pa - pb) * BAR * 1e-3,
+            }
+        return res
+
+
+@dataclass
+class ValveTestResult:
+    """Flow-bench run of the valve alone (``kind = valve_open_loop``)."""
+
+    t: np.ndarray
+    current_mA: np.ndarray
+    flow_lpm: np.ndarray
+    valve_current_mA: np.ndarray
+    meta: dict = field(default_factory=dict)
+    logged: dict = field(default_factory=dict)
+
+    def to_csv(self, path, notes: str = "") -> tuple:
+        meta = dict(self.meta)
+        if notes:
+            meta["notes"] = notes
+        cols = {"t": self.t, "current_mA": self.current_mA, "flow_lpm": self.logged.get("flow_lpm", self.flow_lpm)}
+        return write_run(path, cols, meta)
+
+
+def _check_current(current_mA, name: str) -> np.ndarray:
+    cmd = np.asarray(current_mA, dtype=float).ravel()
+    if cmd.size == 0:
+        raise ValueError(f"{name} is empty; expected one current in mA per sample period")
+    bad = np.flatnonzero(~np.isfinite(cmd))
+    if bad.size:
+        raise ValueError(f"{name} holds a non-finite value ({cmd[bad[0]]!r}) at sample {bad[0]}; expected finite mA")
+    return cmd
+
