@@ -22,7 +22,7 @@ from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (measurements.md)")
+    parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md)")
     parser.add_argument("--effects", default="",
                         help="effects to add: NAME[,NAME...], optionally with values (coulomb_friction:Fc=300); "
                              "see `ehas diagnose` for which one is missing")
@@ -31,10 +31,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None, help="folder for report.md and the plots (default: print only)")
     parser.add_argument("--save-model", default=None, metavar="FILE",
                         help="write the (calibrated) model as a model file for --model FILE")
+    parser.add_argument("--columns", default="", metavar="NEW=OLD[,NEW=OLD...]",
+                        help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
+                             "(docs/measurement-format.md)")
 
 
 def run(args) -> int:
-    from ehas_env.measurement.campaign import read_campaign
+    from ehas_env.measurement.campaign import parse_column_map, read_campaign
     from ehas_env.physics.effects import parse_spec, resolve_effects
     from ehas_env.measurement.replay import ModelSpec, Replayer, format_fit_tables
 
@@ -42,7 +45,7 @@ def run(args) -> int:
     requested = parse_spec(args.effects) if args.effects else {}
     if args.fit and not requested:
         raise ValueError("--fit needs --effects NAME[,NAME...] (the effects whose parameters to calibrate)")
-    campaign = read_campaign(args.campaign)
+    campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
     rep = Replayer(campaign)
     baseline_sims = rep.simulate(ModelSpec())
     tables = {"baseline": rep.fit_table(baseline_sims)}

@@ -4,7 +4,7 @@
 with the baseline, prints where it fails (residual signatures per signal), then
 adds every effect of the library in turn, fits it (with beta and K), and prints
 the ranking with evidence in words; ``"none"`` heads the ranking when nothing
-beats noise.  ``--json`` writes the JSON of measurements.md; ``--out`` a
+beats noise.  ``--json`` writes the JSON of docs/measurement-format.md; ``--out`` a
 report.md with plots.  ``--with NAME[,NAME...]`` starts from a model that
 already has those effects (refitted with every candidate), to find the next
 one; ``--stack`` repeats the diagnosis, adding the winner each time, until
@@ -23,8 +23,8 @@ MAX_STACK = 4
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (measurements.md)")
-    parser.add_argument("--json", default=None, metavar="FILE", help="write the diagnosis as JSON (measurements.md)")
+    parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md)")
+    parser.add_argument("--json", default=None, metavar="FILE", help="write the diagnosis as JSON (docs/measurement-format.md)")
     parser.add_argument("--out", default=None, metavar="DIR", help="folder for report.md and plots")
     parser.add_argument("--with", dest="with_effects", default="", metavar="NAME[,NAME...]",
                         help="effects already added (fitted with each candidate): find the next one")
@@ -33,10 +33,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--candidates", default="", metavar="NAME[,NAME...]",
                         help="try only these effects (default: every effect of the library)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--columns", default="", metavar="NEW=OLD[,NEW=OLD...]",
+                        help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
+                             "(docs/measurement-format.md)")
 
 
 def run(args) -> int:
-    from ehas_env.measurement.campaign import read_campaign
+    from ehas_env.measurement.campaign import parse_column_map, read_campaign
     from ehas_env.measurement.diagnosis import diagnose
     from ehas_env.physics.effects import get_effect, parse_spec
     from ehas_env.measurement.replay import ModelSpec, Replayer, format_fit_tables
@@ -49,7 +52,7 @@ def run(args) -> int:
         get_effect(c)
     if args.json:
         _check_writable(Path(args.json))
-    campaign = read_campaign(args.campaign)
+    campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
     rep = Replayer(campaign)
     print(campaign.summary())
     print()

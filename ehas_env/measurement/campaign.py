@@ -2,11 +2,21 @@
 
 A campaign is a folder of runs, each a ``RUN.csv`` (one header line, one row
 per uniformly spaced sample) with a ``RUN.json`` sidecar saying what the run
-was; the format is the project's measurement contract (``measurements.md``,
+was; the format is the project's measurement contract (``docs/measurement-format.md``,
 README "Measurement files").  :func:`read_campaign` refuses anything that is
 not that format with a message naming the file, the line or key, and what is
 expected; short gaps (at most :data:`MAX_GAP` missing samples in a row) are
-filled by linear interpolation and counted.  :func:`write_campaign` validates
+filled by linear interpolation and counted.
+
+Logs as they come: a UTF-8 byte-order mark, CRLF line ends and ``;`` or tab
+separators (with decimal commas under ``;``) are read; columns the format does
+not know (a logger's ``oil_temp_C``) are ignored and listed in
+:attr:`Campaign.warnings`; ``columns={"theta_deg": "Angle1"}`` (the command
+line's ``--columns theta_deg=Angle1``) maps a logger's names onto the format's;
+values whose size betrays another unit (theta in rad, pressures in Pa or psi,
+current in A, time in ms, load in N) are refused with the likely cause.  Files
+of the folder that are not runs are skipped and each is reported with the
+reason.  :func:`write_campaign` validates
 every run first and writes the folder all at once, so a failure never leaves a
 half-written campaign behind.
 
@@ -25,10 +35,12 @@ Examples
 """
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
 import shutil
+import stat
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from ehas_env.output.files import atomic_write_text
-from ehas_env.physics.rig import MAX_SETS, MIN_SETS, THETA_STROKE_END
+from ehas_env.physics.rig import AREA, BAR, CRANK_RADIUS, LPM, MAX_SETS, MIN_SETS, THETA_STROKE_END, VALVE_K
 from ehas_env.measurement.runfile import write_run as _write_run_files
 
 #: the format's columns and their units
@@ -98,6 +110,10 @@ class Run:
         Every logged column but ``t``, gaps filled (engineering units).
     interpolated : dict
         Column -> number of missing samples that were interpolated.
+    ignored_columns : list of str
+        Columns of the file that the format does not know (ignored).
+    column_map : dict
+        Format name -> the file's name, for the columns renamed by ``--columns``.
     """
 
     name: str
@@ -107,6 +123,8 @@ class Run:
     dt: float
     columns: dict[str, np.ndarray]
     interpolated: dict[str, int] = field(default_factory=dict)
+    ignored_columns: list[str] = field(default_factory=list)
+    column_map: dict[str, str] = field(default_factory=dict)
 
     @property
     def kind(self) -> str:
@@ -132,53 +150,158 @@ class Run:
 
 @dataclass
 class Campaign:
-    """A folder of validated runs (sorted by name)."""
+    """A folder of validated runs (sorted by name).
+
+    ``ignored`` lists the folder's files that are not runs (file names);
+    ``warnings`` says, one line each, what was skipped or ignored and why
+    (files, unknown columns).
+    """
 
     path: Path | None
     runs: list[Run]
     ignored: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def interpolated_total(self) -> int:
         return sum(sum(r.interpolated.values()) for r in self.runs)
 
     def summary(self) -> str:
-        """One line per run plus the interpolation count, for reports."""
+        """One line per run plus the interpolation count and what was skipped, for reports."""
         lines = [f"{len(self.runs)} runs in {self.path}:"]
         for r in self.runs:
             gaps = sum(r.interpolated.values())
             extra = f", {gaps} missing samples interpolated" if gaps else ""
+            if r.ignored_columns:
+                extra += f", ignored columns: {', '.join(r.ignored_columns)}"
             lines.append(f"  {r.name}: {r.kind} ({r.label()}), {r.n} samples at {1 / r.dt:g} Hz{extra}")
         lines.append(f"  {self.interpolated_total} missing samples interpolated in all")
+        for w in self.warnings:
+            lines.append(f"  note: {w}")
         return "\n".join(lines)
 
 
 # --- reading ---------------------------------------------------------------------------------
 
 
-def read_campaign(path) -> Campaign:
+def parse_column_map(text: str | None) -> dict[str, str]:
+    """``"theta_deg=Angle1,current_mA=I_cmd"`` -> ``{"theta_deg": "Angle1", ...}`` (format name = logger name).
+
+    Examples
+    --------
+    >>> parse_column_map("theta_deg=Angle 1, current_mA=I_cmd")
+    {'theta_deg': 'Angle 1', 'current_mA': 'I_cmd'}
+    >>> parse_column_map("angle=theta_deg")
+    Traceback (most recent call last):
+    ...
+    ValueError: --columns: 'angle' is not a column of the measurement format; NEW must be one of t, current_mA, theta_deg, theta_ref_deg, flow_lpm, p_a_bar, p_b_bar, p_s_bar, load_kN
+    """
+    out: dict[str, str] = {}
+    for item in (text or "").split(","):
+        if not item.strip():
+            continue
+        new, eq, old = item.partition("=")
+        new, old = new.strip(), old.strip()
+        if not eq or not new or not old:
+            raise ValueError(f"--columns: {item.strip()!r} is not NEW=OLD (the format's column name = the "
+                             "logger's column name), e.g. --columns theta_deg=Angle1,current_mA=I_cmd")
+        if new not in COLUMNS:
+            raise ValueError(f"--columns: {new!r} is not a column of the measurement format; NEW must be one of "
+                             f"{', '.join(COLUMNS)}")
+        if new in out:
+            raise ValueError(f"--columns: {new!r} is mapped twice")
+        out[new] = old
+    olds = list(out.values())
+    dup = next((o for o in olds if olds.count(o) > 1), None)
+    if dup is not None:
+        raise ValueError(f"--columns: the logger's column {dup!r} is mapped to two format columns")
+    return out
+
+
+def _entry_problem(p: Path) -> str | None:
+    """Why a folder entry named like a run file cannot be one (None when it is a readable regular file)."""
+    try:
+        st = os.stat(p)
+    except OSError as exc:
+        if p.is_symlink():
+            if exc.errno == errno.ELOOP:
+                return f"symbolic link that loops ({os.readlink(p)})"
+            return f"dangling symbolic link to {os.readlink(p)} (its target does not exist)"
+        return f"cannot be opened ({exc.strerror})"
+    if stat.S_ISDIR(st.st_mode):
+        return "a folder, not a file"
+    if not stat.S_ISREG(st.st_mode):
+        return "not a regular file"
+    return None
+
+
+def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
     """Read and validate every ``RUN.csv`` + ``RUN.json`` pair of a folder.
+
+    ``columns`` maps format column names to a logger's (see
+    :func:`parse_column_map`).  Entries of the folder that are not runs (an
+    orphan ``RUN.json``, a dangling or looping symbolic link, a folder named
+    ``RUN.csv``, other files) are skipped; :attr:`Campaign.warnings` says which
+    and why.
 
     Raises
     ------
     FileNotFoundError
         The folder does not exist.
     CampaignError
-        No runs, or any run that is not the measurement format (the message
-        names the file, line or key, and what is expected).
+        The path is a file, no runs, an unreadable run, or any run that is not
+        the measurement format (the message names the file, line or key, and
+        what is expected).
     """
     folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        hint = f" (it is a run file: give its folder, {folder.parent})" if folder.suffix.lower() in (".csv", ".json") else ""
+        raise CampaignError(f"{folder} is a file, not a folder; a campaign is a folder of RUN.csv + RUN.json pairs{hint}")
     if not folder.is_dir():
         raise FileNotFoundError(f"campaign folder {folder} does not exist (expected a folder of RUN.csv + RUN.json pairs)")
-    csvs = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".csv" and p.is_file())
-    if not csvs:
-        raise CampaignError(f"{folder}: no runs found; a campaign is a folder of RUN.csv files, each with a RUN.json sidecar")
+    try:
+        entries = sorted(folder.iterdir())
+    except PermissionError:
+        raise CampaignError(f"{folder}: the folder cannot be listed (permission denied)") from None
+    warnings: list[str] = []
+    ignored: list[str] = []
+    csvs = []
+    for p in entries:
+        suffix = p.suffix.lower()
+        if suffix == ".csv":
+            why = _entry_problem(p)
+            if why is None:
+                csvs.append(p)
+                continue
+            warnings.append(f"skipped {p.name}: {why}")
+            ignored.append(p.name)
     stems = {p.stem for p in csvs}
-    ignored = sorted(p.name for p in folder.iterdir() if p.suffix.lower() == ".json" and p.stem not in stems)
-    return Campaign(path=folder, runs=[read_run(p) for p in csvs], ignored=ignored)
+    for p in entries:
+        suffix = p.suffix.lower()
+        if suffix == ".csv" or (suffix == ".json" and p.stem in stems):
+            continue
+        ignored.append(p.name)
+        if suffix == ".json":
+            warnings.append(f"skipped {p.name}: no {p.stem}.csv beside it (a sidecar without its run, or not a run file)")
+        else:
+            why = _entry_problem(p) if p.is_symlink() else None
+            warnings.append(f"skipped {p.name}: {why or ('a folder' if p.is_dir() else 'not a run file (.csv + .json)')}")
+    if not csvs:
+        skipped = f" ({'; '.join(warnings)})" if warnings else ""
+        raise CampaignError(f"{folder}: no runs found; a campaign is a folder of RUN.csv files, each with a RUN.json "
+                            f"sidecar{skipped}")
+    runs = [read_run(p, columns=columns) for p in csvs]
+    for r in runs:
+        if r.ignored_columns:
+            warnings.append(f"{r.name}.csv: ignored columns the format does not know: {', '.join(r.ignored_columns)}")
+    unused = [f"{new}={old}" for new, old in (columns or {}).items()
+              if not any(r.column_map.get(new) == old for r in runs)]
+    if unused:
+        warnings.append(f"--columns {', '.join(unused)}: no run has such a column")
+    return Campaign(path=folder, runs=runs, ignored=sorted(ignored), warnings=warnings)
 
 
-def read_run(csv_path) -> Run:
+def read_run(csv_path, columns: dict[str, str] | None = None) -> Run:
     """Read and validate one run (its CSV and the JSON sidecar beside it)."""
     csv_path = Path(csv_path)
     json_path = csv_path.with_suffix(".json")
@@ -186,18 +309,35 @@ def read_run(csv_path) -> Run:
         raise CampaignError(f"{csv_path}: sidecar {json_path.name} is missing; every RUN.csv needs a RUN.json saying "
                             "what the run was (kind, supply_bar, disc_sets, reference, controller)")
     meta = read_sidecar(json_path)
-    names, data = _parse_csv(csv_path)
-    return validate_run(csv_path.stem, dict(zip(names, data.T)), meta, where=str(csv_path), line_offset=2,
-                        csv_path=csv_path)
+    names, data, ignored, used = _parse_csv(csv_path, columns or {})
+    run = validate_run(csv_path.stem, dict(zip(names, data.T)), meta, where=str(csv_path), line_offset=2,
+                       csv_path=csv_path)
+    run.ignored_columns = ignored
+    run.column_map = used
+    return run
+
+
+def _read_text(path: Path, what: str) -> str:
+    try:
+        raw = path.read_bytes()
+    except PermissionError:
+        raise CampaignError(f"{path}: cannot be read (permission denied); expected a readable {what}") from None
+    except IsADirectoryError:
+        raise CampaignError(f"{path}: is a folder; expected a {what}") from None
+    except OSError as exc:
+        raise CampaignError(f"{path}: cannot be read ({exc.strerror}); expected a {what}") from None
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise CampaignError(f"{path}: UTF-16 text; save it as UTF-8 (expected a {what})")
+    try:
+        return raw.decode("utf-8-sig")  # a byte-order mark, as spreadsheet exports write, is dropped
+    except UnicodeDecodeError as exc:
+        raise CampaignError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); expected a {what}") from None
 
 
 def read_sidecar(json_path) -> dict:
     """Parse a RUN.json sidecar (validation happens in :func:`validate_meta`)."""
     json_path = Path(json_path)
-    try:
-        text = json_path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise CampaignError(f"{json_path}: not UTF-8 text ({exc.reason}); expected a JSON object") from None
+    text = _read_text(json_path, "JSON object")
     try:
         meta = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -205,59 +345,168 @@ def read_sidecar(json_path) -> dict:
     return meta
 
 
-def _parse_csv(csv_path: Path) -> tuple[list[str], np.ndarray]:
-    try:
-        text = csv_path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise CampaignError(f"{csv_path}: not UTF-8 text ({exc.reason}); expected a CSV file") from None
-    lines = text.splitlines()
+#: separators a logger may use, in the order they are tried on the header line
+SEPARATORS = (",", ";", "\t")
+
+
+def _separator(header: str, csv_path: Path) -> str:
+    found = [s for s in SEPARATORS if s in header]
+    if not found:
+        return ","  # one column only: the required-column check names what is missing
+    if len(found) > 1:
+        names = {",": "','", ";": "';'", "\t": "tab"}
+        raise CampaignError(f"{csv_path}, line 1: the header mixes separators ({', '.join(names[s] for s in found)}); "
+                            "expected one separator throughout (',' preferred)")
+    return found[0]
+
+
+def _parse_csv(csv_path: Path, rename: dict[str, str] | None = None) -> tuple[list[str], np.ndarray, list[str], dict]:
+    """(format column names, data, ignored logger columns, the ``rename`` entries used) of a run file."""
+    text = _read_text(csv_path, "CSV file")
+    lines = text.splitlines()  # \n, \r\n and \r line ends alike
     while lines and not lines[-1].strip():
         lines.pop()
     if not lines:
         raise CampaignError(f"{csv_path}: empty file; expected a header line (t,current_mA,...) and one row per sample")
-    names = [c.strip() for c in lines[0].split(",")]
-    check_column_names(names, str(csv_path))
+    sep = _separator(lines[0], csv_path)
+    decimal_comma = sep != "," and any("," in c for c in lines[1].split(sep)) if len(lines) > 1 else False
+    raw = [c.strip().strip('"') for c in lines[0].split(sep)]
+    rename = rename or {}
+    back = {old: new for new, old in rename.items()}
+    used = {new: old for new, old in rename.items() if old in raw}
+    names = [back.get(c, c) for c in raw]
+    keep, ignored = known_columns(names, str(csv_path), renamed={back[c] for c in raw if c in back})
     width = len(names)
-    data = np.empty((len(lines) - 1, width))
+    data = np.empty((len(lines) - 1, len(keep)))
     for k, line in enumerate(lines[1:]):
-        cells = line.split(",")
+        cells = line.split(sep)
         if len(cells) != width:
             raise CampaignError(f"{csv_path}, line {k + 2}: {len(cells)} cells, expected {width} (one per column of the header)")
-        for j, cell in enumerate(cells):
-            c = cell.strip()
+        for jj, j in enumerate(keep):
+            c = cells[j].strip().strip('"')
+            if decimal_comma:
+                c = c.replace(",", ".")
             if not c or c.lower() == "nan":
-                data[k, j] = np.nan
+                data[k, jj] = np.nan
                 continue
             try:
                 v = float(c)
             except ValueError:
-                raise CampaignError(f"{csv_path}, line {k + 2}, column '{names[j]}': {c!r} is not a number "
+                raise CampaignError(f"{csv_path}, line {k + 2}, column '{raw[j]}': {c!r} is not a number "
                                     f"(expected {COLUMNS[names[j]]}, or an empty cell for a missing sample)") from None
             if not math.isfinite(v):
-                raise CampaignError(f"{csv_path}, line {k + 2}, column '{names[j]}': {c!r} is not finite "
+                raise CampaignError(f"{csv_path}, line {k + 2}, column '{raw[j]}': {c!r} is not finite "
                                     "(leave the cell empty for a missing sample)")
-            data[k, j] = v
-    return names, data
+            data[k, jj] = v
+    return [names[j] for j in keep], data, ignored, used
 
 
-def check_column_names(names, where: str) -> None:
-    """Refuse unknown columns, unknown units and duplicates, naming the column."""
+def known_columns(names, where: str, renamed=()) -> tuple[list[int], list[str]]:
+    """Indices of the format's columns in a header, and the names of the others (ignored).
+
+    Duplicates are refused, and so is a format quantity in an unknown unit
+    (``p_a_psi``, ``theta_rad``) or a time column not called ``t`` when the
+    format's own column is absent: that is a column the run needs, logged in a
+    unit the format does not take.
+    """
     seen = set()
     for name in names:
         if name in seen:
-            raise CampaignError(f"{where}: column '{name}' appears twice in the header")
+            how = " (after --columns)" if name in renamed else ""
+            raise CampaignError(f"{where}: column '{name}' appears twice in the header{how}")
         seen.add(name)
+    keep, ignored = [], []
+    for j, name in enumerate(names):
         if name in COLUMNS:
+            keep.append(j)
             continue
         base, _, unit = name.rpartition("_")
-        if base in _QUANTITY:
+        if base in _QUANTITY and _QUANTITY[base] not in seen:
             good = _QUANTITY[base]
             raise CampaignError(f"{where}: column '{name}' has unit '{unit}', which the format does not know; "
-                                f"expected '{good}' ({COLUMNS[good]})")
-        if name in ("t_s", "time", "time_s", "t_ms"):
-            raise CampaignError(f"{where}: column '{name}': time must be the column 't' in seconds")
+                                f"expected '{good}' ({COLUMNS[good]}): convert the values, then name the column '{good}'")
+        if name.lower() in ("t_s", "time", "time_s", "t_ms", "time_ms") and "t" not in seen:
+            raise CampaignError(f"{where}: column '{name}': time must be the column 't' in seconds "
+                                f"(--columns t={name} maps it, if it holds seconds)")
+        ignored.append(name)
+    return keep, ignored
+
+
+def check_column_names(names, where: str) -> None:
+    """Refuse unknown columns, unknown units and duplicates, naming the column (runs built in memory)."""
+    _, ignored = known_columns(list(names), where)
+    if ignored:
         known = ", ".join(f"{c} ({u})" for c, u in COLUMNS.items())
-        raise CampaignError(f"{where}: unknown column '{name}'; the format's columns are: {known}")
+        raise CampaignError(f"{where}: unknown column '{ignored[0]}'; the format's columns are: {known}")
+
+
+def check_units(cols: dict, meta: dict, dt: float | None, where: str) -> None:
+    """Refuse values whose size betrays a unit other than the format's, naming the column and the likely unit.
+
+    ``cols`` are the run's columns (format names, engineering units), ``meta``
+    its validated sidecar, ``dt`` the median sample step of ``t``.
+    """
+    def peak(c):
+        v = cols.get(c)
+        if v is None:
+            return None
+        v = np.asarray(v, dtype=float)
+        v = v[np.isfinite(v)]
+        return float(np.max(np.abs(v))) if v.size else None
+
+    def refuse(col, msg):
+        raise CampaignError(f"{where}, column '{col}': {msg}")
+
+    if dt is not None and 1.0 / dt < MIN_RATE_HZ and 1.0e3 / dt >= MIN_RATE_HZ and dt >= 0.1:
+        refuse("t", f"samples {dt:.6g} apart, which would be {1 / dt:g} Hz in seconds; t looks logged in ms, not s "
+                    "(divide by 1000)")
+    supply = float(meta.get("supply_bar", 220.0))
+    for c in ("p_a_bar", "p_b_bar", "p_s_bar"):
+        p = peak(c)
+        if p is None:
+            continue
+        if p > 2.0e4:
+            refuse(c, f"peak {p:.4g} bar, against a {supply:g} bar supply; the values look like Pa, not bar "
+                      "(divide by 1e5)")
+        if p > 1.5 * max(supply, 100.0) and 5.0 * supply < p < 25.0 * max(supply, 100.0):
+            refuse(c, f"peak {p:.4g} bar, against a {supply:g} bar supply; the values look like psi, not bar "
+                      "(divide by 14.504)")
+        if p > 1.5 * max(supply, 100.0):
+            refuse(c, f"peak {p:.4g} bar, above 1.5 x the {supply:g} bar supply; expected bar")
+    if meta.get("kind") == "closed_loop":
+        amp = meta["reference"]["amplitude_deg"]
+        f = meta["reference"]["freq_hz"]
+        for c in ("theta_deg", "theta_ref_deg"):
+            th = peak(c)
+            if th is not None and amp >= 2.0 and 0.4 < math.degrees(th) / amp < 2.5:
+                refuse(c, f"peak {th:.4g}, where the sidecar's amplitude is {amp:g} deg; {th:.4g} rad = "
+                          f"{math.degrees(th):.3g} deg: the angle looks logged in rad, not deg (multiply by 180/pi)")
+        # the flow a sine of this amplitude needs, and the current the valve needs for it
+        q_lpm = AREA * CRANK_RADIUS * 2.0 * math.pi * f * math.radians(amp) / LPM
+        i_need = q_lpm / VALVE_K
+        i = peak("current_mA")
+        if i is not None and i_need > 0.5 and 0.0 < i < i_need / 30.0:
+            refuse("current_mA", f"peak {i:.4g} mA, where following {amp:g} deg at {f:g} Hz takes about "
+                                 f"{i_need:.2g} mA; the current looks logged in A, not mA (multiply by 1000)")
+    else:
+        i, q = peak("current_mA"), peak("flow_lpm")
+        if i is not None and q is not None and i > 0.0 and q > 0.5 and q / i > 50.0 * VALVE_K:
+            refuse("current_mA", f"peak {i:.4g} mA for a peak flow of {q:.3g} LPM ({q / i:.3g} LPM/mA, where the "
+                                 f"valve gives about {VALVE_K:g} LPM/mA); the current looks logged in A, not mA "
+                                 "(multiply by 1000)")
+    load = peak("load_kN")
+    if load is not None:
+        max_kn = AREA * supply * BAR / 1e3
+        if "p_a_bar" in cols and "p_b_bar" in cols:
+            dp = np.asarray(cols["p_a_bar"], dtype=float) - np.asarray(cols["p_b_bar"], dtype=float)
+            dp = dp[np.isfinite(dp)]
+            from_p = AREA * float(np.max(np.abs(dp))) * BAR / 1e3 if dp.size else 0.0
+            in_n = load > 0.05 and load > 100.0 * max(from_p, 1e-3)
+        else:
+            in_n = load > 2.0 * max_kn
+        if in_n:
+            refuse("load_kN", f"peak {load:.4g} kN, where the actuator can push at most {max_kn:.3g} kN at "
+                              f"{supply:g} bar; the load looks logged in N, not kN (divide by 1000)")
 
 
 # --- validation ------------------------------------------------------------------------------
@@ -304,6 +553,7 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
         k = off[0] + 1
         raise CampaignError(f"{where}, {at(k)}: time step {d[k - 1]:.6g} s where the run samples every {dt:.6g} s; "
                             "sampling must be uniform (a gap in time needs its rows, with empty cells)")
+    check_units(cols, meta, dt, where)
     if 1.0 / dt < MIN_RATE_HZ:
         raise CampaignError(f"{where}: sampled at {1 / dt:g} Hz; expected at least {MIN_RATE_HZ:g} Hz (rigs log at 1-5 kHz)")
     t = t[0] + dt * np.arange(t.size)
