@@ -167,23 +167,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--effects", default="",
                         help="hidden effects, e.g. coulomb_friction:Fc=300,viscous_friction:b=2000 (default: none)")
     parser.add_argument("--out", required=True, help="campaign folder to write (must not exist or be empty)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and perturbations (default 0)")
+    from ehas_env.cli.options import number, option
+
+    parser.add_argument("--seed", type=option("--seed", "seed"), default=0,
+                        help="seed of the sensor noise and perturbations (default 0)")
     parser.add_argument("--perturb", action="store_true",
                         help=f"perturb beta by up to +-{100 * BETA_PERTURB:g} %% and K by up to +-{100 * K_PERTURB:g} %%")
-    parser.add_argument("--duration", type=float, default=DURATION, help=f"seconds per run (default {DURATION:g})")
+    parser.add_argument("--duration", type=number("--duration", "s", 0.2, 120, lo_open=True), default=DURATION,
+                        help=f"seconds per run, (0.2, 120] (default {DURATION:g})")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing campaign folder")
 
 
 def run(args) -> int:
-    if not (args.duration > 0.2 and args.duration <= 120):
-        raise ValueError(f"--duration must be in (0.2, 120] s, got {args.duration!r}")
-    from ehas_env.physics.effects import parse_spec
+    from ehas_env.output.outputs import OutputSet
+    from ehas_env.physics.effects import parse_spec, resolve_effects
 
     effects = parse_spec(args.effects) if args.effects else {}
+    resolve_effects(effects)  # bad values refused before any work
+    outputs = OutputSet(args.out, "--out", overwrite=args.overwrite)
     argv = " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("ehas") else None
-    folder, truth = write_simulated_campaign(args.out, effects, seed=args.seed, perturb=args.perturb,
-                                             duration=args.duration, overwrite=args.overwrite,
-                                             command=f"ehas {argv}" if argv else None)
+    with outputs as tmp:
+        _, truth = write_simulated_campaign(tmp, effects, seed=args.seed, perturb=args.perturb,
+                                            duration=args.duration, overwrite=True,
+                                            command=f"ehas {argv}" if argv else None)
+    folder = args.out
     print(f"wrote {folder}: {len(truth['plan'])} closed-loop runs + valve chirp, {args.duration:g} s each")
     print(f"hidden: {truth['effects'] or 'no effect'}; beta = {truth['beta']:.4g} Pa, K = {truth['K']:.5g} LPM/mA "
           f"(truth.json)")

@@ -31,6 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None, help="folder for report.md and the plots (default: print only)")
     parser.add_argument("--save-model", default=None, metavar="FILE",
                         help="write the (calibrated) model as a model file for --model FILE")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an earlier --out folder / --save-model file")
     parser.add_argument("--columns", default="", metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
@@ -41,10 +43,18 @@ def run(args) -> int:
     from ehas_env.physics.effects import parse_spec, resolve_effects
     from ehas_env.measurement.replay import ModelSpec, Replayer, format_fit_tables
 
+    from ehas_env.output.outputs import OutputSet, check_file
+
     t0 = time.perf_counter()
     requested = parse_spec(args.effects) if args.effects else {}
     if args.fit and not requested:
         raise ValueError("--fit needs --effects NAME[,NAME...] (the effects whose parameters to calibrate)")
+    if not args.fit and requested:
+        resolve_effects(requested)  # bad values refused before any work
+    # the output paths, before any work
+    if args.save_model:
+        check_file(args.save_model, "--save-model", overwrite=args.overwrite)
+    outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
     rep = Replayer(campaign)
     baseline_sims = rep.simulate(ModelSpec())
@@ -84,10 +94,11 @@ def run(args) -> int:
         path = save_model(args.save_model, model.effects, beta=model.beta, K=model.K,
                           calibration=_calibration(campaign, tables, label_after, command))
         print(f"model file: {path}")
-    if args.out:
-        report = write_report(Path(args.out), rep, sims, tables, campaign=campaign, command=command,
-                              after_label=label_after, after_model=after_model, fitted=args.fit)
-        print(f"report: {report}")
+    if outputs is not None:
+        with outputs as tmp:
+            report = write_report(tmp, rep, sims, tables, campaign=campaign, command=command,
+                                  after_label=label_after, after_model=after_model, fitted=args.fit)
+        print(f"report: {Path(args.out) / report.name}")
     print(f"elapsed {time.perf_counter() - t0:.1f} s")
     return 0
 

@@ -33,6 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--candidates", default="", metavar="NAME[,NAME...]",
                         help="try only these effects (default: every effect of the library)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier --out folder / --json file")
     parser.add_argument("--columns", default="", metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
@@ -50,8 +51,14 @@ def run(args) -> int:
     candidates = [c.strip() for c in args.candidates.split(",") if c.strip()] or None
     for c in candidates or []:
         get_effect(c)
+    from ehas_env.output.outputs import OutputSet, check_file
+
+    for n, p in base.items():
+        get_effect(n).resolve(p)  # bad values refused before any work
+    # the output paths, before any work
     if args.json:
-        _check_writable(Path(args.json))
+        check_file(args.json, "--json", overwrite=args.overwrite)
+    outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
     rep = Replayer(campaign)
     print(campaign.summary())
@@ -97,7 +104,7 @@ def run(args) -> int:
             doc["stack"] = [d.top.to_json() for d in steps]
         atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
         print(f"json: {args.json}")
-    if args.out:
+    if outputs is not None:
         from ehas_env.cli.compare import write_report
 
         sims = {"baseline": first.baseline.sims, "baseline, beta/K recal.": first.null.sims}
@@ -107,20 +114,16 @@ def run(args) -> int:
             label = "+ " + " + ".join(final.fit.model.effects)
             sims[label] = final.fit.sims
             model = final.fit.model
-        path = write_report(Path(args.out), rep, sims, tables, campaign=campaign, command=command, after_label=label,
-                            after_model=model, fitted=True, diagnosis=first, title="Diagnosis")
-        print(f"report: {path}")
+        with outputs as tmp:
+            path = write_report(tmp, rep, sims, tables, campaign=campaign, command=command, after_label=label,
+                                after_model=model, fitted=True, diagnosis=first, title="Diagnosis")
+        print(f"report: {Path(args.out) / path.name}")
     return 0
 
 
 def _argv() -> list[str]:
     argv = sys.argv[1:]
     return argv[1:] if argv and argv[0] == "diagnose" else argv
-
-
-def _check_writable(path: Path) -> None:
-    if path.exists() and path.is_dir():
-        raise ValueError(f"--json {path} is a folder; expected a file name")
 
 
 def _ranking_text(d) -> str:

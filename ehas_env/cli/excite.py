@@ -14,32 +14,46 @@ from __future__ import annotations
 
 import argparse
 
+from ehas_env.cli.options import check_samples, number, option
+
 #: the signals of ehas_env.identification.excitation (kept here so that building the parser imports no numpy)
 KINDS = ("chirp", "prbs", "prms", "multisine")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("kind", choices=KINDS, help="signal: chirp, prbs, prms or multisine")
-    parser.add_argument("--amplitude", type=float, default=20.0, help="amplitude (peak), mA (default 20)")
-    parser.add_argument("--duration", type=float, default=10.0, help="length, s (default 10)")
-    parser.add_argument("--rate", type=float, default=1000.0, help="sample rate, Hz (default 1000, the rig's)")
-    parser.add_argument("--f0", type=float, default=0.5, help="chirp/multisine start frequency, Hz (default 0.5)")
-    parser.add_argument("--f1", type=float, default=None,
+    parser.add_argument("--amplitude", type=option("--amplitude", "current_mA"), default=20.0,
+                        help="amplitude (peak), mA, (0, 20] (default 20)")
+    parser.add_argument("--duration", type=number("--duration", "s", 0, 3600, lo_open=True), default=10.0,
+                        help="length, s, (0, 3600] (default 10)")
+    parser.add_argument("--rate", type=number("--rate", "Hz", 100, 100_000), default=1000.0,
+                        help="sample rate, Hz, 100..100000 (default 1000, the rig's)")
+    parser.add_argument("--f0", type=number("--f0", "Hz", 0, 50_000, lo_open=True), default=0.5,
+                        help="chirp/multisine start frequency, Hz (default 0.5)")
+    parser.add_argument("--f1", type=number("--f1", "Hz", 0, 50_000, lo_open=True), default=None,
                         help="chirp/multisine end frequency, Hz (default 2 for a chirp, as the book; 40 for a multisine)")
     parser.add_argument("--method", choices=("linear", "log"), default="linear", help="chirp sweep law (default linear)")
-    parser.add_argument("--hold", type=float, default=0.01, help="PRBS/PRMS clock period, s (default 0.01)")
-    parser.add_argument("--levels", type=int, default=5, help="PRMS levels (default 5)")
-    parser.add_argument("--order", type=int, default=None, help="PRBS shift-register order (default: fits the run)")
-    parser.add_argument("--lines", type=int, default=40, help="multisine frequency lines (default 40)")
-    parser.add_argument("--offset", type=float, default=0.0, help="constant added to the signal, mA (default 0)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the random signals and of the sensor noise")
-    parser.add_argument("--supply-bar", type=float, default=70.0, help="flow-bench supply, bar (default 70, rated test)")
+    parser.add_argument("--hold", type=number("--hold", "s", 0, 60, lo_open=True), default=0.01,
+                        help="PRBS/PRMS clock period, s (default 0.01)")
+    parser.add_argument("--levels", type=number("--levels", "levels", 2, 256, integer=True), default=5,
+                        help="PRMS levels, 2..256 (default 5)")
+    parser.add_argument("--order", type=number("--order", "", 2, 32, integer=True), default=None,
+                        help="PRBS shift-register order (default: fits the run)")
+    parser.add_argument("--lines", type=number("--lines", "frequency lines", 1, 100_000, integer=True), default=40,
+                        help="multisine frequency lines (default 40)")
+    parser.add_argument("--offset", type=option("--offset", "offset_mA"), default=0.0,
+                        help="constant added to the signal, mA, -20..20 (default 0)")
+    parser.add_argument("--seed", type=option("--seed", "seed"), default=0,
+                        help="seed of the random signals and of the sensor noise")
+    parser.add_argument("--supply-bar", type=option("--supply-bar", "supply_bar"), default=70.0,
+                        help="flow-bench supply, bar, (0, 350] (default 70, rated test)")
     parser.add_argument("--valve", choices=("grey_box", "white_box"), default="grey_box",
                         help="valve model of the plant (default grey_box, the book's identified valve)")
-    parser.add_argument("--flow-noise", type=float, default=None,
+    parser.add_argument("--flow-noise", type=number("--flow-noise", "LPM", 0, 25), default=None,
                         help="flow-meter noise std, LPM (default: the Sensors default, 0.05)")
     parser.add_argument("--ideal", action="store_true", help="no sensor noise or quantization")
     parser.add_argument("--out", default=None, help="output stem: writes STEM.csv and STEM.json (default results/excite/KIND)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier STEM.csv/STEM.json")
 
 
 def build_signal(args):
@@ -64,23 +78,30 @@ def run(args) -> int:
     from ehas_env.simulation.plant import Plant
     from ehas_env.simulation.sensors import Sensors
 
+    from pathlib import Path
+
+    from ehas_env.output.outputs import stem_set
+
+    check_samples(args.duration * args.rate, f"--duration {args.duration:g} s at --rate {args.rate:g} Hz")
+    stem = Path(args.out or f"results/excite/{args.kind}")
+    outputs = stem_set(stem, "--out", overwrite=args.overwrite, suffixes=(".csv", ".json"))
     sig = build_signal(args)
     if args.ideal:
         sensors = Sensors.ideal()
     else:
         sensors = Sensors()
         if args.flow_noise is not None:
-            if not (np.isfinite(args.flow_noise) and args.flow_noise >= 0):
-                raise ValueError(f"--flow-noise must be a non-negative std in LPM, got {args.flow_noise!r}")
             sensors = dataclasses.replace(sensors, flow_noise_lpm=args.flow_noise)
     plant_kw = {"valve": args.valve} if args.valve != "grey_box" else {}
     plant = Plant(sensors=sensors, seed=args.seed, dt=1.0 / args.rate, **plant_kw)
     res = plant.simulate_valve_test(sig.current_mA, supply_bar=args.supply_bar)
     res.meta["excitation"] = {"kind": sig.kind, **sig.params}
     res.meta["valve"] = args.valve
-    stem = args.out or f"results/excite/{args.kind}"
-    csv_path, json_path = res.to_csv(stem, notes=f"ehas excite {sig.describe()}, valve {args.valve}, "
-                                                 f"{args.supply_bar:g} bar supply, ports joined through the meter")
+    with outputs as tmp:
+        csv_tmp, _ = res.to_csv(tmp / stem.name, notes=f"ehas excite {sig.describe()}, valve {args.valve}, "
+                                                       f"{args.supply_bar:g} bar supply, ports joined through the meter")
+    csv_path = stem.parent / csv_tmp.name
+    json_path = csv_path.with_suffix(".json")
     flow = res.logged.get("flow_lpm", res.flow_lpm)
     print(f"{sig.describe()}")
     print(f"{sig.current_mA.size} samples at {args.rate:g} Hz; current {sig.current_mA.min():.2f} .. "

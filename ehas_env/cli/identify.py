@@ -154,17 +154,10 @@ def run(args) -> int:
 # ---------------------------------------------------------------------------
 
 def _save(fig, path) -> Path:
-    from ehas_env.output.plots import _pyplot
+    from ehas_env.output.plots import save_figure
 
-    plt = _pyplot()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
     fig.tight_layout()
-    fig.savefig(tmp, dpi=90)
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_overlay(est, path, title: str = "") -> Path:

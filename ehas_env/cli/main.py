@@ -8,7 +8,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import re
 import sys
+
+#: set to 1 to get the traceback of an unexpected error (otherwise: one line)
+DEBUG_ENV = "EHAS_DEBUG"
 
 # command name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -29,8 +34,20 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``ehas CMD: error: --opt must be ..., got 'x'`` and exit status 2."""
+
+    def error(self, message: str):  # noqa: D401 - argparse's hook
+        # "argument --cycles: --cycles must be ..." -> "--cycles must be ..."
+        m = re.match(r"argument ([^:]+): (.*)$", message, flags=re.S)
+        if m and any(m.group(2).startswith(name) for name in m.group(1).split("/")):
+            message = m.group(2)
+        message = " ".join(message.split())
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="ehas",
         description="Electro-hydraulic actuation systems toolkit.",
     )
@@ -57,28 +74,108 @@ def _load(module_name: str):
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one ``ehas`` command; every failure is one line on stderr and a non-zero status.
+
+    ====  =====================================================================
+    0     done
+    1     the command failed while working (a file could not be written, a
+          sweep task failed, an unexpected error: set EHAS_DEBUG=1 for the
+          traceback)
+    2     bad input: an option, a file or an output path (nothing was written)
+    130   interrupted (Ctrl-C); the previous complete output is left in place
+    ====  =====================================================================
+
+    ``ehas CMD | head`` ends quietly when the reader closes the pipe.
+    """
+    try:
+        return _main(argv)
+    except BrokenPipeError:
+        # the reader went away (| head): stop quietly; point stdout at devnull so the
+        # interpreter's final flush does not complain either
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 141
+
+
+def _main(argv) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("ehas: interrupted", file=sys.stderr)
+        return 130
     if args.command is None:
         parser.print_help()
         return 0
     module = _load(args._module)
     if module is None:
         parser.error(f"command '{args.command}' is not available in this installation")
+    name = f"ehas {args.command}"
     try:
-        return int(module.run(args) or 0)
-    except (ValueError, FileNotFoundError) as exc:
-        # Bad input: one clear line, no traceback.
-        print(f"ehas {args.command}: error: {exc}", file=sys.stderr)
+        rc = int(module.run(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handlers
+        return rc
+    except BrokenPipeError:
+        raise
+    except KeyboardInterrupt:
+        try:
+            sys.stdout.flush()
+        except (OSError, ValueError):
+            pass
+        print(f"{name}: interrupted", file=sys.stderr)
+        return 130
+    except (ValueError, FileNotFoundError, NotADirectoryError, IsADirectoryError, FileExistsError) as exc:
+        # bad input: one clear line, no traceback
+        text = _os_error(exc) if isinstance(exc, OSError) and exc.filename else _one_line(exc)
+        print(f"{name}: error: {text}", file=sys.stderr)
         return 2
+    except MemoryError:
+        print(f"{name}: error: out of memory; use smaller options (docs/errors.md lists the allowed ranges)",
+              file=sys.stderr)
+        return 1
+    except OSError as exc:
+        # the disk is full, a folder is read-only, ...: name the path
+        print(f"{name}: error: {_os_error(exc)}", file=sys.stderr)
+        return 1
     except RuntimeError as exc:
         from ehas_env.simulation.executors import TaskFailed
 
-        if not isinstance(exc, TaskFailed):
-            raise
-        # a task of a sweep failed on every attempt (ehas_env.simulation.executors): say which, no traceback
-        print(f"ehas {args.command}: error: {exc}", file=sys.stderr)
-        return 1
+        if isinstance(exc, TaskFailed):
+            # a task of a sweep failed on every attempt (ehas_env.simulation.executors): say which, no traceback
+            print(f"{name}: error: {_one_line(exc)}", file=sys.stderr)
+            return 1
+        return _unexpected(name, exc)
+    except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, traceback on request
+        return _unexpected(name, exc)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc) or type(exc).__name__
+    return " ".join(text.split())
+
+
+def _os_error(exc: OSError) -> str:
+    """``PATH: what went wrong`` from an OSError (ENOSPC, EACCES, ...)."""
+    path = exc.filename
+    what = exc.strerror or _one_line(exc)
+    if path is None:
+        return _one_line(exc)
+    if exc.filename2:
+        return f"{path} -> {exc.filename2}: {what}"
+    return f"{path}: {what}"
+
+
+def _unexpected(name: str, exc: BaseException) -> int:
+    if os.environ.get(DEBUG_ENV, "") not in ("", "0"):
+        import traceback
+
+        traceback.print_exception(exc)
+    print(f"{name}: internal error: {type(exc).__name__}: {_one_line(exc)} "
+          f"(set {DEBUG_ENV}=1 for the traceback and report it)", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":

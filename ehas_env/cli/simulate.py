@@ -3,18 +3,26 @@ from __future__ import annotations
 
 import argparse
 
+from ehas_env.cli.options import FIELDS, check_run_length, number, option
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--disc-sets", type=int, default=3, help="disc sets on the crank, 1..7 (default 3)")
-    parser.add_argument("--amplitude", type=float, default=20.0, help="reference amplitude, deg (default 20)")
-    parser.add_argument("--freq", type=float, default=1.0, help="reference frequency, Hz (default 1)")
-    parser.add_argument("--cycles", type=float, default=4.0, help="reference cycles to run (default 4)")
+    parser.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=3,
+                        help="disc sets on the crank, 1..7 (default 3)")
+    parser.add_argument("--amplitude", type=option("--amplitude", "amplitude_deg"), default=20.0,
+                        help="reference amplitude, deg, below the stroke end 44.43 (default 20)")
+    parser.add_argument("--freq", type=option("--freq", "freq_hz"), default=1.0,
+                        help="reference frequency, Hz, (0, 50] (default 1)")
+    parser.add_argument("--cycles", type=number("--cycles", "reference cycles", 3, 10_000), default=4.0,
+                        help="reference cycles to run, 3..10000 (the first is warm-up; default 4); "
+                             "at most 600 s of simulated time")
     parser.add_argument("--effects", default="", help="effects, e.g. 'coulomb_friction:Fc=300,viscous_friction:b=2000'")
     parser.add_argument("--gains", default="", help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's)")
     parser.add_argument("--sensors", action="store_true", help="add sensor noise and ADC/DAC quantization")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
+    parser.add_argument("--seed", type=option("--seed", "seed"), default=0, help="seed of the sensor noise (default 0)")
     parser.add_argument("--out", default="results/simulate/run", help="output stem: writes STEM.csv and STEM.json")
     parser.add_argument("--plot", action="store_true", help="also write STEM.png")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier STEM.csv/STEM.json/STEM.png")
 
 
 def parse_gains(text: str):
@@ -25,30 +33,46 @@ def parse_gains(text: str):
         key, _, val = item.partition("=")
         if key not in RigController.__dataclass_fields__:
             raise ValueError(f"--gains: unknown gain '{key}'; expected some of {', '.join(RigController.__dataclass_fields__)}")
-        try:
-            values[key] = float(val)
-        except ValueError:
-            raise ValueError(f"--gains: value of '{key}' must be a number, got {val!r}") from None
+        if key == "rate_hz":
+            values[key] = GAIN_RATE.parse(val, f"--gains {key}")
+        else:
+            values[key] = GAIN_RANGE.parse(val, f"--gains {key}")
     return RigController(**values)
+
+
+#: controller gains on the command line (--gains): finite, and small enough that the loop's arithmetic stays finite
+GAIN_RANGE = FIELDS["gain"]
+GAIN_RATE = FIELDS["rate_hz"]
 
 
 def run(args) -> int:
     from ehas_env.simulation.plant import Plant
     from ehas_env.simulation.sensors import Sensors
 
+    from pathlib import Path
+
+    from ehas_env.output.outputs import stem_set
+
+    # every check before any work: the options, the run's length, the output paths
+    check_run_length(args.cycles / args.freq, where=f"--cycles {args.cycles:g} at --freq {args.freq:g} Hz")
+    gains = parse_gains(args.gains)
+    outputs = stem_set(args.out, "--out", overwrite=args.overwrite)
     plant = Plant(disc_sets=args.disc_sets, effects=args.effects or None,
                   sensors=Sensors() if args.sensors else None, seed=args.seed)
-    res = plant.simulate_closed_loop(parse_gains(args.gains), amplitude_deg=args.amplitude, freq_hz=args.freq,
-                                     cycles=args.cycles)
-    csv_path, json_path = res.to_csv(args.out, notes=f"ehas simulate, {plant!r}")
+    res = plant.simulate_closed_loop(gains, amplitude_deg=args.amplitude, freq_hz=args.freq, cycles=args.cycles)
     err = res.tracking_errors()
+    stem = Path(args.out)
+    with outputs as tmp:
+        csv_tmp, _ = res.to_csv(tmp / stem.name, notes=f"ehas simulate, {plant!r}")
+        if args.plot:
+            from ehas_env.output.plots import plot_run
+
+            plot_run(res, csv_tmp.with_suffix(".png"))
+    csv_path = stem.parent / csv_tmp.name
     print(f"{plant!r}: +-{args.amplitude:g} deg at {args.freq:g} Hz")
     print(f"rms % position error {err['rms_error_pct']:.3f} %, peak {err['peak_error_pct']:.3f} % "
           f"(whole cycles after the first, % of amplitude)")
-    print(f"wrote {csv_path} and {json_path}")
+    print(f"wrote {csv_path} and {csv_path.with_suffix('.json')}")
     if args.plot:
-        from ehas_env.output.plots import plot_run
-
-        png = plot_run(res, csv_path.with_suffix(".png"))
-        print(f"wrote {png}")
+        print(f"wrote {csv_path.with_suffix('.png')}")
     return 0

@@ -38,10 +38,19 @@ def plot_run(res, path, title: str | None = None) -> Path:
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=90)
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    return save_figure(fig, path)
+
+
+def save_figure(fig, path, dpi: int = 90) -> Path:
+    """Render ``fig`` to PNG in memory and write it atomically (no half-written or stray temporary file)."""
+    import io
+
+    from ehas_env.output.files import atomic_write_bytes
+
+    plt = _pyplot()
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, dpi=dpi, format=Path(path).suffix.lstrip(".") or "png")
+    finally:
+        plt.close(fig)
+    return atomic_write_bytes(path, buf.getvalue())

@@ -1,0 +1,417 @@
+"""The output layer: check output paths before any work, replace a command's output set as a whole.
+
+Every writing command does two things through this module:
+
+1. **Before any work** it checks where it will write (:func:`check_folder`,
+   :func:`check_file`, :class:`OutputSet` at construction): a file where a
+   folder is expected, a path under a file, a read-only folder, an earlier
+   output that would be replaced without ``--overwrite``.  Each problem is one
+   :class:`OutputError` (a ``ValueError``: the CLI prints it as one line,
+   status 2) naming the option, the path and what is allowed.
+
+2. **While working** it writes into a temporary folder beside the output
+   (:class:`OutputSet`) and swaps it in at the end: the previous output is
+   renamed away, the new one renamed in, the previous one deleted.  A run that
+   fails, is interrupted (Ctrl-C) or killed leaves the previous complete set
+   (or nothing); the next run removes what a killed run left behind (and puts
+   back a previous set a kill caught halfway through the swap).
+
+Two shapes of output set:
+
+* a **folder** that belongs to the command (``ehas compare --out DIR``): the
+  folder is the set and is swapped whole;
+* **members** of a shared folder (``ehas simulate --out results/simulate/run``
+  writes ``run.csv`` + ``run.json``; ``ehas bench --out results`` writes
+  ``benchmark*`` and ``heatmap_*.png``): the set is the files matching the
+  command's patterns; old members are moved aside together, the new ones moved
+  in, the sidecar/summary last.
+
+Examples
+--------
+>>> import tempfile, pathlib
+>>> root = pathlib.Path(tempfile.mkdtemp())
+>>> with OutputSet(root / "report", option="--out") as tmp:
+...     _ = (tmp / "report.md").write_text("# new\\n")
+>>> sorted(p.name for p in root.iterdir())
+['report']
+>>> OutputSet(root / "report", option="--out")
+Traceback (most recent call last):
+...
+ehas_env.output.outputs.OutputError: --out ... already exists and is not empty; pass --overwrite to replace it
+"""
+from __future__ import annotations
+
+import errno
+import fnmatch
+import os
+import re
+import shutil
+from pathlib import Path
+
+TMP = "ehas-tmp"  # a run's output being written
+OLD = "ehas-old"  # the previous output, moved aside during the swap
+DONE = "ehas-done"  # the previous output after a complete swap, being deleted
+_STALE = re.compile(r"^\.(?P<name>.*)\.(?P<what>ehas-tmp|ehas-old|ehas-done)\.(?P<pid>\d+)$")
+_ATOMIC_TMP = re.compile(r"^\..+\.(?P<pid>\d+)\.[A-Za-z0-9_]+\.tmp$")  # ehas_env.output.files temporaries
+
+
+class OutputError(ValueError):
+    """An output path that cannot be used; the message names the option, the path and what is allowed."""
+
+
+# -- checks before work --------------------------------------------------------------------------------
+def _label(option: str | None, path: Path) -> str:
+    return f"{option} {path}" if option else str(path)
+
+
+def check_parent(path, option: str | None = None) -> Path:
+    """The nearest existing folder above ``path``; OutputError if it is a file or not writable."""
+    path = Path(path)
+    p = path.absolute().parent
+    while not (p.exists() or p.is_symlink()):
+        p = p.parent
+    if p.is_symlink() and not p.exists():
+        raise OutputError(f"{_label(option, path)}: {p} is a dangling symbolic link")
+    if not p.is_dir():
+        raise OutputError(f"{_label(option, path)}: {p} is a file, not a folder; give a path in a folder")
+    probe_writable(p, _label(option, path))
+    return p
+
+
+def _check_parent_shown(path: Path, shown: str) -> None:
+    try:
+        check_parent(path, None)
+    except OutputError as exc:
+        raise OutputError(f"{shown}: " + str(exc).split(": ", 1)[-1]) from None
+
+
+def probe_writable(folder: Path, label: str) -> None:
+    """OutputError unless a file can be made in ``folder`` (a real probe: permissions, read-only disks, /proc)."""
+    probe = Path(folder) / f".ehas-probe.{os.getpid()}"
+    try:
+        os.mkdir(probe)
+    except FileExistsError:
+        pass
+    except OSError as exc:
+        raise OutputError(f"{label}: cannot write in {folder} ({exc.strerror or exc}); "
+                          "give a path in a writable folder") from None
+    try:
+        os.rmdir(probe)
+    except OSError:
+        pass
+
+
+def check_folder(path, option: str | None = "--out", *, overwrite: bool = False) -> Path:
+    """Check that ``path`` can become this command's output folder (before any work).
+
+    Allowed: a new path in a writable folder, an empty folder, or (with
+    ``overwrite``) a folder of an earlier output, which is then replaced whole.
+    """
+    path = Path(path)
+    if path.is_symlink() and not path.exists():
+        raise OutputError(f"{_label(option, path)} is a dangling symbolic link; give a folder")
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{_label(option, path)} is a file; expected a folder (new, empty, or an earlier "
+                          "output with --overwrite)")
+    check_parent(path, option)
+    if path.is_dir():
+        try:
+            entries = [e for e in os.listdir(path)]
+        except PermissionError:
+            raise OutputError(f"{_label(option, path)}: cannot read the folder (permission denied)") from None
+        if entries and not overwrite:
+            raise OutputError(f"{_label(option, path)} already exists and is not empty; pass --overwrite to "
+                              "replace it")
+        if entries:
+            probe_writable(path, _label(option, path))
+    return path
+
+
+def check_file(path, option: str | None = None, *, overwrite: bool = False, suffix: str | None = None) -> Path:
+    """Check that the file ``path`` can be written (before any work).
+
+    Refused: a folder, a path under a file, an unwritable folder, and an
+    existing file without ``overwrite``.
+    """
+    path = Path(path)
+    if str(path).endswith(os.sep) or path.is_dir():
+        raise OutputError(f"{_label(option, path)} is a folder; expected a file name")
+    if suffix and path.suffix.lower() != suffix:
+        raise OutputError(f"{_label(option, path)}: expected a {suffix} file name")
+    check_parent(path, option)
+    if (path.exists() or path.is_symlink()) and not overwrite:
+        raise OutputError(f"{_label(option, path)} already exists; pass --overwrite to replace it")
+    return path
+
+
+# -- stale leftovers -------------------------------------------------------------------------------------
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's process
+    except OSError:
+        return False
+    return True
+
+
+def _rm(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def clean_stale(folder) -> list[Path]:
+    """Remove what killed ehas runs left in ``folder``; put back a previous output caught mid-swap.
+
+    Returns the entries removed.  Entries of live processes (a concurrent run)
+    are left alone.
+    """
+    folder = Path(folder)
+    removed: list[Path] = []
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return removed
+    for name in sorted(names):
+        m = _STALE.match(name)
+        if m and not _alive(int(m.group("pid"))):
+            entry = folder / name
+            if m.group("what") == OLD:
+                _restore(folder, m.group("name"), entry)
+            if entry.exists() or entry.is_symlink():
+                _rm(entry)
+                removed.append(entry)
+            continue
+        m = _ATOMIC_TMP.match(name)
+        if m and not _alive(int(m.group("pid"))):
+            _rm(folder / name)
+            removed.append(folder / name)
+    return removed
+
+
+def _restore(folder: Path, name: str, old: Path) -> None:
+    """A kill between moving the previous output aside and finishing the swap: put the previous set back."""
+    if name.startswith("members-"):
+        # member set: once the previous members are all aside (".complete"), what matches in the
+        # folder is the interrupted run's partial set: remove it; then the previous set goes back
+        if (old / ".complete").exists():
+            patterns = (old / ".patterns").read_text().split("\n") if (old / ".patterns").is_file() else []
+            for p in _matches(folder, patterns):
+                _rm(p)
+        for f in old.iterdir():
+            if f.name not in (".patterns", ".complete"):
+                os.replace(f, folder / f.name)
+    else:  # folder set: the final folder is missing only if the kill came between the two renames
+        final = folder / name
+        if not final.exists():
+            os.replace(old, final)
+
+
+def _matches(folder: Path, patterns) -> list[Path]:
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return []
+    return [folder / n for n in sorted(names)
+            if not n.startswith(".") and any(fnmatch.fnmatchcase(n, p) for p in patterns if p)]
+
+
+# -- the output set --------------------------------------------------------------------------------------
+class OutputSet:
+    """Write a command's outputs into a temporary folder and swap them in as one set.
+
+    Parameters
+    ----------
+    path : path
+        The output folder.
+    option : str
+        The option that named it (for messages), e.g. ``"--out"``.
+    overwrite : bool
+        Replace an earlier output; without it an existing non-empty folder (or
+        existing members) is refused before any work.
+    members : sequence of str, optional
+        Glob patterns of the files this command owns in a shared folder; the
+        folder's other files are left alone.  Without it the folder is the set.
+    last : sequence of str
+        Patterns of members moved in last (the sidecar that makes a run complete).
+    check : bool
+        Check the path now (default); construct early, before the work.
+
+    Use as a context manager: ``with OutputSet(out, option="--out") as tmp:``
+    write into ``tmp``; on a normal exit the set is swapped in, on an exception
+    (and Ctrl-C) ``tmp`` is removed and the previous output stays whole.
+    """
+
+    def __init__(self, path, option: str | None = "--out", *, overwrite: bool = False, members=None,
+                 last=(), check: bool = True, shown=None):
+        self.path = Path(path)
+        self.shown = Path(shown) if shown is not None else self.path  # the path named in messages
+        self.option = option
+        self.overwrite = overwrite
+        self.members = tuple(members) if members else None
+        self.last = tuple(last)
+        self.tmp: Path | None = None
+        self._created_folder = False
+        if check:
+            self.check()
+
+    # checks
+    def check(self) -> None:
+        if self.members is None:
+            check_folder(self.path, self.option, overwrite=self.overwrite)
+            clean_stale(self.path.absolute().parent)
+            return
+        folder = self.path
+        shown = _label(self.option, self.shown)
+        if folder.exists() and not folder.is_dir():
+            raise OutputError(f"{shown}: {folder} is a file, not a folder")
+        if folder.is_dir():
+            probe_writable(folder, shown)
+            clean_stale(folder)
+            existing = _matches(folder, self.members)
+            if existing and not self.overwrite:
+                raise OutputError(f"{_label(self.option, existing[0])} already exists; pass --overwrite to replace "
+                                  "the earlier output")
+        else:
+            check_parent(folder / "x", None if self.shown != self.path else self.option) if self.shown == self.path \
+                else _check_parent_shown(folder / "x", shown)
+
+    def existing(self) -> list[Path]:
+        """The files of an earlier output this set would replace."""
+        if self.members is None:
+            return [self.path] if self.path.is_dir() and any(self.path.iterdir()) else []
+        return _matches(self.path, self.members) if self.path.is_dir() else []
+
+    # context manager
+    def __enter__(self) -> Path:
+        try:
+            return self._enter()
+        except OSError as exc:
+            self.abort()
+            raise self._named(exc) from None
+
+    def _enter(self) -> Path:
+        pid = os.getpid()
+        if self.members is None:
+            parent = self.path.absolute().parent
+            parent.mkdir(parents=True, exist_ok=True)
+            self.tmp = parent / f".{self.path.name}.{TMP}.{pid}"
+        else:
+            if not self.path.exists():
+                self._created_folder = True
+            self.path.mkdir(parents=True, exist_ok=True)
+            self.tmp = self.path.absolute() / f".members-{_tag(self.members)}.{TMP}.{pid}"
+        _rm(self.tmp)
+        self.tmp.mkdir()
+        return self.tmp
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            try:
+                self.commit()
+            except OSError as err:
+                self.abort()
+                raise self._named(err) from None
+            return False
+        self.abort()
+        if isinstance(exc, OSError):
+            raise self._named(exc) from None
+        return False
+
+    def abort(self) -> None:
+        """Remove the temporary folder (the previous output stays as it was)."""
+        if self.tmp is not None:
+            _rm(self.tmp)
+        if self._created_folder:
+            try:
+                self.path.rmdir()  # only if empty
+            except OSError:
+                pass
+
+    def commit(self) -> None:
+        """Swap the temporary folder in (see the class docstring)."""
+        tmp, pid = self.tmp, os.getpid()
+        if self.members is None:
+            final = self.path.absolute()
+            old = final.parent / f".{final.name}.{OLD}.{pid}"
+            if final.exists():
+                os.replace(final, old)
+            os.replace(tmp, final)
+            if old.exists():
+                done = final.parent / f".{final.name}.{DONE}.{pid}"
+                os.replace(old, done)
+                _rm(done)
+            self.tmp = None
+            return
+        folder = self.path.absolute()
+        tag = _tag(self.members)
+        old = folder / f".members-{tag}.{OLD}.{pid}"
+        _rm(old)
+        old.mkdir()
+        (old / ".patterns").write_text("\n".join(self.members))
+        for f in _matches(folder, self.members):
+            os.replace(f, old / f.name)
+        (old / ".complete").write_text("")
+        new = sorted(tmp.iterdir(), key=lambda p: (any(fnmatch.fnmatchcase(p.name, x) for x in self.last), p.name))
+        for f in new:
+            target = folder / f.name
+            if target.is_dir() and not target.is_symlink():
+                shutil.rmtree(target)
+            os.replace(f, target)
+        done = folder / f".members-{tag}.{DONE}.{pid}"
+        os.replace(old, done)
+        _rm(done)
+        _rm(tmp)
+        self.tmp = None
+
+    def _named(self, err: OSError) -> OSError:
+        """The OSError with the temporary path replaced by the output path it stands for."""
+        name = err.filename
+        if isinstance(name, (str, os.PathLike)) and self.tmp is not None:
+            s = str(name)
+            t = str(self.tmp)
+            if s.startswith(t):
+                final = self.path if self.members is None else self.path
+                name = str(final) + s[len(t):]
+        if name is None:
+            name = str(self.path)
+        e = OSError(err.errno or errno.EIO, err.strerror or str(err), str(name))
+        return e
+
+
+def _tag(patterns) -> str:
+    text = "-".join(patterns)
+    return re.sub(r"[^A-Za-z0-9_-]+", "_", text)[:60] or "set"
+
+
+def stem_set(stem, option: str = "--out", *, overwrite: bool = False, suffixes=(".csv", ".json", ".png"),
+             last=(".json",)) -> OutputSet:
+    """The output set of a run file ``STEM.csv`` + ``STEM.json`` (+ ``STEM.png``): members of STEM's folder.
+
+    The sidecar ``.json`` goes in last: a run is complete once it is there.
+    """
+    stem = Path(stem)
+    if stem.suffix in (".csv", ".json"):
+        stem = stem.with_suffix("")
+    if stem.name in ("", ".", ".."):
+        raise OutputError(f"{option} {stem}: expected an output stem (a file name without suffix), got a folder")
+    if stem.is_dir():
+        raise OutputError(f"{option} {stem} is a folder; expected an output stem, e.g. {stem / 'run'} "
+                          "(writes run.csv, run.json)")
+    # the names the run writer gives (ehas_env.measurement.runfile.write_run: stem.with_suffix)
+    names = {s: stem.with_suffix(s).name for s in suffixes}
+    return OutputSet(stem.parent, option, overwrite=overwrite, members=[_glob_escape(n) for n in names.values()],
+                     last=[_glob_escape(names[s]) for s in last if s in names], shown=stem)
+
+
+def _glob_escape(name: str) -> str:
+    return re.sub(r"([*?\[])", r"[\1]", name)
