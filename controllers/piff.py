@@ -46,7 +46,7 @@ GAIN_UNITS = {
     "dp_hp": "rad/s",
 }
 GAIN_NAMES = tuple(GAIN_UNITS)
-DAC_SPAN_MA = 40.0  # +-20 mA output span (rig.md: RMC70 12-bit current output)
+DAC_SPAN_MA = 40.0  # +-20 mA output span (docs/rig.md: RMC70 12-bit current output)
 
 
 @register_type("piff")

@@ -25,9 +25,9 @@ import gymnasium as gym
 import numpy as np
 
 EHAS_ID = "ehas/Tracking-v0"
-V_SCALE_DEG_S = 30.0 * 2.0 * math.pi * 3.0  # design point's peak rate, +-30 deg at 3 Hz (rig.md)
-DP_SCALE_BAR = 110.0  # half the 220 bar supply (rig.md): the ``power`` action shape's load scale
-RATED_CURRENT_MA = 20.0  # the env's action scale: a = 1 is 20 mA (rig.md: +-20 mA servo amplifier)
+V_SCALE_DEG_S = 30.0 * 2.0 * math.pi * 3.0  # design point's peak rate, +-30 deg at 3 Hz (docs/rig.md)
+DP_SCALE_BAR = 110.0  # half the 220 bar supply (docs/rig.md): the ``power`` action shape's load scale
+RATED_CURRENT_MA = 20.0  # the env's action scale: a = 1 is 20 mA (docs/rig.md: +-20 mA servo amplifier)
 
 
 def is_tracking_env(env_id: str) -> bool:

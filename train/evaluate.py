@@ -39,8 +39,8 @@ from ehas_controllers.benchmark import rows_csv as benchmark_rows_csv
 
 from . import envs as E
 
-I_MAX = 20.0  # mA, servo amplifier (rig.md)
-DESIGN_POINT = (7, 3.0, 30.0)  # disc sets, Hz, deg: the rig's design point (rig.md)
+I_MAX = 20.0  # mA, servo amplifier (docs/rig.md)
+DESIGN_POINT = (7, 3.0, 30.0)  # disc sets, Hz, deg: the rig's design point (docs/rig.md)
 
 
 def grid_conditions() -> list[tuple[int, float, float]]:

@@ -6,7 +6,7 @@ and at the command line (:mod:`ehas_env.cli.size`).
 
 Sources are the book "Electro-Hydraulic Actuation Systems: Design, Testing,
 Identification and Validation", chapter 1, as summarised in the project's
-``rig.md``, and its tables 1.1-1.6 and 1.16 shipped in :mod:`ehas_env.book.data`.
+``docs/rig.md``, and its tables 1.1-1.6 and 1.16 shipped in :mod:`ehas_env.book.data`.
 
 Where the book contradicts itself (kept here because the tests check them):
 
@@ -47,7 +47,7 @@ GPM = US_GALLON / 60.0  # m^3/s per US gallon/minute
 HORSEPOWER = 745.6998715822702  # W per mechanical horsepower (550 ft lbf/s)
 HYDRAULIC_HP_DIVISOR = 1714.0  # GPM psi per hp: 550*12 in lbf/s / (231 in^3/gal / 60 s), book
 
-# --- the rig (book, via rig.md) -----------------------------------------------------
+# --- the rig (book, via docs/rig.md) -----------------------------------------------------
 TOTAL_DISC_INERTIA = 2.68  # kg m^2 for all 7 sets (14 discs), book
 MAX_DISC_SETS = 7  # book: 1..7 sets of two discs
 DISC_SET_INERTIA = TOTAL_DISC_INERTIA / MAX_DISC_SETS  # kg m^2; book rounds to 0.383 (see module notes)

@@ -78,7 +78,7 @@ class NasRecord:
 
 @dataclass(frozen=True)
 class BookDesignText:
-    """Numbers the book prints in its chapter-1 design summary (rig.md).
+    """Numbers the book prints in its chapter-1 design summary (docs/rig.md).
 
     Shown beside the recomputed values; they are not used to compute anything.
     The book's "17265 kN" means N (1.5 x the rounded 11.51 kN); its piston

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 DEFAULT_PLAN = ((3, 20.0, 1.0), (5, 30.0, 2.0), (1, 35.0, 3.0), (7, 10.0, 3.0))
 DURATION = 3.0  # s per run
 CHIRP = (0.5, 30.0, 8.0)  # valve chirp: start Hz, end Hz, amplitude mA (logarithmic sweep)
-VALVE_SUPPLY_BAR = 70.0  # rated valve test (rig.md)
+VALVE_SUPPLY_BAR = 70.0  # rated valve test (docs/rig.md)
 BETA_PERTURB = 0.05  # relative, +-: the reference model's beta is an estimate
 K_PERTURB = 0.01  # relative, +-: the identified K's fit uncertainty
 
@@ -144,7 +144,7 @@ def write_simulated_campaign(out, effects=None, *, seed: int = 0, perturb: bool 
     readme = (
         "# Synthetic measurement campaign\n\n"
         f"Regenerate with:\n\n    {command}\n\n"
-        "Each `RUN.csv` + `RUN.json` pair is one run in the measurement format (measurements.md).\n"
+        "Each `RUN.csv` + `RUN.json` pair is one run in the measurement format (docs/measurement-format.md).\n"
         "`truth.json` records what was simulated (hidden effects, beta, K, seed); campaign readers\n"
         "ignore it, so `ehas diagnose` works blind.\n"
     )

@@ -34,7 +34,7 @@ from ehas_env.book.tables import read_rows
 from ehas_env.identification.excitation import Excitation, chirp, multisine, prms
 from ehas_env.identification.fit import fit_percent, second_order_parameters, simulate_tf, tfest
 
-SUPPLY_BAR = 70.0  # rated flow-bench test (rig.md)
+SUPPLY_BAR = 70.0  # rated flow-bench test (docs/rig.md)
 BOOK_CHIRP_FIT = 95.4  # %, the book's 2p0z chirp fit (valve_identification.csv)
 DURATION = 10.0  # s per run (assumed: the book does not give its record length); 10 000 samples at 1 kHz
 
@@ -152,7 +152,7 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
             poles = ", ".join(f"{p:.4g}" for p in np.roots(m["den"]))
             md.append(f"| {m['excitation']} {m['poles']}p{m['zeros']}z: `{_fmt_tf(m['num'], m['den'])}` | "
                       f"{m['fit_percent']} % | {m['K']:.3f} | {m['wn']:.1f} | {m['zeta']:.3f} | {poles} |")
-    md += ["", "The book's text says wn = 132 rad/s; its transfer function gives 107.0 rad/s (rig.md: use the "
+    md += ["", "The book's text says wn = 132 rad/s; its transfer function gives 107.0 rad/s (docs/rig.md: use the "
            "transfer function). The PRMS model is overdamped (zeta 1.37): two real poles.", ""]
 
     # -- 2. the book's experiments, one realisation ----------------------------

@@ -324,7 +324,7 @@ class Diagnosis:
         return self.ranking[0].effect
 
     def to_json(self) -> dict:
-        """The JSON of measurements.md."""
+        """The JSON of docs/measurement-format.md."""
         return {"baseline": {"fit_percent": round(self.baseline.table.overall, 2),
                              "per_signal": {k: round(v, 2) for k, v in self.baseline.table.per_signal.items()}},
                 "ranking": [e.to_json() for e in self.ranking]}

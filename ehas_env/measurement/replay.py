@@ -10,7 +10,7 @@ one.  Everything runs in the compiled kernels (``ehas_env.physics.kernel``), abo
 
 The fit of a signal is the NRMSE fit of :func:`ehas_env.simulation.metrics.fit_percent`;
 a campaign's fit per signal is the mean over its runs, and its overall fit the
-mean over signals (measurements.md).  A signal whose measured variation is at
+mean over signals (docs/measurement-format.md).  A signal whose measured variation is at
 its noise level (a regulated supply pressure) carries no shape to fit and is
 left out of the fit % (it still counts in the calibration cost).
 

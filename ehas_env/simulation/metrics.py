@@ -2,7 +2,7 @@
 
 ``rms_error_pct`` = 100 RMS(theta_ref - theta) / theta_amp and
 ``peak_error_pct`` = 100 max|theta_ref - theta| / theta_amp, over whole reference
-cycles after the first (the first is a warm-up), as reference-model.md defines
+cycles after the first (the first is a warm-up), as docs/reference-model.md defines
 them.  The book never defines its "% pos error"; these do.
 """
 from __future__ import annotations

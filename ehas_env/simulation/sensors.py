@@ -1,7 +1,7 @@
 """Sensor and converter realism, kept apart from the physics.
 
 The rig's DAQ is a 16-bit ADC; the controller's current output a 12-bit DAC
-(rig.md).  Noise levels are assumed (typical for the rig's transducers) and
+(docs/rig.md).  Noise levels are assumed (typical for the rig's transducers) and
 documented per field.  A :class:`Sensors` with ``ideal=True`` (the default of
 :meth:`Sensors.ideal`) leaves signals untouched.
 """
@@ -15,7 +15,7 @@ from ehas_env.physics.rig import CRANK_RADIUS, HALF_STROKE
 
 # full-scale spans of the converters (the range each sensor's ADC channel covers)
 THETA_SPAN_DEG = 2.0 * np.degrees(np.arcsin(HALF_STROKE / CRANK_RADIUS))  # LVDT +-35 mm
-PRESSURE_SPAN_BAR = 400.0  # rig.md: 3 x 400 bar transducers
+PRESSURE_SPAN_BAR = 400.0  # docs/rig.md: 3 x 400 bar transducers
 FLOW_SPAN_LPM = 80.0  # turbine meter 0.03-40 LPM, signed channel +-40
 CURRENT_SPAN_MA = 40.0  # +-20 mA
 
