@@ -25,6 +25,13 @@ class StribeckFriction(Effect):
     )
 
     @classmethod
+    def validate(cls, values):
+        """Breakaway is at or above sliding: a static force Fs below the Coulomb level Fc is refused."""
+        if values["Fs"] < values["Fc"]:
+            raise ValueError(f"effect 'stribeck_friction': breakaway force Fs = {values['Fs']:g} N must be at least the "
+                             f"sliding force Fc = {values['Fc']:g} N (Fs >= Fc)")
+
+    @classmethod
     def apply(cls, values, slots):
         slots["Fc_s"] = values["Fc"]
         slots["Fs_s"] = values["Fs"]
