@@ -163,14 +163,32 @@ def _load_json(path: Path) -> Controller:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise ValueError(f"controller file {path}: not valid JSON ({exc})") from None
-    if isinstance(data, dict) and data.get("format", FILE_FORMAT) != FILE_FORMAT:
-        raise ValueError(f"controller file {path}: 'format' is {data.get('format')!r}, expected {FILE_FORMAT!r}")
+    check_file_header(data, f"controller file {path}")
     try:
         ctrl = controller_from_dict(data)
     except (ValueError, TypeError, KeyError) as exc:
         raise ValueError(f"controller file {path}: {exc}") from None
     ctrl.source = str(path)
     return ctrl
+
+
+def check_file_header(data, where: str) -> None:
+    """Refuse a controller JSON without this format's ``format``, ``version`` and a known ``type``.
+
+    The same words for every file format ehas reads: what the key holds and what is expected.
+    """
+    if not isinstance(data, dict):
+        raise ValueError(f"{where}: expected a JSON object with \"format\": \"{FILE_FORMAT}\", got {type(data).__name__}")
+    if "format" not in data:
+        raise ValueError(f"{where}: no 'format' key; expected \"format\": \"{FILE_FORMAT}\" (a file written by "
+                         "ehas tune)")
+    if data["format"] != FILE_FORMAT:
+        raise ValueError(f"{where}: key 'format' = {data['format']!r}; expected {FILE_FORMAT!r}")
+    if data.get("version") != FILE_VERSION:
+        raise ValueError(f"{where}: key 'version' = {data.get('version')!r}; this ehas reads version {FILE_VERSION}")
+    if "type" not in data:
+        _import_plugins()
+        raise ValueError(f"{where}: no 'type' key; expected one of {', '.join(sorted(CONTROLLER_TYPES))}")
 
 
 register_loader(".json", _load_json)

@@ -29,16 +29,24 @@ DEFAULT_TUNERS = (  # (file stem, ehas tune arguments)
 )
 
 
+#: the files of one benchmark run (its output set in --out)
+BENCH_FILES = ("benchmark.csv", "benchmark.md", "benchmark_robustness.csv", "benchmark_timing.json", "heatmap_*.png")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("controllers", nargs="*", metavar="CONTROLLER_FILE",
                         help="controller files (default: the book's gains plus each tuner's result)")
     parser.add_argument("--out", default="results", help="output folder (default results)")
     parser.add_argument("--model", default=None, help="model file whose plant to run (ehas_env.measurement.model_file)")
-    parser.add_argument("--cycles", type=float, default=5.0, help="reference periods per run, first excluded (default 5)")
+    from ehas_env.cli.options import number
+
+    parser.add_argument("--cycles", type=number("--cycles", "reference periods", 2, 100, lo_open=True), default=5.0, help="reference periods per run, first excluded (default 5)")
     parser.add_argument("--no-robustness", action="store_true", help="skip the robustness table (13 x 63 runs per controller)")
     parser.add_argument("--no-book", action="store_true", help="leave the book's baseline gains out")
     parser.add_argument("--retune", action="store_true", help="with no files: re-run the tuners even if their files exist")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace the benchmark files of an earlier run in --out (benchmark*, heatmap_*.png)")
     from ehas_env.simulation.executors import add_executor_arguments
 
     add_executor_arguments(parser)
@@ -56,7 +64,8 @@ def default_controllers(out: Path, retune: bool, progress: bool) -> list:
         if retune or not path.exists():
             p = argparse.ArgumentParser(prog="ehas tune")
             tune_args(p)
-            targs = p.parse_args(argv + ["--out", str(path)] + ([] if progress else ["--no-progress"]))
+            targs = p.parse_args(argv + ["--out", str(path)] + ([] if progress else ["--no-progress"])
+                                 + (["--overwrite"] if path.exists() else []))
             print(f"[bench] tuning: ehas tune {' '.join(shlex.quote(a) for a in [*argv, '--out', str(path)])}", flush=True)
             tune_run(targs)
         ctrls.append(load_controller(path))
@@ -71,10 +80,13 @@ def run(args) -> int:
     from .piff import PIFF
     from .tune_cli import plant_kwargs_from_model
 
+    from ehas_env.output.outputs import OutputSet
+
     out = Path(args.out)
-    if not (args.cycles > 2):
-        raise ValueError(f"--cycles must be > 2 (the first is warm-up, then whole cycles), got {args.cycles!r}")
     plant_kw = plant_kwargs_from_model(args.model)
+    # the output set, checked before any work: the benchmark's files in --out (other files there are left alone)
+    outputs = OutputSet(out, "--out", overwrite=args.overwrite, members=BENCH_FILES, last=("benchmark.md",))
+    executor = executor_from_args(args)
     controllers = [] if args.no_book else [PIFF.book()]
     if args.controllers:
         controllers += [load_controller(p) for p in args.controllers]
@@ -93,9 +105,10 @@ def run(args) -> int:
         if getattr(args, flag):
             parts.append("--" + flag.replace("_", "-"))
     command = " ".join(shlex.quote(p) for p in parts)
-    res = run_benchmark(controllers, out, cycles=args.cycles, plant_kwargs=plant_kw, robustness=not args.no_robustness,
-                        command=command, progress=not args.no_progress,
-                        executor=executor_from_args(args))
+    with outputs as tmp:
+        res = run_benchmark(controllers, tmp, cycles=args.cycles, plant_kwargs=plant_kw,
+                            robustness=not args.no_robustness, command=command, progress=not args.no_progress,
+                            executor=executor)
     t = res["timing"]
     print(f"63-condition grid for one controller: {t['best_s']:.2f} s (first run {t['first_s']:.2f} s; target < 10 s)")
     print(f"{'controller':<28} {'kind':<9} {'mean rms %':>10} {'worst rms %':>11} {'30/3/7 rms %':>12} {'stroke hits':>11} {'book beaten':>11}")

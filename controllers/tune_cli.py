@@ -37,47 +37,50 @@ def resolve_defaults(args):
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", required=True, choices=METHODS, help="tuner: model, optimize, relay or schedule")
-    parser.add_argument("--disc-sets", type=int, default=None,
+    from ehas_env.cli.options import number, option
+
+    parser.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=None,
                         help="disc sets to tune for, 1..7 (model/relay default 7, the least margin; "
                              "optimize default: all seven)")
-    parser.add_argument("--freq", type=float, default=None,
+    parser.add_argument("--freq", type=number("--freq", "Hz", 0, 20, lo_open=True), default=None,
                         help="reference frequency, Hz: model/relay operating point (default 2); "
                              "optimize/schedule: tune at this frequency only (default 1, 2 and 3)")
-    parser.add_argument("--amplitude", type=float, default=None,
+    parser.add_argument("--amplitude", type=option("--amplitude", "amplitude_deg"), default=None,
                         help="reference amplitude, deg: as --freq (operating point default 20; conditions default 10, 20, 30)")
     parser.add_argument("--out", default=None, help="controller JSON to write (default results/controllers/METHOD.json)")
     parser.add_argument("--model", default=None, help="model file whose plant to tune on (ehas_env.measurement.model_file)")
     g = parser.add_argument_group("model-based")
-    g.add_argument("--phase-margin", type=float, default=50.0, help="phase-margin target, deg (default 50)")
-    g.add_argument("--bandwidth", type=float, default=None, help="crossover target, Hz (default: highest meeting the margins)")
-    g.add_argument("--gain-margin", type=float, default=6.0, help="least gain margin, dB (default 6)")
-    g.add_argument("--pi-lag", type=float, default=3.0,
+    g.add_argument("--phase-margin", type=number("--phase-margin", "deg", 0, 90, lo_open=True, hi_open=True), default=50.0, help="phase-margin target, deg (default 50)")
+    g.add_argument("--bandwidth", type=number("--bandwidth", "Hz", 0, 100, lo_open=True), default=None, help="crossover target, Hz (default: highest meeting the margins)")
+    g.add_argument("--gain-margin", type=number("--gain-margin", "dB", 0, 40, lo_open=True), default=6.0, help="least gain margin, dB (default 6)")
+    g.add_argument("--pi-lag", type=number("--pi-lag", "deg", 0, 80), default=3.0,
                    help="phase the PI's integral may cost at crossover, deg (default 3: little integral action, "
                         "which tracks sines best)")
     g.add_argument("--pressure-feedback", choices=("none", "static", "dynamic"), default=None,
                    help="load-pressure feedback variant (default: none for model/relay; static for optimize and "
                         "schedule, whose optimiser then tunes Kdp)")
-    g.add_argument("--kdp", type=float, default=None,
+    g.add_argument("--kdp", type=number("--kdp", "mA/bar", 0, 1), default=None,
                    help="pressure feedback gain, mA/bar (model default: chosen by the tuner; optimiser start "
                         f"default {0.01:g})")
-    g.add_argument("--dp-hp", type=float, default=10.0, help="high-pass corner of dynamic pressure feedback, rad/s (default 10)")
+    g.add_argument("--dp-hp", type=number("--dp-hp", "rad/s", 0, 10_000, lo_open=True), default=10.0, help="high-pass corner of dynamic pressure feedback, rad/s (default 10)")
     g.add_argument("--bode", default=None, help="Bode plot PNG (default: next to --out)")
     g = parser.add_argument_group("optimiser")
     g.add_argument("--objective", choices=("mean", "worst"), default="mean", help="mean or worst rms %% error (default mean)")
-    g.add_argument("--max-evals", type=int, default=200, help="objective evaluations per optimisation (default 200)")
+    g.add_argument("--max-evals", type=number("--max-evals", "evaluations", 1, 100_000, integer=True), default=200, help="objective evaluations per optimisation (default 200)")
     g.add_argument("--start", default=None, help="controller JSON to start from (default: the model-based design)")
-    g.add_argument("--starts", type=int, default=1,
+    g.add_argument("--starts", type=number("--starts", "starts", 1, 1024, integer=True), default=1,
                    help="optimise from this many starts (the first unperturbed, the others seeded perturbations "
                         "of it) and keep the best; the starts are independent tasks for --executor (default 1)")
-    g.add_argument("--seed", type=int, default=0, help="seed of the perturbed starts (default 0)")
+    g.add_argument("--seed", type=option("--seed", "seed"), default=0, help="seed of the perturbed starts (default 0)")
     g = parser.add_argument_group("relay")
     g.add_argument("--rule", choices=("zn", "tl"), default="tl",
                    help="PI rule: tl Tyreus-Luyben (default: more gain margin), zn Ziegler-Nichols")
-    g.add_argument("--relay-mA", type=float, default=1.0, help="relay amplitude, mA (default 1)")
+    g.add_argument("--relay-mA", type=option("--relay-mA", "current_mA"), default=1.0, help="relay amplitude, mA (default 1)")
     g = parser.add_argument_group("schedule")
     g.add_argument("--base", choices=("model", "optimize", "relay"), default="optimize",
                    help="tuner run at each disc set (default optimize)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier --out file (and its Bode plot)")
     from ehas_env.simulation.executors import add_executor_arguments
 
     add_executor_arguments(parser)
@@ -175,7 +178,7 @@ def tune(args):
                     pressure_feedback=args.pressure_feedback, Kdp=args.kdp, dp_hp=args.dp_hp, **op)
     if args.method == "model":
         n = args.disc_sets or DEFAULT_DISC_SETS
-        bode = args.bode or str(Path(out_path(args)).with_suffix("")) + "_bode.png"
+        bode = getattr(args, "_bode_into", None) or args.bode or str(Path(out_path(args)).with_suffix("")) + "_bode.png"
         return T.tune_model_based(plant=Plant(disc_sets=n, **plant_kw), bode_path=bode,
                                   bode_note=f"regenerate: {command_of(args)}", **model_kw)
     if args.method == "relay":
@@ -214,11 +217,40 @@ def out_path(args) -> str:
 
 
 def run(args) -> int:
+    from ehas_env.output.outputs import OutputError, OutputSet, check_file
+
     from .batch_sim import grid
     from .benchmark import _summary, evaluate_controller
     from .tuners import describe_gains
 
+    # every check before any work: the options, the model file, the output paths
+    _check(args)
+    plant_kwargs_from_model(args.model)
+    path = Path(out_path(args))
+    if path.suffix.lower() != ".json":
+        raise OutputError(f"--out {path}: a controller file name ends in .json")
+    members = [path.name]
+    if args.method == "model" and not args.bode:
+        members.append(path.with_suffix("").name + "_bode.png")
+    if args.bode:
+        check_file(args.bode, "--bode", overwrite=args.overwrite, suffix=".png")
+    outputs = OutputSet(path.parent, "--out", overwrite=args.overwrite, members=members, last=[path.name], shown=path)
+    with outputs as tmp:
+        if len(members) > 1:
+            args._bode_into = str(tmp / members[1])
+        try:
+            _tune_and_save(args, tmp / path.name, grid, _summary, evaluate_controller, describe_gains)
+        finally:
+            args._bode_into = None
+    print(f"wrote {path}")
+    write_folder_readme(path.parent)
+    return 0
+
+
+def _tune_and_save(args, target, grid, _summary, evaluate_controller, describe_gains) -> None:
     res = tune(args)
+    if getattr(args, "_bode_into", None) and "bode_png" in res.report:  # where it lands, not the temporary folder
+        res.report["bode_png"] = str(Path(out_path(args)).with_suffix("")) + "_bode.png"
     ctrl = res.controller
     ctrl.name = _default_name(args) if ctrl.name in ("optimised",) or ctrl.name.startswith(("model-based", "relay", "schedule")) else ctrl.name
     for line in res.lines:
@@ -230,13 +262,9 @@ def run(args) -> int:
     summary = _summary(evaluate_controller(ctrl, grid(), plant_kwargs={k: v for k, v in pkw.items() if k != "disc_sets"}))
     print(f"on the 63 benchmark conditions: mean rms % error {summary['mean_rms_error_pct']:.3f} %, worst "
           f"{summary['worst_rms_error_pct']:.3f} %, stroke-end hits {summary['stroke_end_hits']}")
-    path = out_path(args)
     notes = {k: v for k, v in res.report.items() if isinstance(v, (int, float, str, list, dict)) or v is None}
-    ctrl.save(path, command=command_of(args), metrics={**summary, "metric": "rms_error_pct over the 63 benchmark "
-                                                      "conditions (ehas bench)"}, notes=notes)
-    print(f"wrote {path}")
-    write_folder_readme(Path(path).parent)
-    return 0
+    ctrl.save(target, command=command_of(args), metrics={**summary, "metric": "rms_error_pct over the 63 benchmark "
+                                                        "conditions (ehas bench)"}, notes=notes)
 
 
 def write_folder_readme(folder) -> None:

@@ -42,6 +42,7 @@ def run(args) -> int:
     from ehas_env.measurement.campaign import parse_column_map, read_campaign
     from ehas_env.physics.effects import parse_spec, resolve_effects
     from ehas_env.measurement.replay import ModelSpec, Replayer, format_fit_tables
+    from ehas_env.output.progress import status, working
 
     from ehas_env.output.outputs import OutputSet, check_file
 
@@ -56,15 +57,20 @@ def run(args) -> int:
         check_file(args.save_model, "--save-model", overwrite=args.overwrite)
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
+    status(f"{len(campaign.runs)} runs read from {campaign.path}", "compare")
     rep = Replayer(campaign)
-    baseline_sims = rep.simulate(ModelSpec())
+    with working("replaying the campaign with the baseline model", "compare"):
+        baseline_sims = rep.simulate(ModelSpec())
     tables = {"baseline": rep.fit_table(baseline_sims)}
     sims = {"baseline": baseline_sims}
     null = fitted = None
     if requested and args.fit:
         from ehas_env.measurement.diagnosis import calibrate
 
-        null, fitted = calibrate(rep, requested)
+        n_par = sum(len(p) for p in resolve_effects(requested).values())
+        with working(f"calibrating {', '.join(requested)} ({n_par} parameter(s)) with beta and K on "
+                     f"{len(campaign.runs)} runs", "compare"):
+            null, fitted = calibrate(rep, requested)
         after_model = fitted.model
         tables["baseline, beta/K recal."] = null.table
         sims["baseline, beta/K recal."] = null.sims
@@ -95,7 +101,7 @@ def run(args) -> int:
                           calibration=_calibration(campaign, tables, label_after, command))
         print(f"model file: {path}")
     if outputs is not None:
-        with outputs as tmp:
+        with outputs as tmp, working("writing the report and its figures", "compare"):
             report = write_report(tmp, rep, sims, tables, campaign=campaign, command=command,
                                   after_label=label_after, after_model=after_model, fitted=args.fit)
         print(f"report: {Path(args.out) / report.name}")

@@ -16,29 +16,34 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="results/curves", help="output folder (default results/curves)")
-    parser.add_argument("--disc-sets", type=int, default=3, help="disc sets on the crank, 1..7 (default 3)")
+    from ehas_env.cli.options import option
+
+    parser.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=3,
+                        help="disc sets on the crank, 1..7 (default 3)")
     parser.add_argument("--gains", default="", help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's)")
     parser.add_argument("--effects", default="", help="effects of the plant, e.g. 'viscous_friction:b=2000'")
     parser.add_argument("--valve", choices=("grey_box", "white_box"), default="grey_box",
                         help="valve model of the position loop (default grey_box)")
-    parser.add_argument("--supplies", default="70,140,220", help="supply pressures for flow vs current, bar")
+    parser.add_argument("--supplies", default="70,140,220", help="supply pressures for flow vs current, bar, (0, 350]")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier --out folder")
 
 
 def run(args) -> int:
-    import math
     import shlex
 
     from ehas_env.identification.curves import position_loop, write_curves
     from ehas_env.simulation.plant import Plant
     from ehas_env.cli.simulate import parse_gains
 
-    try:
-        supplies = tuple(float(v) for v in args.supplies.split(",") if v.strip())
-    except ValueError:
-        raise ValueError(f"--supplies: expected comma-separated pressures in bar, got {args.supplies!r}") from None
-    if not supplies or not all(math.isfinite(p) and p > 0 for p in supplies):
-        raise ValueError(f"--supplies: pressures must be positive numbers of bar, got {args.supplies!r}")
+    from ehas_env.cli.options import FIELDS
+    from ehas_env.output.outputs import OutputSet
+
+    items = [v for v in args.supplies.split(",") if v.strip()]
+    if not items or len(items) > 20:
+        raise ValueError(f"--supplies: expected 1 to 20 comma-separated pressures in bar, got {args.supplies!r}")
+    supplies = tuple(FIELDS["supply_bar"].parse(v, "--supplies: each pressure") for v in items)
     ctrl = parse_gains(args.gains)
+    outputs = OutputSet(args.out, "--out", overwrite=args.overwrite)
     kw = {"valve": args.valve} if args.valve != "grey_box" else {}
     plant = Plant(disc_sets=args.disc_sets, effects=args.effects or None, **kw)
     parts = ["ehas", "curves"]
@@ -48,8 +53,10 @@ def run(args) -> int:
         if value != default:
             parts += [flag, value]
     command = " ".join(shlex.quote(p) for p in parts)
-    readme = write_curves(args.out, plant=plant, controller=ctrl, supplies_bar=supplies, valve=args.valve,
-                          command=command)
+    with outputs as tmp:
+        readme = write_curves(tmp, plant=plant, controller=ctrl, supplies_bar=supplies, valve=args.valve,
+                              command=command)
+    readme = outputs.path / readme.name
     loop = position_loop(plant, ctrl, args.valve)
     print(f"{plant!r}, valve {args.valve}, Kp {ctrl.Kp:g} mA/deg, Ki {ctrl.Ki:g} mA/(deg s)")
     print(f"position loop: gain crossover {loop['crossover_hz']:.2f} Hz, phase margin {loop['phase_margin_deg']:.1f} deg, "

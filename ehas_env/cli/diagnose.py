@@ -60,6 +60,11 @@ def run(args) -> int:
         check_file(args.json, "--json", overwrite=args.overwrite)
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
+    if not args.quiet:
+        from ehas_env.output.progress import status
+
+        status(f"{len(campaign.runs)} runs read; replaying them, then fitting every candidate effect "
+               "(about 30-60 s on two cores)", "diagnose")
     rep = Replayer(campaign)
     print(campaign.summary())
     print()

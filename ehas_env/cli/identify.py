@@ -23,8 +23,12 @@ from pathlib import Path
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", nargs="?", help="run file (measurement format CSV); optional with --num/--den")
-    parser.add_argument("--poles", type=int, default=2, help="number of poles (default 2)")
-    parser.add_argument("--zeros", type=int, default=0, help="number of zeros (default 0)")
+    from ehas_env.cli.options import number
+
+    parser.add_argument("--poles", type=number("--poles", "poles", 1, 10, integer=True), default=2,
+                        help="number of poles, 1..10 (default 2)")
+    parser.add_argument("--zeros", type=number("--zeros", "zeros", 0, 10, integer=True), default=0,
+                        help="number of zeros, 0..10, fewer than the poles (default 0)")
     parser.add_argument("--input", default="current_mA", help="input column (default current_mA)")
     parser.add_argument("--output", default="flow_lpm", help="output column (default flow_lpm)")
     parser.add_argument("--intersample", choices=("zoh", "foh"), default="zoh",
@@ -36,7 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", help="write {num, den, K, wn, zeta, fit_percent, ...} to this file")
     parser.add_argument("--out", help="folder for the plots (default results/identify/RUN)")
     parser.add_argument("--no-plots", action="store_true", help="write no plots")
-    parser.add_argument("--max-lag", type=int, default=25, help="lags of the residual analysis (default 25)")
+    parser.add_argument("--max-lag", type=number("--max-lag", "samples", 1, 10_000, integer=True), default=25,
+                        help="lags of the residual analysis, 1..10000 (default 25)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier --out folder / --json file")
     parser.add_argument("--timing", action="store_true", help="repeat the fit 5 times and print the median wall time")
 
 
@@ -63,6 +69,12 @@ def _coeffs(text: str, what: str) -> list[float]:
         raise ValueError(f"--{what}: expected comma-separated numbers, got {text!r}") from None
     if not vals or not all(math.isfinite(v) for v in vals):
         raise ValueError(f"--{what}: expected finite comma-separated numbers, got {text!r}")
+    if len(vals) > 11:
+        raise ValueError(f"--{what}: at most 11 coefficients (degree 10), got {len(vals)}")
+    if what == "den" and vals[0] == 0:
+        raise ValueError(f"--den: the leading coefficient must be non-zero, got {text!r}")
+    if max(abs(v) for v in vals) > 1e150:
+        raise ValueError(f"--{what}: coefficients must lie in [-1e150, 1e150], got {text!r}")
     return vals
 
 
@@ -78,7 +90,19 @@ def run(args) -> int:
         raise ValueError("give a run file to identify, or --num and --den to evaluate a transfer function")
     if (args.num is None) != (args.den is None):
         raise ValueError("--num and --den go together")
+    if args.num is None and args.zeros >= args.poles:
+        raise ValueError(f"--zeros must be fewer than --poles (a proper transfer function), got --poles {args.poles} "
+                         f"--zeros {args.zeros}")
     command = _command(args)
+    from ehas_env.output.outputs import OutputSet, check_file
+
+    # the output paths, before any work
+    if args.json:
+        check_file(args.json, "--json", overwrite=args.overwrite)
+    outputs = None
+    if args.run is not None and not args.no_plots:
+        outputs = OutputSet(Path(args.out) if args.out else Path("results/identify") / Path(args.run).stem, "--out",
+                            overwrite=args.overwrite)
 
     given = None
     if args.num is not None:
@@ -135,17 +159,18 @@ def run(args) -> int:
     if args.json:
         atomic_write_text(args.json, json.dumps(est.to_json_dict(), indent=2) + "\n")
         print(f"wrote {args.json}")
-    if not args.no_plots:
-        out = Path(args.out) if args.out else Path("results/identify") / Path(args.run).stem
+    if outputs is not None:
         label = f"{est.n_poles}p{est.n_zeros}z"
-        files = [plot_overlay(est, out / "overlay.png", title=f"{Path(args.run).name}: {label} model"),
-                 plot_bode([(label, est.tf)], out / "bode.png", data=data,
-                           title=f"{Path(args.run).name}: {label} model and the data's spectral estimate"),
-                 plot_residuals(ra, out / "residuals.png", title=f"{Path(args.run).name}: residuals of the {label} model")]
-        md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", est.summary(),
-              f"  {ra.verdict()}", "```", "", "Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
-        files.append(atomic_write_text(out / "identify.md", "\n".join(md)))
-        print(f"wrote {', '.join(str(f) for f in files)}")
+        with outputs as out:
+            files = [plot_overlay(est, out / "overlay.png", title=f"{Path(args.run).name}: {label} model"),
+                     plot_bode([(label, est.tf)], out / "bode.png", data=data,
+                               title=f"{Path(args.run).name}: {label} model and the data's spectral estimate"),
+                     plot_residuals(ra, out / "residuals.png",
+                                    title=f"{Path(args.run).name}: residuals of the {label} model")]
+            md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", est.summary(),
+                  f"  {ra.verdict()}", "```", "", "Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
+            files.append(atomic_write_text(out / "identify.md", "\n".join(md)))
+        print(f"wrote {', '.join(str(outputs.path / f.name) for f in files)}")
     return 0
 
 

@@ -45,10 +45,15 @@ TARGETS = {
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="results", help="output folder (default results/)")
-    parser.add_argument("--seconds", type=float, default=3.0, help="duration of each measurement, s (default 3)")
-    parser.add_argument("--repeats", type=int, default=3, help="alternating rounds per comparison (default 3)")
+    from ehas_env.cli.options import number
+
+    parser.add_argument("--seconds", type=number("--seconds", "s", 0, 3600, lo_open=True), default=3.0,
+                        help="duration of each measurement, s, (0, 3600] (default 3)")
+    parser.add_argument("--repeats", type=number("--repeats", "rounds", 1, 1000, integer=True), default=3,
+                        help="alternating rounds per comparison, 1..1000 (default 3)")
     parser.add_argument("--sizes", default=DEFAULT_SIZES, help=f"batch sizes (default {DEFAULT_SIZES})")
-    parser.add_argument("--rss-envs", type=int, default=8192,
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier perf.md / perf.json in --out")
+    parser.add_argument("--rss-envs", type=number("--rss-envs", "environments", 0, 1_000_000, integer=True), default=8192,
                         help="batch size of the peak-memory run in a fresh process (default 8192; 0 skips it)")
 
 
@@ -72,8 +77,8 @@ def _parse_sizes(text: str) -> list[int]:
         sizes = [int(s) for s in text.split(",") if s.strip()]
     except ValueError:
         raise ValueError(f"--sizes must be comma-separated positive integers, got {text!r}") from None
-    if not sizes or min(sizes) < 1:
-        raise ValueError(f"--sizes must be comma-separated positive integers, got {text!r}")
+    if not sizes or min(sizes) < 1 or max(sizes) > 1_000_000 or len(sizes) > 32:
+        raise ValueError(f"--sizes must be 1 to 32 comma-separated integers in [1, 1000000], got {text!r}")
     return sizes
 
 
@@ -215,14 +220,11 @@ def run(args) -> int:
 
     from ehas_env.output.files import atomic_write_text
 
-    if not (math.isfinite(args.seconds) and args.seconds > 0):
-        raise ValueError(f"--seconds must be a positive number, got {args.seconds!r}")
-    if args.repeats < 1:
-        raise ValueError(f"--repeats must be >= 1, got {args.repeats!r}")
-    if args.rss_envs < 0:
-        raise ValueError(f"--rss-envs must be >= 0, got {args.rss_envs!r}")
+    from ehas_env.output.outputs import OutputSet
+
     sizes = _parse_sizes(args.sizes)
     out = Path(args.out)
+    outputs = OutputSet(out, "--out", overwrite=args.overwrite, members=("perf.md", "perf.json"), last=("perf.md",))
     command = _command(args)
     load_start = _load()
 
@@ -327,8 +329,9 @@ def run(args) -> int:
         "targets": targets,
     }
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out / "perf.json", json.dumps(report, indent=2) + "\n")
-    atomic_write_text(out / "perf.md", render_markdown(report))
+    with outputs as tmp:
+        atomic_write_text(tmp / "perf.json", json.dumps(report, indent=2) + "\n")
+        atomic_write_text(tmp / "perf.md", render_markdown(report))
     for t in targets:
         print(f"{'MET ' if t['met'] else 'MISS'}  {t['what']}: {t['measured']} (target {t['target']})")
     print(f"wrote {out / 'perf.md'} and {out / 'perf.json'}")

@@ -27,17 +27,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="what to print (default: all; 'design' when a design argument is given)")
     parser.add_argument("--format", choices=FORMATS, default="text",
                         help="text (default), or csv / json records of one table")
+    from ehas_env.cli.options import number, option
+
     load = parser.add_mutually_exclusive_group()
-    load.add_argument("--disc-sets", type=int, default=None,
+    load.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=None,
                       help="load as sets of 2 discs, 1..7 (2.68/7 kg m^2 each); default 7")
-    load.add_argument("--inertia", type=float, default=None, help="load inertia about the crank axis, kg m^2")
-    parser.add_argument("--radius", type=float, default=None, help="crank radius, m (default 0.05)")
-    parser.add_argument("--amplitude", type=float, default=None,
+    load.add_argument("--inertia", type=number("--inertia", "kg m^2", 1e-6, 1e4), default=None, help="load inertia about the crank axis, kg m^2")
+    parser.add_argument("--radius", type=number("--radius", "m", 1e-3, 10), default=None, help="crank radius, m (default 0.05)")
+    parser.add_argument("--amplitude", type=number("--amplitude", "deg", 0, 90, lo_open=True, hi_open=True), default=None,
                         help="command amplitude, deg, below the stroke end (44.43 deg on a 50 mm crank); default 30")
-    parser.add_argument("--freq", type=float, default=None, help="command frequency, Hz (default 3)")
-    parser.add_argument("--supply-bar", type=float, default=None, help="supply pressure, bar (default 220)")
-    parser.add_argument("--safety-factor", type=float, default=None, help="factor of safety on the force (default 1.5)")
-    parser.add_argument("--area", type=float, default=None,
+    parser.add_argument("--freq", type=number("--freq", "Hz", 1e-3, 1000), default=None, help="command frequency, Hz (default 3)")
+    parser.add_argument("--supply-bar", type=number("--supply-bar", "bar", 1, 10_000), default=None, help="supply pressure, bar (default 220)")
+    parser.add_argument("--safety-factor", type=number("--safety-factor", "", 1, 100), default=None, help="factor of safety on the force (default 1.5)")
+    parser.add_argument("--area", type=number("--area", "m^2", 1e-6, 10), default=None,
                         help="net piston area used for pressure and flow, m^2 (default the rig's 7.658e-4)")
     parser.add_argument("--nas-counts", default=None, metavar="N1,N2,N3,N4,N5",
                         help="particles per 100 ml in the bands 5-15,15-25,25-50,50-100,>100 um -> NAS 1638 class")

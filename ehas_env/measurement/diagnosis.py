@@ -162,6 +162,11 @@ def model_from(free: list[FreeParam], values: dict, fixed: ModelSpec | None = No
                 K = v
         else:
             effects.setdefault(fp.effect, {})[fp.name] = v
+    st = effects.get("stribeck_friction")
+    if st and "Fs" in st and "Fc" in st and st["Fs"] < st["Fc"]:
+        # Stribeck friction keeps its definition (breakaway at or above sliding, Fs >= Fc; the effect
+        # refuses less): where the fit wanders below, the breakaway sits at the sliding level
+        effects["stribeck_friction"] = {**st, "Fs": st["Fc"]}
     return ModelSpec(effects=effects, beta=beta, K=K)
 
 

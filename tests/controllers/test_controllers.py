@@ -128,10 +128,10 @@ def test_loading_errors_name_the_file(tmp_path):
     (tmp_path / "x.txt").write_text("{}")
     with pytest.raises(ValueError, match="no loader for '.txt'"):
         load_controller(tmp_path / "x.txt")
-    (tmp_path / "bad.json").write_text('{"type": "rocket"}')
+    (tmp_path / "bad.json").write_text('{"format": "ehas-controller", "version": 1, "type": "rocket"}')
     with pytest.raises(ValueError, match=r"bad.json.*'rocket' is unknown"):
         load_controller(tmp_path / "bad.json")
-    (tmp_path / "gain.json").write_text('{"type": "piff", "gains": {"Kq": 1}}')
+    (tmp_path / "gain.json").write_text('{"format": "ehas-controller", "version": 1, "type": "piff", "gains": {"Kq": 1}}')
     with pytest.raises(ValueError, match="unknown gain.*Kq"):
         load_controller(tmp_path / "gain.json")
     (tmp_path / "broken.json").write_text('{"type": ')
