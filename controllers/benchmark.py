@@ -192,8 +192,13 @@ def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant
     names = _unique_names(controllers)
     disc_sets = tuple(disc_sets)
     conds = grid(disc_sets, FREQS, AMPLITUDES)
-    timing = time_grid(next((c for c in controllers if has_compiled_form(c)), controllers[0]), cycles=cycles,
-                       plant_kwargs=plant_kwargs)
+    from ehas_env.output.progress import status, working
+
+    status(f"{len(controllers)} controller(s) x {len(conds)} conditions"
+           + (f", then the robustness table ({len(typical_effects())} effects)" if robustness else ""), "bench")
+    with working("timing one controller's 63-condition grid (the first run loads the compiled simulator)", "bench"):
+        timing = time_grid(next((c for c in controllers if has_compiled_form(c)), controllers[0]), cycles=cycles,
+                           plant_kwargs=plant_kwargs)
     if executor is None:
         from ehas_env.simulation.executors import LocalExecutor
 
@@ -221,6 +226,7 @@ def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant
             robust[("none", name)] = _summary(results[name])
 
     # files
+    status(f"writing {out}: benchmark.csv, benchmark.md, {len(names)} heatmap(s)", "bench")
     csv_text = _csv(controllers, names, results, command)
     atomic_write_text(out / "benchmark.csv", csv_text)
     pngs = {name: heatmap(results[name], out / f"heatmap_{_slug(name)}.png", title=f"{name}: rms % position error",

@@ -80,10 +80,13 @@ def run(args) -> int:
                 continue
             if hasattr(module, func):
                 plan.append((title, getattr(module, func)))
-    for title, section in plan:
+    from ehas_env.output.progress import status, working
+
+    status(f"{len(plan)} sections into {out} (about 70 s on two cores; --quick: the first two only)", "demo")
+    for k, (title, section) in enumerate(plan):
         t0 = time.perf_counter()
-        print(f"[demo] {title} ...", flush=True)
-        body = section(out).strip()
+        with working(f"{k + 1}/{len(plan)} {title}", "demo"):
+            body = section(out).strip()
         if body.startswith("#"):  # the section's own title: ours stands above it
             body = body.split("\n", 1)[1] if "\n" in body else ""
         parts += [f"## {title}", "", body.strip(), "", f"_({time.perf_counter() - t0:.1f} s)_", ""]

@@ -116,10 +116,15 @@ def _fmt_tf(num, den) -> str:
 
 def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
     """Run every experiment and write ``out/README.md`` and figures; returns the README path."""
-    from tqdm import tqdm
-
     from ehas_env.output.files import atomic_write_text
     from ehas_env.cli.identify import plot_bode, plot_overlay
+    from ehas_env.output.progress import bar, status
+
+    def step(what):
+        if not quiet:
+            status(what, "book_valve")
+
+    step(f"the book's valve identification, about 30 s on two cores: writing {out}")
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -156,6 +161,7 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
            "transfer function). The PRMS model is overdamped (zeta 1.37): two real poles.", ""]
 
     # -- 2. the book's experiments, one realisation ----------------------------
+    step("1/5 chirp and PRMS experiments, fits with 2 poles, 0 and 1 zeros")
     book_prms_tf = None
     for m in book:
         if m["excitation"].startswith("prms") and "num" in m:
@@ -191,6 +197,7 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
            "gain and wn, zeta those of the denominator.", ""]
 
     # -- 3. PRMS clock sweep -------------------------------------------------
+    step("2/5 PRMS clock sweep (7 clock periods)")
     holds = [0.001, 0.002, 0.003, 0.005, 0.01, 0.02, 0.05]
     sweep = []
     for hold in holds:
@@ -210,7 +217,8 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
     # -- 4. Monte Carlo over noise seeds --------------------------------------
     rows = {}
     it = [(name, lvl, s) for name in sigs for lvl in ("book", "meter") for s in range(seeds)]
-    for name, lvl, s in tqdm(it, desc="Monte Carlo fits", disable=quiet, leave=False):
+    step(f"3/5 Monte Carlo: {len(it)} fits")
+    for name, lvl, s in bar(it, desc="[book_valve] Monte Carlo fits", unit="fit", disable=quiet):
         sig = sigs[name]
         _, y = valve_run(sig, sig_book if lvl == "book" else sig_meter, 100 + s)
         p = _params(tfest(sig.t, sig.current_mA, y, 2, 0))
@@ -227,6 +235,7 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
     md.append("")
 
     # -- 5. timing -------------------------------------------------------------
+    step("4/5 timing the fit")
     sig = sigs["book chirp 0.5-2 Hz, +-20 mA"]
     _, y = valve_run(sig, sig_book, 0)
     timing = {}
@@ -308,6 +317,7 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
            ""]
 
     # -- figures ----------------------------------------------------------------
+    step("5/5 figures")
     figs = []
     for name, est in overlay_runs.items():
         fname = "overlay_chirp.png" if "chirp" in name else "overlay_prms.png"

@@ -267,7 +267,10 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     from ehas_env.output.plots import _pyplot
     from ehas_env.physics.white_box_valve import WhiteBoxValve
 
+    from ehas_env.output.progress import status
+
     out = Path(out)
+    status(f"1/5 flow against current at {', '.join(f'{p:g}' for p in supplies_bar)} bar", "curves")
     plant = plant if plant is not None else Plant()
     ctrl = controller if controller is not None else RigController.book()
     plt = _pyplot()
@@ -293,6 +296,7 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     files.append(_save(fig, out / "flow_vs_current.png"))
 
     # 2. flow and flow gain vs stroke for three laps
+    status("2/5 flow and flow gain against spool stroke", "curves")
     x = np.linspace(-0.3e-3, 0.3e-3, 601)
     laps = (("underlapped", LAP), ("critically lapped", 0.0), ("overlapped", -LAP))
     fig, ax = plt.subplots(2, 1, figsize=(7, 7), sharex=True)
@@ -311,6 +315,7 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     kq = {name: float(np.gradient(lap_flow(np.array([-1e-6, 0.0, 1e-6]), lap, 220.0, wb), 1e-3)[1]) for name, lap in laps}
 
     # 3. pressure gain
+    status("3/5 pressure gain", "curves")
     xp = np.linspace(-0.1e-3, 0.1e-3, 401)
     fig, ax = plt.subplots(figsize=(7, 5))
     kp = {}
@@ -325,12 +330,14 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     files.append(_save(fig, out / "pressure_gain.png"))
 
     # 4. valve Bode
+    status("4/5 valve Bode plot", "curves")
     files.append(plot_bode([("grey box (identified)", valve_tf("grey_box")),
                             ("white box, 70 bar", valve_tf("white_box", 70.0)),
                             ("white box, 220 bar", valve_tf("white_box", 220.0))],
                            out / "valve_bode.png", title="valve q_c / i, LPM/mA", f_range=(0.5, 2000.0)))
 
     # 5. position loop
+    status("5/5 position loop (linearised) Bode plot and margins", "curves")
     loop = position_loop(plant, ctrl, valve)
     files.append(_plot_loop(loop, out / "position_loop_bode.png",
                             title=f"position loop, {plant.rig.disc_sets} disc sets, {valve}, Kp {ctrl.Kp:g} mA/deg, "
