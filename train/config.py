@@ -58,6 +58,8 @@ from dataclasses import asdict, dataclass, field
 from importlib import resources
 from pathlib import Path
 
+from ehas_env.cli.options import ENV_KWARGS, check_field
+
 ALGOS = ("ppo", "sac", "td3")
 ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
 ACTION_SHAPES = ("constant", "velocity", "power")
@@ -270,14 +272,13 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
     if t["algo"] not in ALGOS:
         raise ValueError(f"{where} algo must be one of {', '.join(repr(a) for a in ALGOS)}, got {t['algo']!r}")
     for key in ("total_steps", "n_envs", "checkpoint_every", "eval_episodes", "torch_threads", "validate_every",
-                "validate_conditions"):
-        _int(t[key], f"{where} {key}", minimum=0 if key in ("eval_episodes", "validate_every") else 1)
-    _int(t["seed"], f"{where} seed", minimum=0)
+                "validate_conditions", "seed"):
+        t[key] = check_field(key, t[key], f"{where} {key}")
     for key in ("vecnormalize", "norm_reward"):
         if not isinstance(t[key], bool):
             raise ValueError(f"{where} {key} must be true or false, got {t[key]!r}")
     for key in ("clip_obs", "log_interval_s"):
-        _positive(t[key], f"{where} {key}")
+        t[key] = check_field(key, t[key], f"{where} {key}")
     if t["vec_env"] not in ("dummy", "subproc"):
         raise ValueError(f"{where} vec_env must be 'dummy' or 'subproc', got {t['vec_env']!r}")
 
@@ -298,15 +299,10 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
     if not isinstance(controller, str) or not controller:
         raise ValueError(f"{source}: [env] controller must be 'tuned', 'book' or a path to a controller JSON, "
                          f"got {controller!r}")
-    action_repeat = _int(env.get("action_repeat", 1), f"{source}: [env] action_repeat", minimum=1)
-    action_scale = _positive(env.get("action_scale_mA", 20.0), f"{source}: [env] action_scale_mA")
-    if action_scale > 20.0:
-        raise ValueError(f"{source}: [env] action_scale_mA must be <= 20 mA (the servo amplifier's limit), "
-                         f"got {action_scale!r}")
-    reward_scale = _positive(env.get("reward_scale", 1.0), f"{source}: [env] reward_scale")
-    action_penalty = env.get("action_penalty", 0.0)
-    if isinstance(action_penalty, bool) or not isinstance(action_penalty, (int, float)) or not action_penalty >= 0:
-        raise ValueError(f"{source}: [env] action_penalty must be a number >= 0, got {action_penalty!r}")
+    action_repeat = check_field("action_repeat", env.get("action_repeat", 1), f"{source}: [env] action_repeat")
+    action_scale = check_field("action_scale_mA", env.get("action_scale_mA", 20.0), f"{source}: [env] action_scale_mA")
+    reward_scale = check_field("reward_scale", env.get("reward_scale", 1.0), f"{source}: [env] reward_scale")
+    action_penalty = check_field("action_penalty", env.get("action_penalty", 0.0), f"{source}: [env] action_penalty")
     action_shape = env.get("action_shape", "constant")
     if action_shape not in ACTION_SHAPES:
         raise ValueError(f"{source}: [env] action_shape must be one of {', '.join(repr(a) for a in ACTION_SHAPES)}, "
@@ -317,6 +313,9 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
     env_kwargs = copy.deepcopy(_table(env, "kwargs", f"{source}: [env]"))
     if "controller" in env_kwargs:
         raise ValueError(f"{source}: [env.kwargs] controller: set the residual's base with [env] controller instead")
+    for key, value in env_kwargs.items():  # the environment's numbers: the same ranges as everywhere
+        if key in ENV_KWARGS:
+            env_kwargs[key] = check_field(ENV_KWARGS[key], value, f"{source}: [env.kwargs] {key}")
 
     randomise = copy.deepcopy(_table(raw, "randomise", source))
     _check_randomise(randomise, source)
@@ -386,7 +385,7 @@ def _check_hyper(algo: str, hyper: dict, source: str) -> None:
     if "action_noise_std" in hyper:
         if algo == "ppo":
             raise ValueError(f"{source}: [algo] action_noise_std applies to sac/td3, not ppo")
-        _positive(hyper["action_noise_std"], f"{source}: [algo] action_noise_std")
+        check_field("action_noise_std", hyper["action_noise_std"], f"{source}: [algo] action_noise_std")
     pk = hyper.get("policy_kwargs", {})
     if not isinstance(pk, dict):
         raise ValueError(f"{source}: [algo.policy_kwargs] must be a table, got {pk!r}")
@@ -403,7 +402,10 @@ def _check_hyper(algo: str, hyper: dict, source: str) -> None:
                              f"(or a table of such lists), got {na!r}")
     for key in ("learning_rate", "gamma", "tau"):
         if key in hyper:
-            _positive(hyper[key], f"{source}: [algo] {key}")
+            check_field(key, hyper[key], f"{source}: [algo] {key}")
+    for key, value in hyper.items():  # every other number: finite (TOML allows inf and nan)
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(f"{source}: [algo] {key} must be a finite number, got {value!r}")
 
 
 def _check_randomise(rnd: dict, source: str) -> None:
@@ -447,3 +449,20 @@ def _check_randomise(rnd: dict, source: str) -> None:
                     raise ValueError(f"{where}.{pname} must be a [low, high] range in {par.unit} or one value, got {rng!r}")
                 for v in values:
                     par.check(name, v)
+        st = effects.get("stribeck_friction")
+        if st is not None:
+            from ehas_env.physics.effects import get_effect
+
+            cls = get_effect("stribeck_friction")
+
+            def span(p):
+                if isinstance(st, dict) and p in st:
+                    v = st[p]
+                    return (v[0], v[1]) if isinstance(v, list) else (v, v)
+                par = cls.param(p)
+                return par.typical if st == "typical" and par.typical else (par.default, par.default)
+
+            if span("Fs")[0] < span("Fc")[1]:
+                raise ValueError(f"{source}: [randomise.effects] stribeck_friction: every draw must keep the breakaway "
+                                 f"force at or above the sliding force; the Fs range {list(span('Fs'))} N starts below "
+                                 f"the top of the Fc range {list(span('Fc'))} N")

@@ -29,10 +29,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_executor_arguments(parser)
     parser.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
-    parser.add_argument("--total-steps", type=int, metavar="N", help="override [train] total_steps")
-    parser.add_argument("--seed", type=int, metavar="S", help="override [train] seed")
-    parser.add_argument("--n-envs", type=int, metavar="N", help="override [train] n_envs")
-    parser.add_argument("--max-minutes", type=float, metavar="M",
+    from ehas_env.cli.options import option
+
+    parser.add_argument("--total-steps", type=option("--total-steps", "total_steps"), metavar="N",
+                        help="override [train] total_steps")
+    parser.add_argument("--seed", type=option("--seed", "seed"), metavar="S", help="override [train] seed")
+    parser.add_argument("--n-envs", type=option("--n-envs", "n_envs"), metavar="N", help="override [train] n_envs")
+    parser.add_argument("--max-minutes", type=option("--max-minutes", "max_minutes"), metavar="M",
                         help="wall-clock budget: stop (and save) after M minutes even before --total-steps")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs")
@@ -133,8 +136,19 @@ def run(args) -> int:
         return run_sweep_command(args)
     if args.algo is None:
         raise ValueError("--algo is required (ppo, sac or td3)")
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
+    from pathlib import Path
+
+    from ehas_env.output.outputs import OutputError, check_parent
+
+    # the whole configuration and the output folder, checked before anything is created
     cfg = resolve_config(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out} is a file; expected a folder (new or empty, or with --resume a training's)")
+    check_parent(out, "--out")
+    if not args.resume and out.is_dir() and any(p for p in out.iterdir() if not p.name.startswith(".")):
+        raise OutputError(f"--out {out} is not empty; use --resume to continue its training or choose another --out")
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
     try:
         metrics = train(cfg, args.out, resume=args.resume, progress=not args.no_progress,
                         tensorboard=not args.no_tensorboard, keep_checkpoints=not args.drop_checkpoints,

@@ -368,11 +368,17 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
         controller_desc = None
     if controller_desc is None and cfg.residual:
         controller_desc = E.resolve_controller_spec(cfg.controller)
-    out.mkdir(parents=True, exist_ok=True)
-    resolved = {**cfg.to_dict(), "controller_resolved": controller_desc}
-    atomic_write_text(out / "config.json", json.dumps(resolved, indent=2, default=str))
+    # the environments and the model are built before the output folder is made: a configuration
+    # that fails there (an environment argument out of range) leaves nothing behind
+    created = not out.exists()
+    try:
+        venv = E.make_vec_env(cfg, controller_desc=controller_desc)
+    except BaseException:
+        if created and out.exists() and not resume:
+            import shutil
 
-    venv = E.make_vec_env(cfg, controller_desc=controller_desc)
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     cls = algo_class(cfg.algo)
     curve_rows: list[dict] = []
     before = 0.0
@@ -407,6 +413,9 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
         model = cls("MlpPolicy", vecnorm or venv, seed=cfg.seed, device="cpu", verbose=0,
                     tensorboard_log=str(out / "tb") if tensorboard else None,
                     **_algo_kwargs(cfg, venv.action_space.shape[0]))
+    out.mkdir(parents=True, exist_ok=True)
+    resolved = {**cfg.to_dict(), "controller_resolved": controller_desc}
+    atomic_write_text(out / "config.json", json.dumps(resolved, indent=2, default=str))
     if tensorboard and model.tensorboard_log is None:
         model.tensorboard_log = str(out / "tb")
     if not tensorboard:
