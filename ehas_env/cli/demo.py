@@ -26,6 +26,8 @@ SECTIONS = (
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="results/demo", help="output folder (default results/demo)")
     parser.add_argument("--quick", action="store_true", help="only the sizing and the design-point run")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace a non-empty --out that is not an earlier demo (an earlier demo is replaced anyway)")
 
 
 def sizing_section(out: Path) -> str:
@@ -68,8 +70,40 @@ def design_point_section(out: Path) -> str:
 def run(args) -> int:
     from ehas_env.output.files import atomic_write_text
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    from ehas_env.output.outputs import OutputSet
+
+    final = Path(args.out)
+    # `ehas demo` regenerates its own folder (the README's first command, on a checkout that ships
+    # results/demo): an earlier demo is replaced as a whole; anything else needs --overwrite
+    outputs = OutputSet(final, "--out", overwrite=args.overwrite or _is_demo(final))
+    with outputs as out:
+        _run(args, out)
+        _relocate(out, final)
+    print(f"[demo] wrote {final / 'README.md'}")
+    return 0
+
+
+def _is_demo(folder: Path) -> bool:
+    try:
+        return (folder / "README.md").read_text(encoding="utf-8").startswith("# ehas demo")
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
+def _relocate(tmp: Path, final: Path) -> None:
+    """Text that names the temporary folder names the output folder instead (it is swapped in there)."""
+    from ehas_env.output.files import atomic_write_text
+
+    for f in tmp.rglob("*"):
+        if f.is_file() and f.suffix in (".md", ".json", ".txt", ".csv"):
+            text = f.read_text(encoding="utf-8", errors="surrogateescape")
+            if str(tmp) in text:
+                atomic_write_text(f, text.replace(str(tmp), str(final)))
+
+
+def _run(args, out: Path) -> None:
+    from ehas_env.output.files import atomic_write_text
+
     parts = ["# ehas demo", "", "Regenerate with `ehas demo" + (f" --out {args.out}" if args.out != "results/demo" else "") + "`.", ""]
     plan = [("Sizing (book chapter 1)", sizing_section), ("Design point, simulated", design_point_section)]
     if not args.quick:
@@ -91,5 +125,3 @@ def run(args) -> int:
             body = body.split("\n", 1)[1] if "\n" in body else ""
         parts += [f"## {title}", "", body.strip(), "", f"_({time.perf_counter() - t0:.1f} s)_", ""]
         atomic_write_text(out / "README.md", "\n".join(parts))
-    print(f"[demo] wrote {out / 'README.md'}")
-    return 0
