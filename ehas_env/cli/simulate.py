@@ -18,6 +18,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "at most 600 s of simulated time")
     parser.add_argument("--effects", default="", help="effects, e.g. 'coulomb_friction:Fc=300,viscous_friction:b=2000'")
     parser.add_argument("--gains", default="", help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's)")
+    parser.add_argument("--controller", default=None, metavar="FILE",
+                        help="a saved controller instead of --gains: a controller JSON (ehas tune --out) or a "
+                             "learned agent's folder (ehas train --out)")
     parser.add_argument("--sensors", action="store_true", help="add sensor noise and ADC/DAC quantization")
     parser.add_argument("--seed", type=option("--seed", "seed"), default=0, help="seed of the sensor noise (default 0)")
     parser.add_argument("--out", default="results/simulate/run", help="output stem: writes STEM.csv and STEM.json")
@@ -40,6 +43,25 @@ def parse_gains(text: str):
     return RigController(**values)
 
 
+def load_saved_controller(path, disc_sets: int):
+    """(what ``Plant.simulate_closed_loop`` runs, the loaded controller) of a controller file.
+
+    A classical controller whose limits are the rig's (±20 mA, no output
+    quantization) becomes the rig controller's gains (a gain schedule: those for
+    ``disc_sets``), so the run file's sidecar carries them and ``ehas compare``
+    can replay it; any other controller (a learned agent) runs through its own
+    ``act``.
+    """
+    from ehas_controllers.base import load_controller
+
+    ctrl = load_controller(path)
+    if hasattr(ctrl, "select"):
+        ctrl.select(disc_sets)
+    if hasattr(ctrl, "rig_gains") and getattr(ctrl, "i_max", 20.0) == 20.0 and not getattr(ctrl, "output_bits", 0):
+        return ctrl.rig_gains(disc_sets), ctrl
+    return ctrl, ctrl
+
+
 #: controller gains on the command line (--gains): finite, and small enough that the loop's arithmetic stays finite
 GAIN_RANGE = FIELDS["gain"]
 GAIN_RATE = FIELDS["rate_hz"]
@@ -55,7 +77,9 @@ def run(args) -> int:
 
     # every check before any work: the options, the run's length, the output paths
     check_run_length(args.cycles / args.freq, where=f"--cycles {args.cycles:g} at --freq {args.freq:g} Hz")
-    gains = parse_gains(args.gains)
+    if args.controller and args.gains:
+        raise ValueError("--controller and --gains both give the controller; use one of them")
+    gains, loaded = load_saved_controller(args.controller, args.disc_sets) if args.controller else (parse_gains(args.gains), None)
     outputs = stem_set(args.out, "--out", overwrite=args.overwrite)
     plant = Plant(disc_sets=args.disc_sets, effects=args.effects or None,
                   sensors=Sensors() if args.sensors else None, seed=args.seed)
@@ -69,7 +93,8 @@ def run(args) -> int:
 
             plot_run(res, csv_tmp.with_suffix(".png"))
     csv_path = stem.parent / csv_tmp.name
-    print(f"{plant!r}: +-{args.amplitude:g} deg at {args.freq:g} Hz")
+    print(f"{plant!r}: +-{args.amplitude:g} deg at {args.freq:g} Hz"
+          + (f", controller {args.controller} ({getattr(loaded, 'name', type(loaded).__name__)})" if loaded is not None else ""))
     print(f"rms % position error {err['rms_error_pct']:.3f} %, peak {err['peak_error_pct']:.3f} % "
           f"(whole cycles after the first, % of amplitude)")
     print(f"wrote {csv_path} and {csv_path.with_suffix('.json')}")
