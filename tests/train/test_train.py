@@ -58,12 +58,12 @@ def test_bundled_configs_are_valid(name):
 
 @pytest.mark.parametrize("raw, message", [
     ({"train": {"algo": "sac", "total_step": 10}}, "unknown key 'total_step'"),
-    ({"train": {"algo": "sac", "n_envs": 0}}, "n_envs must be an integer >= 1"),
+    ({"train": {"algo": "sac", "n_envs": 0}}, "n_envs must be an integer in [1, 65536]"),
     ({"train": {"algo": "sac"}, "algo": {"clip_range": 0.2}}, "unknown hyper-parameter 'clip_range' for SAC"),
     ({"train": {"algo": "sac"}, "randomise": {"freq_hz": [3.0, 1.0]}}, "freq_hz range [low, high] has low > high"),
     ({"train": {"algo": "sac"}, "randomise": {"disc_sets": [0, 7]}}, "disc_sets values must be numbers in [1, 7]"),
     ({"train": {"algo": "sac"}, "randomise": {"effects": {"coulomb_frictio": {"Fc": [0, 1]}}}}, "unknown effect"),
-    ({"train": {"algo": "sac"}, "env": {"action_scale_mA": 30.0}}, "action_scale_mA must be <= 20 mA"),
+    ({"train": {"algo": "sac"}, "env": {"action_scale_mA": 30.0}}, "action_scale_mA must be a number in (0, 20] mA"),
     ({"train": {"algo": "ppo"}, "algo": {"action_noise_std": 0.1}}, "applies to sac/td3"),
 ])
 def test_config_errors_name_the_key(raw, message):
@@ -86,7 +86,7 @@ def test_cli_reports_bad_config_in_one_line(tmp_path, capsys):
     p.write_text("[train]\nalgo = 'sac'\nseed = -1\n")
     assert main(["train", "--algo", "sac", "--config", str(p), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "[train] seed must be an integer >= 0" in err[0]
+    assert len(err) == 1 and "[train] seed must be an integer in [0, 4294967295], got -1" in err[0]
 
 
 def test_cli_refuses_config_of_another_algorithm(tmp_path, capsys):
