@@ -212,8 +212,9 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
         p = plots.overlay(out / "overlay_before.png", case, {l: sims[l][worst_run] for l in [base_label]})
         figs.append(p)
         lines += [f"![overlay before]({p.name})", "",
-                  f"*{case.run.name}, the run the baseline fits worst: measured (grey) and baseline model, "
-                  "residuals below.*", ""]
+                  f"*{case.run.name}, the run the baseline fits worst: measured (grey) and the baseline model "
+                  "(red, dashed); under each signal its residual in the signal's units; right: zoom on the "
+                  "stretch where the baseline fails most (gold on the left).*", ""]
     if worst is not None:
         regs = [name for name, _ in worst.top(3)]
         if regs:
@@ -265,8 +266,9 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
             case = rep.cases[worst_run]
             p = plots.overlay(out / "overlay_after.png", case, {l: sims[l][worst_run] for l in shown})
             lines += [f"![overlay after]({p.name})", "",
-                      f"*{case.run.name}: measured, baseline and the model with the added effects; residuals "
-                      "below.*", ""]
+                      f"*{case.run.name}: measured (grey), baseline (red, dashed) and the model with the added "
+                      "effects (blue); residuals in the signal's units below each; right: the same zoom window, "
+                      "where the baseline failed most.*", ""]
         for i, case in enumerate(rep.cases):
             if case.run.kind == "valve_open_loop":
                 p = plots.valve_overlay(out / f"valve_{case.run.name}.png", case, {l: sims[l][i] for l in shown})

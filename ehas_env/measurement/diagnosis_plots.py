@@ -20,8 +20,24 @@ import numpy as np
 from ehas_env.output.files import atomic_write_bytes
 from ehas_env.measurement.replay import UNITS
 
-MEASURED = dict(color="0.25", lw=0.8, label="measured")
-STYLES = [dict(color="tab:red", lw=1.0, ls="--"), dict(color="tab:blue", lw=1.0), dict(color="tab:green", lw=1.0)]
+MEASURED = dict(color="black", lw=1.6, alpha=0.45, label="measured")
+STYLES = [dict(color="tab:red", lw=1.0, ls="--"), dict(color="tab:blue", lw=1.1), dict(color="tab:green", lw=1.0)]
+
+#: the signals an overlay shows, in order (closed-loop runs): the angle the loop tracks, the command that
+#: drives it, the load that reveals forces, and the flow that reveals the valve; pressures only without a load
+OVERLAY_SIGNALS = ("theta_deg", "current_mA", "load_kN", "flow_lpm")
+#: units of the regressors of :func:`ehas_env.measurement.residuals.regressors`
+REGRESSOR_UNITS = {"velocity": "deg/s", "sign(velocity)": "-", "position": "deg", "acceleration": "deg/s^2",
+                   "load pressure": "bar", "mean chamber pressure": "bar", "|flow|": "LPM", "current": "mA",
+                   "sign(current)": "-", "current rate": "mA/s", "supply pressure": "bar"}
+NAMES = {"theta_deg": "angle", "current_mA": "current", "load_kN": "load", "flow_lpm": "flow A",
+         "p_a_bar": "pressure A", "p_b_bar": "pressure B", "p_s_bar": "supply pressure"}
+
+
+def regressor_label(name: str) -> str:
+    """``velocity [deg/s]``; lagged currents ``current 5 ms earlier [mA]``."""
+    unit = REGRESSOR_UNITS.get(name, "mA" if name.startswith("current ") else "")
+    return f"{name} [{unit}]" if unit else name
 
 
 def _figure(nrows, ncols=1, size=(9.0, 2.2)):
@@ -36,36 +52,104 @@ def _figure(nrows, ncols=1, size=(9.0, 2.2)):
 
 def _save(plt, fig, path) -> Path:
     buf = io.BytesIO()
-    fig.tight_layout()
+    if not getattr(fig, "_ehas_layout", False):
+        fig.tight_layout()
     fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
     return atomic_write_bytes(path, buf.getvalue())
 
 
+def overlay_signals(case) -> list[str]:
+    """The signals worth a look for this run (at most four)."""
+    have = [s for s in case.signals if s in case.measured]
+    if case.run.kind != "closed_loop":
+        return have[:4]
+    out = [s for s in OVERLAY_SIGNALS if s in have]
+    if "load_kN" not in have:
+        out += [s for s in ("p_a_bar", "p_b_bar") if s in have]
+    return out[:4]
+
+
+def failure_window(case, sim: dict, signals, width_s: float) -> tuple[float, float]:
+    """(t0, t1) of the stretch, ``width_s`` long, where the model's residuals are largest in noise units."""
+    t = case.run.t - case.run.t[0]
+    e = np.zeros(t.size)
+    for s in signals:
+        e += ((case.measured[s] - sim[s]) / max(case.noise[s], 1e-12)) ** 2
+    ref = case.run.meta.get("reference")
+    start = 1.0 / ref["freq_hz"] if ref else 0.0  # leave out the warm-up cycle
+    n = max(int(round(width_s / case.run.dt)), 1)
+    energy = np.convolve(e, np.ones(n), mode="valid")
+    k0 = int(np.searchsorted(t, start))
+    k = k0 + int(np.argmax(energy[k0:])) if energy.size > k0 else 0
+    return float(t[k]), float(t[min(k + n, t.size - 1)])
+
+
 def overlay(path, case, models: dict[str, dict], signals=None, window_s: float | None = None) -> Path:
-    """Measured and modelled signals of one run, residuals below each.
+    """Measured and modelled signals of one run with their residuals (in the signal's units), whole run and zoom.
 
     ``models`` maps a label (``baseline``, ``+ coulomb_friction``) to that model's
-    simulated signals of this run.
+    simulated signals of this run; the first is the one whose failure picks the
+    zoom window (``window_s`` long, default one reference period or 0.5 s).
+    Left column: the whole run; right column: the window where that model's
+    residuals are largest (shaded on the left).  Each signal has its residual
+    panel underneath, with the band of +-2 noise levels in grey.
     """
+    from matplotlib.gridspec import GridSpec
+
     run = case.run
-    signals = [s for s in (signals or case.signals) if s in case.measured]
+    signals = [s for s in (signals or overlay_signals(case)) if s in case.measured]
     t = run.t - run.t[0]
-    sel = slice(None) if window_s is None else t >= t[-1] - window_s
-    plt, fig, axes = _figure(2 * len(signals), size=(9.0, 1.6))
+    ref = run.meta.get("reference")
+    width = window_s or (min(1.0 / ref["freq_hz"], 1.0) if ref else 0.5)
+    first = next(iter(models.values()))
+    w0, w1 = failure_window(case, first, signals, width)
+    zoom = (t >= w0) & (t <= w1)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(13.0, 1.0 + 2.9 * len(signals)))
+    gs = GridSpec(2 * len(signals), 2, figure=fig, height_ratios=[1.7, 1.0] * len(signals), width_ratios=[1.6, 1.0],
+                  hspace=0.12, wspace=0.16)
+    handles = []
     for k, s in enumerate(signals):
-        ax, axr = axes[2 * k, 0], axes[2 * k + 1, 0]
-        ax.plot(t[sel], case.measured[s][sel], **MEASURED)
-        for (label, sim), st in zip(models.items(), STYLES):
-            ax.plot(t[sel], sim[s][sel], label=label, **st)
-            axr.plot(t[sel], (case.measured[s] - sim[s])[sel], label=f"residual, {label}", **st)
-        ax.set_ylabel(f"{s}\n[{UNITS[s]}]", fontsize=8)
-        axr.set_ylabel("resid.", fontsize=8)
-        axr.axhspan(-2 * case.noise[s], 2 * case.noise[s], color="0.85", lw=0)
-        if k == 0:
-            ax.legend(fontsize=7, loc="upper right", ncol=len(models) + 1)
-            ax.set_title(f"{run.name} ({run.label()}): measured vs model (grey band: +-2 noise levels)", fontsize=9)
-    axes[-1, 0].set_xlabel("t [s]")
+        unit = UNITS[s]
+        for col, sel in enumerate((slice(None), zoom)):
+            ax = fig.add_subplot(gs[2 * k, col])
+            axr = fig.add_subplot(gs[2 * k + 1, col], sharex=ax)
+            h = ax.plot(t[sel], case.measured[s][sel], **MEASURED)
+            if k == 0 and col == 0:
+                handles += h
+            axr.axhspan(-2 * case.noise[s], 2 * case.noise[s], color="0.85", lw=0)
+            axr.axhline(0.0, color="0.5", lw=0.6)
+            for (label, sim), st in zip(models.items(), STYLES):
+                h = ax.plot(t[sel], sim[s][sel], label=label, **st)
+                axr.plot(t[sel], (case.measured[s] - sim[s])[sel], **st)
+                if k == 0 and col == 0:
+                    handles += h
+            if col == 0:
+                ax.axvspan(w0, w1, color="gold", alpha=0.25, lw=0)
+                axr.axvspan(w0, w1, color="gold", alpha=0.25, lw=0)
+                ax.set_ylabel(f"{NAMES.get(s, s)} [{unit}]", fontsize=9)
+                axr.set_ylabel(f"residual [{unit}]", fontsize=8)
+            if k == 0:
+                ax.set_title("whole run (gold: the zoom window)" if col == 0 else
+                             f"zoom: where the {next(iter(models))} model fails most, t = {w0:.2f}-{w1:.2f} s",
+                             fontsize=9)
+            ax.tick_params(labelbottom=False, labelsize=8)
+            axr.tick_params(labelsize=8, labelbottom=(k == len(signals) - 1))
+            if k == len(signals) - 1:
+                axr.set_xlabel("t [s]", fontsize=9)
+            ax.grid(alpha=0.25)
+            axr.grid(alpha=0.25)
+    fig.suptitle(f"{run.name} ({run.label()}): measured vs model; residual = measured - model "
+                 "(grey band: +-2 noise levels)", fontsize=10, y=0.995)
+    fig.legend(handles=handles, labels=[h.get_label() for h in handles], loc="upper center", ncol=len(handles),
+               fontsize=9, frameon=False, bbox_to_anchor=(0.5, 0.975))
+    fig.subplots_adjust(left=0.07, right=0.99, top=1.0 - 0.75 / fig.get_figheight(), bottom=0.5 / fig.get_figheight())
+    fig._ehas_layout = True
     return _save(plt, fig, path)
 
 
@@ -86,11 +170,20 @@ def residual_scatter(path, rep, sims_by_label: dict[str, list], signal: str, reg
                     continue
                 e = case.measured[signal] - sim[signal]
                 ax.plot(reg[reg_name][::3], e[::3], ".", ms=1.5, alpha=0.5, label=case.run.name)
-            ax.set_xlabel(reg_name, fontsize=8)
+            ax.set_xlabel(regressor_label(reg_name), fontsize=8)
             ax.set_ylabel(f"{signal} residual [{UNITS[signal]}]", fontsize=8)
+            ax.axhline(0.0, color="0.5", lw=0.6)
+            ax.grid(alpha=0.25)
             if r == 0:
-                ax.set_title(label, fontsize=9)
-    axes[0, 0].legend(fontsize=6, markerscale=4, loc="best")
+                ax.set_title(f"model: {label}", fontsize=9)
+    for r in range(len(regressor_names)):  # one residual scale per row: the error falling is seen at a glance
+        lo = min(axes[r, c].get_ylim()[0] for c in range(len(labels)))
+        hi = max(axes[r, c].get_ylim()[1] for c in range(len(labels)))
+        for c in range(len(labels)):
+            axes[r, c].set_ylim(lo, hi)
+    axes[0, 0].legend(fontsize=7, markerscale=6, loc="best", title="run", title_fontsize=7)
+    fig.suptitle(f"residual of {NAMES.get(signal, signal)} (measured - model) against its physical regressors, "
+                 "closed-loop runs pooled", fontsize=9)
     return _save(plt, fig, path)
 
 
@@ -138,19 +231,51 @@ def fit_bars(path, tables: dict, title: str = "fit % per signal") -> Path:
     return _save(plt, fig, path)
 
 
-def valve_overlay(path, case, models: dict[str, dict]) -> Path:
-    """Flow vs time and flow vs current of a valve run, measured and modelled."""
-    plt, fig, axes = _figure(1, 2, size=(10.0, 3.2))
+def valve_overlay(path, case, models: dict[str, dict], window_s: float = 0.4) -> Path:
+    """A valve run: flow in two zoomed windows (the slowest and the fastest part of a chirp), residuals below.
+
+    The whole record of a chirp is a tangle at page scale; the two windows show the
+    shape (and any lag) of measured and modelled flow, and the residual over the
+    whole record shows where the model fails (LPM, grey band: +-2 noise levels).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.gridspec import GridSpec
+
     t = case.run.t - case.run.t[0]
-    i = case.run.columns["current_mA"]
-    axes[0, 0].plot(t, case.measured["flow_lpm"], **MEASURED)
-    axes[0, 1].plot(i, case.measured["flow_lpm"], ".", color="0.3", ms=1.0, label="measured")
+    y = case.measured["flow_lpm"]
+    fig = plt.figure(figsize=(12.0, 6.4))
+    gs = GridSpec(2, 2, figure=fig, height_ratios=[1.6, 1.0], hspace=0.35, wspace=0.15)
+    windows = [(t[0], min(t[0] + window_s, t[-1])), (max(t[-1] - window_s, t[0]), t[-1])]
+    handles = []
+    for col, (a, b) in enumerate(windows):
+        ax = fig.add_subplot(gs[0, col])
+        sel = (t >= a) & (t <= b)
+        handles = ax.plot(t[sel], y[sel], **MEASURED)
+        for (label, sim), st in zip(models.items(), STYLES):
+            handles += ax.plot(t[sel], sim["flow_lpm"][sel], label=label, **st)
+        ax.set_title(f"{'start' if col == 0 else 'end'} of the record, t = {a:.2f}-{b:.2f} s", fontsize=9)
+        ax.set_xlabel("t [s]", fontsize=9)
+        ax.set_ylabel("flow A [LPM]" if col == 0 else "", fontsize=9)
+        ax.tick_params(labelsize=8)
+        ax.grid(alpha=0.25)
+    axr = fig.add_subplot(gs[1, :])
+    axr.axhspan(-2 * case.noise["flow_lpm"], 2 * case.noise["flow_lpm"], color="0.85", lw=0)
     for (label, sim), st in zip(models.items(), STYLES):
-        axes[0, 0].plot(t, sim["flow_lpm"], label=label, **st)
-        axes[0, 1].plot(i, sim["flow_lpm"], label=label, **st)
-    axes[0, 0].set_xlabel("t [s]")
-    axes[0, 0].set_ylabel("flow [LPM]")
-    axes[0, 1].set_xlabel("current [mA]")
-    axes[0, 0].legend(fontsize=7)
-    axes[0, 0].set_title(f"{case.run.name}: flow bench", fontsize=9)
+        axr.plot(t, y - sim["flow_lpm"], **{**st, "lw": 0.7})
+    for a, b in windows:
+        axr.axvspan(a, b, color="gold", alpha=0.25, lw=0)
+    axr.set_xlabel("t [s]", fontsize=9)
+    axr.set_ylabel("residual [LPM]", fontsize=9)
+    axr.set_title("residual = measured - model over the whole record (gold: the windows above; grey: +-2 noise "
+                  "levels)", fontsize=9)
+    axr.tick_params(labelsize=8)
+    axr.grid(alpha=0.25)
+    fig.suptitle(f"{case.run.name} ({case.run.label()}): valve on the flow bench", fontsize=10)
+    fig.legend(handles=handles, labels=[h.get_label() for h in handles], loc="upper center", ncol=len(handles),
+               fontsize=9, frameon=False, bbox_to_anchor=(0.5, 0.955))
+    fig.subplots_adjust(left=0.07, right=0.99, top=0.86, bottom=0.08)
+    fig._ehas_layout = True
     return _save(plt, fig, path)
