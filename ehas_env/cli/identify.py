@@ -185,22 +185,51 @@ def _save(fig, path) -> Path:
     return save_figure(fig, path)
 
 
-def plot_overlay(est, path, title: str = "") -> Path:
-    """Measured and simulated output, and their difference, against time."""
+def _output_unit(name: str) -> str:
+    """``flow_lpm`` -> ``LPM``; names without a unit suffix -> ``""``."""
+    units = {"lpm": "LPM", "ma": "mA", "deg": "deg", "bar": "bar", "kn": "kN", "s": "s"}
+    return units.get(name.rsplit("_", 1)[-1].lower(), "") if "_" in name else ""
+
+
+def plot_overlay(est, path, title: str = "", zoom_s: float | None = None) -> Path:
+    """Measured and simulated output: the whole record, a zoom on its last part, and the residual.
+
+    The measurement is drawn first, thick and grey, the model thin on top, so
+    neither hides the other; the zoom (``zoom_s``, default a tenth of the
+    record, at least 0.5 s) shows how the model follows the measured wave.
+    """
+    import numpy as np
+
     from ehas_env.output.plots import _pyplot
 
     plt = _pyplot()
     d = est.data
-    fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    ax[0].plot(d.t, d.y, lw=0.7, label=f"measured {d.output_name}")
-    ax[0].plot(d.t, est.y_sim, lw=0.9, label=f"simulated (fit {est.fit_percent:.1f} %)")
-    ax[0].set_ylabel(d.output_name)
-    ax[0].legend(loc="upper right")
-    ax[1].plot(d.t, est.residuals, lw=0.6, color="C3")
-    ax[1].set_ylabel("measured - simulated")
-    ax[1].set_xlabel("t, s")
+    unit = _output_unit(d.output_name)
+    ulab = f" [{unit}]" if unit else ""
+    t = np.asarray(d.t)
+    span = t[-1] - t[0]
+    zoom_s = zoom_s or max(0.1 * span, min(0.5, span))
+    zsel = t >= t[-1] - zoom_s
+    fig = plt.figure(figsize=(12, 6.6))
+    gs = fig.add_gridspec(2, 2, height_ratios=[2.2, 1.0], width_ratios=[1.7, 1.0], hspace=0.3, wspace=0.15)
+    ax_full, ax_zoom, ax_res = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[0, 1]), fig.add_subplot(gs[1, :])
+    for ax, sel in ((ax_full, slice(None)), (ax_zoom, zsel)):
+        ax.plot(t[sel], d.y[sel], color="0.55", lw=2.2, label=f"measured {d.output_name}")
+        ax.plot(t[sel], est.y_sim[sel], color="tab:blue", lw=0.8, label=f"model (fit {est.fit_percent:.1f} %)")
+        ax.grid(alpha=0.25)
+        ax.set_xlabel("t [s]")
+    ax_full.axvspan(t[-1] - zoom_s, t[-1], color="gold", alpha=0.25, lw=0)
+    ax_full.set_ylabel(f"{d.output_name}{ulab}")
+    ax_full.legend(loc="upper right", fontsize=8)
+    ax_full.set_title("whole record (gold: the zoom)", fontsize=9)
+    ax_zoom.set_title(f"zoom: last {zoom_s:.2g} s", fontsize=9)
+    ax_res.plot(t, est.residuals, lw=0.6, color="tab:red")
+    ax_res.axhline(0.0, color="0.4", lw=0.6)
+    ax_res.set_ylabel(f"measured - model{ulab}")
+    ax_res.set_xlabel("t [s]")
+    ax_res.grid(alpha=0.25)
     if title:
-        ax[0].set_title(title)
+        fig.suptitle(title, fontsize=10)
     return _save(fig, path)
 
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from ehas_env.book.tables import read_rows
 from ehas_env.identification.excitation import Excitation, chirp, multisine, prms
-from ehas_env.identification.fit import fit_percent, second_order_parameters, simulate_tf, tfest
+from ehas_env.identification.fit import fit_percent, prepare, second_order_parameters, simulate_tf, tfest
 
 SUPPLY_BAR = 70.0  # rated flow-bench test (docs/rig.md)
 BOOK_CHIRP_FIT = 95.4  # %, the book's 2p0z chirp fit (valve_identification.csv)
@@ -182,7 +182,8 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
         prms_fit = fit_percent(y, simulate_tf(book_prms_tf, sig.t, sig.current_mA)) if book_prms_tf else float("nan")
         fits = {}
         for nz in (0, 1):
-            est = tfest(sig.t, sig.current_mA, y, 2, nz)
+            est = tfest(prepare(sig.t, sig.current_mA, y, input_name="current_mA", output_name="flow_lpm"),
+                        n_poles=2, n_zeros=nz)
             fits[nz] = est.fit_percent
             p = _params(est)
             zero = f", zero {est.zeros()[0]:.4g}" if nz else ""
