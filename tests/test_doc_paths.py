@@ -105,6 +105,6 @@ def test_paths_cited_in_results_and_docs_pages_exist(path):
 def test_the_checker_catches_a_dangling_path():
     assert dangling_in_source('"""See docs/no-such-page.md and rig.md."""') == {"docs/no-such-page.md", "rig.md"}
     assert dangling_in_source('help="writes results/{name}.png, reads results/controllers/*.json"') == set()
-    assert dangling_in_source("# docs/rig.md, ehas_env/physics/kernel.py.") == set()
+    assert dangling_in_source("# docs/rig.md, ehas_env/simulation/metrics.py.") == set()
     assert dangling_in_source("ehas excite --out results/x/chirp; ehas identify results/x/chirp.csv") == set()
     assert dangling_in_source("ehas identify results/x/chirp.csv") == {"results/x/chirp.csv"}
