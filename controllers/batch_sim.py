@@ -1,9 +1,10 @@
 """Batched closed-loop simulation: many conditions and controllers in one serial numba loop.
 
-Built on ``ehas_env.physics.kernel`` (``advance``, ``measure``, ``reference_point``): the
-controller law is the one of ``kernel.run_rig_controller`` (PI + velocity /
-acceleration / jerk feed-forward, load-pressure feedback, anti-windup, DAC), the
-plant is :class:`ehas_env.simulation.plant.Plant`'s parameter vector with any effects.  Each
+Runs the model's one closed-loop driver (``closed_loop_batch`` of
+:mod:`ehas_env.simulation.loops`, compiled into the plant's model) with each
+controller's compiled law; the plant is :class:`ehas_env.simulation.plant.Plant`'s
+parameter vector with any effects.  A controller with no compiled law (only
+``act``) runs through ``Plant.simulate_closed_loop`` in Python, slower.  Each
 condition is simulated from rest and only its metrics are kept, so a grid of
 hundreds of runs needs no trace memory.
 
@@ -32,13 +33,13 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
-from ehas_env.physics import kernel as K
+from ehas_env.physics import layout as K
+from ehas_env.simulation.control_laws import N_GAINS
+from ehas_env.simulation.loops import METRICS, REF_SINE, REF_STEP
+from ehas_env.simulation.metrics import percent_errors
 
-METRICS = ("rms_error_pct", "peak_error_pct", "max_current_mA", "saturation_frac", "peak_delta_p_bar", "hit_stroke_end")
 N_METRICS = len(METRICS)
-REF_SINE, REF_STEP = 0, 1
 DEFAULT_CYCLES = 5.0  # reference periods per run: one warm-up, three whole cycles measured (see steady_window)
 
 
@@ -76,109 +77,6 @@ class Condition:
 def grid(disc_sets=range(1, 8), freqs=(1.0, 2.0, 3.0), amplitudes=(10.0, 20.0, 30.0), effects: dict | None = None):
     """The benchmark's conditions, disc sets slowest, then frequency, then amplitude."""
     return [Condition.with_effects(n, f, a, effects) for n in disc_sets for f in freqs for a in amplitudes]
-
-
-@njit(cache=True)
-def _closed_loop(s, P, gains, ref, kind, dt, nsub, n, hist, noise, sensor, k0, k1, metrics, trace):
-    """One closed-loop run (the law of kernel.run_rig_controller); metrics and optional trace."""
-    k1v = np.empty_like(s)
-    k2v = np.empty_like(s)
-    k3v = np.empty_like(s)
-    k4v = np.empty_like(s)
-    tmp = np.empty_like(s)
-    out = np.zeros(K.N_OUT)
-    adc, dac, gain_err, u_max = sensor[0], sensor[1], sensor[2], sensor[3]
-    mem = np.zeros(2)
-    hist[:] = 0.0
-    se2 = 0.0
-    emax = 0.0
-    umax_seen = 0.0
-    nsat = 0
-    dpmax = 0.0
-    hit_any = False
-    keep = trace.shape[0] > 0
-    for k in range(n):
-        K.measure(s, P, out)
-        t = k * dt
-        if kind == 0:
-            r, rd, rdd, rddd = K.reference_point(ref, t)
-        else:
-            r = ref[0] if t >= ref[2] else 0.0
-            rd, rdd, rddd = 0.0, 0.0, 0.0
-        th_true = math.degrees(out[K.O_THETA])
-        th = th_true * (1.0 + gain_err) + noise[k]
-        th = K.quantize(th, adc)
-        dp = (s[4] - s[5]) * 1e-5
-        u = K.quantize(K.rig_control_law(gains, r - th, rd, rdd, rddd, dp, dt, u_max, mem), dac)
-        # metrics: tracking on the true (LVDT) angle as ehas_env.simulation.metrics does
-        if k >= k0 and k < k1:
-            et = r - th_true
-            se2 += et * et
-            if abs(et) > emax:
-                emax = abs(et)
-        if abs(u) > umax_seen:
-            umax_seen = abs(u)
-        if abs(u) >= u_max * (1.0 - 1e-9):
-            nsat += 1
-        if abs(dp) > dpmax:
-            dpmax = abs(dp)
-        if keep:
-            trace[k, 0] = th_true
-            trace[k, 1] = r
-            trace[k, 2] = u
-            trace[k, 3] = dp
-        hist[k % hist.shape[0]] = u
-        if K.advance(s, P, hist, k, dt, nsub, 0.0, k1v, k2v, k3v, k4v, tmp):
-            hit_any = True
-    amp = abs(ref[0])
-    cnt = max(k1 - k0, 1)
-    metrics[0] = 100.0 * math.sqrt(se2 / cnt) / amp
-    metrics[1] = 100.0 * emax / amp
-    metrics[2] = umax_seen
-    metrics[3] = nsat / n
-    metrics[4] = dpmax
-    metrics[5] = 1.0 if hit_any else 0.0
-    if not math.isfinite(metrics[0]):
-        metrics[0] = 1e9
-
-
-@njit(cache=True)
-def _run_batch(S0, P, G, R, kinds, dt, nsub, n_steps, win, hist_len, noise, sensor, metrics, trace):
-    hist = np.zeros(hist_len)
-    for c in range(S0.shape[0]):
-        s = S0[c].copy()
-        _closed_loop(s, P[c], G[c], R[c], kinds[c], dt, nsub, n_steps[c], hist, noise[c], sensor[c],
-                     win[c, 0], win[c, 1], metrics[c], trace[c])
-
-
-@njit(cache=True)
-def run_relay(s, P, d, hyst, bias, dt, nsub, hist, theta_out, u_out):
-    """Relay experiment (Astrom-Hagglund) on the plant: u = bias +- d switching on e = -theta.
-
-    The set point is 0 deg; the relay starts at +d and switches when the error
-    crosses +-hyst deg.  theta_out (deg) and u_out (mA) receive the run.
-    """
-    k1 = np.empty_like(s)
-    k2 = np.empty_like(s)
-    k3 = np.empty_like(s)
-    k4 = np.empty_like(s)
-    tmp = np.empty_like(s)
-    out = np.zeros(K.N_OUT)
-    hist[:] = 0.0
-    state = 1.0
-    for k in range(theta_out.shape[0]):
-        K.measure(s, P, out)
-        th = math.degrees(out[K.O_THETA])
-        e = -th
-        if e > hyst:
-            state = 1.0
-        elif e < -hyst:
-            state = -1.0
-        u = bias + state * d
-        theta_out[k] = th
-        u_out[k] = u
-        hist[k % hist.shape[0]] = u
-        K.advance(s, P, hist, k, dt, nsub, 0.0, k1, k2, k3, k4, tmp)
 
 
 class Batch:
@@ -232,6 +130,9 @@ class Batch:
         self.dt, self.nsub = p0.dt, p0.substeps
         if any(p.dt != self.dt or p.substeps != self.nsub for p in self.plants):
             raise ValueError("Batch: every plant must share dt and substeps")
+        self.model = p0.model
+        if any(p.model is not self.model for p in self.plants):
+            raise ValueError("Batch: every plant must run on the same compiled model")
         self.hist_len = K.history_length(TAU_MAX, self.dt)
         self.S0 = np.array([p.initial_state() for p in self.plants])
         self.P = np.array([p.param_vector for p in self.plants])
@@ -259,33 +160,55 @@ class Batch:
     def __len__(self) -> int:
         return len(self.conditions)
 
-    def run(self, gains, *, i_max=None, dac_lsb=None, trace: bool = False):
-        """Metrics (len, 6) for gains (7,) shared or (len, 7) per condition.
+    def run(self, gains, *, i_max=None, dac_lsb=None, trace: bool = False, laws=None):
+        """Metrics (len, 6) for gains (n,) shared or (len, n) per condition, n <= N_GAINS.
 
+        ``laws``: compiled law number per condition (default: the PI + feed-forward law).
         ``i_max`` / ``dac_lsb`` (scalars or per-condition arrays) override the controller's
         output limit and DAC step (default: the plant's +-20 mA, the sensors' DAC).
         With ``trace=True`` also returns an array (len, n_max, 4): theta deg, theta_ref deg,
         current mA, load pressure bar.
         """
+        from ehas_env.simulation.plant import RigController
+
         m = len(self)
         G = np.asarray(gains, dtype=float)
         if G.ndim == 1:
             G = np.broadcast_to(G, (m, G.size))
-        if G.shape != (m, 7):
-            raise ValueError(f"gains must have shape (7,) or ({m}, 7), got {G.shape}")
+        if G.ndim != 2 or G.shape[0] != m or G.shape[1] > N_GAINS:
+            raise ValueError(f"gains must have shape (n,) or ({m}, n) with n <= {N_GAINS}, got {G.shape}")
         if not np.all(np.isfinite(G)):
             raise ValueError("gains must be finite")
+        Gp = np.zeros((m, N_GAINS))
+        Gp[:, :G.shape[1]] = G
+        law = np.full(m, RigController.law_id(), dtype=np.int64) if laws is None else np.asarray(laws, dtype=np.int64)
         sensor = self.sensor.copy()
         if i_max is not None:
             sensor[:, 3] = i_max
         if dac_lsb is not None:
             sensor[:, 1] = np.maximum(sensor[:, 1], dac_lsb)
         metrics = np.zeros((m, N_METRICS))
-        # without a trace each condition gets a (0, 4) view: nothing is stored
-        tr = np.zeros((m, int(self.n_steps.max()) if trace else 0, 4))
-        _run_batch(self.S0, self.P, np.ascontiguousarray(G), self.R, self.kinds, self.dt, self.nsub, self.n_steps,
-                   self.win, self.hist_len, self.noise, sensor, metrics, tr)
-        return (metrics, tr) if trace else metrics
+        # without a trace each condition gets a (0, N_OUT) view: nothing is stored
+        out = np.zeros((m, int(self.n_steps.max()) if trace else 0, K.N_OUT))
+        self.model.closed_loop_batch(self.S0, self.P, law, Gp, self.R, self.kinds, self.dt, self.nsub, self.hist_len,
+                                     self.noise, self.n_steps, sensor, self.win, metrics, out)
+        for j in range(m):
+            pct = percent_errors(metrics[j, 0], self.win[j, 1] - self.win[j, 0], metrics[j, 1], self.R[j, 0])
+            metrics[j, 0], metrics[j, 1] = pct["rms_error_pct"], pct["peak_error_pct"]
+        if not trace:
+            return metrics
+        tr = np.zeros((m, out.shape[1], 4))
+        tr[:, :, 0] = np.degrees(out[:, :, K.O_THETA])
+        for j in range(m):
+            n = int(self.n_steps[j])
+            t = np.arange(n) * self.dt
+            if self.kinds[j] == REF_SINE:
+                tr[j, :n, 1] = [self.model.reference_point(self.R[j], tk)[0] for tk in t]
+            else:
+                tr[j, :n, 1] = np.where(t >= self.R[j, 2], self.R[j, 0], 0.0)
+        tr[:, :, 2] = out[:, :, K.O_CURRENT]
+        tr[:, :, 3] = (out[:, :, K.O_PA] - out[:, :, K.O_PB]) * 1e-5
+        return metrics, tr
 
     def rows(self, metrics) -> list[dict]:
         """Metrics as a list of dicts with the condition's fields."""
@@ -299,23 +222,39 @@ class Batch:
         return out
 
 
-def controller_gains(controller, conditions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-condition gain matrix, output limit and DAC step of a RigController-expressible controller."""
-    G, imax, dac = [], [], []
+def compiled_form(controller, disc_sets: int):
+    """The compiled law and gains of ``controller`` on ``disc_sets`` (an object with ``law_id()`` and
+    ``gains_vector()``), or None when it has only a Python ``act``."""
+    sub = controller.for_plant(disc_sets) if hasattr(controller, "for_plant") else controller
+    if callable(getattr(sub, "law_id", None)) and callable(getattr(sub, "gains_vector", None)):
+        return sub
+    rc = sub.rig_gains(disc_sets) if hasattr(sub, "rig_gains") else None
+    return rc
+
+
+def controller_gains(controller, conditions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-condition gains, output limit, DAC step and compiled law number of a compiled controller."""
+    G, imax, dac, laws = [], [], [], []
     for c in conditions:
         sub = controller.for_plant(c.disc_sets) if hasattr(controller, "for_plant") else controller
-        rc = sub.rig_gains(c.disc_sets) if hasattr(sub, "rig_gains") else sub
+        rc = compiled_form(controller, c.disc_sets)
         if rc is None:
-            raise ValueError(f"controller {getattr(controller, 'name', controller)!r} has no compiled form (rig_gains)")
+            raise ValueError(f"controller {getattr(controller, 'name', controller)!r} has no compiled law; "
+                             "it runs through evaluate() in Python")
         G.append(rc.gains_vector())
+        laws.append(rc.law_id())
         imax.append(getattr(sub, "i_max", 20.0))
         dac.append(getattr(sub, "dac_lsb", 0.0))
-    return np.array(G), np.array(imax), np.array(dac)
+    return np.array(G), np.array(imax), np.array(dac), np.array(laws, dtype=np.int64)
 
 
 def evaluate(controller, conditions, *, cycles: float = DEFAULT_CYCLES, sensors=None, seed: int = 0,
              plant_kwargs: dict | None = None, batch: Batch | None = None) -> list[dict]:
-    """Metrics of ``controller`` (a PIFF, GainSchedule or RigController) on each condition."""
+    """Metrics of a controller with a compiled law on each condition, in one batched loop.
+
+    (``ehas_controllers.benchmark.evaluate_controller`` also runs controllers that only have a
+    Python ``act``.)
+    """
     batch = batch or Batch(conditions, cycles=cycles, sensors=sensors, seed=seed, plant_kwargs=plant_kwargs)
-    G, imax, dac = controller_gains(controller, batch.conditions)
-    return batch.rows(batch.run(G, i_max=imax, dac_lsb=dac))
+    G, imax, dac, laws = controller_gains(controller, batch.conditions)
+    return batch.rows(batch.run(G, i_max=imax, dac_lsb=dac, laws=laws))

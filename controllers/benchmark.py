@@ -84,8 +84,8 @@ def evaluate_controller(controller, conditions, *, cycles: float = DEFAULT_CYCLE
     """Metrics of ``controller`` on each condition (compiled batch when possible)."""
     if has_compiled_form(controller):
         batch = batch or Batch(conditions, cycles=cycles, plant_kwargs=plant_kwargs)
-        G, imax, dac = controller_gains(controller, batch.conditions)
-        return batch.rows(batch.run(G, i_max=imax, dac_lsb=dac))
+        G, imax, dac, laws = controller_gains(controller, batch.conditions)
+        return batch.rows(batch.run(G, i_max=imax, dac_lsb=dac, laws=laws))
     from tqdm import tqdm
 
     from ehas_env.simulation.plant import Plant

@@ -35,6 +35,8 @@ from __future__ import annotations
 import math
 
 import control
+
+from ehas_env.physics.effects.base import effect_value
 import numpy as np
 
 from ehas_env.physics.rig import BAR, LPM
@@ -85,10 +87,10 @@ class LinearPlant:
         self.C = 1.0 / (s["beta"] * (1.0 / va + 1.0 / vb))  # m^3/Pa
         self.Kq = math.sqrt((s["supply"] - abs(self.load0)) / s["rated_drop"])  # -
         self.Kc = self.flow0 / (2.0 * math.sqrt(s["rated_drop"] * (s["supply"] - abs(self.load0))))  # m^3/s/Pa
-        self.Kce = self.Kc + s["C_leak"] + 0.5 * s["C_ext"]
+        self.Kce = self.Kc + effect_value(s, "internal_leakage", "C_leak") + 0.5 * effect_value(s, "external_leakage", "C_ext")
         self.a = A * r * c  # m^3 per rad
-        self.I = s["inertia"] + s["m_piston"] * (r * c) ** 2  # kg m^2
-        self.B = s["b"] * (r * c) ** 2  # N m s/rad
+        self.I = s["inertia"] + effect_value(s, "piston_mass", "m") * (r * c) ** 2  # kg m^2
+        self.B = effect_value(s, "viscous_friction", "b") * (r * c) ** 2  # N m s/rad
         self.delay = 0.5 / self.rate_hz + s["tau"]  # s: zero-order hold + transport delay
 
     # -- numbers ---------------------------------------------------------------

@@ -13,9 +13,10 @@ One law covers the three controllers of the issue (RMC70-like, 1 kHz, zero-order
 
 The output is clipped to +-``i_max`` with conditional-integration anti-windup
 and optionally quantized to a ``output_bits`` DAC (the rig's RMC70: 12 bits over
-+-20 mA).  :meth:`PIFF.act` is a Python twin of the compiled loop
-``ehas_env.physics.kernel.run_rig_controller``; :meth:`PIFF.rig_gains` hands the same
-gains to the compiled loop.
++-20 mA).  The law is written once, :func:`pi_ff_law`: compiled into the model
+(registered as ``"pi_ff"``) for the benchmark, ``Plant``, the environment's
+residual mode and the replay of logs, and called as plain Python by
+:meth:`PIFF.act`.
 
 Examples
 --------
@@ -33,7 +34,36 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ehas_env.simulation.control_laws import N_MEM, register_law
+
 from .base import Controller, check_measurement, register_type
+
+
+def pi_ff_law(gains, mem, t, dt, theta, r, rd, rdd, rddd, p_load, p_s, u_max):
+    """PI + feed-forward + load-pressure feedback, mA, clipped to +-u_max (compiled law "pi_ff").
+
+    gains = (Kp, Ki, Kv, Ka, Kj, Kdp, dp_hp) in the units of GAIN_UNITS;
+    mem = [integral of e (deg s), low-passed load pressure (bar), ...].  The
+    integral stops while the output is clamped and the error would drive it
+    further (anti-windup).
+    """
+    kp, ki, kv, ka, kj, kdp, whp = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6]
+    e = r - theta
+    if whp > 0.0:
+        # first-order high-pass: feed back only the pressure's changes
+        mem[1] += dt * whp * (p_load - mem[1])
+        dp_fb = p_load - mem[1]
+    else:
+        dp_fb = p_load
+    u_ff = kv * rd + ka * rdd + kj * rddd - kdp * dp_fb
+    u = kp * e + ki * (mem[0] + e * dt) + u_ff
+    if (u < u_max and u > -u_max) or (u >= u_max and e < 0.0) or (u <= -u_max and e > 0.0):
+        mem[0] += e * dt
+    u = kp * e + ki * mem[0] + u_ff
+    return min(max(u, -u_max), u_max)
+
+
+register_law("pi_ff", pi_ff_law)
 
 #: gain name -> unit (the order of ehas_env.simulation.plant.RigController)
 GAIN_UNITS = {
@@ -93,8 +123,8 @@ class PIFF(Controller):
     rate_hz: float = 1000.0
     name: str = "PI+FF"
     kind = "classical"
-    _integ: float = field(default=0.0, init=False, repr=False, compare=False)
-    _dp_lp: float = field(default=0.0, init=False, repr=False, compare=False)
+    _mem: np.ndarray = field(default=None, init=False, repr=False, compare=False)
+    _gains: np.ndarray = field(default=None, init=False, repr=False, compare=False)
     _checked: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -181,38 +211,27 @@ class PIFF(Controller):
         """Output quantization step, mA (0: none)."""
         return DAC_SPAN_MA / 2**self.output_bits if self.output_bits else 0.0
 
-    # -- the Python twin of kernel.run_rig_controller ---------------------------
+    # -- the law, run in Python ------------------------------------------------
     def reset(self) -> None:
-        self._integ = 0.0
-        self._dp_lp = 0.0
+        self._mem = np.zeros(N_MEM)
+        self._gains = np.array([getattr(self, n) for n in GAIN_NAMES])
         self._checked = False
 
     def act(self, measurement: dict) -> float:
-        """Current command, mA (same arithmetic as ``kernel.run_rig_controller``)."""
+        """Current command, mA: :func:`pi_ff_law` on the measurement, then the DAC."""
         m = measurement
+        if self._mem is None:
+            self.reset()
         if not self._checked:
             check_measurement(m, "PIFF")
             self._checked = True
-        dt = 1.0 / self.rate_hz
-        e = m["theta_ref_deg"] - m["theta_deg"]
-        dp = m["p_a_bar"] - m["p_b_bar"]
-        if self.dp_hp > 0.0:
-            self._dp_lp += dt * self.dp_hp * (dp - self._dp_lp)
-            dp_fb = dp - self._dp_lp
-        else:
-            dp_fb = dp
-        u_ff = (self.Kv * m["theta_ref_dot"] + self.Ka * m["theta_ref_ddot"] + self.Kj * m["theta_ref_dddot"]
-                - self.Kdp * dp_fb)
-        u_max = self.i_max
-        u = self.Kp * e + self.Ki * (self._integ + e * dt) + u_ff
-        if (-u_max < u < u_max) or (u >= u_max and e < 0.0) or (u <= -u_max and e > 0.0):
-            self._integ += e * dt
-        u = self.Kp * e + self.Ki * self._integ + u_ff
-        u = min(max(u, -u_max), u_max)
+        u = pi_ff_law(self._gains, self._mem, m["t"], 1.0 / self.rate_hz, m["theta_deg"], m["theta_ref_deg"],
+                      m["theta_ref_dot"], m["theta_ref_ddot"], m["theta_ref_dddot"], m["p_a_bar"] - m["p_b_bar"],
+                      m.get("p_s_bar", 0.0), self.i_max)
         lsb = self.dac_lsb
         if lsb > 0.0:
             u = lsb * math.floor(u / lsb + 0.5)
-        return u
+        return float(u)
 
 
 @register_type("schedule")

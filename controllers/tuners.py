@@ -466,10 +466,8 @@ def relay_experiment(plant=None, *, disc_sets: int = 3, relay_mA: float = 1.0, h
     gain ``Ku = 4 d / (pi a)`` (describing function; ``sqrt(a^2 - eps^2)`` with
     hysteresis).  The first third of the run is discarded as the transient.
     """
-    from ehas_env.physics import kernel as K
+    from ehas_env.physics import layout as K
     from ehas_env.simulation.plant import TAU_MAX, Plant
-
-    from .batch_sim import run_relay
 
     if not (math.isfinite(relay_mA) and 0 < relay_mA <= 20):
         raise ValueError(f"relay amplitude must be in (0, 20] mA, got {relay_mA!r}")
@@ -478,7 +476,7 @@ def relay_experiment(plant=None, *, disc_sets: int = 3, relay_mA: float = 1.0, h
     plant = plant or Plant(disc_sets=disc_sets)
     n = int(round(duration_s / plant.dt))
     theta, u = np.zeros(n), np.zeros(n)
-    run_relay(plant.initial_state(), plant.param_vector, relay_mA, hysteresis_deg, 0.0, plant.dt, plant.substeps,
+    plant.model.run_relay(plant.initial_state(), plant.param_vector, relay_mA, hysteresis_deg, 0.0, plant.dt, plant.substeps,
               np.zeros(K.history_length(TAU_MAX, plant.dt)), theta, u)
     rises = np.flatnonzero(np.diff(u) > 0) + 1
     rises = rises[len(rises) // 3:]

@@ -104,6 +104,8 @@ def _main(argv) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse's usage error (status 2) or --help/--version (0): a status, not an exit
+        return exc.code if isinstance(exc.code, int) else 2
     except KeyboardInterrupt:
         print("ehas: interrupted", file=sys.stderr)
         return 130

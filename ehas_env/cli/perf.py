@@ -158,10 +158,11 @@ def _rss_child(num_envs: int, seconds: float) -> None:
     actions = np.asarray(_presampled(envs.action_space, 16))
     rate = batch_rate(envs, actions, seconds)
     peak = peak_rss_mb()
-    from ehas_env.env import batch_kernel as bk
+    from ehas_env.physics.codegen import current_model
 
-    compiled = any(sum(f.stats.cache_misses.values()) for f in (bk.batch_reset, bk.batch_step_serial,
-                                                                  bk.batch_step_parallel))
+    m = current_model()
+    compiled = any(sum(f.stats.cache_misses.values()) for f in (m.batch_reset, m.batch_step_serial,
+                                                                  m.batch_step_parallel))
     print(json.dumps({"num_envs": num_envs, "peak_rss_mb": peak, "import_rss_mb": rss_import,
                       "env_steps_per_s": rate, "compiled": compiled}))
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.env import batch_kernel as bk
-from ehas_env.physics import kernel as K
+from ehas_env.physics import layout as K
 from ehas_env.physics.effects import get_effect, resolve_effects
 from ehas_env.simulation.metrics import steady_window
 from ehas_env.simulation.plant import Plant, RigController
@@ -304,16 +304,23 @@ def controller_mode(controller, dt: float) -> tuple[int, np.ndarray]:
     :class:`~ehas_env.simulation.plant.RigController`: compiled into the step.  Any object
     with ``act(measurement) -> mA``: called in Python every step.
     """
-    gains = np.zeros(7)
+    gains = np.zeros(bk.N_GAIN_SLOTS)
     if controller is None:
-        return bk.MODE_DIRECT, gains
-    if isinstance(controller, RigController):
-        if abs(controller.rate_hz * dt - 1.0) > 1e-9:
-            raise ValueError(f"controller rate_hz {controller.rate_hz:g} must equal the env's 1/dt = {1 / dt:g} Hz")
-        return bk.MODE_RIG, controller.gains_vector()
+        return bk.MODE_DIRECT, gains, 0
+    compiled = controller if callable(getattr(controller, "law_id", None)) else None
+    if compiled is None and callable(getattr(controller, "rig_gains", None)):
+        compiled = controller.rig_gains()
+    if compiled is not None and callable(getattr(compiled, "gains_vector", None)):
+        rate = getattr(controller, "rate_hz", getattr(compiled, "rate_hz", 1.0 / dt))
+        if abs(rate * dt - 1.0) > 1e-9:
+            raise ValueError(f"controller rate_hz {rate:g} must equal the env's 1/dt = {1 / dt:g} Hz")
+        g = np.asarray(compiled.gains_vector(), dtype=float)
+        gains[:g.size] = g
+        return bk.MODE_RIG, gains, int(compiled.law_id())
     if callable(getattr(controller, "act", None)):
-        return bk.MODE_EXTERNAL, gains
-    raise ValueError(f"controller must be a RigController or an object with act(measurement) -> mA, got {controller!r}")
+        return bk.MODE_EXTERNAL, gains, 0
+    raise ValueError("controller must have a compiled law (law_id() and gains_vector(), or rig_gains()) or "
+                     f"act(measurement) -> mA, got {controller!r}")
 
 
 # ---------------------------------------------------------------------------
@@ -332,7 +339,9 @@ class StepSettings:
     mode : int
         Base-controller mode (:func:`controller_mode`).
     gains : ndarray
-        RigController gains (mode ``MODE_RIG``).
+        The compiled base controller's gains (mode ``MODE_RIG``).
+    law : int
+        Its compiled law's number (``control_laws.law_id``).
     rate_penalty : float
         Weight of the action-rate term of the reward.
     termination_penalty : float
@@ -347,7 +356,8 @@ class StepSettings:
     dt: float = 1.0e-3
     substeps: int = 10
     mode: int = bk.MODE_DIRECT
-    gains: np.ndarray = field(default_factory=lambda: np.zeros(7))
+    gains: np.ndarray = field(default_factory=lambda: np.zeros(bk.N_GAIN_SLOTS))
+    law: int = 0
     rate_penalty: float = 0.01
     termination_penalty: float = 1.0
     preview_s: tuple = (0.01, 0.02, 0.05)
@@ -376,14 +386,15 @@ def pack_episode(ep: Episode, st: StepSettings) -> tuple[np.ndarray, dict]:
         win0, win1, complete = int(idx[0]), int(idx[-1]) + 1, True
     except (ValueError, IndexError):
         win0, win1, complete = -1, n + 1, False  # under 2 whole cycles: every sample (win0 < 0 flags it)
-    C = np.zeros(bk.N_CONST)
-    C[:K.N_SLOTS] = plant.param_vector
+    C = np.zeros(bk.C_P + plant.model.N_SLOTS)
+    C[bk.C_P:] = plant.param_vector
+    C[bk.C_LAW] = st.law
     C[bk.C_DT] = st.dt
     C[bk.C_NSUB] = st.substeps
     C[bk.C_MODE] = st.mode
     C[bk.C_ACT_SCALE] = RATED_CURRENT
     C[bk.C_UMAX] = rig.i_max
-    C[bk.C_KP:bk.C_KP + 7] = st.gains
+    C[bk.C_GAINS:bk.C_GAINS + bk.N_GAIN_SLOTS] = st.gains
     C[bk.C_ADC] = ep.sensors.theta_lsb
     C[bk.C_DAC] = ep.sensors.current_lsb
     C[bk.C_GAIN_ERR] = ep.sensors.lvdt_gain_error
@@ -408,7 +419,10 @@ def pack_episode(ep: Episode, st: StepSettings) -> tuple[np.ndarray, dict]:
     C[bk.C_OBS_CLIP] = OBS_CLIP
     C[bk.C_NPREV] = len(st.preview_s)
     C[bk.C_PREV:bk.C_PREV + len(st.preview_s)] = st.preview_s
-    C[bk.C_S0:bk.C_S0 + K.N_STATES] = plant.initial_state(ep.theta0_deg)
+    s0 = plant.initial_state(ep.theta0_deg)
+    if s0.size > bk.MAX_STATES:
+        raise ValueError(f"the model has {s0.size} states; the environment holds at most {bk.MAX_STATES}")
+    C[bk.C_S0:bk.C_S0 + s0.size] = s0
     desc = {"episode": ep.to_dict(), "episode_steps": n, "metric_window_s": (max(win0, 0) * st.dt, (win1 - 1) * st.dt),
             "metric_window_complete": complete}
     return C, desc

@@ -148,7 +148,9 @@ from gymnasium import spaces
 
 from ehas_env.env import batch_kernel as bk
 from ehas_env.env import parts
-from ehas_env.physics import kernel as K
+from ehas_env.physics import layout as K
+from ehas_env.physics.codegen import current_model
+from ehas_env.simulation.control_laws import N_MEM, all_laws
 from ehas_env.simulation.plant import TAU_MAX
 
 _META_KEYS = ("t", "theta_deg", "theta_ref_deg", "theta_ref_dot", "theta_ref_ddot", "theta_ref_dddot",
@@ -174,8 +176,8 @@ def step_settings(controller, rate_penalty, termination_penalty, preview_ms, dt,
         if key not in ("rig", "inertia"):
             raise ValueError(f"plant_kwargs: '{key}' is not accepted; allowed: rig, inertia "
                              "(the episode settings are keyword arguments of the env)")
-    mode, gains = parts.controller_mode(controller, float(dt))
-    return parts.StepSettings(dt=float(dt), substeps=int(substeps), mode=mode, gains=gains,
+    mode, gains, law = parts.controller_mode(controller, float(dt))
+    return parts.StepSettings(dt=float(dt), substeps=int(substeps), mode=mode, gains=gains, law=law,
                               rate_penalty=float(rate_penalty), termination_penalty=float(termination_penalty),
                               preview_s=tuple(float(d) * 1e-3 for d in prev), plant_kwargs=plant_kwargs)
 
@@ -233,14 +235,15 @@ class TrackingEnv(gym.Env):
         self.observation_space = observation_space(self._st.n_obs)
         self.action_space = ACTION_SPACE
         hist = K.history_length(TAU_MAX, self._st.dt)
+        self._model = current_model()
         self._X = np.zeros(bk.x_length(hist))
-        self._C = np.zeros(bk.N_CONST)
+        self._C = np.zeros(C0.size)
         self._W = np.zeros(bk.W_SHAPE)
         self._obs = np.zeros(self._st.n_obs, np.float32)
         self._raw = np.zeros(bk.N_RAW)
         self._external = self._st.mode == bk.MODE_EXTERNAL
         self._C[:] = C0
-        bk.single_reset(self._X, self._C, self._W, self._obs, self._raw)
+        self._model.single_reset(self._X, self._C, self._W, self._obs, self._raw)
         self._trace = None
         self._frame_every = max(1, int(round(1.0 / (self.metadata["render_fps"] * self._st.dt))))
         self._renderer = None
@@ -253,7 +256,7 @@ class TrackingEnv(gym.Env):
         self._C[:] = C
         if self._external and callable(getattr(self.controller, "reset", None)):
             self.controller.reset()
-        bk.single_reset(self._X, self._C, self._W, self._obs, self._raw)
+        self._model.single_reset(self._X, self._C, self._W, self._obs, self._raw)
         if self.render_mode is not None:
             self._trace = _Trace(int(round(2.0 / self._st.dt)) + 1)
             self._trace.add(self._raw)
@@ -269,7 +272,7 @@ class TrackingEnv(gym.Env):
         else:
             a = _action_value(action)
         u_ext = self._external_act() if self._external else 0.0
-        reward = bk.single_step(self._X, self._C, self._W, a, u_ext, self._obs, self._raw)
+        reward = self._model.single_step(self._X, self._C, self._W, a, u_ext, self._obs, self._raw)
         flags = int(self._X[bk.X_FLAGS])
         if self._trace is not None:
             self._trace.add(self._raw)
@@ -488,6 +491,8 @@ class MeasurementObserver:
         self.preview = st.preview_s
         self.mode = st.mode
         self.gains = np.asarray(st.gains, dtype=float)
+        self.law = all_laws()[st.law][1]
+        self._model = env._model
         self.base = env.controller
         self.th_scale = float(C[bk.C_TH_SCALE])
         self.p_scale_bar = float(C[bk.C_P_SCALE]) / 1.0e5
@@ -509,8 +514,7 @@ class MeasurementObserver:
         self._th_prev = None
         self._a_prev = 0.0
         self._u_prev = 0.0
-        self._integ = 0.0
-        self._dp_lp = 0.0
+        self._mem = np.zeros(N_MEM)
         self._amp_est = self._default_amp
         if self.mode == bk.MODE_EXTERNAL and callable(getattr(self.base, "reset", None)):
             self.base.reset()
@@ -518,7 +522,7 @@ class MeasurementObserver:
     def _reference(self, m) -> tuple[float, list]:
         t = float(m["t"])
         if self._vecs is not None:
-            prev = [sum(K.reference_point(v, t + d)[0] for v in self._vecs) for d in self.preview]
+            prev = [sum(self._model.reference_point(v, t + d)[0] for v in self._vecs) for d in self.preview]
             return self._amp, prev
         r, rd, rdd, rddd = (float(m[k]) for k in ("theta_ref_deg", "theta_ref_dot", "theta_ref_ddot", "theta_ref_dddot"))
         den = rd * rd - r * rdd  # A^2 w^2 for a sine
@@ -564,20 +568,7 @@ class MeasurementObserver:
         return min(max(u_base + a * self.act_scale, -self.u_max), self.u_max)
 
     def _rig_law(self, m) -> float:
-        """batch_kernel's compiled rig controller (kernel.run_rig_controller's law), in Python."""
-        kp, ki, kv, ka, kj, kdp, whp = self.gains
-        dt, u_max = self.dt, self.u_max
-        e = float(m["theta_ref_deg"]) - float(m["theta_deg"])
-        dp = float(m["p_a_bar"]) - float(m["p_b_bar"])
-        if whp > 0.0:
-            self._dp_lp += dt * whp * (dp - self._dp_lp)
-            dp_fb = dp - self._dp_lp
-        else:
-            dp_fb = dp
-        u_ff = (kv * float(m["theta_ref_dot"]) + ka * float(m["theta_ref_ddot"]) + kj * float(m["theta_ref_dddot"])
-                - kdp * dp_fb)
-        u = kp * e + ki * (self._integ + e * dt) + u_ff
-        if (-u_max < u < u_max) or (u >= u_max and e < 0.0) or (u <= -u_max and e > 0.0):
-            self._integ += e * dt
-        u = kp * e + ki * self._integ + u_ff
-        return min(max(u, -u_max), u_max)
+        """The compiled base controller's law, run in Python on the measurement."""
+        return self.law(self.gains, self._mem, float(m["t"]), self.dt, float(m["theta_deg"]), float(m["theta_ref_deg"]),
+                        float(m["theta_ref_dot"]), float(m["theta_ref_ddot"]), float(m["theta_ref_dddot"]),
+                        float(m["p_a_bar"]) - float(m["p_b_bar"]), float(m.get("p_s_bar", 0.0)), self.u_max)

@@ -15,7 +15,7 @@ termination are those of :mod:`ehas_env.env.tracking_env`; the differences:
   for the environments whose episode ended, ``rms_error_pct``,
   ``peak_error_pct``, ``metric_complete``, ``episode_steps`` with their
   ``_key`` masks;
-* the base controller of residual mode must be a ``RigController`` (compiled);
+* the base controller of residual mode must have a compiled law (``RigController``, ``PIFF``, a user law);
 * rows are stepped by one serial numba loop (the default, fastest on the
   shared 2-core machine: ``ehas perf`` measures both) or, with
   ``parallel=True``, by a ``prange`` loop on every core, which pays only when
@@ -41,8 +41,9 @@ from gymnasium.vector.utils import batch_space
 
 from ehas_env.env import batch_kernel as bk
 from ehas_env.env import parts
-from ehas_env.physics import kernel as K
-from ehas_env.simulation.plant import TAU_MAX, RigController
+from ehas_env.physics import layout as K
+from ehas_env.physics.codegen import current_model
+from ehas_env.simulation.plant import TAU_MAX
 from ehas_env.env.tracking_env import ACTION_SPACE, EpisodePacker, observation_space, step_settings
 
 
@@ -79,9 +80,10 @@ class TrackingVectorEnv(VectorEnv):
             raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
         if render_mode is not None:
             raise ValueError("TrackingVectorEnv does not render; render a single TrackingEnv instead")
-        if controller is not None and not isinstance(controller, RigController):
-            raise ValueError("the vector env's residual mode takes a RigController (compiled into the step); "
-                             f"got {type(controller).__name__}: use TrackingEnv for controllers called in Python")
+        if controller is not None and parts.controller_mode(controller, float(dt))[0] != bk.MODE_RIG:
+            raise ValueError("the vector env's residual mode takes a controller with a compiled law (compiled into "
+                             f"the step); {type(controller).__name__} has only act(): use TrackingEnv, which calls "
+                             "it in Python")
         self.num_envs = int(num_envs)
         self.render_mode = None
         self.max_episode_steps = max_episode_steps
@@ -99,8 +101,9 @@ class TrackingVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
 
         n = self.num_envs
+        self._model = current_model()
         self._X = np.zeros((n, bk.x_length(K.history_length(TAU_MAX, self._st.dt))))
-        self._C = np.zeros((n, bk.N_CONST))
+        self._C = np.zeros((n, bk.C_P + self._model.N_SLOTS))
         self._W = np.zeros((n, *bk.W_SHAPE))
         self._obs = np.zeros((n, self._st.n_obs), np.float32)
         self._raw = np.zeros((n, bk.N_RAW))
@@ -167,7 +170,7 @@ class TrackingVectorEnv(VectorEnv):
             active = self._all
         terminated = np.empty(self.num_envs, bool)
         truncated = np.empty(self.num_envs, bool)
-        self._n_done = bk.batch_step(self._X, self._C, self._W, a, active, self._obs, self._raw, self._rew,
+        self._n_done = self._model.batch_step(self._X, self._C, self._W, a, active, self._obs, self._raw, self._rew,
                                      terminated, truncated, parallel=self.parallel)
         info = self._raw_info()
         if self._n_done:
@@ -191,7 +194,7 @@ class TrackingVectorEnv(VectorEnv):
             if self.max_episode_steps is not None:
                 C[bk.C_NSTEPS] = min(C[bk.C_NSTEPS], self.max_episode_steps)
             self._C[i] = C
-        bk.batch_reset(self._X, self._C, self._W, mask, self._obs, self._raw)
+        self._model.batch_reset(self._X, self._C, self._W, mask, self._obs, self._raw)
 
     def _raw_info(self) -> dict:
         info = dict(zip(bk.RAW_NAMES, self._raw.T.copy()))

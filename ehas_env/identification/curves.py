@@ -164,6 +164,7 @@ def linear_plant(plant=None, valve: str | None = None):
     """
     import control
 
+    from ehas_env.physics.effects.base import effect_value
     from ehas_env.simulation.plant import Plant
 
     plant = plant if plant is not None else Plant()
@@ -174,8 +175,9 @@ def linear_plant(plant=None, valve: str | None = None):
     A, r, beta = s["area"], s["radius"], s["beta"]
     v0 = A * s["half_stroke"] + s["dead_volume"]
     c = beta / v0
-    inertia = s["inertia"] + s["m_piston"] * r * r
-    cl, ce, b = s["C_leak"], s["C_ext"], s["b"]
+    inertia = s["inertia"] + effect_value(s, "piston_mass", "m") * r * r
+    cl, ce, b = (effect_value(s, "internal_leakage", "C_leak"), effect_value(s, "external_leakage", "C_ext"),
+                 effect_value(s, "viscous_friction", "b"))
     # mechanical + chamber part: states (pa, pb, theta, omega), input q_c (m^3/s)
     Am = np.array([
         [c * (-cl - ce), c * cl, 0.0, -c * A * r],

@@ -7,7 +7,7 @@ higher, by 0.02-0.35 kN.
 
 The book's analysis is a force balance along the commanded motion
 theta = A sin(2 pi f t).  Here the model does the same balance with its own
-mechanics (``ehas_env.physics.kernel``: crank inertia, piston mass, seal friction
+mechanics (the compiled model's right-hand side: crank inertia, piston mass, seal friction
 ``friction_force``) and any effect of the library switched on: the force the
 pressures must supply, A (P_A - P_B), to move the crank along the command.
 Without effects it reproduces the book's analytic column.  Each effect is then
@@ -38,9 +38,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
-from ehas_env.physics import kernel as KN
 
 COMMAND = "python -m ehas_env.measurement.book_rig_loads --out results/book_loads"
 POINTS = 4000  # samples per reference period in the force balance
@@ -54,19 +52,6 @@ def book_tests():
     return rig_tests()
 
 
-@njit(cache=True)
-def _force_along(theta, omega, alpha, P, out):
-    """A (P_A - P_B) needed to move the crank along (theta, omega, alpha), N (the kernel's mechanics inverted)."""
-    r = P[KN.I_RADIUS]
-    inertia = P[KN.I_INERTIA]
-    m = P[KN.I_MP]
-    for k in range(theta.shape[0]):
-        c, s = math.cos(theta[k]), math.sin(theta[k])
-        # kernel: (I + m r^2 c^2) alpha = (f_h + friction) r c + m r^2 s c omega^2
-        f = (alpha[k] * (inertia + m * r * r * c * c) - m * r * r * s * c * omega[k] * omega[k]) / (r * c)
-        out[k] = f - KN.friction_force(r * c * omega[k], P)
-
-
 def balance_peak_loads(effects: dict | None = None, rows=None) -> np.ndarray:
     """Peak |A (P_A - P_B)| (kN) needed to follow each book test's command, with ``effects``."""
     from ehas_env.simulation.plant import Plant
@@ -74,12 +59,17 @@ def balance_peak_loads(effects: dict | None = None, rows=None) -> np.ndarray:
     rows = rows if rows is not None else book_tests()
     out = []
     for r in rows:
-        P = Plant(disc_sets=r.disc_sets, effects=effects or {}).param_vector
+        plant = Plant(disc_sets=r.disc_sets, effects=effects or {})
         w = 2.0 * math.pi * r.freq_hz
         t = np.arange(POINTS) / (POINTS * r.freq_hz)
         a = math.radians(r.amplitude_deg)
         f = np.empty(POINTS)
-        _force_along(a * np.sin(w * t), a * w * np.cos(w * t), -a * w * w * np.sin(w * t), P, f)
+        P = plant.param_vector
+        for cls in plant.model.SPEC.effects:  # a quasi-static balance: the rod joint carries the load closed
+            if "joint_force" in cls.terms():
+                P[plant.model.IDX[f"{cls.name}.on"]] = 0.0
+        plant.model.required_load(P, plant.initial_state(), a * np.sin(w * t), a * w * np.cos(w * t),
+                                  -a * w * w * np.sin(w * t), f)
         out.append(float(np.max(np.abs(f))) * 1e-3)
     return np.array(out)
 

@@ -5,7 +5,7 @@ sidecar's reference (the model's controller computes its own current from the
 simulated angle, so both the angle and the current are outputs to compare);
 valve runs are driven open-loop by the logged current.  The replay's sensors are
 ideal: the rig's controller saw a noisy angle, the model's sees the noise-free
-one.  Everything runs in the compiled kernels (``ehas_env.physics.kernel``), about
+one.  Everything runs in the compiled model (``ehas_env.physics.codegen``), about
 10 ms per 3 s closed-loop run.
 
 The fit of a signal is the NRMSE fit of :func:`ehas_env.simulation.metrics.fit_percent`;
@@ -33,13 +33,13 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit, prange
 
-from ehas_env.physics import kernel as KN
+from ehas_env.physics import layout as KN
+from ehas_env.simulation.control_laws import N_GAINS
 from ehas_env.measurement.campaign import Campaign, Run, reference_of
 from ehas_env.physics.effects import resolve_effects
 from ehas_env.simulation.metrics import fit_percent
-from ehas_env.simulation.plant import TAU_MAX, Plant
+from ehas_env.simulation.plant import TAU_MAX, Plant, RigController
 from ehas_env.physics.rig import BAR, BULK_MODULUS, LPM, VALVE_K, RigParams
 
 DEFAULT_DOC_PLAN = ((2, 15.0, 2.0),)  # a tiny plan for doctests
@@ -180,7 +180,8 @@ class Replayer:
             dt = 1.0 / ctrl["rate_hz"]
             resample = abs(dt - run.dt) > 1e-9 * run.dt
             n_sim = run.n if not resample else int(math.ceil(run.duration / dt)) + 1
-            gains = np.array([ctrl[k] for k in ("Kp", "Ki", "Kv", "Ka", "Kj", "Kdp", "dp_hp")], dtype=float)
+            gains = np.zeros(N_GAINS)
+            gains[:7] = [ctrl[k] for k in ("Kp", "Ki", "Kv", "Ka", "Kj", "Kdp", "dp_hp")]
             hist = np.zeros(KN.history_length(TAU_MAX, dt) + 2)
             case = _Case(run, signals, measured, {}, dt, n_sim, resample, np.zeros((n_sim, KN.N_OUT)), hist,
                          gains=gains, ref=reference_of(run).kernel_vector(), zeros=np.zeros(n_sim),
@@ -223,9 +224,10 @@ class Replayer:
         if jobs:
             nmax = max(self.cases[i].n_sim for _, i in jobs)
             J = len(jobs)
-            S0 = np.empty((J, KN.N_STATES))
-            P = np.empty((J, KN.N_SLOTS))
-            gains = np.empty((J, 7))
+            model = self.plant(models[0], self.cases[cl[0]].run).model
+            S0 = np.empty((J, model.N_STATES))
+            P = np.empty((J, model.N_SLOTS))
+            gains = np.empty((J, N_GAINS))
             refs = np.empty((J, 4))
             dts = np.empty(J)
             sensors = np.empty((J, 4))
@@ -242,8 +244,9 @@ class Replayer:
                 sensors[j] = (0.0, 0.0, 0.0, plant.rig.i_max)
                 lengths[j] = case.n_sim
             outs = np.zeros((J, nmax, KN.N_OUT))
-            _batch_closed_loop(S0, P, gains, refs, dts, self.substeps, np.zeros((J, hl)), np.zeros(nmax), sensors,
-                               outs, lengths)
+            laws = np.full(J, RigController.law_id(), dtype=np.int64)
+            model.closed_loop_jobs(S0, P, laws, gains, refs, dts, self.substeps, np.zeros((J, hl)), np.zeros(nmax),
+                                   sensors, outs, lengths)
             for j, (m, i) in enumerate(jobs):
                 results[m][i] = self._closed_loop_signals(self.cases[i], outs[j, :lengths[j]])
         for m, model in enumerate(models):
@@ -257,12 +260,13 @@ class Replayer:
         plant = self.plant(model, run, case.dt)
         P = plant.param_vector
         if run.kind == "valve_open_loop":
-            KN.run_valve_test(P, case.cmd, case.dt, self.substeps, run.meta["supply_bar"] * BAR, case.hist, case.out)
+            plant.model.run_valve_test(P, case.cmd, case.dt, self.substeps, run.meta["supply_bar"] * BAR, case.hist, case.out)
             return {"flow_lpm": case.out[:, 0] / LPM}
         s = plant.initial_state(case.theta0)
         sensor = np.array([0.0, 0.0, 0.0, plant.rig.i_max])
         o = case.out
-        KN.run_rig_controller(s, P, case.gains, case.ref, case.dt, self.substeps, case.hist, case.zeros, sensor, o)
+        plant.model.closed_loop(s, P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
+                                case.hist, case.zeros, sensor, 0, 0, np.zeros(6), o)
         return self._closed_loop_signals(case, o)
 
     def _closed_loop_signals(self, case: _Case, o: np.ndarray) -> dict[str, np.ndarray]:
@@ -351,15 +355,6 @@ class Replayer:
         per_signal = {s: float(np.mean(acc[s])) for s in order}
         overall = float(np.mean(list(per_signal.values()))) if per_signal else float("nan")
         return FitTable(per_run, per_signal, overall, rms)
-
-
-@njit(parallel=True, cache=True)
-def _batch_closed_loop(S0, P, gains, refs, dts, nsub, hists, zeros, sensors, outs, lengths):
-    """Closed-loop runs side by side (one per thread): job j is run_rig_controller on row j."""
-    for j in prange(S0.shape[0]):
-        n = lengths[j]
-        KN.run_rig_controller(S0[j], P[j], gains[j], refs[j], dts[j], nsub, hists[j], zeros[:n], sensors[j],
-                              outs[j, :n])
 
 
 def format_fit_tables(tables: dict[str, FitTable], runs=None) -> str:

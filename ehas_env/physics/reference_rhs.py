@@ -1,14 +1,18 @@
 """Plain-Python right-hand side of the plant, written from the reference model.
 
-A readable twin of :func:`ehas_env.physics.kernel.derivatives`, used by the tests to
-hold the compiled kernel to the equations of the reference model.  It takes
-named parameters (the slots dict of :meth:`ehas_env.simulation.plant.Plant.slots`) and a
-named state, and is deliberately written in the spec's own form (Merritt's
-per-land law, chamber continuity, crank dynamics) rather than the kernel's.
+A readable twin of the compiled model's ``derivatives``
+(:mod:`ehas_env.physics.codegen`), used by the tests to hold the compiled code to
+the equations.  The baseline is written out here in the spec's own form
+(Merritt's per-land law, chamber continuity, crank dynamics), independently of
+:mod:`ehas_env.physics.baseline`; each effect's terms are its own plain Python
+functions, called here by name with named arguments.  It takes the named slots
+of :meth:`ehas_env.simulation.plant.Plant.slots` and a named state.
 """
 from __future__ import annotations
 
 import math
+
+from ehas_env.physics.effects import REGISTRY
 
 
 def _root(dp: float, half_drop: float) -> float:
@@ -16,8 +20,42 @@ def _root(dp: float, half_drop: float) -> float:
     return math.copysign(math.sqrt(abs(dp) / half_drop), dp)
 
 
+def _terms(place: str, p: dict, ctx: dict) -> list:
+    """Values of the terms at ``place`` of every effect that is on, in name order."""
+    out = []
+    for name in sorted(n for n in REGISTRY if p.get(f"{n}.on")):
+        cls = REGISTRY[name]
+        if place not in cls.terms():
+            continue
+        own = {q.name for q in cls.params + cls.constants}
+        kwargs = {}
+        for arg in cls.term_args(place):
+            if arg in own:
+                kwargs[arg] = p[f"{name}.{arg}"]
+            elif arg in ctx:
+                kwargs[arg] = ctx[arg]
+            elif f"{name}.{arg}" in ctx:
+                kwargs[arg] = ctx[f"{name}.{arg}"]
+            else:
+                kwargs[arg] = p[arg]
+        out.append((name, getattr(cls, place)(**kwargs)))
+    return out
+
+
+def valve_current(i_cmd: float, p: dict) -> float:
+    """Amplifier clip, then the effects of the current chain in their order."""
+    i = min(max(i_cmd, -p["i_max"]), p["i_max"])
+    chain = sorted((n for n in REGISTRY if p.get(f"{n}.on") and "valve_current" in REGISTRY[n].terms()),
+                   key=lambda n: (REGISTRY[n].chain_order, n))
+    for name in chain:
+        cls = REGISTRY[name]
+        kwargs = {a: (i if a == "i" else p.get(f"{name}.{a}", p.get(a))) for a in cls.term_args("valve_current")}
+        i = cls.valve_current(**kwargs)
+    return i
+
+
 def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
-    """Time derivatives of the named state for the valve current ``i_valve_mA``."""
+    """Time derivatives of the named state for the valve current ``i_valve_mA`` (after the current chain)."""
     th, om = state["theta"], state["omega"]
     qc, qcd = state["qc"], state["qc_dot"]
     pa, pb, ps = state["pa"], state["pb"], state["ps"]
@@ -47,46 +85,46 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
         q_a = qc * _root(pa - 0.0, half)
         q_b = -qc * _root(ps - pb, half)
         q_supply = q_b
-    q_a -= p["C_leak"] * (pa - pb) + p["C_ext"] * pa
-    q_b += p["C_leak"] * (pa - pb) - p["C_ext"] * pb
 
-    def friction(v):
-        sgn = math.tanh(v / p["v_tanh"])
-        f = p["Fc"] * sgn + p["b"] * v
-        if p["Fc_s"] > 0.0 or p["Fs_s"] > 0.0:
-            f += (p["Fc_s"] + (p["Fs_s"] - p["Fc_s"]) * math.exp(-((v / p["vs_s"]) ** 2))) * sgn
-        return -f
-
-    force = A * (pa - pb)
-    if p["delta"] > 0.0:
+    joint = any(p.get(f"{n}.on") and "joint_force" in REGISTRY[n].terms() for n in REGISTRY)
+    if joint:
         x, xd = state["xp"], state["vp"]
-        gap = x - r * math.sin(th)
-        gap_rate = xd - r * math.cos(th) * om
-        if abs(gap) > p["delta"]:
-            pen = gap - math.copysign(p["delta"], gap)
-            joint = p["k_joint"] * pen + p["c_joint"] * gap_rate
-        else:
-            joint = 0.0
-        m = max(p["m_piston"], p["m_backlash"])
-        d["xp"], d["vp"] = xd, (force + friction(xd) - joint) / m
-        d["theta"], d["omega"] = om, joint * r * math.cos(th) / p["inertia"]
     else:
-        # rigid rod: I th'' = (F - m x'') r cos th with x = r sin th
         x, xd = r * math.sin(th), r * math.cos(th) * om
-        m = p["m_piston"]
+    ctx = {"theta": th, "omega": om, "qc": qc, "qc_dot": qcd, "pa": pa, "pb": pb, "ps": ps, "xp": state["xp"],
+           "vp": state["vp"], "i": i_valve_mA, "p_load": pa - pb, "q_a": q_a, "q_b": q_b, "q_supply": q_supply,
+           "x": x, "v": xd, **{k: v for k, v in state.items() if "." in k}}
+    for _, (dqa, dqb) in _terms("chamber_flows", p, ctx):
+        q_a += dqa
+        q_b += dqb
+    force = A * (pa - pb) + sum(v for _, v in _terms("piston_force", p, ctx))
+    m = sum(v for _, v in _terms("moving_mass", p, ctx))
+    torque = sum(v for _, v in _terms("crank_torque", p, ctx))
+
+    if joint:
+        ctx["gap"] = x - r * math.sin(th)
+        ctx["gap_rate"] = xd - r * math.cos(th) * om
+        joint_force = sum(v for _, v in _terms("joint_force", p, ctx))
+        m_min = max([p[f"{n}.m_min"] for n in REGISTRY if p.get(f"{n}.on") and f"{n}.m_min" in p] or [0.0])
+        d["xp"], d["vp"] = xd, (force - joint_force) / max(m, m_min)
+        d["theta"], d["omega"] = om, (joint_force * r * math.cos(th) + torque) / p["inertia"]
+    else:
+        # rigid rod: I th'' = (F - m x'') r cos th + T with x = r sin th
         c, s = math.cos(th), math.sin(th)
         d["theta"] = om
-        d["omega"] = ((force + friction(xd)) * r * c + m * r * r * s * c * om * om) / (p["inertia"] + m * (r * c) ** 2)
+        d["omega"] = (force * r * c + torque + m * r * r * s * c * om * om) / (p["inertia"] + m * (r * c) ** 2)
         d["xp"], d["vp"] = xd, 0.0
 
     v0 = A * p["half_stroke"] + p["dead_volume"]
     d["pa"] = p["beta"] / (v0 + A * x) * (q_a - A * xd)
     d["pb"] = p["beta"] / (v0 - A * x) * (q_b + A * xd)
-
-    if p["droop"] > 0.0:
-        capacity = p["V_line"] / p["beta"] + (p["V_acc"] * p["p0"] / ps**2 if ps > p["p0"] else 0.0)
-        dps = (p["Q_pump"] - q_supply) / capacity
-        d["ps"] = 0.0 if (ps >= p["supply"] and dps > 0.0) else dps
-    else:
-        d["ps"] = 0.0
+    d["ps"] = sum(v for _, v in _terms("supply_rate", p, ctx))
+    for name in sorted(n for n in REGISTRY if REGISTRY[n].states):
+        cls = REGISTRY[name]
+        keys = [f"{name}.{st[0]}" for st in cls.states]
+        rates = [0.0] * len(keys)
+        if p.get(f"{name}.on") and "state_rates" in cls.terms():
+            val = dict(_terms("state_rates", {**p, **{f"{n}.on": 0.0 for n in REGISTRY if n != name}}, ctx))[name]
+            rates = list(val) if len(keys) > 1 else [val]
+        d.update(zip(keys, rates))
     return d

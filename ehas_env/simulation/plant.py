@@ -23,20 +23,18 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ehas_env.physics import kernel as K
+from ehas_env.physics import layout as K
+from ehas_env.physics.codegen import current_model
 from ehas_env.physics.effects import REGISTRY, resolve_effects
+from ehas_env.physics.effects.base import effect_slots
+from ehas_env.simulation.control_laws import N_GAINS, law_id
 from ehas_env.simulation.metrics import tracking_errors
 from ehas_env.simulation.reference import SineReference
 from ehas_env.physics.rig import BAR, LPM, INERTIA_PER_SET, RigParams, check_disc_sets
 from ehas_env.measurement.runfile import write_run
 from ehas_env.simulation.sensors import Sensors
 
-#: assumed constants of the general model's optional terms (see the effects)
-V_TANH = 1.0e-3  # m/s, friction sign smoothing (reference model: 1 mm/s)
-V_LINE = 0.5e-3  # m^3, pressure line between pump and valve (assumed: ~3 m of 1/2" hose)
-K_JOINT = 2.0e7  # N/m, rod-crank joint contact stiffness (assumed: steel pin and eye)
-C_JOINT = 3.0e3  # N s/m, joint contact damping (assumed)
-M_BACKLASH = 5.0  # kg, least piston mass used once the joint has play (assumed)
+V_TANH = 1.0e-3  # m/s, friction sign smoothing of the friction effects (reference model: 1 mm/s)
 TAU_MAX = 0.05  # s, longest transport delay the command buffers hold (transport_delay's bound)
 
 
@@ -83,7 +81,15 @@ class RigController:
         return cls()
 
     def gains_vector(self) -> np.ndarray:
-        return np.array([self.Kp, self.Ki, self.Kv, self.Ka, self.Kj, self.Kdp, self.dp_hp], dtype=float)
+        """The compiled law's gains, padded to ``control_laws.N_GAINS``."""
+        g = np.zeros(N_GAINS)
+        g[:7] = (self.Kp, self.Ki, self.Kv, self.Ka, self.Kj, self.Kdp, self.dp_hp)
+        return g
+
+    @staticmethod
+    def law_id() -> int:
+        """Number of the compiled law (PI + feed-forward, ``ehas_controllers.piff.pi_ff_law``)."""
+        return law_id("pi_ff")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -244,6 +250,10 @@ class Plant:
         self.dt = float(dt)
         self.substeps = substeps
         self.seed = seed
+        self._model = current_model()
+        missing = [n for n in self.effects if n not in self._model.EFFECTS]
+        if missing:  # registered after the model was built: rebuild
+            raise RuntimeError(f"effects {missing} are not in the compiled model")
         self._P = self._param_vector()
         self._hist_len = K.history_length(TAU_MAX, self.dt)
 
@@ -253,38 +263,43 @@ class Plant:
         return f"Plant(disc_sets={self.rig.disc_sets}, inertia={self.rig.inertia:g} kg m^2, effects=[{eff}]{valve})"
 
     # -- parameters -------------------------------------------------------
+    @property
+    def model(self):
+        """The compiled model module this plant runs on (:mod:`ehas_env.physics.codegen`)."""
+        return self._model
+
     def slots(self) -> dict[str, float]:
-        """The general model's parameter slots (SI) with the effects applied."""
+        """The model's parameter slots (SI) by name, with the effects applied."""
         r = self.rig
-        s = dict.fromkeys(K.SLOTS, 0.0)
+        s = dict.fromkeys(self._model.SLOTS, 0.0)
         s.update(inertia=r.inertia, radius=r.radius, area=r.area, half_stroke=r.half_stroke, supply=r.supply,
                  rated_drop=r.rated_drop, beta=r.beta, dead_volume=r.dead_volume, K=r.K * LPM, wn=r.wn, zeta=r.zeta,
-                 i_max=r.i_max, v_tanh=V_TANH, V_line=V_LINE, k_joint=K_JOINT, c_joint=C_JOINT, m_backlash=M_BACKLASH,
-                 vs_s=1.0)
+                 i_max=r.i_max, v_tanh=V_TANH)
         s.update(self.white_box.kernel_slots())
         s["valve_model"] = K.WHITE_BOX if self.valve == "white_box" else 0.0
+        for name in self._model.EFFECTS:
+            s.update(effect_slots(name, self.effects.get(name)))
         for name, values in self.effects.items():
             REGISTRY[name].apply(values, s)
-        if s["delta"] > 0.0:
-            # A light piston with seal friction is stiff: keep the friction's sign
-            # smoothing wide enough for the RK4 sub-step (h F / (m v) < 1).
-            f_max = s["Fc"] + max(s["Fs_s"], s["Fc_s"])
-            h = self.dt / self.substeps
-            s["v_tanh"] = max(s["v_tanh"], h * f_max / max(s["m_piston"], s["m_backlash"]))
+        for name in self.effects:
+            REGISTRY[name].adjust(s, self.dt / self.substeps)
         return s
 
     def _param_vector(self) -> np.ndarray:
         s = self.slots()
-        return np.array([s[name] for name in K.SLOTS], dtype=float)
+        return np.array([s[name] for name in self._model.SLOTS], dtype=float)
 
     @property
     def param_vector(self) -> np.ndarray:
-        """Copy of the flat parameter vector the kernels use (layout ``kernel.SLOTS``)."""
+        """Copy of the flat parameter vector the compiled model uses (layout ``model.SLOTS``)."""
         return self._P.copy()
 
     def initial_state(self, theta_deg: float = 0.0) -> np.ndarray:
         """At rest at ``theta_deg`` with P_A = P_B = Ps/2 (reference model)."""
-        s = np.zeros(K.N_STATES)
+        s = np.zeros(self._model.N_STATES)
+        for name in self._model.EFFECTS:
+            for st in REGISTRY[name].states:
+                s[self._model.STATE_NAMES.index(f"{name}.{st[0]}")] = st[2]
         th = math.radians(theta_deg)
         s[0] = th
         s[4] = s[5] = 0.5 * self.rig.supply
@@ -305,7 +320,7 @@ class Plant:
         cmd = _check_current(current_mA, "current_mA")
         out = np.zeros((cmd.size, K.N_OUT))
         s = self.initial_state(theta0_deg)
-        K.run_open_loop(s, self._P, cmd, self.dt, self.substeps, np.zeros(self._hist_len), out)
+        self._model.run_open_loop(s, self._P, cmd, self.dt, self.substeps, np.zeros(self._hist_len), out)
         return self._result(out, kind="open_loop")
 
     def simulate_closed_loop(self, controller=None, *, amplitude_deg: float = 20.0, freq_hz: float = 1.0,
@@ -338,8 +353,9 @@ class Plant:
         if isinstance(controller, RigController):
             if abs(controller.rate_hz * self.dt - 1.0) > 1e-9:
                 raise ValueError(f"controller rate_hz {controller.rate_hz:g} must equal the plant's 1/dt = {1 / self.dt:g} Hz")
-            K.run_rig_controller(s, self._P, controller.gains_vector(), ref.kernel_vector(), self.dt, self.substeps,
-                                 hist, noise, self.sensors.kernel_vector(self.rig.i_max), out)
+            self._model.closed_loop(s, self._P, controller.law_id(), controller.gains_vector(), ref.kernel_vector(),
+                                    0, self.dt, self.substeps, hist, noise,
+                                    self.sensors.kernel_vector(self.rig.i_max), 0, n, np.zeros(6), out)
             ctrl_meta = {**controller.to_dict()}
         else:
             self._python_loop(controller, ref, s, hist, noise, out)
@@ -351,21 +367,19 @@ class Plant:
                                         "controller": ctrl_meta})
 
     def _python_loop(self, controller, ref, s, hist, noise, out):
+        M = self._model
         k1, k2, k3, k4, tmp = (np.empty_like(s) for _ in range(5))
         lsb = self.sensors.theta_lsb
-        gain = 1.0 + self.sensors.lvdt_gain_error
         dac = self.sensors.current_lsb
         if hasattr(controller, "reset"):
             controller.reset()
         ref_vec = ref.kernel_vector()
         amp = float(ref.amplitude_deg)
         for k in range(out.shape[0]):
-            K.measure(s, self._P, out[k])
+            M.measure(s, self._P, out[k])
             t = k * self.dt
-            r, rd, rdd, rddd = K.reference_point(ref_vec, t)
-            th = math.degrees(out[k, K.O_THETA]) * gain + noise[k]
-            if lsb > 0:
-                th = lsb * math.floor(th / lsb + 0.5)
+            r, rd, rdd, rddd = M.reference_point(ref_vec, t)
+            th = M.sense(out[k, K.O_THETA], self.sensors.lvdt_gain_error, noise[k], lsb)
             out[k, K.O_SENSED] = th
             meas = {"t": t, "theta_deg": th, "theta_ref_deg": r, "theta_ref_dot": rd, "theta_ref_ddot": rdd,
                     "theta_ref_dddot": rddd, "p_a_bar": s[4] / BAR, "p_b_bar": s[5] / BAR, "p_s_bar": s[6] / BAR,
@@ -374,11 +388,10 @@ class Plant:
             if not math.isfinite(u):
                 raise ValueError(f"controller {type(controller).__name__} returned a non-finite current {u!r} at t = {t:g} s")
             u = min(max(u, -self.rig.i_max), self.rig.i_max)
-            if dac > 0:
-                u = dac * math.floor(u / dac + 0.5)
+            u = M.quantize(u, dac)
             out[k, K.O_CURRENT] = u
             hist[k % hist.shape[0]] = u
-            out[k, K.O_STROKE] = float(K.advance(s, self._P, hist, k, self.dt, self.substeps, 0.0, k1, k2, k3, k4, tmp))
+            out[k, K.O_STROKE] = float(M.advance(s, self._P, hist, k, self.dt, self.substeps, 0.0, k1, k2, k3, k4, tmp))
 
     def simulate_valve_test(self, current_mA, *, supply_bar: float = 70.0) -> "ValveTestResult":
         """The valve alone on the flow bench: control ports joined through the meter.
@@ -393,7 +406,7 @@ class Plant:
         if not (math.isfinite(supply_bar) and supply_bar > 0):
             raise ValueError(f"supply_bar must be a positive pressure in bar, got {supply_bar!r}")
         out = np.zeros((cmd.size, 3))
-        K.run_valve_test(self._P, cmd, self.dt, self.substeps, supply_bar * BAR, np.zeros(self._hist_len), out)
+        self._model.run_valve_test(self._P, cmd, self.dt, self.substeps, supply_bar * BAR, np.zeros(self._hist_len), out)
         t = np.arange(cmd.size) * self.dt
         flow = out[:, 0] / LPM
         logged = {}

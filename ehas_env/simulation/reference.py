@@ -49,7 +49,9 @@ class SineReference:
 
     def derivatives(self, t) -> np.ndarray:
         """theta_ref and its first three derivatives (deg, deg/s^k), shape (4,) or (4, len(t))."""
-        from ehas_env.physics.kernel import reference_point
+        from ehas_env.physics.codegen import current_model
+
+        reference_point = current_model().reference_point
 
         vec = self.kernel_vector()
         scalar = np.ndim(t) == 0

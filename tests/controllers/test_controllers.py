@@ -55,7 +55,7 @@ def test_anti_windup_stops_integrating_while_saturated():
     c = PIFF(Kp=5.0, Ki=50.0, Kv=0.0, Ka=0.0)
     for _ in range(500):  # 0.5 s at a 10 deg error: the output sits at +20 mA
         assert c.act(_meas(theta=0.0, ref=10.0)) == 20.0
-    assert c._integ == 0.0
+    assert c._mem[0] == 0.0  # the law's integral memory
     # once the error reverses the output leaves the limit at once (no wound-up integral)
     assert c.act(_meas(theta=1.0, ref=0.0)) == pytest.approx(-5.0, abs=0.06)
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import ehas_env  # noqa: F401  (registers ehas/Tracking-v0)
+from ehas_env.env import batch_kernel as bk
 from ehas_env.simulation.plant import RigController
 from ehas_env.env.tracking_env import TrackingEnv
 from ehas_env.env.vector_env import TrackingVectorEnv
@@ -114,10 +115,10 @@ def test_reset_mask_resets_only_the_masked_environments():
 def test_reset_options_persist_for_autoresets():
     vec = TrackingVectorEnv(2, cycles=2, freq_hz=10.0)
     vec.reset(seed=0, options={"disc_sets": 7})
-    assert all(vec._C[i, 0] == pytest.approx(7 * 0.383) for i in range(2))  # slot 0: inertia
+    assert all(vec._C[i, bk.C_P] == pytest.approx(7 * 0.383) for i in range(2))  # slot 0: inertia
     for _ in range(201):
         vec.step(np.zeros((2, 1)))
-    assert all(vec._C[i, 0] == pytest.approx(7 * 0.383) for i in range(2))
+    assert all(vec._C[i, bk.C_P] == pytest.approx(7 * 0.383) for i in range(2))
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
@@ -142,7 +143,7 @@ def test_out_of_range_actions_are_clipped():
 
 @pytest.mark.parametrize("kwargs, match", [
     ({"num_envs": 0}, "num_envs"),
-    ({"num_envs": 2, "controller": object()}, "RigController"),
+    ({"num_envs": 2, "controller": object()}, "compiled law"),
     ({"num_envs": 2, "render_mode": "rgb_array"}, "render"),
     ({"num_envs": 2, "disc_sets": 0}, "disc_sets"),
 ])

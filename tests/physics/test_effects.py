@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from ehas_env.physics import kernel as K
+from ehas_env.physics.codegen import current_model
+
+K = current_model()
 from ehas_env.physics.effects import REGISTRY, get_effect, parse_spec
 from ehas_env.simulation.plant import Plant
 from ehas_env.physics.rig import BAR, LPM

@@ -9,7 +9,9 @@ import control
 import numpy as np
 import pytest
 
-from ehas_env.physics import kernel as K
+from ehas_env.physics.codegen import current_model
+
+K = current_model()
 from ehas_env.simulation.plant import Plant, RigController
 from ehas_env.physics.reference_rhs import rhs as reference_rhs
 from ehas_env.physics.white_box_valve import WhiteBoxValve, comparison, slot_rates

@@ -7,7 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from ehas_env.physics import kernel as K
+from ehas_env.physics.codegen import current_model
+
+K = current_model()
 from ehas_env.physics.effects import REGISTRY
 from ehas_env.simulation.plant import Plant, RigController
 from ehas_env.simulation.reference import SineReference

@@ -9,6 +9,11 @@ class Backlash(Effect):
         Param("delta", "m", 2.0e-4, (0.0, 3.0e-3), "half the total play 2 delta of the joint (assumed: worn pin)",
               typical=(1.0e-4, 5.0e-4)),
     )
+    constants = (
+        Param("k_joint", "N/m", 2.0e7, (0.0, 1e12), "joint contact stiffness (assumed: steel pin and eye)"),
+        Param("c_joint", "N s/m", 3.0e3, (0.0, 1e9), "joint contact damping (assumed)"),
+        Param("m_min", "kg", 5.0, (0.0, 1e3), "least piston mass once the joint has play (assumed)"),
+    )
     main_param = "delta"
     explanation = (
         "A worn pin or rod eye leaves play of total width 2 delta between the rod and the crank. At each "
@@ -22,6 +27,22 @@ class Backlash(Effect):
         "has flat sections of width 2 delta; pressure ringing after reversals."
     )
 
+    @staticmethod
+    def joint_force(gap, gap_rate, delta, k_joint, c_joint):
+        if gap > delta:
+            return k_joint * (gap - delta) + c_joint * gap_rate
+        if gap < -delta:
+            return k_joint * (gap + delta) + c_joint * gap_rate
+        return 0.0
+
     @classmethod
-    def apply(cls, values, slots):
-        slots["delta"] = values["delta"]
+    def adjust(cls, slots, substep_s):
+        # A light piston with seal friction is stiff: keep the friction's sign smoothing
+        # wide enough for the RK4 sub-step (h F / (m v) < 1).
+        if not slots.get("backlash.on"):
+            return
+        f_max = (slots.get("coulomb_friction.on", 0.0) * slots.get("coulomb_friction.Fc", 0.0)
+                 + slots.get("stribeck_friction.on", 0.0) * max(slots.get("stribeck_friction.Fs", 0.0),
+                                                                  slots.get("stribeck_friction.Fc", 0.0)))
+        m = max(slots.get("piston_mass.on", 0.0) * slots.get("piston_mass.m", 0.0), slots["backlash.m_min"])
+        slots["v_tanh"] = max(slots["v_tanh"], substep_s * f_max / m)

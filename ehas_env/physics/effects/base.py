@@ -1,9 +1,40 @@
-"""What an effect is, and the registry that finds effects by name."""
+"""What an effect is, and the registry that finds effects by name.
+
+An effect is one class in one file: its parameters (unit, default, bounds,
+typical range), its explanation and residual signature in words, and its
+physics: static methods named after the *places* of the model where it acts
+(:data:`PLACES`).  :mod:`ehas_env.physics.codegen` copies those methods into
+the compiled model; the plain-Python twin calls them as they are.
+"""
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import dataclass
 from typing import ClassVar
+
+#: where an effect's terms enter the model: place -> what the term returns
+PLACES = {
+    "valve_current": "the valve current after this effect, mA (gets the current so far as argument i)",
+    "chamber_flows": "(flow added into chamber A, into chamber B), m^3/s",
+    "piston_force": "force on the piston along +x (toward chamber B), N",
+    "crank_torque": "torque on the crank along +theta, N m",
+    "moving_mass": "mass added to the piston and rod, kg",
+    "supply_rate": "rate of the supply pressure P_S, Pa/s (makes the supply a dynamic state)",
+    "joint_force": ("force the rod-crank joint carries, N (makes piston and crank separate bodies; a constant "
+                    "m_min, kg, of the effect is the least piston mass then)"),
+    "state_rates": "time derivatives of the effect's own states (tuple, in the order of ``states``)",
+}
+#: quantities a term may take as arguments, besides its own parameters and constants and the
+#: baseline slots (``layout.BASE_SLOTS``): SI values at the current instant
+QUANTITIES = {
+    "theta": "crank angle, rad", "omega": "crank rate, rad/s", "x": "piston position, m",
+    "v": "piston velocity, m/s", "pa": "chamber A pressure, Pa", "pb": "chamber B pressure, Pa",
+    "ps": "supply pressure, Pa", "p_load": "load pressure P_A - P_B, Pa", "qc": "valve no-load flow, m^3/s",
+    "q_a": "valve flow into A, m^3/s", "q_b": "valve flow into B, m^3/s", "q_supply": "flow drawn from supply, m^3/s",
+    "i": "valve current, mA", "xp": "piston position state, m", "vp": "piston velocity state, m/s",
+    "gap": "rod-joint gap x - r sin(theta), m (joint_force)", "gap_rate": "its rate, m/s (joint_force)",
+}
 
 
 @dataclass(frozen=True)
@@ -35,6 +66,8 @@ class Param:
     doc: str
     typical: tuple[float, float] | None = None
     log_scale: bool = False
+    #: factor from ``unit`` to SI: the terms see ``value * si`` (e.g. 1e5 for bar)
+    si: float = 1.0
 
     def check(self, effect: str, value) -> float:
         try:
@@ -67,12 +100,19 @@ class Effect:
     #: "physical" effects are candidates for diagnosis; "recalibration" effects
     #: (bulk modulus, valve dynamics) re-fit baseline numbers.
     kind: ClassVar[str] = "physical"
+    #: fixed values the terms read (Param objects; not fitted, not set by users)
+    constants: ClassVar[tuple[Param, ...]] = ()
+    #: the effect's own states: (name, unit, initial value in SI)
+    states: ClassVar[tuple[tuple[str, str, float], ...]] = ()
+    #: order in the valve-current chain (lower first)
+    chain_order: ClassVar[int] = 0
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         if cls.name:
-            if cls.name in REGISTRY:
-                raise RuntimeError(f"effect name '{cls.name}' registered twice")
+            old = REGISTRY.get(cls.name)
+            if old is not None and (old.__module__, old.__qualname__) != (cls.__module__, cls.__qualname__):
+                raise RuntimeError(f"effect name '{cls.name}' registered twice: by {old.__module__} and {cls.__module__}")
             REGISTRY[cls.name] = cls
 
     @classmethod
@@ -100,8 +140,30 @@ class Effect:
         """Cross-parameter checks (override where parameters constrain each other)."""
 
     @classmethod
-    def apply(cls, values: dict[str, float], slots: dict[str, float]) -> None:  # pragma: no cover - abstract
-        raise NotImplementedError
+    def apply(cls, values: dict[str, float], slots: dict[str, float]) -> None:
+        """Set baseline slots this effect recalibrates (bulk modulus, valve dynamics, delay).
+
+        Effects that act through terms need not override it: their own slots
+        (``"name.param"``, SI) are filled by :func:`effect_slots`.
+        """
+
+    @classmethod
+    def adjust(cls, slots: dict[str, float], substep_s: float) -> None:
+        """Last look at the finished slots (after every effect), e.g. to keep the model integrable."""
+
+    @classmethod
+    def terms(cls) -> dict:
+        """{place: function} of the physics this effect contributes."""
+        return {place: getattr(cls, place) for place in PLACES if callable(getattr(cls, place, None))}
+
+    @classmethod
+    def term_args(cls, place: str) -> list[str]:
+        return list(inspect.signature(getattr(cls, place)).parameters)
+
+    @classmethod
+    def slot_names(cls) -> list[str]:
+        """This effect's slots in a model: its on flag, parameters, then constants."""
+        return [f"{cls.name}.on"] + [f"{cls.name}.{p.name}" for p in cls.params + cls.constants]
 
     @classmethod
     def describe(cls) -> str:
@@ -112,6 +174,23 @@ class Effect:
 
 
 REGISTRY: dict[str, type[Effect]] = {}
+
+
+def effect_value(slots: dict, name: str, param: str) -> float:
+    """Value (SI) of parameter ``param`` of effect ``name`` in a model's named slots, 0 when the effect is off."""
+    return slots.get(f"{name}.{param}", 0.0) if slots.get(f"{name}.on") else 0.0
+
+
+def effect_slots(name: str, values: dict[str, float] | None) -> dict[str, float]:
+    """The model slots of effect ``name``: on flag 1 (0 when ``values`` is None), values in SI."""
+    cls = get_effect(name)
+    out = {f"{name}.on": 0.0 if values is None else 1.0}
+    for p in cls.params:
+        v = p.default if values is None else values[p.name]
+        out[f"{name}.{p.name}"] = v * p.si
+    for c in cls.constants:
+        out[f"{name}.{c.name}"] = c.default * c.si
+    return out
 
 
 def get_effect(name: str) -> type[Effect]:

@@ -1,4 +1,6 @@
 """Coulomb (dry) seal friction at the piston."""
+import math
+
 from ehas_env.physics.effects.base import Effect, Param
 
 
@@ -23,6 +25,6 @@ class CoulombFriction(Effect):
         "step at reversal; position error grows at reversals (stick)."
     )
 
-    @classmethod
-    def apply(cls, values, slots):
-        slots["Fc"] += values["Fc"]
+    @staticmethod
+    def piston_force(v, Fc, v_tanh):
+        return -(Fc * math.tanh(v / v_tanh))

@@ -21,6 +21,6 @@ class ExternalLeakage(Effect):
         "C_ext P_A even at rest; a constant current offset when holding."
     )
 
-    @classmethod
-    def apply(cls, values, slots):
-        slots["C_ext"] += values["C_ext"]
+    @staticmethod
+    def chamber_flows(pa, pb, C_ext):
+        return -(C_ext * pa), -(C_ext * pb)

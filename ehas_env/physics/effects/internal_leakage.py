@@ -22,6 +22,7 @@ class InternalLeakage(Effect):
         "peaks lower than the model's."
     )
 
-    @classmethod
-    def apply(cls, values, slots):
-        slots["C_leak"] += values["C_leak"]
+    @staticmethod
+    def chamber_flows(p_load, C_leak):
+        leak = C_leak * p_load
+        return -leak, leak

@@ -21,6 +21,6 @@ class PistonMass(Effect):
         "amplitude, relatively larger with few disc sets; lowers the hydraulic natural frequency."
     )
 
-    @classmethod
-    def apply(cls, values, slots):
-        slots["m_piston"] += values["m"]
+    @staticmethod
+    def moving_mass(m):
+        return m

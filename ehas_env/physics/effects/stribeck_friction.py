@@ -1,4 +1,6 @@
 """Stribeck friction: breakaway force above the Coulomb level at low speed."""
+import math
+
 from ehas_env.physics.effects.base import Effect, Param
 
 
@@ -31,8 +33,6 @@ class StribeckFriction(Effect):
             raise ValueError(f"effect 'stribeck_friction': breakaway force Fs = {values['Fs']:g} N must be at least the "
                              f"sliding force Fc = {values['Fc']:g} N (Fs >= Fc)")
 
-    @classmethod
-    def apply(cls, values, slots):
-        slots["Fc_s"] = values["Fc"]
-        slots["Fs_s"] = values["Fs"]
-        slots["vs_s"] = values["vs"]
+    @staticmethod
+    def piston_force(v, Fc, Fs, vs, v_tanh):
+        return -((Fc + (Fs - Fc) * math.exp(-((v / vs) ** 2))) * math.tanh(v / v_tanh))

@@ -25,4 +25,4 @@ class TransportDelay(Effect):
 
     @classmethod
     def apply(cls, values, slots):
-        slots["tau"] += values["tau"]
+        slots["tau"] = values["tau"]

@@ -1,4 +1,6 @@
 """Spool overlap seen as a current deadband."""
+import math
+
 from ehas_env.physics.effects.base import Effect, Param
 
 
@@ -21,6 +23,9 @@ class ValveDeadband(Effect):
         "position error bumps where the flow reverses."
     )
 
-    @classmethod
-    def apply(cls, values, slots):
-        slots["deadband"] += values["d"]
+    chain_order = 0  # before the null bias: the bias is an offset of the spool, after the deadband
+
+    @staticmethod
+    def valve_current(i, d):
+        a = abs(i) - d
+        return math.copysign(a, i) if a > 0.0 else 0.0

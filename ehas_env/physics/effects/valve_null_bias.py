@@ -20,6 +20,8 @@ class ValveNullBias(Effect):
         "valve runs: flow offset K i_bias at zero current; residual mean not zero."
     )
 
-    @classmethod
-    def apply(cls, values, slots):
-        slots["i_bias"] += values["i_bias"]
+    chain_order = 10
+
+    @staticmethod
+    def valve_current(i, i_bias):
+        return i + i_bias

@@ -21,6 +21,6 @@ class ViscousFriction(Effect):
         "in quadrature with the inertial load; larger at 3 Hz than at 1 Hz; no jump at zero velocity."
     )
 
-    @classmethod
-    def apply(cls, values, slots):
-        slots["b"] += values["b"]
+    @staticmethod
+    def piston_force(v, b):
+        return -(b * v)

@@ -1,0 +1,185 @@
+"""The one integrator: fixed-step RK4 over the model's right-hand side, the command delay, the stroke ends.
+
+Compiled into every generated model (:mod:`ehas_env.physics.codegen`): the part
+below the ``# >>> compiled`` line runs there, beside the model's ``derivatives``,
+``valve_current``, ``project`` parts and ``measure``; this file is not imported
+on its own.  ``advance`` is compiled without reference counting (it never
+allocates, and the views it gets never outlive the call): with every model
+function inlined into it, one control period is one straight compiled body.
+
+The valve bench (``run_valve_test``) steps the same integrator with the valve's
+rates only (ports joined through the flow meter, no load pressure).
+"""
+import math
+
+import numpy as np
+from numba import njit
+
+from ehas_env.physics.layout import *  # noqa: F401,F403  (for readers: the names below come from the model)
+
+# >>> compiled
+@njit(cache=True, inline="always")
+def project(s, P):
+    """Hard limits after a step: spool end stops, pressure range, stroke ends.
+
+    Returns True when the piston sits at a stroke end.
+    """
+    spool_stops(s, P)
+    ps_cap = P[I_SUPPLY]
+    if s[6] > ps_cap:
+        s[6] = ps_cap
+    if s[6] < 0.0:
+        s[6] = 0.0
+    ps = s[6]
+    for j in (4, 5):
+        if s[j] < 0.0:
+            s[j] = 0.0
+        elif s[j] > ps:
+            s[j] = ps
+    r = P[I_RADIUS]
+    hit = False
+    if two_body(P):
+        if abs(s[7]) >= P[I_HALF_STROKE]:
+            hit = True
+            s[7] = math.copysign(P[I_HALF_STROKE], s[7])
+            if s[8] * s[7] > 0.0:
+                s[8] = 0.0
+    else:
+        ratio = min(P[I_HALF_STROKE] / r, 1.0)
+        if abs(s[0]) >= ratio:  # asin(x) >= x: only past this can the crank reach a stroke end (saves the asin)
+            th_end = math.asin(ratio)
+            if abs(s[0]) >= th_end:
+                hit = True
+                s[0] = math.copysign(th_end, s[0])
+                if s[1] * s[0] > 0.0:
+                    s[1] = 0.0
+        s[7] = r * math.sin(s[0])
+        s[8] = r * math.cos(s[0]) * s[1]
+    return hit
+
+
+@njit(cache=True, inline="always")
+def measure(s, P, out):
+    """Write the physical outputs of state s into out[0:8] (SI, noise-free)."""
+    r = P[I_RADIUS]
+    ratio = min(max(s[7] / r, -1.0), 1.0)
+    th = math.asin(ratio)
+    out[O_THETA] = th
+    out[O_OMEGA] = s[8] / (r * math.cos(th))
+    qa, _, _ = land_flows(s[2], s[4], s[5], s[6], P[I_DROP])
+    out[O_FLOW] = qa
+    out[O_PA] = s[4]
+    out[O_PB] = s[5]
+    out[O_PS] = s[6]
+    out[O_FORCE] = P[I_AREA] * (s[4] - s[5])
+    out[O_CRANK] = s[0]
+
+
+@njit(cache=True, inline="always")
+def rates(s, i_valve, P, ds, bench_supply):
+    """The model's rates; with bench_supply >= 0 only the valve's, on the flow bench at that supply (Pa)."""
+    if bench_supply < 0.0:
+        derivatives(s, i_valve, P, ds)
+    else:
+        for j in range(ds.shape[0]):
+            ds[j] = 0.0
+        valve_rates(s, i_valve, bench_supply, 0.0, P, ds)
+
+
+@njit(cache=True, inline="always")
+def rk4_substep(s, i_valve, P, h, k1, k2, k3, k4, tmp, bench_supply):
+    """One classical RK4 step of length h (s updated in place)."""
+    n = N_STATES  # a compile-time constant, so the loops unroll
+    rates(s, i_valve, P, k1, bench_supply)
+    for j in range(n):
+        tmp[j] = s[j] + 0.5 * h * k1[j]
+    rates(tmp, i_valve, P, k2, bench_supply)
+    for j in range(n):
+        tmp[j] = s[j] + 0.5 * h * k2[j]
+    rates(tmp, i_valve, P, k3, bench_supply)
+    for j in range(n):
+        tmp[j] = s[j] + h * k3[j]
+    rates(tmp, i_valve, P, k4, bench_supply)
+    for j in range(n):
+        s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+
+
+@njit(cache=True, inline="always")
+def delayed_command(hist, k, j, nsub, dt, tau, i_initial):
+    """Command applied at sub-step j of period k with transport delay tau.
+
+    ``hist[m % len(hist)]`` holds the command issued at step m (zero-order hold).
+    """
+    if tau <= 0.0:
+        return hist[k % hist.shape[0]]
+    t = (k + j / nsub) * dt - tau
+    m = int(math.floor(t / dt + 1e-9))
+    if m < 0:
+        return i_initial
+    return hist[m % hist.shape[0]]
+
+
+@njit(cache=True, _nrt=False)
+def advance(s, P, hist, k, dt, nsub, i_initial, k1, k2, k3, k4, tmp):
+    """Integrate one control period [k dt, (k+1) dt] with nsub RK4 sub-steps.
+
+    Returns True if a stroke end was touched during the period.
+    """
+    h = dt / nsub
+    tau = P[I_TAU]
+    hit = False
+    for j in range(nsub):
+        i_cmd = delayed_command(hist, k, j, nsub, dt, tau, i_initial)
+        rk4_substep(s, valve_current(i_cmd, P), P, h, k1, k2, k3, k4, tmp, -1.0)
+        if project(s, P):
+            hit = True
+    return hit
+
+
+@njit(cache=True)
+def run_open_loop(s, P, cmd, dt, nsub, hist, out):
+    """Simulate from a command current sequence (mA, zero-order hold at dt).
+
+    Row k of ``out`` holds the outputs at t_k and the command issued then.
+    """
+    k1 = np.empty_like(s)
+    k2 = np.empty_like(s)
+    k3 = np.empty_like(s)
+    k4 = np.empty_like(s)
+    tmp = np.empty_like(s)
+    hist[:] = 0.0
+    for k in range(cmd.shape[0]):
+        measure(s, P, out[k])
+        out[k, O_CURRENT] = cmd[k]
+        hist[k % hist.shape[0]] = cmd[k]
+        hit = advance(s, P, hist, k, dt, nsub, 0.0, k1, k2, k3, k4, tmp)
+        out[k, O_STROKE] = 1.0 if hit else 0.0
+
+
+@njit(cache=True)
+def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
+    """Valve alone, control ports joined through the flow meter (rated test).
+
+    Two lands in series share the supply drop, so the metered flow is
+    q_c * sqrt(supply / rated_drop).  out[k] = (flow m^3/s, q_c m^3/s, valve current mA).
+    """
+    s = np.zeros(N_STATES)
+    k1 = np.empty_like(s)
+    k2 = np.empty_like(s)
+    k3 = np.empty_like(s)
+    k4 = np.empty_like(s)
+    tmp = np.empty_like(s)
+    h = dt / nsub
+    tau = P[I_TAU]
+    scale = math.sqrt(max(supply, 0.0) / P[I_DROP])
+    hist[:] = 0.0
+    for k in range(cmd.shape[0]):
+        out[k, 0] = s[2] * scale
+        out[k, 1] = s[2]
+        hist[k % hist.shape[0]] = cmd[k]
+        for j in range(nsub):
+            i_v = valve_current(delayed_command(hist, k, j, nsub, dt, tau, 0.0), P)
+            if j == 0:
+                out[k, 2] = i_v
+            rk4_substep(s, i_v, P, h, k1, k2, k3, k4, tmp, supply)
+            spool_stops(s, P)

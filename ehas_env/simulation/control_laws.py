@@ -1,0 +1,51 @@
+"""Registry of compiled controller laws: each controller file registers its one law here.
+
+A compiled law is a plain function that numba can compile, with the signature::
+
+    law(gains, mem, t, dt, theta, r, rd, rdd, rddd, p_load, p_s, u_max) -> current mA
+
+``gains`` (up to :data:`N_GAINS` numbers, the controller's own meaning), ``mem``
+(:data:`N_MEM` numbers of memory, zero at the start of a run, the law updates
+them in place), t (s), dt (s), the sensed angle theta (deg), the reference
+r and its first three derivatives (deg, deg/s^k), load pressure and supply
+pressure (bar), the output limit u_max (mA).  It returns the command before
+the DAC, clipped to +-u_max.  The law's source is copied into the compiled
+model (:mod:`ehas_env.physics.codegen`), so it may use ``math`` and nothing
+else from outside its body.
+
+Examples
+--------
+>>> from ehas_env.simulation.control_laws import law_id
+>>> law_id("pi_ff")
+0
+"""
+from __future__ import annotations
+
+N_GAINS = 16
+N_MEM = 8
+_LAWS: dict[str, object] = {}
+
+
+def register_law(name: str, fn) -> None:
+    """Register ``fn`` as the compiled law ``name`` (re-registering the same name replaces it)."""
+    if not callable(fn):
+        raise ValueError(f"control law '{name}' must be a function")
+    _LAWS[name] = fn
+
+
+def _builtins() -> None:
+    import ehas_controllers.piff  # noqa: F401  (registers "pi_ff")
+
+
+def all_laws() -> list:
+    """(name, function) of every registered law, built-in first, in registration order."""
+    _builtins()
+    return list(_LAWS.items())
+
+
+def law_id(name: str) -> int:
+    """Index of law ``name`` in the current model (ValueError naming the known laws otherwise)."""
+    names = [n for n, _ in all_laws()]
+    if name not in names:
+        raise ValueError(f"unknown compiled control law '{name}'; known: {', '.join(names)}")
+    return names.index(name)
