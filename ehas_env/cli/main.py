@@ -61,7 +61,16 @@ def build_parser() -> argparse.ArgumentParser:
         module = _load(module_name)
         if module is not None:
             module.add_arguments(p)
+        if name in EFFECT_COMMANDS:
+            p.add_argument("--effects-path", action="append", metavar="DIR",
+                           help="folder (or .py file) of your own effect files to load first; repeatable "
+                                "(docs/effects-and-controllers.md)")
     return parser
+
+
+#: commands that build plants: they take --effects-path
+EFFECT_COMMANDS = ("simulate", "bench", "tune", "compare", "diagnose", "simulate-campaign", "train", "effects", "perf",
+                   "curves")
 
 
 def _load(module_name: str):
@@ -112,6 +121,14 @@ def _main(argv) -> int:
     if args.command is None:
         parser.print_help()
         return 0
+    if getattr(args, "effects_path", None):
+        from ehas_env.physics.effects import load_effects_path
+
+        try:
+            load_effects_path(args.effects_path)
+        except ValueError as exc:
+            print(f"ehas {args.command}: error: --effects-path: {exc}", file=sys.stderr)
+            return 2
     module = _load(args._module)
     if module is None:
         parser.error(f"command '{args.command}' is not available in this installation")

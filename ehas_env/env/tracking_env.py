@@ -219,7 +219,10 @@ class TrackingEnv(gym.Env):
                  effects=None, sensors=None, theta0_deg: float = 0.0, reference=None, randomise: dict | None = None,
                  controller=None, rate_penalty: float = 0.01, termination_penalty: float = 1.0,
                  preview_ms=(10.0, 20.0, 50.0), dt: float = 1.0e-3, substeps: int = 10, plant_kwargs: dict | None = None,
-                 render_mode: str | None = None):
+                 render_mode: str | None = None, effects_path=None):
+        from ehas_env.physics.effects import load_effects_path
+
+        load_effects_path(effects_path)  # user effect files: registered before the model is built
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode

@@ -73,7 +73,11 @@ class TrackingVectorEnv(VectorEnv):
                  effects=None, sensors=None, theta0_deg: float = 0.0, reference=None, randomise: dict | None = None,
                  controller=None, rate_penalty: float = 0.01, termination_penalty: float = 1.0,
                  preview_ms=(10.0, 20.0, 50.0), dt: float = 1.0e-3, substeps: int = 10,
-                 plant_kwargs: dict | None = None, render_mode: str | None = None):
+                 plant_kwargs: dict | None = None, render_mode: str | None = None,
+                 effects_path=None):
+        from ehas_env.physics.effects import load_effects_path
+
+        load_effects_path(effects_path)  # user effect files: registered before the model is built
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if max_episode_steps is not None and (not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1):

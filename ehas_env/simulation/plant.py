@@ -218,13 +218,19 @@ class Plant:
         The ``valve_dynamics`` effect recalibrates the grey box only.
     white_box : WhiteBoxValve, optional
         Parameters of the white-box valve (default: the book's, see that module).
+    effects_path : str, Path or list, optional
+        Folders (or files) of user effect files to load first (see
+        ``ehas_env.physics.effects.loading``).
     """
 
     VALVES = ("grey_box", "white_box")
 
     def __init__(self, disc_sets: int = 3, effects=None, *, inertia: float | None = None, rig: RigParams | None = None,
                  sensors: Sensors | None = None, dt: float = 1.0e-3, substeps: int = 10, seed: int | None = None,
-                 valve: str = "grey_box", white_box=None):
+                 valve: str = "grey_box", white_box=None, effects_path=None):
+        from ehas_env.physics.effects import load_effects_path
+
+        load_effects_path(effects_path)
         check_disc_sets(disc_sets)
         if valve not in self.VALVES:
             raise ValueError(f"valve must be one of {', '.join(self.VALVES)}, got {valve!r}")

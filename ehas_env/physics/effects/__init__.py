@@ -3,12 +3,13 @@
 Each effect lives in one module of this package: a subclass of
 :class:`~ehas_env.physics.effects.base.Effect` with its parameters (SI unit, default,
 fitting bounds, realistic range), a one-paragraph physical explanation, its
-residual signature in words, and ``apply``, which writes its values into the
-general plant model's parameter slots (``ehas_env.physics.kernel.SLOTS``).  Subclassing
+residual signature in words, and its physics: static methods named after the
+places of the model where it acts (``PLACES``: piston force, crank torque,
+chamber flows, valve current, moving mass, supply rate, rod joint, own states),
+which :mod:`ehas_env.physics.codegen` compiles into the model.  Subclassing
 registers the effect; importing this package imports every module in it, so
-adding an effect means adding one file here.  An effect that needs a physical
-term the general model does not have yet also adds that term to
-``ehas_env.physics.kernel``.
+adding an effect means adding one file here -- or, from outside the package,
+one file in a folder named by ``--effects-path`` (:mod:`.loading`).
 
 Examples
 --------
@@ -24,7 +25,11 @@ import pkgutil
 from ehas_env.physics.effects.base import REGISTRY, Effect, Param, get_effect, parse_spec, resolve_effects
 
 for _mod in sorted(m.name for m in pkgutil.iter_modules(__path__)):
-    if _mod != "base":
+    if _mod not in ("base", "loading"):
         importlib.import_module(f"{__name__}.{_mod}")
 
-__all__ = ["REGISTRY", "Effect", "Param", "get_effect", "parse_spec", "resolve_effects"]
+from ehas_env.physics.effects.loading import load_effects_path, load_external_effects  # noqa: E402
+
+load_external_effects()
+
+__all__ = ["REGISTRY", "Effect", "Param", "get_effect", "load_effects_path", "parse_spec", "resolve_effects"]

@@ -14,6 +14,7 @@ class Backlash(Effect):
         Param("c_joint", "N s/m", 3.0e3, (0.0, 1e9), "joint contact damping (assumed)"),
         Param("m_min", "kg", 5.0, (0.0, 1e3), "least piston mass once the joint has play (assumed)"),
     )
+    smooth = False
     main_param = "delta"
     explanation = (
         "A worn pin or rod eye leaves play of total width 2 delta between the rod and the crank. At each "

@@ -106,6 +106,9 @@ class Effect:
     states: ClassVar[tuple[tuple[str, str, float], ...]] = ()
     #: order in the valve-current chain (lower first)
     chain_order: ClassVar[int] = 0
+    #: False for terms with no small-signal meaning at rest (sign functions, deadbands, play):
+    #: the linearisation switches them off (ehas_env.physics.linearise)
+    smooth: ClassVar[bool] = True
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

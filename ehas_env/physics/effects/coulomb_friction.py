@@ -12,6 +12,7 @@ class CoulombFriction(Effect):
               "Coulomb friction force of the piston and rod seals (assumed: typical for a 7.7 cm^2 actuator at 220 bar)",
               typical=(150.0, 600.0)),
     )
+    smooth = False
     main_param = "Fc"
     explanation = (
         "The piston and rod seals rub on the bore and rod with a force of nearly constant size that always "

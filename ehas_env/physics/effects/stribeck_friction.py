@@ -13,6 +13,7 @@ class StribeckFriction(Effect):
         Param("vs", "m/s", 0.01, (1.0e-4, 0.5), "Stribeck velocity: how fast the force falls from Fs to Fc (assumed)",
               typical=(0.005, 0.03), log_scale=True),
     )
+    smooth = False
     main_param = "Fs"
     explanation = (
         "Seals stick harder than they slide: at rest the force needed to break away is Fs, and as the "

@@ -11,6 +11,7 @@ class ValveDeadband(Effect):
         Param("d", "mA", 0.5, (0.0, 10.0), "half-width of the deadband in amplifier current (assumed; the rig's valve has negligible deadband)",
               typical=(0.3, 1.5)),
     )
+    smooth = False
     main_param = "d"
     explanation = (
         "An overlapped spool has lands wider than its ports: the spool must move some distance before any "

@@ -1,0 +1,112 @@
+"""An effect written outside the package, in one file, used everywhere with no edit of ehas."""
+from __future__ import annotations
+
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+SPRING = textwrap.dedent('''
+    """A torsion spring centring the crank (a user's effect file)."""
+    from ehas_env.physics.effects import Effect, Param
+
+
+    class TorsionSpring(Effect):
+        name = "torsion_spring"
+        title = "torsion spring on the crank"
+        params = (Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate (assumed)", typical=(500.0, 5000.0)),)
+        main_param = "k"
+        explanation = "A spring pulls the crank back to 0 deg with a torque -k theta."
+        signature = "load residual in phase with position"
+
+        @staticmethod
+        def crank_torque(theta, k):
+            return -(k * theta)
+''')
+
+
+@pytest.fixture(scope="module")
+def spring_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("my_effects")
+    (d / "my_spring.py").write_text(SPRING)
+    return d
+
+
+def test_plant_uses_a_user_effect_file(spring_dir):
+    from ehas_env.simulation.plant import Plant
+
+    k = 2000.0
+    plant = Plant(disc_sets=1, effects={"torsion_spring": {"k": k}}, effects_path=spring_dir)
+    assert "torsion_spring" in plant.model.EFFECTS
+    # the compiled rate equals the spring's own term at an arbitrary state
+    s = plant.initial_state(10.0)
+    ds, ds0 = np.zeros(plant.model.N_STATES), np.zeros(plant.model.N_STATES)
+    plant.model.derivatives(s, 0.0, plant.param_vector, ds)
+    bare = Plant(disc_sets=1)
+    bare.model.derivatives(s, 0.0, bare.param_vector, ds0)
+    assert ds[1] - ds0[1] == pytest.approx(-k * math.radians(10.0) / plant.rig.inertia, rel=1e-12)
+    # and a closed-loop run needs more load to hold the same path (the spring pushes back)
+    run = plant.simulate_closed_loop(amplitude_deg=20, freq_hz=1, cycles=3)
+    ref = bare.simulate_closed_loop(amplitude_deg=20, freq_hz=1, cycles=3)
+    assert np.abs(run.load_kN).max() > np.abs(ref.load_kN).max()
+
+
+def test_linearisation_shows_the_spring(spring_dir):
+    from ehas_env.physics.linearise import linearise
+    from ehas_env.simulation.plant import Plant
+
+    k = 5.0e4
+    plant = Plant(disc_sets=2, effects={"torsion_spring": {"k": k}}, effects_path=spring_dir)
+    lin = linearise(plant)
+    th, om = lin.states.index("theta"), lin.states.index("omega")
+    inertia = plant.rig.inertia
+    # pure spring-inertia: the mechanical block alone (pressures held) rings at sqrt(k / I)
+    assert math.sqrt(-lin.A[om, th]) == pytest.approx(math.sqrt(k / inertia), rel=1e-6)
+    # the hydraulic mode moves as the stiffness sum says: w^2 = (K_h + k) / I, with the oil's
+    # torsional stiffness K_h = beta A^2 r^2 (1/V_A + 1/V_B) at mid-stroke, written out here
+    rig = plant.rig
+    v0 = rig.area * rig.half_stroke + rig.dead_volume
+    k_h = rig.beta * rig.area ** 2 * rig.radius ** 2 * 2.0 / v0
+    bare = linearise(Plant(disc_sets=2))
+    assert bare.hydraulic_wn_hz() * 2 * math.pi == pytest.approx(math.sqrt(k_h / inertia), rel=1e-5)
+    assert lin.hydraulic_wn_hz() * 2 * math.pi == pytest.approx(math.sqrt((k_h + k) / inertia), rel=1e-5)
+
+
+def test_environment_uses_a_user_effect(spring_dir):
+    import gymnasium
+
+    import ehas_env  # noqa: F401
+
+    env = gymnasium.make("ehas/Tracking-v0", effects={"torsion_spring": {"k": 3000.0}}, effects_path=str(spring_dir),
+                         controller=None)
+    env.reset(seed=0)
+    infos = [env.step(np.array([0.2], np.float32))[4] for _ in range(300)]
+    env2 = gymnasium.make("ehas/Tracking-v0", controller=None)
+    env2.reset(seed=0)
+    infos2 = [env2.step(np.array([0.2], np.float32))[4] for _ in range(300)]
+    # the same current moves the spring-loaded crank less far
+    assert abs(infos[-1]["theta_deg"]) < abs(infos2[-1]["theta_deg"])
+
+
+def test_simulate_and_effects_commands_take_effects_path(spring_dir, tmp_path, capsys):
+    from ehas_env.cli.main import main
+
+    assert main(["effects", "torsion_spring", "--effects-path", str(spring_dir)]) == 0
+    assert "torsion spring on the crank" in capsys.readouterr().out
+    out = tmp_path / "run"
+    assert main(["simulate", "--effects-path", str(spring_dir), "--effects", "torsion_spring:k=3000",
+                 "--cycles", "3", "--out", str(out)]) == 0
+    import json
+
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["effects"] == {"torsion_spring": {"k": 3000.0}}
+
+
+def test_a_broken_effect_file_is_one_clear_error(tmp_path, capsys):
+    from ehas_env.cli.main import main
+
+    (tmp_path / "bad.py").write_text("import nonexistent_module_xyz\n")
+    assert main(["effects", "--effects-path", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "bad.py" in err and "nonexistent_module_xyz" in err and len(err.splitlines()) == 1
