@@ -375,8 +375,6 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
         venv = E.make_vec_env(cfg, controller_desc=controller_desc)
     except BaseException:
         if created and out.exists() and not resume:
-            import shutil
-
             shutil.rmtree(out, ignore_errors=True)
         raise
     cls = algo_class(cfg.algo)

@@ -15,7 +15,7 @@ Examples
 >>> lin.states
 ('theta', 'omega', 'qc', 'qc_dot', 'pa', 'pb')
 >>> round(lin.hydraulic_wn_hz(), 1)    # the oil column against 3 disc sets
-38.4
+37.2
 """
 from __future__ import annotations
 
