@@ -229,7 +229,8 @@ def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant
     status(f"writing {out}: benchmark.csv, benchmark.md, {len(names)} heatmap(s)", "bench")
     csv_text = _csv(controllers, names, results, command)
     atomic_write_text(out / "benchmark.csv", csv_text)
-    pngs = {name: heatmap(results[name], out / f"heatmap_{_slug(name)}.png", title=f"{name}: rms % position error",
+    pngs = {name: heatmap(results[name], out / f"heatmap_{_slug(name)}.png",
+                          title=f"{name} on {_model_label(plant_kwargs)}: rms % position error",
                           command=command) for name in names}
     if robust:
         atomic_write_text(out / "benchmark_robustness.csv", _robust_csv(robust, names, command, len(conds)))
@@ -260,13 +261,62 @@ def _summary(rows) -> dict:
 
 
 def _unique_names(controllers) -> list[str]:
-    names, seen = [], {}
-    for c in controllers:
-        base = str(getattr(c, "name", type(c).__name__))
-        k = seen.get(base, 0)
-        seen[base] = k + 1
-        names.append(base if k == 0 else f"{base} ({k + 1})")
+    """Each controller's name; controllers that share a name are told apart by content.
+
+    Within a group of equal names each gets the gains (``to_dict`` entries) in which
+    the group differs, e.g. ``model-based @7 sets (Kp 1.2, Ki 3.4)``; a controller
+    identical to an earlier one is named ``... (same as <name>)``.
+    """
+    base = [str(getattr(c, "name", type(c).__name__)) for c in controllers]
+    content = [_content(c) for c in controllers]
+    names = list(base)
+    for b in set(base):
+        idx = [i for i, n in enumerate(base) if n == b]
+        if len(idx) < 2:
+            continue
+        keys = sorted({k for i in idx for k in content[i]})
+        differ = [k for k in keys if len({_fmt_value(content[i].get(k)) for i in idx}) > 1][:4]
+        for i in idx:
+            names[i] = (f"{b} ({', '.join(f'{k.split(chr(46))[-1]} {_fmt_value(content[i].get(k))}' for k in differ)})"
+                        if differ else b)
+    seen: dict[str, int] = {}
+    for i, n in enumerate(names):
+        if n in seen:
+            names[i] = f"{n} (same as {'the first' if seen[n] == 1 else 'the above'})"
+            k = 2
+            while names[i] in names[:i]:
+                names[i] = f"{n} (copy {k})"
+                k += 1
+        seen[n] = seen.get(n, 0) + 1
     return names
+
+
+def _content(controller) -> dict:
+    """The controller's numbers by name (flattened ``to_dict``), for telling equal names apart."""
+    try:
+        d = controller.to_dict()
+    except Exception:  # noqa: BLE001 - a controller without to_dict: only its repr
+        return {"repr": repr(controller)}
+    flat = {}
+
+    def walk(prefix, v):
+        if isinstance(v, dict):
+            for k, x in v.items():
+                if k not in ("name", "format", "version", "type", "kind", "notes", "command", "units"):
+                    walk(f"{prefix}{k}.", x)
+        elif isinstance(v, (list, tuple)):
+            for j, x in enumerate(v):
+                walk(f"{prefix}{j}.", x)
+        else:
+            flat[prefix.rstrip(".")] = v
+    walk("", d)
+    return flat
+
+
+def _fmt_value(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
 
 
 def _slug(name: str) -> str:
@@ -372,9 +422,24 @@ def _grid_table(rows, key: str, disc_sets=DISC_SETS) -> list[str]:
     return lines
 
 
+def _model_label(plant_kwargs) -> str:
+    """How titles name the plant: the model file's name, or the book's rig."""
+    m = (plant_kwargs or {}).get("model")
+    return m.label if m is not None else "book rig"
+
+
 def _plant_note(plant_kwargs) -> str:
     if not plant_kwargs:
-        return "Baseline plant (no effects), ideal sensors."
+        return "Baseline plant (the book's rig, no effects), ideal sensors."
+    m = plant_kwargs.get("model")
+    if m is not None:
+        from ehas_env.measurement.model_file import PlantModel, diff_models
+
+        changed = [d.split(":")[0] for d in diff_models(PlantModel(), m) if d.startswith(("rig.", "valve."))]
+        eff = ", ".join(f"{n}({', '.join(f'{k}={v:g}' for k, v in p.items())})" for n, p in m.effects.items())
+        return (f"Plant: model file {m.label}" + (f" ({m.path})" if m.path else "") + "; "
+                + (f"differs from the book's rig in {', '.join(changed)}; " if changed else "the book's rig; ")
+                + f"beta {m.rig.beta:.3g} Pa, K {m.rig.K:.4g} LPM/mA; effects: {eff or 'none'}; ideal sensors.")
     rig = plant_kwargs.get("rig")
     eff = plant_kwargs.get("effects") or {}
     parts = [f"{n}({', '.join(f'{k}={v:g}' for k, v in p.items())})" for n, p in eff.items()] if isinstance(eff, dict) \
@@ -385,7 +450,7 @@ def _plant_note(plant_kwargs) -> str:
 
 def _markdown(controllers, names, results, book, book_rows, robust, timing, summary, pngs, command, cycles,
               disc_sets, plant_kwargs=None) -> str:
-    L = [f"# % position error benchmark", "",
+    L = [f"# % position error benchmark: {_model_label(plant_kwargs)}", "",
          f"Regenerate with `{command}`.", "",
          "Metric (the book never defines its \"% pos error\"; this project does, `ehas_env.simulation.metrics`): "
          "**rms_error_pct** = 100 · RMS(θ_ref − θ) / θ_amp over whole reference cycles after the first "

@@ -119,18 +119,16 @@ def command_of(args) -> str:
 
 
 def plant_kwargs_from_model(path) -> dict:
-    """Plant keyword arguments from a model file (``ehas_env.measurement.model_file.load_model``), imported lazily."""
+    """Plant keyword arguments ``{"model": PlantModel}`` from a model file (docs/model-file.md), or {}."""
     if path is None:
         return {}
     try:
         from ehas_env.measurement.model_file import load_model
     except ImportError:
         raise ValueError(f"--model {path}: model files need ehas_env.measurement.model_file.load_model, which this "
-                         "installation does not have yet") from None
-    kw = load_model(path)
-    if not isinstance(kw, dict):
-        raise ValueError(f"--model {path}: load_model returned {type(kw).__name__}, expected a dict of Plant arguments")
-    return kw
+                         "installation does not have") from None
+    m = load_model(path)
+    return dict(m) if isinstance(m, dict) else {"model": m}
 
 
 def _check(args) -> None:
@@ -302,4 +300,8 @@ def _default_name(args) -> str:
     name = parts[args.method]
     if args.method in ("model", "relay"):
         name += f" @{args.disc_sets or DEFAULT_DISC_SETS} sets"
+    if args.model:  # the rig it was tuned on
+        from ehas_env.measurement.model_file import load_model
+
+        name += f" on {load_model(args.model).name}"
     return name

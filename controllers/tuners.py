@@ -239,7 +239,9 @@ def tune_model_based(disc_sets: int = 3, *, phase_margin_deg: float = 50.0, band
     ]
     if bode_path is not None:
         report["bode_png"] = str(save_bode(pi["loop"], lp_op.tf(kdp, hp), bode_path,
-                                           title=f"model-based loop, {disc_sets} disc sets", note=bode_note))
+                                           title=f"model-based loop, {disc_sets} disc sets, "
+                                                 f"{getattr(getattr(plant, 'plant_model', None), 'label', 'book rig')}",
+                                           note=bode_note))
         lines.append(f"  Bode plot: {report['bode_png']}")
     return TuneResult(ctrl, report, lines)
 

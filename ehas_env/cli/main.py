@@ -31,6 +31,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compare": ("ehas_env.cli.compare", "compare the model with a measurement campaign"),
     "diagnose": ("ehas_env.cli.diagnose", "find which physical effect the model is missing"),
     "train": ("ehas_train.train_cli", "train a learned controller with stable-baselines3"),
+    "model": ("ehas_env.cli.model", "read, write and compare model files: the plant as one file (docs/model-file.md)"),
 }
 
 
@@ -61,12 +62,19 @@ def build_parser() -> argparse.ArgumentParser:
         module = _load(module_name)
         if module is not None:
             module.add_arguments(p)
+        if name in MODEL_COMMANDS and not any("--model" in a.option_strings for a in p._actions):
+            p.add_argument("--model", default=None, metavar="FILE",
+                           help="model file of the plant (rig, valve, effects; default: the book's rig; "
+                                "docs/model-file.md)")
         if name in EFFECT_COMMANDS:
             p.add_argument("--effects-path", action="append", metavar="DIR",
                            help="folder (or .py file) of your own effect files to load first; repeatable "
                                 "(docs/effects-and-controllers.md)")
     return parser
 
+
+#: commands that build plants (or size one): they take --model FILE (docs/model-file.md)
+MODEL_COMMANDS = ("simulate", "bench", "tune", "compare", "diagnose", "simulate-campaign", "train", "curves", "size")
 
 #: commands that build plants: they take --effects-path
 EFFECT_COMMANDS = ("simulate", "bench", "tune", "compare", "diagnose", "simulate-campaign", "train", "effects", "perf",

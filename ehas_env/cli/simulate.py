@@ -17,7 +17,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="reference cycles to run, 3..10000 (the first is warm-up; default 4); "
                              "at most 600 s of simulated time")
     parser.add_argument("--effects", default="", help="effects, e.g. 'coulomb_friction:Fc=300,viscous_friction:b=2000'")
-    parser.add_argument("--gains", default="", help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's)")
+    parser.add_argument("--gains", default="", help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's; with "
+                                                    "--model, the book's carried over to that rig)")
     parser.add_argument("--controller", default=None, metavar="FILE",
                         help="a saved controller instead of --gains: a controller JSON (ehas tune --out) or a "
                              "learned agent's folder (ehas train --out)")
@@ -79,20 +80,37 @@ def run(args) -> int:
     check_run_length(args.cycles / args.freq, where=f"--cycles {args.cycles:g} at --freq {args.freq:g} Hz")
     if args.controller and args.gains:
         raise ValueError("--controller and --gains both give the controller; use one of them")
+    model = None
+    if getattr(args, "model", None):
+        from ehas_env.measurement.model_file import load_model
+
+        model = load_model(args.model)
     gains, loaded = load_saved_controller(args.controller, args.disc_sets) if args.controller else (parse_gains(args.gains), None)
+    if model is not None and not args.controller and not args.gains:
+        gains = model.controller()  # the book's gains carried over to this rig (docs/model-file.md)
     outputs = stem_set(args.out, "--out", overwrite=args.overwrite)
     plant = Plant(disc_sets=args.disc_sets, effects=args.effects or None,
-                  sensors=Sensors() if args.sensors else None, seed=args.seed)
+                  sensors=Sensors() if args.sensors else None, seed=args.seed, model=model)
     res = plant.simulate_closed_loop(gains, amplitude_deg=args.amplitude, freq_hz=args.freq, cycles=args.cycles)
     err = res.tracking_errors()
     stem = Path(args.out)
     with outputs as tmp:
-        csv_tmp, _ = res.to_csv(tmp / stem.name, notes=f"ehas simulate, {plant!r}")
+        where = f", model {model.label}" if model is not None else ""
+        csv_tmp, _ = res.to_csv(tmp / stem.name, notes=f"ehas simulate, {plant!r}{where}")
         if args.plot:
             from ehas_env.output.plots import plot_run
 
-            plot_run(res, csv_tmp.with_suffix(".png"))
+            ctrl_name = getattr(loaded, "name", None) or ("gains " + (args.gains or ("book's, carried over" if model
+                                                                                   else "book's")))
+            plot_run(res, csv_tmp.with_suffix(".png"),
+                     title=f"{model.label if model is not None else 'book rig'}, {args.disc_sets} disc sets; "
+                           f"controller {ctrl_name}")
     csv_path = stem.parent / csv_tmp.name
+    if model is not None:
+        print(f"model {model.label}: " + ("the book's rig" if model.is_book else "rig from the model file")
+              + ("" if args.controller or args.gains else
+                 f"; controller: the book's gains carried over to this rig (Kp {gains.Kp:.4g} mA/deg, "
+                 f"Kv {gains.Kv:.4g} mA/(deg/s))"))
     print(f"{plant!r}: +-{args.amplitude:g} deg at {args.freq:g} Hz"
           + (f", controller {args.controller} ({getattr(loaded, 'name', type(loaded).__name__)})" if loaded is not None else ""))
     print(f"rms % position error {err['rms_error_pct']:.3f} %, peak {err['peak_error_pct']:.3f} % "

@@ -127,7 +127,9 @@ randomise          drawn at each reset from the env's RNG (seeded by
 Constructor only: ``controller`` (residual mode), ``rate_penalty`` (0.01),
 ``termination_penalty`` (1.0), ``preview_ms`` ((10, 20, 50)), ``dt`` (1e-3 s),
 ``substeps`` (10), ``plant_kwargs`` (forwarded to ``Plant``: ``rig=``,
-``inertia=``; the hook for a calibrated model), ``render_mode``.
+``inertia=``), ``model`` (a model file or ``PlantModel``: the rig, valve and
+effects it describes, docs/model-file.md; episode effects add to its effects),
+``render_mode``.
 
 Rendering
 ---------
@@ -173,13 +175,22 @@ def step_settings(controller, rate_penalty, termination_penalty, preview_ms, dt,
         raise ValueError(f"preview_ms must be up to {bk.MAX_PREVIEW} positive offsets in ms, got {preview_ms!r}")
     plant_kwargs = dict(plant_kwargs or {})
     for key in plant_kwargs:
-        if key not in ("rig", "inertia"):
-            raise ValueError(f"plant_kwargs: '{key}' is not accepted; allowed: rig, inertia "
+        if key not in ("rig", "inertia", "model"):
+            raise ValueError(f"plant_kwargs: '{key}' is not accepted; allowed: rig, inertia, model "
                              "(the episode settings are keyword arguments of the env)")
     mode, gains, law = parts.controller_mode(controller, float(dt))
     return parts.StepSettings(dt=float(dt), substeps=int(substeps), mode=mode, gains=gains, law=law,
                               rate_penalty=float(rate_penalty), termination_penalty=float(termination_penalty),
                               preview_s=tuple(float(d) * 1e-3 for d in prev), plant_kwargs=plant_kwargs)
+
+
+def model_plant_kwargs(model, plant_kwargs):
+    """``plant_kwargs`` with the model (file, dict or PlantModel) routed to ``Plant(model=)``."""
+    if model is None:
+        return plant_kwargs
+    from ehas_env.measurement.model_file import as_model
+
+    return {**(plant_kwargs or {}), "model": as_model(model)}
 
 
 def observation_space(n_obs: int) -> spaces.Box:
@@ -219,10 +230,11 @@ class TrackingEnv(gym.Env):
                  effects=None, sensors=None, theta0_deg: float = 0.0, reference=None, randomise: dict | None = None,
                  controller=None, rate_penalty: float = 0.01, termination_penalty: float = 1.0,
                  preview_ms=(10.0, 20.0, 50.0), dt: float = 1.0e-3, substeps: int = 10, plant_kwargs: dict | None = None,
-                 render_mode: str | None = None, effects_path=None):
+                 render_mode: str | None = None, effects_path=None, model=None):
         from ehas_env.physics.effects import load_effects_path
 
         load_effects_path(effects_path)  # user effect files: registered before the model is built
+        plant_kwargs = model_plant_kwargs(model, plant_kwargs)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode

@@ -221,17 +221,34 @@ class Plant:
     effects_path : str, Path or list, optional
         Folders (or files) of user effect files to load first (see
         ``ehas_env.physics.effects.loading``).
+    model : PlantModel, str or Path, optional
+        A model file (or its :class:`~ehas_env.measurement.model_file.PlantModel`):
+        the plant it describes (docs/model-file.md) - its rig, inertia per disc
+        set, valve, effects and effects path.  ``rig``, ``inertia``, ``valve`` and
+        ``white_box`` given as well override the model's; ``effects`` are added to
+        the model's (same name: the values given here win).
     """
 
     VALVES = ("grey_box", "white_box")
 
     def __init__(self, disc_sets: int = 3, effects=None, *, inertia: float | None = None, rig: RigParams | None = None,
                  sensors: Sensors | None = None, dt: float = 1.0e-3, substeps: int = 10, seed: int | None = None,
-                 valve: str = "grey_box", white_box=None, effects_path=None):
+                 valve: str = "grey_box", white_box=None, effects_path=None, model=None):
         from ehas_env.physics.effects import load_effects_path
 
         load_effects_path(effects_path)
         check_disc_sets(disc_sets)
+        if model is not None:  # a model file is the plant (ehas_env.measurement.model_file)
+            from ehas_env.measurement.model_file import as_model
+
+            model = as_model(model)
+            load_effects_path(list(model.effects_path) or None)
+            rig = rig if rig is not None else model.rig
+            inertia = inertia if inertia is not None else float(disc_sets) * model.inertia_per_set
+            effects = {**model.effects, **resolve_effects(effects)}
+            valve = model.valve if valve == "grey_box" else valve
+            white_box = white_box if white_box is not None else model.white_box_valve()
+        self.plant_model = model
         if valve not in self.VALVES:
             raise ValueError(f"valve must be one of {', '.join(self.VALVES)}, got {valve!r}")
         from ehas_env.physics.white_box_valve import WhiteBoxValve

@@ -1,0 +1,119 @@
+"""``ehas model``: read, write and compare model files (docs/model-file.md).
+
+    ehas model show [FILE]                      every number with its unit (no FILE: the book's rig)
+    ehas model new FILE [--from FILE] [--crank-radius-mm 60 ...] [--effects ...] [--name NAME]
+    ehas model diff A B                         the fields that differ (status 1 when any)
+
+A model file is the plant everywhere: ``--model FILE`` on simulate, tune, bench,
+compare, diagnose, simulate-campaign, curves, size and train, ``model=`` in
+``Plant`` and the environment.
+"""
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+
+#: option name -> model-file key, for ``ehas model new``
+def _option(key: str) -> str:
+    return "--" + key.replace("_", "-")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from ehas_env.cli.options import Number
+
+    try:
+        from ehas_env.measurement.model_file import FIELDS
+    except ImportError:  # a broken installation: the other commands still parse
+        FIELDS = ()
+
+    sub = parser.add_subparsers(dest="action", metavar="ACTION")
+    sub.required = True
+    show = sub.add_parser("show", help="print a model file's numbers with units (default: the book's rig)")
+    show.add_argument("file", nargs="?", default=None, metavar="FILE")
+    show.add_argument("--json", action="store_true", help="print the (version-2) JSON instead")
+    new = sub.add_parser("new", help="write a model file: the book's rig (or --from FILE) with the numbers given")
+    new.add_argument("file", metavar="FILE", help="model file to write (.json)")
+    new.add_argument("--from", dest="base", default=None, metavar="FILE", help="start from this model file")
+    new.add_argument("--name", default=None, help="the model's name (titles and tables show it)")
+    new.add_argument("--description", default=None, help="free text")
+    for f in FIELDS:
+        new.add_argument(_option(f.key), dest=f.key, type=Number(_option(f.key), f.range), default=None,
+                         help=f"{f.text}, {f.unit} (book {f.default:g}; {f.range.describe()})")
+    new.add_argument("--rated-flow-lpm", type=Number("--rated-flow-lpm", _flow_range()), default=None,
+                     help="rated valve flow at the rated drop and current, LPM (sets K = flow / rated current)")
+    new.add_argument("--valve", choices=("grey_box", "white_box"), default=None, help="valve model")
+    new.add_argument("--effects", default=None, help="effects of the plant, e.g. coulomb_friction:Fc=300 ('' for none)")
+    new.add_argument("--effects-path", dest="model_effects_path", action="append", default=None, metavar="DIR",
+                     help="user effect folder or .py file the model needs (recorded in the file); repeatable")
+    new.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
+    diff = sub.add_parser("diff", help="the fields in which two model files differ (exit status 1 when they do)")
+    diff.add_argument("a", metavar="A")
+    diff.add_argument("b", metavar="B")
+
+
+def _flow_range():
+    from ehas_env.cli.options import Range
+
+    return Range(0, 1e5, "LPM", lo_open=True)
+
+
+def run(args) -> int:
+    from ehas_env.measurement import model_file as mf
+
+    if args.action == "show":
+        m = mf.load_model(args.file) if args.file else mf.PlantModel()
+        if args.json:
+            import json
+
+            print(json.dumps(m.to_dict(), indent=2))
+        else:
+            print(m.summary())
+        return 0
+    if args.action == "diff":
+        a, b = mf.load_model(args.a), mf.load_model(args.b)
+        lines = mf.diff_models(a, b)
+        print(f"--- {args.a} ({a.name})\n+++ {args.b} ({b.name})")
+        print("\n".join(lines) if lines else "no difference")
+        return 1 if lines else 0
+    # new
+    from pathlib import Path
+
+    from ehas_env.output.outputs import check_file
+
+    check_file(args.file, "FILE", overwrite=args.overwrite)
+    base = mf.load_model(args.base) if args.base else mf.PlantModel()
+    doc = base.to_dict()
+    doc["effects_path"] = list(base.effects_path)  # absolute; written relative to FILE's folder
+    for f in mf.FIELDS:
+        v = getattr(args, f.key)
+        if v is not None:
+            doc[f.section][f.key] = v
+    if args.rated_flow_lpm is not None:
+        if args.K_lpm_per_mA is not None:
+            raise ValueError("--rated-flow-lpm and --K-lpm-per-mA both set the valve gain; give one of them")
+        doc["valve"]["K_lpm_per_mA"] = args.rated_flow_lpm / float(doc["valve"]["rated_current_mA"])
+    if args.valve:
+        doc["valve"]["model"] = args.valve
+    if args.name is not None:
+        doc["name"] = args.name
+    elif not args.base:
+        doc["name"] = Path(args.file).stem
+    if args.description is not None:
+        doc["description"] = args.description
+    if args.model_effects_path:
+        doc["effects_path"] = [str(Path(p).resolve()) for p in args.model_effects_path]
+    if args.effects is not None:
+        from ehas_env.physics.effects import load_effects_path, parse_spec
+
+        load_effects_path(args.model_effects_path)
+        doc["effects"] = parse_spec(args.effects) if args.effects else {}
+    doc["calibration"] = {} if not args.base else doc.get("calibration", {})
+    argv = sys.argv[1:]
+    command = "ehas " + " ".join(shlex.quote(a) for a in argv) if argv[:2] == ["model", "new"] else None
+    doc["provenance"] = mf.provenance(command, **({"based_on": base.label} if args.base else {}))
+    m = mf.parse_model(doc, str(args.file))
+    path = mf.write_model(args.file, m)
+    print(m.summary())
+    print(f"wrote {path}")
+    return 0
