@@ -14,11 +14,22 @@ SHARED = Path(__file__).resolve().parents[2] / "shared"
 BOOK = SHARED / "data" / "book"
 
 
-def read_book_csv(name: str) -> list[dict[str, str]]:
-    """Rows of one of the book's tables in ../shared (independent truth for tests)."""
+def book_path(name: str) -> Path:
+    """Path of one of the book's tables in ../shared; the test FAILS (never skips) when it is missing.
+
+    The book's data is the tests' independent truth: a test that needs it and cannot
+    read it has not passed, so it must not be reported as skipped.
+    """
     path = BOOK / name
-    if not path.exists():
-        pytest.skip(f"reference data {path} not available")
+    if not path.is_file():
+        pytest.fail(f"the book's reference data {path} is missing: tests that need it cannot pass without it "
+                    f"(expected the read-only tables in {BOOK})", pytrace=False)
+    return path
+
+
+def read_book_csv(name: str) -> list[dict[str, str]]:
+    """Rows of one of the book's tables in ../shared (independent truth for tests); fails if it is missing."""
+    path = book_path(name)
     with path.open() as fh:
         lines = [ln for ln in fh if not ln.startswith("#")]
     return list(csv.DictReader(lines))

@@ -16,7 +16,7 @@ from ehas_env.cli import main as cli
 from ehas_env.book import sizing
 from ehas_env.book.sizing import BAR, DEG, HORSEPOWER, LPM
 
-BOOK = Path(__file__).resolve().parents[3] / "shared" / "data" / "book"
+from conftest import book_path  # the book's tables in ../shared; a missing table fails the test, naming it
 
 # The one cell no consistent calculation reproduces (see ehas_env/book/sizing.py): the book's
 # 22.65 LPM is A x 0.493 m/s, the piston speed rounded before multiplying; the same
@@ -25,7 +25,7 @@ FLOW_ERRATA = {(8, "max_flow_lpm"): ("22.65", "22.67")}
 
 
 def book_lines(name: str) -> list[str]:
-    return [line.rstrip("\n") for line in (BOOK / name).open() if not line.startswith("#")]
+    return [line.rstrip("\n") for line in book_path(name).open() if not line.startswith("#")]
 
 
 def book_rows(name: str) -> list[dict[str, str]]:
@@ -72,12 +72,35 @@ def test_book_design_flow_is_area_times_rounded_speed():
     assert f"{sizing.actuator_flow(speed) / LPM:.2f}" == "22.67"
 
 
+def _areas_consistent_with_printed_flow(row) -> tuple[float, float]:
+    """(lo, hi) net areas, m^2, for which A x (the package's peak piston speed) prints as the book's flow.
+
+    A value printed with two decimals stands for [Q - 0.005, Q + 0.005) LPM.
+    """
+    q = float(row["max_flow_lpm"])
+    speed = sizing.piston_speed(float(row["amplitude_deg"]) * DEG, float(row["freq_hz"]))
+    return (q - 0.005) * LPM / speed, (q + 0.005) * LPM / speed
+
+
 def test_no_single_area_gives_the_book_flows():
-    # Q scales 1:2:9 between (10 deg, 1 Hz), (10 deg, 2 Hz) and (30 deg, 3 Hz); the printed
-    # 2.52, 5.04 and 22.65 allow no common unit flow, so the 22.65 is not a rounding choice.
-    low = max(2.515 / 1, 5.035 / 2, 22.645 / 9)
-    high = min(2.525 / 1, 5.045 / 2, 22.655 / 9)
-    assert low > high
+    """The book's flow table (tables 1.4-1.6) against Q = A r theta_max 2 pi f: every cell but the
+    documented erratum admits one common area, and that area is the package's; with the erratum's
+    row no area prints all nine cells, so its 22.65 is not a rounding choice."""
+    rows = book_rows("analytic_flows.csv")
+    assert len(rows) == 9
+    # the package's peak piston speed is r theta_max 2 pi f, written out here (r = 50 mm, book)
+    for row in rows:
+        speed = 0.05 * math.radians(float(row["amplitude_deg"])) * 2 * math.pi * float(row["freq_hz"])
+        assert sizing.piston_speed(float(row["amplitude_deg"]) * DEG, float(row["freq_hz"])) == pytest.approx(
+            speed, rel=1e-12)
+    erratum = {i for i, _ in FLOW_ERRATA}
+    ok = [_areas_consistent_with_printed_flow(r) for i, r in enumerate(rows) if i not in erratum]
+    lo, hi = max(a for a, _ in ok), min(b for _, b in ok)
+    assert lo < hi  # the eight other cells agree on an area ...
+    assert lo <= sizing.ACTUATOR_AREA < hi  # ... and the package's 7.658e-4 m^2 (book, rig.md) is in it
+    assert lo <= 7.658e-4 < hi
+    every = [_areas_consistent_with_printed_flow(r) for r in rows]
+    assert max(a for a, _ in every) > min(b for _, b in every)  # all nine: no common area
 
 
 @pytest.mark.parametrize("index", range(63))

@@ -193,8 +193,12 @@ def test_batch_refuses_too_short_runs():
 @pytest.mark.parametrize("n", [1, 4, 7])
 def test_linear_model_numbers_are_the_rigs(n):
     lp = LinearPlant(disc_sets=n)
-    rig = RigParams.for_disc_sets(n)
-    assert lp.hydraulic_wn == pytest.approx(rig.hydraulic_natural_frequency(), rel=1e-12)
+    # mid-stroke oil column, written out with the rig's numbers (rig.py, reference-model.md):
+    # w_h^2 = beta A^2 r^2 (1/V_A + 1/V_B) / I, V_A = V_B = A 35 mm + 20 cm^3, I = 0.383 kg m^2 per set
+    v0 = 7.658e-4 * 0.035 + 2.0e-5
+    wn = math.sqrt(1.0e9 * 7.658e-4**2 * 0.05**2 * (2 / v0) / (0.383 * n))
+    assert lp.hydraulic_wn == pytest.approx(wn, rel=1e-12)
+    assert RigParams.for_disc_sets(n).hydraulic_natural_frequency() == pytest.approx(wn, rel=1e-12)
     # K * sqrt(Ps / dp_n) / (A r): 56.25 deg/s per mA, the book's 1/Kv
     assert lp.velocity_gain == pytest.approx(56.25, rel=1e-3)
     assert lp.hydraulic_zeta == 0.0  # critically lapped valve, no leakage, null flow

@@ -145,6 +145,43 @@ def test_backlash_lets_the_piston_cross_the_play():
     assert np.all(np.isfinite(r.load_kN))
 
 
+def test_backlash_knocks_after_each_load_reversal():
+    """The signature the effect claims, found in the run: while the piston crosses the play (|gap| <
+    delta, from the LVDT and the crank angle) the load A (P_A - P_B) collapses to ~0 (only the piston's
+    own mass is pushed), for a moment, after each reversal of the inertia load; then the joint closes
+    with a knock: a load peak well above what the inertia needs there, of the sign of the new contact."""
+    delta, freq = 3e-4, 2.0
+    run = Plant(disc_sets=2, effects={"backlash": {"delta": delta}}).simulate_closed_loop(
+        amplitude_deg=20, freq_hz=freq, cycles=3)
+    free = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=20, freq_hz=freq, cycles=3)  # no play
+    gap = R * np.sin(np.radians(run.theta_deg)) - R * np.sin(np.radians(run.theta_crank_deg))
+    load, load_free, t = run.load_kN, free.load_kN, run.t
+    dt, period = t[1] - t[0], 1.0 / freq
+    steady = t >= period  # after the fade-in cycle
+    peak_free = np.abs(load_free[steady]).max()
+    # the inertia load I theta''/(r cos theta) reverses where theta'' does: theta_ref = 0 for a sine
+    ref = run.theta_ref_deg
+    reversals = t[1:][(np.sign(ref[1:]) != np.sign(ref[:-1])) & steady[1:]]
+    # crossings of the play: runs of |gap| < delta that start on one side and end on the other
+    inside = np.abs(gap) < delta
+    edges = np.diff(np.r_[0, inside.astype(int), 0])
+    crossings = [(a, b) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))
+                 if t[a] >= period and b < t.size and np.sign(gap[a - 1]) != np.sign(gap[b])]
+    assert len(reversals) == 4 and len(crossings) == len(reversals)  # 2 periods in steady state
+    for (a, b), t_rev in zip(crossings, reversals):
+        assert abs(t[a] - t_rev) < 0.02 * period  # the play is crossed as the load reverses ...
+        assert 5 * dt <= t[b] - t[a] < 0.25 * period  # ... for a moment
+        # load collapses near 0 while the joint is open; without play the inertia needs far more there
+        assert np.abs(load[a:b]).max() < 0.02 * peak_free
+        assert np.median(np.abs(load_free[a:b])) > 10 * np.median(np.abs(load[a:b]))
+        # then the knock: within 20 ms of contact a peak of the new contact's sign, above anything the
+        # inertia alone needs in the whole steady run and over twice the play-free load at that moment
+        after = slice(b, b + int(round(0.02 / dt)))
+        k = b + int(np.argmax(np.abs(load[after])))
+        assert np.sign(load[k]) == np.sign(gap[b])
+        assert abs(load[k]) > 1.5 * peak_free and abs(load[k]) > 2 * abs(load_free[k])
+
+
 def test_bulk_modulus_scales_hydraulic_frequency_with_sqrt_beta():
     def freq(effects):
         plant = Plant(disc_sets=3, effects=effects, dt=1e-4, substeps=4)

@@ -27,10 +27,24 @@ def test_book_parameters_in_si():
     assert v.Kf == pytest.approx(92 * lbf_in, rel=1e-12)
     assert v.K2 == pytest.approx(112 * 0.0254**2, rel=1e-12)
     assert v.K3 == pytest.approx(920 * 0.0254**2, rel=1e-12)
-    # the assumed reading of the book's 735 Hz: the armature's natural frequency
-    assert math.sqrt(v.Kf / v.Ja) / (2 * math.pi) == pytest.approx(735.0)
-    # the port width reproduces K3 through Merritt's orifice law at the rated 70 bar drop
-    assert v.Cd * v.w * math.sqrt(70e5 / v.rho) == pytest.approx(v.K3)
+    # the assumed reading of the book's 735 Hz: the armature's natural frequency sqrt(Kf / Ja), so
+    # Ja = Kf / (2 pi 735 Hz)^2 with Kf = 92 in lb/rad: 10.3946 N m/rad / 4618.1^2 = 4.874e-7 kg m^2
+    ja = 92 * 4.4482216152605 * 0.0254 / (2 * math.pi * 735.0) ** 2
+    assert ja == pytest.approx(4.874e-7, rel=1e-3)
+    assert v.Ja == pytest.approx(ja, rel=1e-9)
+    # and the equations ring there: armature alone (no flow forces, spool and armature at rest at
+    # null but for a small angle), theta'' = -Kf theta / Ja = -(2 pi 735)^2 theta; damping 2 zeta_a w_h
+    chain = WhiteBoxValve(flow_forces=False)
+    for ps in (70e5, 220e5):
+        assert chain.rhs((1e-6, 0.0, 0.0), 0.0, ps)[1] == pytest.approx(-(2 * math.pi * 735.0) ** 2 * 1e-6, rel=1e-9)
+        assert chain.rhs((0.0, 1.0, 0.0), 0.0, ps)[1] == pytest.approx(-2 * 0.4 * 2 * math.pi * 735.0, rel=1e-9)
+    # port width from Merritt's orifice law at the book's rated point: K3 = Cd w sqrt(dp_n / rho), so
+    # w = 920 in^3/s/in / (0.61 sqrt(70 bar / 850 kg/m^3)) = 0.59355 m^2/s / 55.36 m/s = 10.72 mm
+    w = 920 * 0.0254**2 / (0.61 * math.sqrt(70e5 / 850.0))
+    assert w == pytest.approx(10.72e-3, rel=1e-3)
+    assert v.w == pytest.approx(w, rel=1e-9)
+    # the book's steady flow force 0.43 w dP x_v (Cd 0.61, Cv 0.98, 69 deg jet) uses that width
+    assert v.kff == pytest.approx(0.43 * w, rel=0.01)
 
 
 def test_book_chain_steady_state_is_28_2_lpm():

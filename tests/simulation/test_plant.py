@@ -14,7 +14,7 @@ from ehas_env.physics.effects import REGISTRY
 from ehas_env.simulation.plant import Plant, RigController
 from ehas_env.simulation.reference import SineReference
 from ehas_env.physics.reference_rhs import rhs as reference_rhs
-from ehas_env.physics.rig import BAR, LPM, RigParams
+from ehas_env.physics.rig import BAR, LPM
 from ehas_env.simulation.sensors import Sensors
 
 
@@ -64,20 +64,45 @@ def test_clamped_piston_steady_flow_is_merritt():
         assert r.flow_lpm[-1] * LPM == pytest.approx(2e-12 * p_l, rel=0.01)
 
 
+def hydraulic_frequency_written_out(sets: int, theta: float) -> float:
+    """Hz: w_h^2 = beta A^2 (r cos theta)^2 (1/V_A + 1/V_B) / I, V = A (L/2 +- x) + V_dead, x = r sin theta.
+
+    The rig's numbers as plain numbers (ehas_env/physics/rig.py, reference-model.md): beta = 1 GPa,
+    A = 7.658e-4 m^2, r = 50 mm, L/2 = 35 mm, V_dead = 20 cm^3 per side, I = 0.383 kg m^2 per set.
+    """
+    beta, area, r, half_stroke, v_dead = 1.0e9, 7.658e-4, 0.05, 0.035, 2.0e-5
+    inertia = 0.383 * sets
+    x = r * math.sin(theta)
+    v_a, v_b = area * (half_stroke + x) + v_dead, area * (half_stroke - x) + v_dead
+    return math.sqrt(beta * area**2 * (r * math.cos(theta)) ** 2 * (1 / v_a + 1 / v_b) / inertia) / (2 * math.pi)
+
+
+def test_hydraulic_frequency_formula_gives_the_reference_models_figures():
+    # reference-model.md: "the hydraulic natural frequency is ~24 Hz at 7 sets and ~64 Hz at 1 set"
+    assert hydraulic_frequency_written_out(7, 0.0) == pytest.approx(24.0, abs=0.5)
+    assert hydraulic_frequency_written_out(1, 0.0) == pytest.approx(64.0, abs=0.5)
+
+
+@pytest.mark.parametrize("theta_deg", [0.0, 30.0])
 @pytest.mark.parametrize("sets", [1, 7])
-def test_hydraulic_natural_frequency(sets):
-    """Valve shut, small velocity kick at mid-stroke: oscillation at sqrt(2 beta A^2 / (V0 I / r^2))."""
+def test_hydraulic_natural_frequency(sets, theta_deg):
+    """Valve shut, small velocity kick at rest at theta: the simulated oil column rings at the
+    frequency written out above, and the numerical linearisation's hydraulic mode is the same."""
+    f_theory = hydraulic_frequency_written_out(sets, math.radians(theta_deg))
     plant = Plant(disc_sets=sets, dt=1e-4, substeps=4)
-    s = plant.initial_state()
+    s = plant.initial_state(theta_deg=theta_deg)
     s[1] = 1e-3  # rad/s
     out = run_from_state(plant, s, np.zeros(4000))
     omega = out[:, K.O_OMEGA]
     t = np.arange(omega.size) * plant.dt
     up = np.flatnonzero((omega[:-1] < 0) & (omega[1:] >= 0))
     crossings = t[up] - omega[up] * plant.dt / (omega[up + 1] - omega[up])
+    assert crossings.size >= 8  # 0.4 s: 9 cycles at 24 Hz, 25 at 64 Hz
     f_sim = (crossings.size - 1) / (crossings[-1] - crossings[0])
-    f_theory = RigParams.for_disc_sets(sets).hydraulic_natural_frequency() / (2 * math.pi)
-    assert f_sim == pytest.approx(f_theory, rel=0.03)
+    assert f_sim == pytest.approx(f_theory, rel=1e-5)
+    from ehas_env.physics.linearise import linearise
+
+    assert linearise(Plant(disc_sets=sets), theta_deg=theta_deg).hydraulic_wn_hz() == pytest.approx(f_theory, rel=1e-7)
 
 
 def test_constant_speed_flow_equals_area_times_velocity():
