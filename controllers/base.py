@@ -106,6 +106,112 @@ class Controller(ABC):
         return load_controller(path)
 
 
+class CompiledController(Controller):
+    """A controller whose one law is compiled into the model (benchmark, environment, ``Plant``).
+
+    A subclass is a dataclass of gains (floats, units in ``gain_units``) plus one
+    static method ``law`` with the signature of
+    :mod:`ehas_env.simulation.control_laws`; defining the subclass registers the
+    law (under ``type_name``) and the JSON type.  ``act`` runs the same law in
+    Python.  A user's controller is one such file, loaded with
+    ``load_controller("my_ctrl.py")`` or given to any command as the controller file.
+    """
+
+    type_name = ""
+    gain_units: dict = {}
+    i_max: float = 20.0
+    rate_hz: float = 1000.0
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.type_name and "law" in cls.__dict__:
+            from ehas_env.simulation.control_laws import register_law
+
+            register_law(cls.type_name, cls.__dict__["law"].__func__)
+            CONTROLLER_TYPES[cls.type_name] = cls.from_dict
+
+    def gain_names(self) -> list[str]:
+        import dataclasses
+
+        return [f.name for f in dataclasses.fields(self)] if dataclasses.is_dataclass(self) else []
+
+    def gains_vector(self):
+        import numpy as np
+
+        from ehas_env.simulation.control_laws import N_GAINS
+
+        names = self.gain_names()
+        if len(names) > N_GAINS:
+            raise ValueError(f"{type(self).__name__}: at most {N_GAINS} gains, got {len(names)}")
+        g = np.zeros(N_GAINS)
+        g[:len(names)] = [float(getattr(self, n)) for n in names]
+        return g
+
+    def law_id(self) -> int:
+        from ehas_env.simulation.control_laws import law_id
+
+        return law_id(self.type_name)
+
+    def rig_gains(self, disc_sets: int | None = None):
+        """The compiled form: this controller itself (it has ``law_id`` and ``gains_vector``)."""
+        return self
+
+    def reset(self) -> None:
+        import numpy as np
+
+        from ehas_env.simulation.control_laws import N_MEM
+
+        self._mem = np.zeros(N_MEM)
+
+    def act(self, measurement: dict) -> float:
+        m = measurement
+        if getattr(self, "_mem", None) is None:
+            self.reset()
+        return float(type(self).law(self.gains_vector(), self._mem, m["t"], 1.0 / self.rate_hz, m["theta_deg"],
+                                    m["theta_ref_deg"], m["theta_ref_dot"], m["theta_ref_ddot"],
+                                    m["theta_ref_dddot"], m["p_a_bar"] - m["p_b_bar"], m.get("p_s_bar", 0.0),
+                                    self.i_max))
+
+    def to_dict(self) -> dict:
+        return {"type": self.type_name, "gains": {n: float(getattr(self, n)) for n in self.gain_names()}}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "CompiledController":
+        return cls(**dict(data.get("gains", {})))
+
+
+def _load_py(path: Path) -> Controller:
+    """A controller file in Python: its ``CONTROLLER`` object, or its one Controller subclass with defaults."""
+    import hashlib
+    import importlib.util
+    import sys
+
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+    name = f"ehas_user_controllers.{path.stem}_{digest}"
+    module = sys.modules.get(name)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        try:
+            spec.loader.exec_module(module)
+        except Exception as exc:  # a user's file: one line naming it
+            sys.modules.pop(name, None)
+            raise ValueError(f"controller file {path}: {type(exc).__name__}: {exc}") from None
+    ctrl = getattr(module, "CONTROLLER", None)
+    if ctrl is None:
+        classes = [c for c in vars(module).values() if isinstance(c, type) and issubclass(c, Controller)
+                   and c.__module__ == name]
+        if len(classes) != 1:
+            raise ValueError(f"controller file {path}: define CONTROLLER = <a controller>, or exactly one Controller "
+                             f"subclass (found {len(classes)})")
+        ctrl = classes[0]()
+    if not isinstance(ctrl, Controller):
+        raise ValueError(f"controller file {path}: CONTROLLER must be an ehas_controllers.base.Controller")
+    ctrl.source = str(path)
+    return ctrl
+
+
 def check_measurement(measurement: dict, who: str) -> None:
     """Raise a clear error naming the missing key if ``measurement`` lacks one of :data:`MEASUREMENT_KEYS`."""
     for key in MEASUREMENT_KEYS:
@@ -192,6 +298,7 @@ def check_file_header(data, where: str) -> None:
 
 
 register_loader(".json", _load_json)
+register_loader(".py", _load_py)
 
 
 def load_controller(path) -> Controller:

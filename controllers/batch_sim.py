@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.physics import layout as K
-from ehas_env.simulation.control_laws import N_GAINS
+from ehas_env.simulation.control_laws import N_GAINS, compiled_form
 from ehas_env.simulation.loops import METRICS, REF_SINE, REF_STEP
 from ehas_env.simulation.metrics import percent_errors
 
@@ -220,16 +220,6 @@ class Batch:
             row["hit_stroke_end"] = bool(m[5] > 0.5)
             out.append(row)
         return out
-
-
-def compiled_form(controller, disc_sets: int):
-    """The compiled law and gains of ``controller`` on ``disc_sets`` (an object with ``law_id()`` and
-    ``gains_vector()``), or None when it has only a Python ``act``."""
-    sub = controller.for_plant(disc_sets) if hasattr(controller, "for_plant") else controller
-    if callable(getattr(sub, "law_id", None)) and callable(getattr(sub, "gains_vector", None)):
-        return sub
-    rc = sub.rig_gains(disc_sets) if hasattr(sub, "rig_gains") else None
-    return rc
 
 
 def controller_gains(controller, conditions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -81,6 +81,7 @@ def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: fl
         One row per condition, in the order given, with :data:`METRICS`.
     """
     from ehas_env.env.vector_env import TrackingVectorEnv
+    from ehas_env.simulation.control_laws import compiled_form
 
     E.register_ehas()
     kw = {k: v for k, v in cfg.env_kwargs.items() if k not in ("disc_sets", "amplitude_deg", "freq_hz", "randomise")}
@@ -96,7 +97,11 @@ def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: fl
     for n, conds in tqdm(sorted(groups.items()), desc="disc sets", disable=not progress, leave=False):
         rig = None
         if base is not None:
-            rig = (base.for_plant(n) if hasattr(base, "for_plant") else base).rig_gains(n)
+            rig = compiled_form(base, n)
+            if rig is None:  # never score a residual agent without its base
+                raise ValueError(f"the residual base controller {getattr(base, 'name', type(base).__name__)!r} has "
+                                 "no compiled law; the batched evaluation needs one (ehas_controllers.base."
+                                 "CompiledController)")
         venv = TrackingVectorEnv(len(conds), controller=rig, disc_sets=n, **kw)
         m = len(conds)
         obs = np.zeros((m, venv.single_observation_space.shape[0]), np.float32)

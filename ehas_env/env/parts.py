@@ -32,7 +32,8 @@ import numpy as np
 from ehas_env.env import batch_kernel as bk
 from ehas_env.physics import layout as K
 from ehas_env.physics.effects import get_effect, resolve_effects
-from ehas_env.simulation.metrics import steady_window
+from ehas_env.simulation.control_laws import compiled_form
+from ehas_env.simulation.metrics import percent_errors, steady_window
 from ehas_env.simulation.plant import Plant, RigController
 from ehas_env.simulation.reference import SineReference, check_amplitude
 from ehas_env.physics.rig import MAX_SETS, MIN_SETS, RATED_CURRENT, check_disc_sets
@@ -307,10 +308,8 @@ def controller_mode(controller, dt: float) -> tuple[int, np.ndarray]:
     gains = np.zeros(bk.N_GAIN_SLOTS)
     if controller is None:
         return bk.MODE_DIRECT, gains, 0
-    compiled = controller if callable(getattr(controller, "law_id", None)) else None
-    if compiled is None and callable(getattr(controller, "rig_gains", None)):
-        compiled = controller.rig_gains()
-    if compiled is not None and callable(getattr(compiled, "gains_vector", None)):
+    compiled = compiled_form(controller)
+    if compiled is not None:
         rate = getattr(controller, "rate_hz", getattr(compiled, "rate_hz", 1.0 / dt))
         if abs(rate * dt - 1.0) > 1e-9:
             raise ValueError(f"controller rate_hz {rate:g} must equal the env's 1/dt = {1 / dt:g} Hz")
@@ -380,7 +379,7 @@ def pack_episode(ep: Episode, st: StepSettings) -> tuple[np.ndarray, dict]:
     ref = ep.ref
     comps = reference_components(ref)
     n = episode_steps(ep, st.dt)
-    t = np.arange(n + 1) * st.dt
+    t = np.arange(n) * st.dt  # the samples the benchmark scores (t_0 .. t_{n-1}): one window for every metric
     try:
         idx = np.flatnonzero(steady_window(t, ref.freq_hz))
         win0, win1, complete = int(idx[0]), int(idx[-1]) + 1, True
@@ -429,18 +428,15 @@ def pack_episode(ep: Episode, st: StepSettings) -> tuple[np.ndarray, dict]:
 
 
 def episode_metrics(X: np.ndarray, C: np.ndarray) -> dict:
-    """rms and peak % position error of the episode so far (reference-model.md's metric).
+    """rms and peak % position error of the episode so far (docs/metric.md).
 
     Over the whole cycles after the first when the episode has reached them;
     otherwise (an early end) over every sample so far, flagged by
     ``metric_complete = False``.
     """
-    amp = C[bk.C_AMP]
     complete = C[bk.C_WIN0] >= 0 and X[bk.X_K] + 1 >= C[bk.C_WIN1] and X[bk.X_NW] > 0
     if complete:
         s, n, m = X[bk.X_SUMW], X[bk.X_NW], X[bk.X_MAXW]
     else:
         s, n, m = X[bk.X_SUMA], X[bk.X_NA], X[bk.X_MAXA]
-    n = max(n, 1.0)
-    return {"rms_error_pct": float(100.0 * math.sqrt(s / n) / amp), "peak_error_pct": float(100.0 * m / amp),
-            "metric_complete": bool(complete)}
+    return {**percent_errors(float(s), float(n), float(m), float(C[bk.C_AMP])), "metric_complete": bool(complete)}

@@ -49,3 +49,20 @@ def law_id(name: str) -> int:
     if name not in names:
         raise ValueError(f"unknown compiled control law '{name}'; known: {', '.join(names)}")
     return names.index(name)
+
+
+def compiled_form(controller, disc_sets: int | None = None):
+    """The object that carries ``controller``'s compiled law on ``disc_sets`` (with ``law_id()`` and
+    ``gains_vector()``), or None when the controller has only a Python ``act``.
+
+    Gain schedules pick their entry (``for_plant``); ``rig_gains`` (the rig's PI + feed-forward
+    form of PIFF and schedules) is followed.
+    """
+    sub = controller.for_plant(disc_sets) if disc_sets is not None and hasattr(controller, "for_plant") else controller
+    if callable(getattr(sub, "law_id", None)) and callable(getattr(sub, "gains_vector", None)):
+        return sub
+    rg = getattr(sub, "rig_gains", None)
+    rc = rg(disc_sets) if callable(rg) else None
+    if rc is not None and callable(getattr(rc, "law_id", None)):
+        return rc
+    return None

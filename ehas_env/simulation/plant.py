@@ -27,7 +27,7 @@ from ehas_env.physics import layout as K
 from ehas_env.physics.codegen import current_model
 from ehas_env.physics.effects import REGISTRY, resolve_effects
 from ehas_env.physics.effects.base import effect_slots
-from ehas_env.simulation.control_laws import N_GAINS, law_id
+from ehas_env.simulation.control_laws import N_GAINS, compiled_form, law_id
 from ehas_env.simulation.metrics import tracking_errors
 from ehas_env.simulation.reference import SineReference
 from ehas_env.physics.rig import BAR, LPM, INERTIA_PER_SET, RigParams, check_disc_sets
@@ -373,13 +373,18 @@ class Plant:
         out = np.zeros((n, K.N_OUT))
         s = self.initial_state(theta0_deg)
         hist = np.zeros(self._hist_len)
-        if isinstance(controller, RigController):
-            if abs(controller.rate_hz * self.dt - 1.0) > 1e-9:
-                raise ValueError(f"controller rate_hz {controller.rate_hz:g} must equal the plant's 1/dt = {1 / self.dt:g} Hz")
-            self._model.closed_loop(s, self._P, controller.law_id(), controller.gains_vector(), ref.kernel_vector(),
-                                    0, self.dt, self.substeps, hist, noise,
-                                    self.sensors.kernel_vector(self.rig.i_max), 0, n, np.zeros(6), out)
-            ctrl_meta = {**controller.to_dict()}
+        compiled = compiled_form(controller, self.rig.disc_sets)
+        if compiled is not None:
+            rate = getattr(compiled, "rate_hz", 1.0 / self.dt)
+            if abs(rate * self.dt - 1.0) > 1e-9:
+                raise ValueError(f"controller rate_hz {rate:g} must equal the plant's 1/dt = {1 / self.dt:g} Hz")
+            sensor = self.sensors.kernel_vector(self.rig.i_max)
+            sub = controller.for_plant(self.rig.disc_sets) if hasattr(controller, "for_plant") else controller
+            sensor[3] = min(sensor[3], getattr(sub, "i_max", sensor[3]))  # the controller's own output limit
+            sensor[1] = max(sensor[1], getattr(sub, "dac_lsb", 0.0))  # and its DAC, as the benchmark does
+            self._model.closed_loop(s, self._P, compiled.law_id(), compiled.gains_vector(), ref.kernel_vector(),
+                                    0, self.dt, self.substeps, hist, noise, sensor, 0, n, np.zeros(6), out)
+            ctrl_meta = {**compiled.to_dict()}
         else:
             self._python_loop(controller, ref, s, hist, noise, out)
             ctrl_meta = {"name": type(controller).__name__, "repr": repr(controller), "rate_hz": 1.0 / self.dt}

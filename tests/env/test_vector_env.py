@@ -79,10 +79,10 @@ def test_make_vec_uses_the_native_vector_env():
 
 
 def test_next_step_autoreset_and_final_metrics():
-    vec = TrackingVectorEnv(2, cycles=2, freq_hz=10.0)  # 200-step episodes
+    vec = TrackingVectorEnv(2, cycles=3, freq_hz=10.0)  # 300-step episodes
     vec.reset(seed=0)
     z = np.zeros((2, 1), np.float32)
-    for k in range(200):
+    for k in range(300):
         obs, rew, term, trunc, info = vec.step(z)
     assert trunc.all() and not term.any()
     assert info["_rms_error_pct"].all() and info["metric_complete"].all()
