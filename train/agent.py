@@ -8,7 +8,11 @@ normalisation, the default environment settings).
 
 Loading warns (:class:`PickleWarning`): stable-baselines3 zips and the
 normalisation statistics hold Python pickles, which can execute arbitrary code
-when loaded - load agents only from trusted sources.
+when loaded - load agents only from trusted sources.  An agent trained or saved
+on this machine is trusted without the warning: :func:`trust_agent` records the
+SHA-256 of its pickle files in a per-user list (``~/.cache/ehas/trusted_agents.json``,
+or the file ``EHAS_TRUSTED_AGENTS`` names), and a load whose files all match
+that list stays quiet; a changed or foreign file warns.
 
 ``ehas bench`` finds agents through the controller registry of
 ``ehas_controllers.base``: importing this module registers agent folders and
@@ -86,6 +90,7 @@ class LearnedController:
             atomic_write_bytes(path / "vecnormalize.pkl", pickle.dumps(self.obs_stats))
         resolved = {**self.cfg.to_dict(), "controller_resolved": self.controller_desc}
         atomic_write_text(path / "config.json", json.dumps(resolved, indent=2, default=str))
+        trust_agent(path)
         return path
 
     @property
@@ -250,8 +255,9 @@ def load_agent(path, warn: bool = True) -> LearnedController:
     cfg_path = folder / "config.json"
     norm_path = folder / "vecnormalize.pkl"
     in_folder = path.is_dir()
-    if warn:
-        what = ", ".join(p.name for p in (model_path, norm_path) if p.exists() and (in_folder or p == model_path))
+    pickles = [p for p in (model_path, norm_path) if p.exists() and (in_folder or p == model_path)]
+    if warn and not _trusted(pickles):
+        what = ", ".join(p.name for p in pickles)
         warnings.warn(PICKLE_WARNING.format(what=what), PickleWarning, stacklevel=2)
     if in_folder and cfg_path.exists():
         saved = json.loads(cfg_path.read_text())
@@ -269,6 +275,51 @@ def load_agent(path, warn: bool = True) -> LearnedController:
         obs_stats.norm_reward = False
     return LearnedController(model, cfg, controller_desc, obs_stats, name=folder.name if in_folder else path.stem,
                              path=str(path))
+
+
+TRUST_ENV = "EHAS_TRUSTED_AGENTS"
+
+
+def _trust_file() -> Path:
+    import os
+
+    return Path(os.environ.get(TRUST_ENV) or Path.home() / ".cache" / "ehas" / "trusted_agents.json")
+
+
+def _sha256(path: Path) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _trusted(files) -> bool:
+    try:
+        known = json.loads(_trust_file().read_text())
+        return bool(files) and all(_sha256(f) in known for f in files)
+    except (OSError, ValueError, AttributeError, TypeError):
+        return False
+
+
+def trust_agent(path) -> None:
+    """Record the SHA-256 of an agent's pickle files (trained or saved here): loading them will not warn."""
+    from ehas_env.output.files import atomic_write_text
+
+    path = Path(path)
+    files = [path / "model.zip", path / "vecnormalize.pkl"] if path.is_dir() else [path]
+    try:
+        tf = _trust_file()
+        known = json.loads(tf.read_text()) if tf.exists() else {}
+        if not isinstance(known, dict):
+            known = {}
+        known.update({_sha256(f): str(f.resolve()) for f in files if f.is_file()})
+        tf.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(tf, json.dumps(known, indent=1) + "\n")
+    except OSError:  # an unwritable home: the warning stays, nothing else changes
+        pass
 
 
 def _algo_of_zip(path: Path) -> str:

@@ -70,6 +70,21 @@ def resolve_config(args):
         raw = cfg.to_file_dict()
         raw["env"]["residual"] = True
         cfg = parse_config(raw, source=cfg.source)
+    if getattr(args, "model", None):  # train on a model file's plant (docs/model-file.md): [env.kwargs] model
+        from pathlib import Path
+
+        from ehas_env.measurement.model_file import load_model
+
+        from .config import parse_config
+
+        load_model(args.model)  # refused here, before anything is created
+        raw = cfg.to_file_dict()
+        raw["env"].setdefault("kwargs", {})["model"] = str(Path(args.model).resolve())
+        cfg = parse_config(raw, source=cfg.source)
+    elif isinstance(cfg.env_kwargs.get("model"), str):
+        from ehas_env.measurement.model_file import load_model
+
+        load_model(cfg.env_kwargs["model"])
     return cfg
 
 
@@ -84,7 +99,7 @@ def _command(args) -> str:
         parts += ["--config", args.config]
     parts += ["--out", args.out]
     for flag, value in (("--total-steps", args.total_steps), ("--seed", args.seed), ("--n-envs", args.n_envs),
-                        ("--max-minutes", args.max_minutes)):
+                        ("--max-minutes", args.max_minutes), ("--model", getattr(args, "model", None))):
         if value is not None:
             parts += [flag, str(value)]
     for flag in ("no_tensorboard", "drop_checkpoints"):
@@ -156,6 +171,9 @@ def run(args) -> int:
     except TrainingInterrupted as exc:
         print(f"ehas train: {exc}", file=sys.stderr)
         return 130
+    from .agent import trust_agent
+
+    trust_agent(args.out)  # trained here: loading it does not warn about pickles (ehas_train.agent)
     ev = metrics.get("final_evaluation", {})
     line = (f"trained {cfg.algo}{' residual' if cfg.residual else ''}: {metrics['num_timesteps']} steps in "
             f"{metrics['train_time_s']:.0f} s -> {args.out}")

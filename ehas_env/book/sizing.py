@@ -154,7 +154,7 @@ def stroke_end_angle(radius: float = CRANK_RADIUS, half_stroke: float = HALF_STR
     return math.asin(min(half_stroke / radius, 1.0))
 
 
-def check_amplitude(amplitude: float, radius: float = CRANK_RADIUS) -> float:
+def check_amplitude(amplitude: float, radius: float = CRANK_RADIUS, half_stroke: float = HALF_STROKE) -> float:
     """Return ``amplitude`` (rad) if 0 < amplitude < stroke end, else raise ValueError.
 
     Examples
@@ -166,10 +166,10 @@ def check_amplitude(amplitude: float, radius: float = CRANK_RADIUS) -> float:
     ...
     ValueError: --amplitude must be in (0, 44.43) deg (stroke end: 35 mm on a 50 mm crank), got 45 deg
     """
-    limit = stroke_end_angle(radius)
+    limit = stroke_end_angle(radius, half_stroke)
     if not (math.isfinite(amplitude) and 0.0 < amplitude < limit):
-        reason = (f"stroke end: {HALF_STROKE * 1e3:g} mm on a {radius * 1e3:g} mm crank"
-                  if radius > HALF_STROKE else "the crank force r*cos(theta) vanishes at 90 deg")
+        reason = (f"stroke end: {half_stroke * 1e3:g} mm on a {radius * 1e3:g} mm crank"
+                  if radius > half_stroke else "the crank force r*cos(theta) vanishes at 90 deg")
         raise ValueError(f"--amplitude must be in (0, {limit / DEG:.2f}) deg ({reason}), got {amplitude / DEG:g} deg")
     return float(amplitude)
 
@@ -478,6 +478,8 @@ class Design:
         Supply pressure, Pa.
     safety_factor : float
         Factor of safety on the actuator force, -.
+    half_stroke : float
+        Half the actuator stroke, m (limits the amplitude).
     """
 
     inertia: float = DESIGN_DISC_SETS * DISC_SET_INERTIA
@@ -487,11 +489,12 @@ class Design:
     area: float = ACTUATOR_AREA
     supply_pressure: float = SUPPLY_PRESSURE
     safety_factor: float = SAFETY_FACTOR
+    half_stroke: float = HALF_STROKE
 
     def __post_init__(self) -> None:
         check_positive("--inertia", self.inertia, "kg m^2")
         check_positive("--radius", self.radius, "m")
-        check_amplitude(self.amplitude, self.radius)
+        check_amplitude(self.amplitude, self.radius, self.half_stroke)
         check_positive("--freq", self.freq, "Hz")
         check_positive("--area", self.area, "m^2")
         check_positive("--supply-bar", self.supply_pressure / BAR, "bar")
@@ -644,11 +647,13 @@ class FlowPoint:
     flow: float
 
 
-def load_table(radius: float = CRANK_RADIUS, area: float = ACTUATOR_AREA) -> list[LoadPoint]:
+def load_table(radius: float = CRANK_RADIUS, area: float = ACTUATOR_AREA, set_inertia: float = DISC_SET_INERTIA,
+               half_stroke: float = HALF_STROKE) -> list[LoadPoint]:
     """Tables 1.1-1.3: peak force and pressure over the book's grid, in its row order.
 
     The pressure uses the fixed area ``area``, as the book does, not the area
-    each load would require.
+    each load would require.  ``set_inertia`` (kg m^2 per disc set) and
+    ``half_stroke`` (m) describe another rig (a model file, docs/model-file.md).
 
     Examples
     --------
@@ -660,16 +665,17 @@ def load_table(radius: float = CRANK_RADIUS, area: float = ACTUATOR_AREA) -> lis
     check_positive("--area", area, "m^2")
     rows = []
     for amplitude_deg in BOOK_AMPLITUDES_DEG:
-        amplitude = check_amplitude(amplitude_deg * DEG, radius)
+        amplitude = check_amplitude(amplitude_deg * DEG, radius, half_stroke)
         for sets in BOOK_DISC_SETS:
-            inertia = disc_inertia(sets)
+            inertia = disc_inertia(sets) if set_inertia == DISC_SET_INERTIA else sets * set_inertia
             for freq in BOOK_FREQUENCIES_HZ:
                 force = float(peak_actuator_force(inertia, amplitude, freq, radius))
                 rows.append(LoadPoint(amplitude, sets, inertia, freq, force, float(pressure_difference(force, area))))
     return rows
 
 
-def flow_table(radius: float = CRANK_RADIUS, area: float = ACTUATOR_AREA) -> list[FlowPoint]:
+def flow_table(radius: float = CRANK_RADIUS, area: float = ACTUATOR_AREA,
+               half_stroke: float = HALF_STROKE) -> list[FlowPoint]:
     """Tables 1.4-1.6: peak crank rate, piston speed and flow over the book's grid.
 
     Examples
@@ -682,7 +688,7 @@ def flow_table(radius: float = CRANK_RADIUS, area: float = ACTUATOR_AREA) -> lis
     check_positive("--area", area, "m^2")
     rows = []
     for amplitude_deg in BOOK_AMPLITUDES_DEG:
-        amplitude = check_amplitude(amplitude_deg * DEG, radius)
+        amplitude = check_amplitude(amplitude_deg * DEG, radius, half_stroke)
         for freq in BOOK_FREQUENCIES_HZ:
             speed = float(piston_speed(amplitude, freq, radius))
             rows.append(FlowPoint(amplitude, freq, float(peak_angular_velocity(amplitude, freq)),

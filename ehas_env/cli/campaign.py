@@ -63,7 +63,7 @@ def chirp_current(n: int, dt: float, f0: float = CHIRP[0], f1: float = CHIRP[1],
 
 
 def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, duration: float = DURATION,
-                      plan=DEFAULT_PLAN, sensors=None, valve: bool = True):
+                      plan=DEFAULT_PLAN, sensors=None, valve: bool = True, model=None):
     """Simulate a campaign in memory.
 
     Parameters
@@ -82,6 +82,10 @@ def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, dur
         Measurement chain (default: :class:`Sensors` defaults, noisy and quantized).
     valve : bool
         Add the valve chirp run.
+    model : PlantModel or str, optional
+        The rig (a model file, docs/model-file.md; default the book's): its
+        geometry, valve and effects, with ``effects`` hidden on top; the runs
+        use the book's controller carried over to it (``PlantModel.controller``).
 
     Returns
     -------
@@ -97,25 +101,30 @@ def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, dur
     from ehas_env.physics.rig import BULK_MODULUS, VALVE_K, RigParams
     from ehas_env.simulation.sensors import Sensors
 
+    from ehas_env.measurement.model_file import as_model
+
+    model = as_model(model)
+    base = model.rig if model is not None else RigParams()
     effects = resolve_effects(effects)
     rng = np.random.default_rng(seed)
-    beta = BULK_MODULUS * (1.0 + (rng.uniform(-BETA_PERTURB, BETA_PERTURB) if perturb else 0.0))
-    K = VALVE_K * (1.0 + (rng.uniform(-K_PERTURB, K_PERTURB) if perturb else 0.0))
+    beta = base.beta * (1.0 + (rng.uniform(-BETA_PERTURB, BETA_PERTURB) if perturb else 0.0))
+    K = base.K * (1.0 + (rng.uniform(-K_PERTURB, K_PERTURB) if perturb else 0.0))
     sensors = Sensors() if sensors is None else sensors
     seeds = rng.integers(0, 2**31 - 1, size=len(plan) + 1)
-    ctrl = RigController.book()
+    ctrl = model.controller() if model is not None else RigController.book()
     runs = []
     for (sets, amp, freq), s in zip(plan, seeds):
         p = RunPlan(int(sets), float(amp), float(freq))
-        plant = Plant(disc_sets=p.disc_sets, effects=effects, rig=RigParams(beta=beta, K=K), sensors=sensors,
-                      seed=int(s))
+        plant = Plant(disc_sets=p.disc_sets, effects=effects, rig=base.replace(beta=beta, K=K), sensors=sensors,
+                      seed=int(s), model=model)
         res = plant.simulate_closed_loop(ctrl, amplitude_deg=p.amplitude_deg, freq_hz=p.freq_hz, duration=duration)
         meta = {"kind": "closed_loop", "disc_sets": p.disc_sets, "supply_bar": res.meta["supply_bar"],
                 "reference": res.meta["reference"], "controller": res.meta["controller"],
                 "notes": f"synthetic run (ehas simulate-campaign, seed {seed})"}
         runs.append((p.name, res.columns(logged=True), meta))
     if valve:
-        plant = Plant(effects=effects, rig=RigParams(beta=beta, K=K), sensors=sensors, seed=int(seeds[-1]))
+        plant = Plant(effects=effects, rig=base.replace(beta=beta, K=K), sensors=sensors, seed=int(seeds[-1]),
+                      model=model)
         n = int(round(duration / plant.dt))
         cmd = chirp_current(n, plant.dt)
         # the DAC quantizes the chirp as it quantizes the controller's output
@@ -130,6 +139,8 @@ def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, dur
     truth = {"effects": effects, "beta": beta, "K": K, "seed": seed, "perturb": perturb,
              "sensors": sensors.to_dict(), "duration_s": duration,
              "plan": [list(p) for p in plan]}
+    if model is not None:
+        truth["model"] = model.to_dict()
     return runs, truth
 
 
@@ -182,16 +193,22 @@ def run(args) -> int:
     from ehas_env.output.outputs import OutputSet
     from ehas_env.physics.effects import parse_spec, resolve_effects
 
+    model = None
+    if getattr(args, "model", None):
+        from ehas_env.measurement.model_file import load_model
+
+        model = load_model(args.model)
     effects = parse_spec(args.effects) if args.effects else {}
     resolve_effects(effects)  # bad values refused before any work
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite)
     argv = " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("ehas") else None
     with outputs as tmp:
         _, truth = write_simulated_campaign(tmp, effects, seed=args.seed, perturb=args.perturb,
-                                            duration=args.duration, overwrite=True,
+                                            duration=args.duration, overwrite=True, model=model,
                                             command=f"ehas {argv}" if argv else None)
     folder = args.out
-    print(f"wrote {folder}: {len(truth['plan'])} closed-loop runs + valve chirp, {args.duration:g} s each")
+    print(f"wrote {folder}: {len(truth['plan'])} closed-loop runs + valve chirp, {args.duration:g} s each"
+          + (f", rig {model.label}" if model is not None else ""))
     print(f"hidden: {truth['effects'] or 'no effect'}; beta = {truth['beta']:.4g} Pa, K = {truth['K']:.5g} LPM/mA "
           f"(truth.json)")
     return 0

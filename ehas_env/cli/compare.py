@@ -56,9 +56,14 @@ def run(args) -> int:
     if args.save_model:
         check_file(args.save_model, "--save-model", overwrite=args.overwrite)
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
+    base_model = None
+    if getattr(args, "model", None):  # a saved model: the baseline, validated on this campaign (docs/model-file.md)
+        from ehas_env.measurement.model_file import load_model
+
+        base_model = load_model(args.model)
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
     status(f"{len(campaign.runs)} runs read from {campaign.path}", "compare")
-    rep = Replayer(campaign)
+    rep = Replayer(campaign, model=base_model)
     with working("replaying the campaign with the baseline model", "compare"):
         baseline_sims = rep.simulate(ModelSpec())
     tables = {"baseline": rep.fit_table(baseline_sims)}
@@ -86,24 +91,28 @@ def run(args) -> int:
 
     print(campaign.summary())
     print()
+    if base_model is not None:
+        print(held_out_text(base_model, campaign, tables["baseline"]))
+        print()
     print(format_fit_tables(tables))
     if after_model is not None:
         print()
-        print(describe_model(after_model, fitted=args.fit))
+        print(describe_model(rep.absolute(after_model), fitted=args.fit))
         before, after = tables["baseline"].overall, tables[label_after].overall
         print(f"\noverall fit: {before:.1f} % -> {after:.1f} % ({after - before:+.1f} points)")
     command = "ehas compare " + " ".join(shlex.quote(a) for a in _argv())
     if args.save_model:
         from ehas_env.measurement.model_file import save_model
 
-        model = after_model or ModelSpec()
-        path = save_model(args.save_model, model.effects, beta=model.beta, K=model.K,
-                          calibration=_calibration(campaign, tables, label_after, command))
+        model = rep.absolute(after_model or ModelSpec())
+        path = save_model(args.save_model, model.effects, beta=model.beta, K=model.K, base=base_model,
+                          calibration=_calibration(campaign, tables, label_after, command), command=command)
         print(f"model file: {path}")
     if outputs is not None:
         with outputs as tmp, working("writing the report and its figures", "compare"):
             report = write_report(tmp, rep, sims, tables, campaign=campaign, command=command,
-                                  after_label=label_after, after_model=after_model, fitted=args.fit)
+                                  after_label=label_after, after_model=after_model, fitted=args.fit,
+                                  **({"title": f"Model vs measurement: {base_model.label}"} if base_model else {}))
         print(f"report: {Path(args.out) / report.name}")
     print(f"elapsed {time.perf_counter() - t0:.1f} s")
     return 0
@@ -120,6 +129,24 @@ def _calibration(campaign, tables, label_after, command) -> dict:
     if label_after:
         out["fit_percent_after"] = round(tables[label_after].overall, 2)
     return out
+
+
+def held_out_text(model, campaign, table) -> str:
+    """Lines on how a saved model fits this campaign, and whether the campaign is held out."""
+    cal = model.calibration or {}
+    fitted_on = cal.get("campaign")
+    here = Path(str(campaign.path)).resolve() if campaign.path else None
+    where = [Path(fitted_on)] + ([Path(model.path).parent / fitted_on] if fitted_on and model.path else [])
+    same = bool(fitted_on) and here is not None and any(p.resolve() == here for p in where)
+    what = ("NOT held out: the model was fitted on this campaign" if same else
+            f"held out: the model was fitted on {fitted_on}" if fitted_on else
+            "the model file records no calibration campaign")
+    per = ", ".join(f"{k} {v:.1f} %" for k, v in table.per_signal.items())
+    own = cal.get("fit_percent_after", cal.get("fit_percent_before"))
+    on_own = f" (on its own campaign: {own:.1f} %)" if isinstance(own, (int, float)) else ""
+    return (f"model {model.label} validated on {campaign.path} ({what})\n"
+            f"{'held-out fit' if fitted_on and not same else 'overall fit'} {table.overall:.1f} %{on_own}; "
+            f"per signal: {per}")
 
 
 def describe_model(model, fitted: bool = True) -> str:

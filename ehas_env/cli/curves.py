@@ -42,14 +42,22 @@ def run(args) -> int:
     if not items or len(items) > 20:
         raise ValueError(f"--supplies: expected 1 to 20 comma-separated pressures in bar, got {args.supplies!r}")
     supplies = tuple(FIELDS["supply_bar"].parse(v, "--supplies: each pressure") for v in items)
-    ctrl = parse_gains(args.gains)
+    model = None
+    if getattr(args, "model", None):
+        from ehas_env.measurement.model_file import load_model
+
+        model = load_model(args.model)
+    ctrl = parse_gains(args.gains) if args.gains or model is None else model.controller()
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite)
     kw = {"valve": args.valve} if args.valve != "grey_box" else {}
+    if model is not None:
+        kw["model"] = model
     plant = Plant(disc_sets=args.disc_sets, effects=args.effects or None, **kw)
     parts = ["ehas", "curves"]
     for flag, value, default in (("--out", args.out, "results/curves"), ("--disc-sets", str(args.disc_sets), "3"),
                                  ("--gains", args.gains, ""), ("--effects", args.effects, ""),
-                                 ("--valve", args.valve, "grey_box"), ("--supplies", args.supplies, "70,140,220")):
+                                 ("--valve", args.valve, "grey_box"), ("--supplies", args.supplies, "70,140,220"),
+                                 ("--model", getattr(args, "model", None) or "", "")):
         if value != default:
             parts += [flag, value]
     command = " ".join(shlex.quote(p) for p in parts)

@@ -65,7 +65,9 @@ def run(args) -> int:
 
         status(f"{len(campaign.runs)} runs read; replaying them, then fitting every candidate effect "
                "(about 30-60 s on two cores)", "diagnose")
-    rep = Replayer(campaign)
+    rep = Replayer(campaign, model=getattr(args, "model", None))  # --model: diagnose on that rig (docs/model-file.md)
+    if rep.model is not None:
+        print(f"baseline: model {rep.model.label}")
     print(campaign.summary())
     print()
 

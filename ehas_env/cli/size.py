@@ -186,7 +186,7 @@ def _design_row(quantity, value, unit, decimals, book=None, note=""):
             "book": "" if book is None else _format(book, decimals), "note": note}
 
 
-def design_table(sizing, book_tables, design, is_book_design: bool) -> Table:
+def design_table(sizing, book_tables, design, is_book_design: bool, name: str | None = None) -> Table:
     """Summary of one design; the book's printed numbers beside it for the book's design."""
     s = sizing.size(design)
     b = book_tables.BOOK_DESIGN if is_book_design else None
@@ -198,7 +198,7 @@ def design_table(sizing, book_tables, design, is_book_design: bool) -> Table:
     rows = [
         _design_row("load inertia I", design.inertia, "kg m^2", 3),
         _design_row("amplitude theta_max", design.amplitude / sizing.DEG, "deg", 2,
-                    note=f"stroke end {sizing.stroke_end_angle(design.radius) / sizing.DEG:.2f} deg"),
+                    note=f"stroke end {sizing.stroke_end_angle(design.radius, design.half_stroke) / sizing.DEG:.2f} deg"),
         _design_row("frequency f", design.freq, "Hz", 2),
         _design_row("crank radius r", design.radius, "m", 3),
         _design_row("peak crank rate w_max", s.omega_max, "rad/s", 2),
@@ -233,7 +233,8 @@ def design_table(sizing, book_tables, design, is_book_design: bool) -> Table:
         _design_row("suction line bore", bores["suction"] * 1e3, "mm", 2, None,
                     f"v <= {sizing.line_velocity_limit('suction'):g} m/s"),
     ]
-    title = "Design summary" + (" (the book's design point: 14 discs, +-30 deg, 3 Hz)" if is_book_design else "")
+    title = ("Design summary" + (f" of {name}" if name else "")
+             + (" (the book's design point: 14 discs, +-30 deg, 3 Hz)" if is_book_design else ""))
     return Table("design", title, DESIGN_COLUMNS, rows)
 
 
@@ -311,20 +312,57 @@ def _parse_counts(text: str, bands: int) -> list[float]:
 # --- run ------------------------------------------------------------------------------------
 
 
-def _design(sizing, args):
-    inertia = (args.inertia if args.inertia is not None
-               else sizing.disc_inertia(args.disc_sets if args.disc_sets is not None else sizing.DESIGN_DISC_SETS))
+def _design(sizing, args, model=None):
+    """The design the arguments ask for; a model file (--model, docs/model-file.md) gives the rig's defaults."""
+    sets = args.disc_sets if args.disc_sets is not None else sizing.DESIGN_DISC_SETS
+    if model is not None:
+        inertia = args.inertia if args.inertia is not None else sets * model.inertia_per_set
+        radius, area, supply = model.rig.radius, model.rig.area, model.rig.supply
+        half_stroke = model.rig.half_stroke
+    else:
+        inertia = args.inertia if args.inertia is not None else sizing.disc_inertia(sets)
+        radius, area, supply = sizing.CRANK_RADIUS, sizing.ACTUATOR_AREA, sizing.SUPPLY_PRESSURE
+        half_stroke = sizing.HALF_STROKE
     sizing.check_positive("--inertia", inertia, "kg m^2")
     amplitude = sizing.DESIGN_AMPLITUDE_DEG if args.amplitude is None else args.amplitude
     return sizing.Design(
         inertia=inertia,
         amplitude=amplitude * sizing.DEG,
         freq=sizing.DESIGN_FREQUENCY_HZ if args.freq is None else args.freq,
-        radius=sizing.CRANK_RADIUS if args.radius is None else sizing.check_positive("--radius", args.radius, "m"),
-        area=sizing.ACTUATOR_AREA if args.area is None else args.area,
-        supply_pressure=sizing.SUPPLY_PRESSURE if args.supply_bar is None else args.supply_bar * sizing.BAR,
+        radius=radius if args.radius is None else sizing.check_positive("--radius", args.radius, "m"),
+        area=area if args.area is None else args.area,
+        supply_pressure=supply if args.supply_bar is None else args.supply_bar * sizing.BAR,
         safety_factor=sizing.SAFETY_FACTOR if args.safety_factor is None else args.safety_factor,
+        half_stroke=half_stroke,
     )
+
+
+def model_loads_table(sizing, model, text: bool) -> Table:
+    """Tables 1.1-1.3's grid for a model file's rig (its radius, area, inertia per set and stroke)."""
+    r = model.rig
+    rows = [{
+        "amplitude_deg": p.amplitude / sizing.DEG, "disc_sets": p.disc_sets, "discs": 2 * p.disc_sets,
+        "inertia_kgm2": p.inertia, "freq_hz": p.freq,
+        "max_force_kN": p.force / 1e3, "max_delta_p_bar": p.delta_p / sizing.BAR,
+    } for p in sizing.load_table(r.radius, r.area, model.inertia_per_set, r.half_stroke)]
+    return Table("loads", f"Peak actuator load of {model.label} (r = {r.radius:g} m, A = {r.area:.4e} m^2, "
+                          f"{model.inertia_per_set:g} kg m^2 per set)", LOAD_COLUMNS, rows,
+                 ("Pure inertia: F = I alpha_max / (r cos theta_max), dP = F / A (the book's chapter-1 method).",))
+
+
+def model_flows_table(sizing, model, text: bool) -> Table:
+    r = model.rig
+    rows = [{
+        "amplitude_deg": p.amplitude / sizing.DEG, "freq_hz": p.freq,
+        "max_angular_velocity_rad_s": p.omega_max, "max_linear_velocity_m_s": p.speed,
+        "max_flow_lpm": p.flow / sizing.LPM,
+    } for p in sizing.flow_table(r.radius, r.area, r.half_stroke)]
+    return Table("flows", f"Peak actuator flow of {model.label} (r = {r.radius:g} m, A = {r.area:.4e} m^2; valve "
+                          f"rated {r.K * r.i_max:.3g} LPM at {r.rated_drop / sizing.BAR:g} bar)", FLOW_COLUMNS, rows)
+
+
+def table_arg_is(args, name: str) -> bool:
+    return args.table == name
 
 
 def _chosen_table(args) -> str:
@@ -342,7 +380,12 @@ def run(args: argparse.Namespace) -> int:
     from ehas_env.book import tables as book_tables
     from ehas_env.book import sizing
 
-    design = _design(sizing, args)  # validates every design argument, even for the grid tables
+    model = None
+    if getattr(args, "model", None):
+        from ehas_env.measurement.model_file import load_model
+
+        model = load_model(args.model)
+    design = _design(sizing, args, model)  # validates every design argument, even for the grid tables
     radius, area = design.radius, design.area
     text = args.format == "text"
     builders = {
@@ -352,6 +395,13 @@ def run(args: argparse.Namespace) -> int:
         "rig": lambda: rig_table(sizing, book_tables, radius, area),
         "nas": lambda: nas_table(sizing, book_tables, args.nas_counts, args.nas_class),
     }
+    if model is not None and not model.is_book:  # another rig: its own grid, no book columns
+        builders["loads"] = lambda: model_loads_table(sizing, model, text)
+        builders["flows"] = lambda: model_flows_table(sizing, model, text)
+        builders["design"] = lambda: design_table(sizing, book_tables, design, False, model.label)
+        if table_arg_is(args, "rig"):
+            raise ValueError(f"--table rig: the book's rig tests are for the book's rig, not {model.label}")
+        builders.pop("rig")
     table = _chosen_table(args)
     names = list(builders) if table == "all" else [table]
     if args.format == "csv" and len(names) > 1:

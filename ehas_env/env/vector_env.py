@@ -44,7 +44,7 @@ from ehas_env.env import parts
 from ehas_env.physics import layout as K
 from ehas_env.physics.codegen import current_model
 from ehas_env.simulation.plant import TAU_MAX
-from ehas_env.env.tracking_env import ACTION_SPACE, EpisodePacker, observation_space, step_settings
+from ehas_env.env.tracking_env import ACTION_SPACE, EpisodePacker, model_plant_kwargs, observation_space, step_settings
 
 
 
@@ -63,7 +63,7 @@ class TrackingVectorEnv(VectorEnv):
     **kwargs
         The settings of :class:`~ehas_env.env.tracking_env.TrackingEnv` (episode
         defaults, ``randomise``, ``controller``, reward weights, ``preview_ms``,
-        ``dt``, ``substeps``, ``plant_kwargs``).
+        ``dt``, ``substeps``, ``plant_kwargs``, ``model``: a model file, docs/model-file.md).
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -74,10 +74,11 @@ class TrackingVectorEnv(VectorEnv):
                  controller=None, rate_penalty: float = 0.01, termination_penalty: float = 1.0,
                  preview_ms=(10.0, 20.0, 50.0), dt: float = 1.0e-3, substeps: int = 10,
                  plant_kwargs: dict | None = None, render_mode: str | None = None,
-                 effects_path=None):
+                 effects_path=None, model=None):
         from ehas_env.physics.effects import load_effects_path
 
         load_effects_path(effects_path)  # user effect files: registered before the model is built
+        plant_kwargs = model_plant_kwargs(model, plant_kwargs)
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if max_episode_steps is not None and (not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1):

@@ -280,19 +280,23 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     files = []
 
     # 1. flow vs current
-    i = np.linspace(-20, 20, 201)
+    pm = getattr(plant, "plant_model", None)  # a model file's rig (docs/model-file.md): its valve rating
+    rig_k, i_rated = plant.rig.K, plant.rig.i_max
+    rated = rig_k * i_rated
+    i = np.linspace(-i_rated, i_rated, 201)
     fig, ax = plt.subplots(figsize=(7, 5))
     need = []
     for k, ps in enumerate(supplies_bar):
-        ax.plot(i, flow_vs_current(i, ps), color=f"C{k}", label=f"grey box, Ps = {ps:g} bar")
+        ax.plot(i, flow_vs_current(i, ps, K=rig_k, i_max=i_rated), color=f"C{k}", label=f"grey box, Ps = {ps:g} bar")
         ax.plot(i, [wb.steady_flow_lpm(x, ps) for x in i], "--", color=f"C{k}", lw=0.9,
                 label=f"white box, Ps = {ps:g} bar")
-        need.append((ps, current_for_flow(25.0, ps), wb.steady_flow_lpm(20.0, ps)))
-    ax.axhline(25.0, color="k", lw=0.6, ls=":")
-    ax.axhline(-25.0, color="k", lw=0.6, ls=":")
+        need.append((ps, current_for_flow(25.0 if pm is None else rated, ps, K=rig_k), wb.steady_flow_lpm(20.0, ps)))
+    ax.axhline(rated if pm is not None else 25.0, color="k", lw=0.6, ls=":")
+    ax.axhline(-rated if pm is not None else -25.0, color="k", lw=0.6, ls=":")
     ax.set_xlabel("current, mA")
     ax.set_ylabel("no-load flow, LPM")
-    ax.set_title("flow against current (no load); dotted: rated 25 LPM", fontsize=10)
+    ax.set_title("flow against current (no load); dotted: rated 25 LPM" if pm is None else
+                 f"{pm.label}: flow against current (no load); dotted: rated {rated:.3g} LPM", fontsize=10)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     files.append(_save(fig, out / "flow_vs_current.png"))
@@ -342,11 +346,13 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     status("5/5 position loop (linearised) Bode plot and margins", "curves")
     loop = position_loop(plant, ctrl, valve)
     files.append(_plot_loop(loop, out / "position_loop_bode.png",
-                            title=f"position loop, {plant.rig.disc_sets} disc sets, {valve}, Kp {ctrl.Kp:g} mA/deg, "
+                            title=(f"{pm.label}: " if pm is not None else "")
+                                  + f"position loop, {plant.rig.disc_sets} disc sets, {valve}, Kp {ctrl.Kp:g} mA/deg, "
                                   f"Ki {ctrl.Ki:g} mA/(deg s)"))
     sweep = []
     for n in range(1, 8):
-        p = Plant(disc_sets=n, effects=plant.effects or None, **({"valve": valve} if valve != "grey_box" else {}))
+        p = Plant(disc_sets=n, effects=plant.effects or None, **({"valve": valve} if valve != "grey_box" else {}),
+                  **({"model": pm} if pm is not None else {}))
         lp = position_loop(p, ctrl, valve)
         sweep.append((n, lp))
 

@@ -158,11 +158,20 @@ class Replayer:
         Validated runs (``ehas_env.measurement.campaign.read_campaign``).
     substeps : int
         RK4 sub-steps per control period (10, as the plant's default).
+    model : PlantModel or str, optional
+        A model file (docs/model-file.md): the rig every run is replayed on, its
+        effects always on.  A :class:`ModelSpec`'s ``beta`` and ``K`` then scale
+        the model's own (``beta_model * beta / 1e9``, ``K_model * K / 1.2723``), so
+        the recalibration ranges of the diagnosis hold around the model's numbers;
+        :meth:`absolute` gives the numbers the plant runs.
     """
 
-    def __init__(self, campaign: Campaign, substeps: int = 10):
+    def __init__(self, campaign: Campaign, substeps: int = 10, model=None):
+        from ehas_env.measurement.model_file import as_model
+
         self.campaign = campaign
         self.substeps = substeps
+        self.model = as_model(model)
         self.cases = [self._case(r) for r in campaign.runs]
         self.n_evals = 0
 
@@ -197,8 +206,22 @@ class Replayer:
     def plant(self, model: ModelSpec, run: Run, dt: float | None = None) -> Plant:
         """The :class:`Plant` that ``model`` is for this run (disc sets, supply, period)."""
         sets = run.meta.get("disc_sets", 1)
+        if self.model is not None:  # the model file's rig, its effects with the spec's (docs/model-file.md)
+            m = self.absolute(model)
+            return Plant(disc_sets=sets, effects=model.effects, model=self.model, dt=dt or run.dt,
+                         substeps=self.substeps,
+                         rig=self.model.rig.replace(beta=m.beta, K=m.K, supply=run.meta["supply_bar"] * BAR))
         return Plant(disc_sets=sets, effects=model.effects, rig=model.rig(run.meta["supply_bar"]),
                      dt=dt or run.dt, substeps=self.substeps)
+
+    def absolute(self, model: ModelSpec) -> ModelSpec:
+        """``model`` with the bulk modulus (Pa) and valve gain (LPM/mA) the plant runs (see ``model=``)."""
+        if self.model is None:
+            return model
+        from dataclasses import replace
+
+        return replace(model, beta=self.model.rig.beta * model.beta / BULK_MODULUS,
+                       K=self.model.rig.K * model.K / VALVE_K)
 
     # -- simulation -------------------------------------------------------------------------
     def simulate(self, model: ModelSpec, runs=None) -> list[dict[str, np.ndarray] | None]:
