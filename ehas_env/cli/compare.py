@@ -136,7 +136,7 @@ def held_out_text(model, campaign, table) -> str:
     cal = model.calibration or {}
     fitted_on = cal.get("campaign")
     here = Path(str(campaign.path)).resolve() if campaign.path else None
-    where = [Path(fitted_on)] + ([Path(model.path).parent / fitted_on] if fitted_on and model.path else [])
+    where = ([Path(fitted_on)] + ([Path(model.path).parent / fitted_on] if model.path else [])) if fitted_on else []
     same = bool(fitted_on) and here is not None and any(p.resolve() == here for p in where)
     what = ("NOT held out: the model was fitted on this campaign" if same else
             f"held out: the model was fitted on {fitted_on}" if fitted_on else
