@@ -1,14 +1,21 @@
-"""``ehas diagnose``: where the baseline fails and which effect of the library explains it.
+"""``ehas diagnose``: where the model fails, which effects of the library explain it, and what is still missing.
 
 ``ehas diagnose CAMPAIGN_DIR [--json FILE] [--out DIR]`` replays the campaign
 with the baseline, prints where it fails (residual signatures per signal), then
-adds every effect of the library in turn, fits it (with beta and K), and prints
-the ranking with evidence in words; ``"none"`` heads the ranking when nothing
-beats noise.  ``--json`` writes the JSON of docs/measurement-format.md; ``--out`` a
-report.md with plots.  ``--with NAME[,NAME...]`` starts from a model that
-already has those effects (refitted with every candidate), to find the next
-one; ``--stack`` repeats the diagnosis, adding the winner each time, until
-nothing more beats noise.
+adds every effect of the library in turn, fits it (with beta and K), ranks them
+with evidence in words, and stacks: the best effect is kept when it is
+physically sane and lowers the residual of validation data (runs held out of
+the fit, ``--holdout``, and the fitted runs beyond their fit windows), then the
+next is sought on top of it, until no candidate passes (``--no-stack``: one
+round).  The verdict says whether the final model explains the campaign down to
+the noise (calibrated on clean campaigns) or leaves it *unexplained*; then it
+shows what the remaining residual follows and proposes the missing term
+(``--write-effect DIR/NAME.py`` writes it as an effect file for
+``ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit``).
+``--json`` writes the JSON of docs/measurement-format.md; ``--out`` a report.md
+with plots.  ``--with NAME[,NAME...]`` starts from a model that already has
+those effects.  Candidates are the library's effects; effects loaded with
+``--effects-path`` are tried only when ``--candidates`` names them (or ``all``).
 """
 from __future__ import annotations
 
@@ -19,8 +26,6 @@ import sys
 import time
 from pathlib import Path
 
-MAX_STACK = 4
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md)")
@@ -29,11 +34,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--with", dest="with_effects", default="", metavar="NAME[,NAME...]",
                         help="effects already added (fitted with each candidate): find the next one")
     parser.add_argument("--stack", action="store_true",
-                        help=f"add the winner and diagnose again until nothing beats noise (at most {MAX_STACK})")
+                        help="stack effects (the default): keep the best while it is sane and lowers the "
+                             "validation residual, then look again")
+    parser.add_argument("--no-stack", action="store_true", help="one round: rank the candidates, keep at most one")
     parser.add_argument("--candidates", default="", metavar="NAME[,NAME...]",
-                        help="try only these effects (default: every effect of the library)")
+                        help="try only these effects; 'library' = every effect of ehas's library (the default), "
+                             "'all' = those and every effect loaded with --effects-path")
+    parser.add_argument("--holdout", default=None, metavar="RUN[,RUN...]",
+                        help="runs kept out of the fit for validation ('none': none); default with >= 4 runs: "
+                             "one closed-loop run per 4 runs, the most central one")
+    parser.add_argument("--fit-window", type=float, default=None, metavar="S",
+                        help="seconds of each closed-loop run the fit uses (default 3; the rest validates)")
+    parser.add_argument("--write-effect", default=None, metavar="DIR/NAME.py",
+                        help="when the campaign is unexplained, write the proposed term as an effect file NAME")
+    parser.add_argument("--no-propose", action="store_true", help="do not look for a missing term")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument("--overwrite", action="store_true", help="replace an earlier --out folder / --json file")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an earlier --out folder / --json file / --write-effect file")
     parser.add_argument("--columns", default="", metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
@@ -41,91 +58,171 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     from ehas_env.measurement.campaign import parse_column_map, read_campaign
-    from ehas_env.measurement.diagnosis import diagnose
+    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, diagnose_open, resolve_candidates
     from ehas_env.physics.effects import get_effect, parse_spec
-    from ehas_env.measurement.replay import ModelSpec, Replayer, format_fit_tables
-    from ehas_env.measurement.residuals import where_it_fails
+    from ehas_env.measurement.replay import format_fit_tables
+    from ehas_env.measurement.residuals import follows_text, where_it_fails
+    from ehas_env.output.outputs import OutputSet, check_file
 
     t0 = time.perf_counter()
     base = parse_spec(args.with_effects) if args.with_effects else {}
-    candidates = [c.strip() for c in args.candidates.split(",") if c.strip()] or None
-    for c in candidates or []:
-        get_effect(c)
-    from ehas_env.output.outputs import OutputSet, check_file
-
+    candidates = resolve_candidates(args.candidates)
     for n, p in base.items():
         get_effect(n).resolve(p)  # bad values refused before any work
+    window = FIT_WINDOW_S if args.fit_window is None else args.fit_window
+    if not 0.5 <= window <= 600:
+        raise ValueError(f"--fit-window {window:g}: give 0.5 to 600 s")
+    holdout = None
+    if args.holdout is not None:
+        holdout = [] if args.holdout.strip().lower() == "none" else [h.strip() for h in args.holdout.split(",") if h.strip()]
     # the output paths, before any work
     if args.json:
         check_file(args.json, "--json", overwrite=args.overwrite)
+    if args.write_effect:
+        we = Path(args.write_effect)
+        if we.suffix != ".py" or not we.stem.isidentifier():
+            raise ValueError(f"--write-effect {we}: give DIR/NAME.py with NAME a Python identifier (it names the effect)")
+        check_file(args.write_effect, "--write-effect", overwrite=args.overwrite)
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
+    say = (lambda msg: None)
     if not args.quiet:
         from ehas_env.output.progress import status
 
-        status(f"{len(campaign.runs)} runs read; replaying them, then fitting every candidate effect "
-               "(about 30-60 s on two cores)", "diagnose")
-    rep = Replayer(campaign, model=getattr(args, "model", None))  # --model: diagnose on that rig (docs/model-file.md)
-    if rep.model is not None:
-        print(f"baseline: model {rep.model.label}")
+        status(f"{len(campaign.runs)} runs read; replaying them, then fitting every candidate effect, stacking "
+               "and checking what is left (about 20-60 s on two cores)", "diagnose")
+        say = (lambda msg: status(msg, "diagnose"))
     print(campaign.summary())
     print()
-
-    steps = []
-    while True:
-        d = diagnose(campaign, base_effects=base, candidates=candidates, progress=not args.quiet, replayer=rep)
-        steps.append(d)
-        if len(steps) == 1:
-            print(where_it_fails(rep, d.baseline.sims, "baseline" + (" + " + " + ".join(base) if base else "")))
-            print()
+    res = diagnose_open(campaign, candidates=candidates, base_effects=base, holdout=holdout,
+                        stack=not args.no_stack, propose=not args.no_propose, window_s=window,
+                        progress=not args.quiet, log=say)
+    first = res.first
+    print(where_it_fails(res.full, res.baseline_all, "baseline" + (" + " + " + ".join(base) if base else "")))
+    print()
+    for d in res.rounds:
         print(_ranking_text(d))
         print()
-        if not args.stack or d.found == "none" or len(steps) >= MAX_STACK:
-            break
-        base = {k: dict(v) for k, v in d.top.fit.model.effects.items()}
-        print(f"adding {d.found}; diagnosing again on top of {', '.join(base)}")
-        print()
-
-    first, last = steps[0], steps[-1]
-    final = last.top if last.found != "none" else (steps[-2].top if len(steps) > 1 else None)
-    tables = {"baseline": first.baseline.table, "baseline, beta/K recal.": first.null.table}
-    if final is not None:
-        tables["+ " + " + ".join(final.fit.model.effects)] = final.fit.table
+    print(_stack_text(res))
+    print()
+    tables = {"baseline": res.full.fit_table(res.baseline_all), "final model": res.full.fit_table(res.sims_all)}
     print(format_fit_tables(tables).split("\n\nfit % per run")[0])
-    if final is not None:
-        b, a = first.baseline.table.overall, final.fit.table.overall
-        print(f"\nadding {', '.join(final.fit.model.effects)}: overall fit {b:.1f} % -> {a:.1f} % ({a - b:+.1f} points)")
-        print(f"next: ehas compare {shlex.quote(str(campaign.path))} --effects {','.join(final.fit.model.effects)} "
+    print()
+    print(_model_text(res))
+    print()
+    print(_validation_text(res))
+    print()
+    print(follows_text(res.follows, "final model"))
+    print()
+    print(f"verdict: {res.verdict}")
+    if res.unexplained is not None:
+        print(res.unexplained["text"])
+    else:
+        print(f"the final model explains the campaign down to the noise: residual {res.cost_all:.2f}x the noise "
+              f"variance (clean campaigns stay below {res.unexplained_threshold:g}x)")
+    written = None
+    if res.proposal is not None:
+        p = res.proposal
+        print()
+        print("proposed missing term:")
+        print("  " + p.equation().replace("\n", "\n  "))
+        v = p.validation
+        print(f"  residual {v['residual_x_noise_all_before']:.3g}x -> {v['residual_x_noise_all_after']:.3g}x noise, "
+              f"fit {v['fit_percent_all_before']:.1f} % -> {v['fit_percent_all_after']:.1f} % (all data)")
+        if args.write_effect:
+            from ehas_env.measurement.proposal import write_effect
+
+            written = write_effect(args.write_effect, p, origin=str(campaign.path))
+            name = Path(args.write_effect).stem
+            print(f"effect file: {args.write_effect}")
+            print(f"next: ehas compare {shlex.quote(str(campaign.path))} --effects-path "
+                  f"{shlex.quote(str(Path(args.write_effect).parent))} --effects "
+                  f"{','.join(list(res.model.effects) + [name])} --fit --out DIR")
+    elif args.write_effect:
+        print("no effect file written: " + ("the campaign is explained" if res.unexplained is None else
+                                            "no term of the dictionary lowers the residual"))
+    if res.model.effects and written is None:
+        print(f"next: ehas compare {shlex.quote(str(campaign.path))} --effects {','.join(res.model.effects)} "
               "--fit --out DIR --save-model model.json")
     elapsed = time.perf_counter() - t0
-    print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({sum(d.n_evals for d in steps)} replays)")
+    print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
 
     command = "ehas diagnose " + " ".join(shlex.quote(a) for a in _argv())
     if args.json:
         from ehas_env.output.files import atomic_write_text
 
-        doc = first.to_json()
+        doc = res.to_json()
         doc["campaign"] = str(campaign.path)
         doc["elapsed_s"] = round(elapsed, 1)
-        if args.stack:
-            doc["stack"] = [d.top.to_json() for d in steps]
+        if written is not None:
+            doc["unexplained"]["proposal"]["effect_file"] = str(args.write_effect)
         atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
         print(f"json: {args.json}")
     if outputs is not None:
         from ehas_env.cli.compare import write_report
 
-        sims = {"baseline": first.baseline.sims, "baseline, beta/K recal.": first.null.sims}
-        label = None
-        model = None
-        if final is not None:
-            label = "+ " + " + ".join(final.fit.model.effects)
-            sims[label] = final.fit.sims
-            model = final.fit.model
+        sims = {"baseline": res.baseline_all}
+        tabs = {"baseline": tables["baseline"]}
+        label = model = None
+        if res.model.effects:
+            label = "+ " + " + ".join(res.model.effects)
+            sims[label], tabs[label] = res.sims_all, tables["final model"]
+            model = res.model
         with outputs as tmp:
-            path = write_report(tmp, rep, sims, tables, campaign=campaign, command=command, after_label=label,
+            path = write_report(tmp, res.full, sims, tabs, campaign=campaign, command=command, after_label=label,
                                 after_model=model, fitted=True, diagnosis=first, title="Diagnosis")
+            extra = ["## 6. Stacking, confidence and validation", "", "```", _stack_text(res), "",
+                     _model_text(res), "", _validation_text(res), "```", "",
+                     "## 7. Verdict and what is left", "", f"**{res.verdict}**", "",
+                     res.unexplained["text"] if res.unexplained else
+                     f"Residual {res.cost_all:.2f}x the noise variance: explained down to the noise.", "",
+                     "```", follows_text(res.follows, "final model"), "```", ""]
+            if res.proposal is not None:
+                extra += ["## 8. The missing term, proposed", "", "```", res.proposal.equation(), "```", "",
+                          f"Fit on all data {res.proposal.validation['fit_percent_all_before']:.1f} % -> "
+                          f"{res.proposal.validation['fit_percent_all_after']:.1f} %; residual "
+                          f"{res.proposal.validation['residual_x_noise_all_before']:.3g}x -> "
+                          f"{res.proposal.validation['residual_x_noise_all_after']:.3g}x noise.", ""]
+            with open(path, "a") as fh:
+                fh.write("\n".join(extra) + "\n")
         print(f"report: {Path(args.out) / path.name}")
     return 0
+
+
+def _stack_text(res) -> str:
+    lines = ["stacking (an effect is kept when it is physically sane and lowers the residual of the validation data)"]
+    if not res.steps:
+        lines.append("  no candidate beat noise")
+    for s in res.steps:
+        lines.append(f"  {s.effect:<20}{'kept' if s.kept else 'not kept':<10}{s.reason}")
+    return "\n".join(lines)
+
+
+def _model_text(res) -> str:
+    from ehas_env.measurement.diagnosis import _unit, _value_of
+
+    lines = ["final model, fitted values with 95 % confidence intervals (cluster-robust, on the fit data)"]
+    for fp in res.fit_train.free:
+        key = (fp.effect, fp.name)
+        v = _value_of(res.model, fp)
+        lo, hi = res.ci.get(key, (float("nan"), float("nan")))
+        lines.append(f"  {(fp.effect or 'baseline') + '.' + fp.name:<28}{v:>12.5g}  [{lo:.5g}, {hi:.5g}] {_unit(*key)}")
+    if len(lines) == 1:
+        lines.append("  nothing fitted")
+    return "\n".join(lines)
+
+
+def _validation_text(res) -> str:
+    v = res.validation
+    lines = [f"validation: fitted on {', '.join(v['fit_runs'])} (first {v['fit_window_s']:g} s of closed-loop runs)"]
+    if v["holdout"]:
+        lines.append(f"  held out: {', '.join(v['holdout'])}; fit % baseline {v['holdout_fit_percent_baseline']:.1f} -> "
+                     f"model {v['holdout_fit_percent_model']:.1f}")
+    else:
+        lines.append("  no run held out (fewer than 4 runs, or --holdout none)")
+    if v["residual_x_noise_validation"] is not None:
+        lines.append(f"  residual on the validation data: {v['residual_x_noise_validation']:.3g}x noise variance")
+    return "\n".join(lines)
 
 
 def _argv() -> list[str]:

@@ -93,14 +93,18 @@ class ModelSpec:
         sets beta (``bulk_modulus``) overrides it.
     K : float
         Valve flow gain, LPM/mA (the book's 1.2723); ``valve_dynamics`` overrides it.
+    terms : dict
+        Coefficients of proposed terms, ``{"<term class>.<coefficient>": SI value}``
+        (:mod:`ehas_env.measurement.proposal_terms`); empty for a model of effects only.
     """
 
     effects: dict = field(default_factory=dict)
     beta: float = BULK_MODULUS
     K: float = VALVE_K
+    terms: dict = field(default_factory=dict)
 
     def resolved(self) -> "ModelSpec":
-        return ModelSpec(resolve_effects(self.effects), float(self.beta), float(self.K))
+        return ModelSpec(resolve_effects(self.effects), float(self.beta), float(self.K), dict(self.terms))
 
     def rig(self, supply_bar: float) -> RigParams:
         return RigParams(beta=self.beta, K=self.K, supply=supply_bar * BAR)
@@ -125,6 +129,7 @@ class _Case:
     zeros: np.ndarray | None = None
     theta0: float = 0.0
     cmd: np.ndarray | None = None
+    skip: int = 0  # leading samples left out of cost and fit (the warm-up of a window cut from a valve run)
 
 
 @dataclass
@@ -201,6 +206,11 @@ class Replayer:
             case = _Case(run, signals, measured, {}, run.dt, run.n, False, np.zeros((run.n, 3)), hist,
                          cmd=np.ascontiguousarray(run.columns["current_mA"], dtype=float))
         case.noise = {s: max(noise_level(y), NOISE_FLOOR[s]) for s, y in measured.items()}
+        window = run.meta.get("window") or {}
+        case.skip = int(window.get("skip", 0))
+        for s, nz in (window.get("noise") or {}).items():
+            if s in case.noise:
+                case.noise[s] = nz
         return case
 
     def plant(self, model: ModelSpec, run: Run, dt: float | None = None) -> Plant:
@@ -213,6 +223,22 @@ class Replayer:
                          rig=self.model.rig.replace(beta=m.beta, K=m.K, supply=run.meta["supply_bar"] * BAR))
         return Plant(disc_sets=sets, effects=model.effects, rig=model.rig(run.meta["supply_bar"]),
                      dt=dt or run.dt, substeps=self.substeps)
+
+    def compiled(self, model: ModelSpec, run: Run, dt: float | None = None):
+        """(compiled model module, parameter vector, plant) that ``model`` runs on for this run.
+
+        A model with proposed ``terms`` runs on the extended model of
+        :func:`ehas_env.measurement.proposal_terms.extended_model`.
+        """
+        plant = self.plant(model, run, dt)
+        if not model.terms:
+            return plant.model, plant.param_vector, plant
+        from ehas_env.measurement.proposal_terms import extended_model, term_slots
+
+        ext = extended_model()
+        named = plant.slots()
+        named.update(term_slots(model.terms))
+        return ext, np.array([named.get(n, 0.0) for n in ext.SLOTS], dtype=float), plant
 
     def absolute(self, model: ModelSpec) -> ModelSpec:
         """``model`` with the bulk modulus (Pa) and valve gain (LPM/mA) the plant runs (see ``model=``)."""
@@ -247,7 +273,7 @@ class Replayer:
         if jobs:
             nmax = max(self.cases[i].n_sim for _, i in jobs)
             J = len(jobs)
-            model = self.plant(models[0], self.cases[cl[0]].run).model
+            model = self.compiled(models[0], self.cases[cl[0]].run)[0]
             S0 = np.empty((J, model.N_STATES))
             P = np.empty((J, model.N_SLOTS))
             gains = np.empty((J, N_GAINS))
@@ -258,9 +284,11 @@ class Replayer:
             hl = max(self.cases[i].hist.size for _, i in jobs)
             for j, (m, i) in enumerate(jobs):
                 case = self.cases[i]
-                plant = self.plant(models[m], case.run, case.dt)
+                mod, Pj, plant = self.compiled(models[m], case.run, case.dt)
+                if mod is not model:
+                    raise ValueError("simulate_many: models with and without proposed terms go in separate calls")
                 S0[j] = plant.initial_state(case.theta0)
-                P[j] = plant.param_vector
+                P[j] = Pj
                 gains[j] = case.gains
                 refs[j] = case.ref
                 dts[j] = case.dt
@@ -280,15 +308,14 @@ class Replayer:
 
     def _simulate_case(self, model: ModelSpec, case: _Case) -> dict[str, np.ndarray]:
         run = case.run
-        plant = self.plant(model, run, case.dt)
-        P = plant.param_vector
+        mod, P, plant = self.compiled(model, run, case.dt)
         if run.kind == "valve_open_loop":
-            plant.model.run_valve_test(P, case.cmd, case.dt, self.substeps, run.meta["supply_bar"] * BAR, case.hist, case.out)
+            mod.run_valve_test(P, case.cmd, case.dt, self.substeps, run.meta["supply_bar"] * BAR, case.hist, case.out)
             return {"flow_lpm": case.out[:, 0] / LPM}
         s = plant.initial_state(case.theta0)
         sensor = np.array([0.0, 0.0, 0.0, plant.rig.i_max])
         o = case.out
-        plant.model.closed_loop(s, P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
+        mod.closed_loop(s, P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
                                 case.hist, case.zeros, sensor, 0, 0, np.zeros(6), o)
         return self._closed_loop_signals(case, o)
 
@@ -324,9 +351,10 @@ class Replayer:
         for i, (case, sim) in enumerate(zip(self.cases, sims)):
             if sim is None or (runs is not None and i not in runs):
                 continue
+            k = case.skip
             for s in case.signals:
                 if s in COST_SIGNALS:
-                    parts.append((case.measured[s] - sim[s]) / case.noise[s])
+                    parts.append((case.measured[s][k:] - sim[s][k:]) / case.noise[s])
         return parts
 
     def cost_vector(self, sims, runs=None) -> np.ndarray:
@@ -367,11 +395,12 @@ class Replayer:
                 continue
             name = case.run.name
             per_run[name], rms[name] = {}, {}
+            k = case.skip
             for s in case.signals:
-                e = case.measured[s] - sim[s]
+                e = case.measured[s][k:] - sim[s][k:]
                 rms[name][s] = float(np.sqrt(np.mean(e**2)))
                 if self.informative(case, s):
-                    f = fit_percent(case.measured[s], sim[s])
+                    f = fit_percent(case.measured[s][k:], sim[s][k:])
                     per_run[name][s] = f
                     acc.setdefault(s, []).append(f)
         order = [s for s in CL_SIGNALS if s in acc]

@@ -262,3 +262,135 @@ def evidence_text(rep: Replayer, null, entry) -> str:
     if not entry.beats_noise:
         parts.append("too little to beat noise")
     return "; ".join(parts)
+
+
+# --- what the remaining residual follows ------------------------------------------------------
+
+#: the physical quantities a residual is regressed on (names of the diagnosis JSON)
+QUANTITY_DOC = {
+    "theta": "crank angle", "omega": "crank rate", "sign_omega": "sign of the crank rate",
+    "alpha": "crank acceleration", "p_a": "chamber A pressure", "p_b": "chamber B pressure",
+    "p_load": "load pressure P_A - P_B", "p_s": "supply pressure", "current": "valve current",
+    "sign_current": "sign of the valve current (spool direction)", "abs_flow": "|flow| (valve opening)",
+    "current_lag_5ms": "the current 5 ms earlier", "current_rate": "rate of the current",
+    "abs_current": "|current|", "constant": "a constant", "time": "time since the run's start",
+}
+FOLLOW_MIN_SHARE = 0.02  # a quantity is listed when it explains at least this share of the residual energy
+FOLLOW_MAX_TERMS = 5
+
+
+def quantities(case, sim: dict) -> dict[str, np.ndarray]:
+    """The physical quantities of one run at its samples (model's noise-free states; measured supply)."""
+    run = case.run
+    dt = run.dt
+    t = np.arange(run.n) * dt
+    if run.kind == "valve_open_loop":
+        i = run.columns["current_mA"]
+        return {"current": i, "sign_current": np.sign(i), "abs_current": np.abs(i),
+                "current_rate": np.gradient(i, dt), "constant": np.ones_like(i), "time": t}
+    w = np.radians(sim["omega_deg_s"])
+    wmax = max(float(np.max(np.abs(w))), 1e-9)
+    i = sim["current_mA"]
+    k = int(round(5e-3 / dt))
+    q = {
+        "theta": np.radians(sim["theta_deg"]), "omega": w, "sign_omega": np.tanh(w / (0.01 * wmax)),
+        "alpha": np.gradient(w, dt), "p_a": sim["p_a_bar"], "p_b": sim["p_b_bar"],
+        "p_load": sim["p_a_bar"] - sim["p_b_bar"],
+        "p_s": run.columns["p_s_bar"] if "p_s_bar" in run.columns else sim["p_s_bar"],
+        "current": i, "sign_current": np.sign(i), "abs_flow": np.abs(sim["flow_lpm"]),
+        "current_lag_5ms": np.r_[np.full(k, i[0]), i[:-k]] if 0 < k < i.size else i,
+        "constant": np.ones_like(i), "time": t,
+    }
+    return q
+
+
+def _forward_selection(e: np.ndarray, X: dict[str, np.ndarray], max_terms: int) -> list[tuple[str, float]]:
+    """Greedy least squares: the quantity that removes most residual energy first, then the next given it.
+
+    Shares are of the residual's energy (sum of squares, noise included).
+    """
+    total = float(np.dot(e, e))
+    if total <= 0.0:
+        return []
+    names = [n for n, x in X.items() if np.ptp(x) > 0 or n == "constant"]
+    cols = {n: X[n] / max(float(np.sqrt(np.mean(X[n] ** 2))), 1e-300) for n in names}
+    chosen: list[str] = []
+    out = []
+    left = total
+    for _ in range(max_terms):
+        best = None
+        for n in names:
+            if n in chosen:
+                continue
+            A = np.column_stack([cols[m] for m in chosen + [n]])
+            coef, *_ = np.linalg.lstsq(A, e, rcond=None)
+            r = e - A @ coef
+            ss = float(np.dot(r, r))
+            if best is None or ss < best[1]:
+                best = (n, ss)
+        if best is None:
+            break
+        gain = left - best[1]
+        if gain < FOLLOW_MIN_SHARE * total:
+            break
+        chosen.append(best[0])
+        out.append((best[0], gain / total))
+        left = best[1]
+    return out
+
+
+def follows(rep: Replayer, sims, runs=None) -> dict:
+    """What the residual of each signal follows, and overall, strongest first.
+
+    Per signal, the closed-loop runs are pooled (one coefficient per quantity for
+    every run: a spring and an inertia error, which are both in phase with the
+    angle in any one sine run, part across runs of different frequency) and the
+    residual, in units of each run's noise level, is regressed on the
+    quantities of :func:`quantities` by forward selection.
+
+    Returns
+    -------
+    dict
+        ``signals``: {signal: {"x_noise": residual RMS / noise, "follows": [[quantity, share], ...]}};
+        ``follows``: the quantities over all signals, strongest first, each with its share of the
+        residual energy above noise ({quantity: share}).
+    """
+    pools: dict[str, tuple[list, dict]] = {}
+    for idx, (case, sim) in enumerate(zip(rep.cases, sims)):
+        if sim is None or (runs is not None and idx not in runs):
+            continue
+        q = quantities(case, sim)
+        k = case.skip
+        for s in case.signals:
+            key = s if case.run.kind == "closed_loop" else f"{s} (valve)"
+            es, qs = pools.setdefault(key, ([], {}))
+            es.append((case.measured[s][k:] - sim[s][k:]) / case.noise[s])
+            for n, x in q.items():
+                if n == "p_s" and s == "p_s_bar":
+                    continue
+                qs.setdefault(n, []).append(x[k:])
+    per_signal = {}
+    overall: dict[str, float] = {}
+    for key, (es, qs) in pools.items():
+        e = np.concatenate(es)
+        X = {n: np.concatenate(v) for n, v in qs.items() if len(v) == len(es)}
+        ms = float(np.mean(e**2))
+        sel = _forward_selection(e, X, FOLLOW_MAX_TERMS)
+        per_signal[key] = {"x_noise": round(math.sqrt(ms), 3), "follows": [[n, round(v, 3)] for n, v in sel]}
+        excess = max(float(np.sum(e**2)) - e.size, 0.0)
+        for n, v in sel:
+            overall[n] = overall.get(n, 0.0) + excess * v
+    tot = sum(overall.values())
+    ranked = sorted(overall.items(), key=lambda kv: kv[1], reverse=True)
+    return {"signals": per_signal, "follows": {n: round(v / tot, 3) for n, v in ranked} if tot > 0 else {}}
+
+
+def follows_text(fol: dict, title: str) -> str:
+    """Plain-text table of :func:`follows`."""
+    lines = [f"what the residual of the {title} follows (share of each signal's residual energy, noise included)"]
+    for key, d in sorted(fol["signals"].items(), key=lambda kv: kv[1]["x_noise"], reverse=True):
+        tops = ", ".join(f"{n} {100 * v:.0f}%" for n, v in d["follows"]) or "nothing beyond noise"
+        lines.append(f"  {key:<18}{d['x_noise']:>6.2f}x noise  {tops}")
+    if fol["follows"]:
+        lines.append("  overall, strongest first: " + ", ".join(f"{n} ({100 * v:.0f} %)" for n, v in fol["follows"].items()))
+    return "\n".join(lines)

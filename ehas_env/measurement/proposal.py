@@ -1,0 +1,446 @@
+"""The missing term, proposed: sparse terms at the model's places, fitted inside the full model.
+
+When the best model of the library leaves residuals above noise, this module
+looks for the term the model lacks among the forms of
+:mod:`ehas_env.measurement.proposal_terms` (forces on the piston, torques on the
+crank, flows into the chambers, the valve current), in three steps:
+
+1. **sparse regression on the residual force** (campaigns with chamber pressures):
+   the force the model misses at the piston, F = -A (P_L,measured - P_L,model),
+   is regressed on the force and torque forms evaluated on the model's states by
+   pysindy's sequentially thresholded least squares (``pysindy.STLSQ``), which
+   keeps the few forms that carry it;
+2. **screening inside the model**: every form of every place is added alone to
+   the full model (the library effects found, beta and K as fitted) and its
+   coefficient scanned over both signs and three decades; the replays of all of
+   them run as one batch;
+3. **fitting inside the model**: the best screened forms and the sparse set of
+   step 1 are fitted with bounded least squares together with beta, K and the
+   library effects' parameters, on the noise-weighted residuals of every signal
+   (as the diagnosis fits effects); a second and third form are added while
+   each lowers the residual by at least :data:`ADD_TERM_DB`.
+
+The result is an equation with units and fitted coefficients (with confidence
+intervals), the fit before and after, and :func:`effect_source`, the text of a
+user effect file (``--write-effect DIR/NAME.py``) that ``ehas compare CAMPAIGN
+--effects-path DIR --effects NAME --fit`` loads.
+"""
+from __future__ import annotations
+
+import math
+import textwrap
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ehas_env.measurement.proposal_terms import TERM_CLASSES, term_param
+from ehas_env.measurement.replay import ModelSpec, Replayer
+from ehas_env.physics.rig import BAR, LPM, RigParams
+
+PENALTY_PER_TERM_DB = 0.2
+ADD_TERM_DB = 1.0  # a further form must lower the residual by at least this much
+SCREEN_MAGS = 4  # magnitudes per sign scanned per form
+SCREEN_BATCH = 40  # models replayed per batch while screening
+FIT_TOP = 3  # screened forms fitted fully
+MAX_TERMS = 3
+
+#: place, the form in words (the coefficient multiplies it), the expression of the effect file, its arguments
+FORMS = {
+    "proposal_piston_force.c_x": ("piston_force", "x", "{c} * x", ("x",)),
+    "proposal_piston_force.c_v": ("piston_force", "v", "{c} * v", ("v",)),
+    "proposal_piston_force.c_sv": ("piston_force", "tanh(v / v_tanh)", "{c} * math.tanh(v / v_tanh)", ("v", "v_tanh")),
+    "proposal_piston_force.c_1": ("piston_force", "1", "{c}", ()),
+    "proposal_piston_force.c_pa": ("piston_force", "p_A", "{c} * pa", ("pa",)),
+    "proposal_piston_force.c_pb": ("piston_force", "p_B", "{c} * pb", ("pb",)),
+    "proposal_piston_force.c_vv": ("piston_force", "v |v|", "{c} * v * abs(v)", ("v",)),
+    "proposal_piston_force.c_x3": ("piston_force", "x^3", "{c} * x ** 3", ("x",)),
+    "proposal_crank_torque.c_th": ("crank_torque", "theta", "{c} * theta", ("theta",)),
+    "proposal_crank_torque.c_w": ("crank_torque", "omega", "{c} * omega", ("omega",)),
+    "proposal_crank_torque.c_sw": ("crank_torque", "tanh(r omega / v_tanh)", "{c} * math.tanh(radius * omega / v_tanh)",
+                                   ("omega", "radius", "v_tanh")),
+    "proposal_crank_torque.c_1": ("crank_torque", "1", "{c}", ()),
+    "proposal_crank_torque.c_th3": ("crank_torque", "theta^3", "{c} * theta ** 3", ("theta",)),
+    "proposal_chamber_flows.c_ext": ("chamber_flows", "(-p_A, -p_B)", None, ("pa", "pb")),
+    "proposal_chamber_flows.c_int": ("chamber_flows", "(-(p_A - p_B), +(p_A - p_B))", None, ("pa", "pb")),
+    "proposal_chamber_flows.c_ret": ("chamber_flows", "the outflow land's flow times -1 / (2 p_out): return back-pressure",
+                                     None, ("pa", "pb", "q_a", "q_b", "qc")),
+    "proposal_chamber_flows.c_sup": ("chamber_flows", "the inflow land's flow times 1 / (2 (p_S - p_in)): supply offset",
+                                     None, ("pa", "pb", "ps", "q_a", "q_b", "qc")),
+    "proposal_chamber_flows.c_ga": ("chamber_flows", "(q_A, 0)", None, ("q_a",)),
+    "proposal_chamber_flows.c_gb": ("chamber_flows", "(0, q_B)", None, ("q_b",)),
+    "proposal_chamber_flows.c_gpos": ("chamber_flows", "(q_A, q_B) while q_c >= 0", None, ("q_a", "q_b", "qc")),
+    "proposal_chamber_flows.c_gneg": ("chamber_flows", "(q_A, q_B) while q_c < 0", None, ("q_a", "q_b", "qc")),
+    "proposal_valve_current.c_1": ("valve_current", "1", "{c}", ()),
+    "proposal_valve_current.c_i": ("valve_current", "i", "{c} * i", ()),
+    "proposal_valve_current.c_abs": ("valve_current", "|i|", "{c} * abs(i)", ()),
+}
+#: flow forms as code of the effect file: (lines when q_c >= 0 and always, lines when q_c < 0)
+FLOW_CODE = {
+    "c_ext": (["dqa -= {c} * pa", "dqb -= {c} * pb"], None),
+    "c_int": (["dqa -= {c} * (pa - pb)", "dqb += {c} * (pa - pb)"], None),
+    "c_ret": (["dqb -= {c} * q_b / (2.0 * max(pb, 1.0e5))"], ["dqa -= {c} * q_a / (2.0 * max(pa, 1.0e5))"]),
+    "c_sup": (["dqa += {c} * q_a / (2.0 * max(ps - pa, 1.0e5))"], ["dqb += {c} * q_b / (2.0 * max(ps - pb, 1.0e5))"]),
+    "c_ga": (["dqa += {c} * q_a"], None),
+    "c_gb": (["dqb += {c} * q_b"], None),
+    "c_gpos": (["dqa += {c} * q_a", "dqb += {c} * q_b"], []),
+    "c_gneg": ([], ["dqa += {c} * q_a", "dqb += {c} * q_b"]),
+}
+#: what the model's right-hand side returns at each place (for the equation)
+PLACE_SYMBOL = {"piston_force": "F_piston [N] +=", "crank_torque": "T_crank [N m] +=",
+                "chamber_flows": "(Q_A, Q_B) [m^3/s] +=", "valve_current": "i_valve [mA] +="}
+SHORT = {"piston_force": "f", "crank_torque": "t", "chamber_flows": "q", "valve_current": "i"}
+#: the largest coefficient tried: the form's typical size on this rig times this scale
+FORCE_SCALE = 4000.0  # N on the piston (a third of the stall force)
+FIXED_RANGE = {"proposal_chamber_flows.c_ext": 2e-11, "proposal_chamber_flows.c_int": 2e-11,
+               "proposal_chamber_flows.c_ret": 30e5, "proposal_chamber_flows.c_sup": 60e5,
+               "proposal_chamber_flows.c_ga": 0.4, "proposal_chamber_flows.c_gb": 0.4,
+               "proposal_chamber_flows.c_gpos": 0.4, "proposal_chamber_flows.c_gneg": 0.4,
+               "proposal_valve_current.c_1": 3.0, "proposal_valve_current.c_i": 0.4,
+               "proposal_valve_current.c_abs": 0.4}
+
+
+def place_of(key: str) -> str:
+    return FORMS[key][0]
+
+
+def si_quantities(case, sim) -> dict[str, np.ndarray]:
+    """The model's quantities of a closed-loop run in SI (the arguments of the force and torque forms)."""
+    rig = RigParams()
+    th = np.radians(sim["theta_deg"])
+    w = np.radians(sim["omega_deg_s"])
+    return {"theta": th, "omega": w, "x": rig.radius * np.sin(th), "v": rig.radius * np.cos(th) * w,
+            "pa": sim["p_a_bar"] * BAR, "pb": sim["p_b_bar"] * BAR, "radius": np.full(th.size, rig.radius),
+            "v_tanh": np.full(th.size, 1e-3), "cos": np.cos(th)}
+
+
+def force_feature(key: str, q: dict) -> np.ndarray:
+    """The piston-equivalent force per unit coefficient of a force or torque form (torque / (r cos theta))."""
+    place, _, expr, _ = FORMS[key]
+    env = {"math": math, "abs": np.abs, "max": np.maximum, **q}
+    val = eval(expr.format(c="1.0").replace("math.tanh", "np.tanh"), {"np": np, **env})  # noqa: S307 (our own table)
+    val = np.broadcast_to(np.asarray(val, dtype=float), q["theta"].shape).astype(float)
+    if place == "crank_torque":
+        val = val / (q["radius"] * np.maximum(q["cos"], 0.2))
+    return val
+
+
+def _force_cases(rep: Replayer, sims):
+    for case, sim in zip(rep.cases, sims):
+        if sim is None or case.run.kind != "closed_loop":
+            continue
+        yield case, sim
+
+
+def coefficient_range(key: str, rep: Replayer, sims) -> float:
+    """Largest coefficient magnitude tried for a form: FORCE_SCALE over the form's RMS on this campaign."""
+    if key in FIXED_RANGE:
+        return FIXED_RANGE[key]
+    vals = [force_feature(key, si_quantities(c, s)) for c, s in _force_cases(rep, sims)]
+    if not vals:
+        return 0.0
+    rms = float(np.sqrt(np.mean(np.concatenate(vals) ** 2)))
+    return FORCE_SCALE / rms if rms > 0 else 0.0
+
+
+def sparse_force_terms(rep: Replayer, sims, threshold: float = 0.08) -> dict[str, float]:
+    """pysindy STLSQ on the residual piston force of the runs with chamber pressures: {form: coefficient}."""
+    import pysindy as ps
+
+    area = RigParams().area
+    ys, X = [], {k: [] for k in FORMS if place_of(k) in ("piston_force", "crank_torque")}
+    for case, sim in _force_cases(rep, sims):
+        m = case.measured
+        if "p_a_bar" in m and "p_b_bar" in m:
+            pl = m["p_a_bar"] - m["p_b_bar"]
+        elif "load_kN" in m:
+            pl = m["load_kN"] * 1e3 / area / BAR
+        else:
+            continue
+        k = case.skip
+        ys.append((-(pl - (sim["p_a_bar"] - sim["p_b_bar"])) * BAR * area)[k:])
+        q = si_quantities(case, sim)
+        for key in X:
+            X[key].append(force_feature(key, q)[k:])
+    if not ys:
+        return {}
+    y = np.concatenate(ys)
+    keys = [k for k in X if np.ptp(np.concatenate(X[k])) > 0 or k.endswith(".c_1")]
+    keys = [k for k in keys if not k.startswith("proposal_crank_torque.c_1")]  # the piston's constant stands for it
+    A = np.column_stack([np.concatenate(X[k]) for k in keys])
+    scale = np.sqrt(np.mean(A**2, axis=0))
+    ys_ = float(np.sqrt(np.mean(y**2))) or 1.0
+    An, yn = A / scale, y / ys_
+    # the sparsest STLSQ model (thresholds rising) that keeps 95 % of what the densest one explains;
+    # the ridge term keeps nearly collinear forms (x and theta, x and x^3) from cancelling each other
+    best = None
+    for thr in (threshold, 2 * threshold, 4 * threshold, 8 * threshold):
+        opt = ps.STLSQ(threshold=thr, alpha=1e-2 * yn.size, max_iter=30, unbias=True)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "sparsity parameter too big": the loop's end
+            opt.fit(An, yn[:, None])
+        c = np.ravel(opt.coef_)
+        r2 = 1.0 - float(np.mean((yn - An @ c) ** 2)) / float(np.mean(yn**2))
+        nz = int(np.count_nonzero(c))
+        if nz == 0:
+            break
+        if best is None:
+            best = (r2, c)
+        elif r2 >= 0.95 * best[0] or nz <= MAX_TERMS < np.count_nonzero(best[1]):
+            best = (best[0], c) if r2 >= 0.95 * best[0] else best
+    if best is None:
+        return {}
+    coef = best[1] * ys_ / scale
+    return {k: float(c) for k, c in zip(keys, coef) if c != 0.0}
+
+
+@dataclass
+class Proposal:
+    """A proposed missing term: forms, fitted coefficients (SI), and what it does to the fit."""
+
+    terms: dict[str, float]
+    ci: dict[str, tuple[float, float]]
+    cost_before: float
+    cost_after: float
+    fit_before: float
+    fit_after: float
+    fit: object  # diagnosis.Fit of the model with the term (on the fit data)
+    screened: list = field(default_factory=list)  # [(form, J after screening)], best first
+    sparse: dict = field(default_factory=dict)  # the STLSQ selection on the residual force
+    validation: dict = field(default_factory=dict)  # filled by the caller: J and fit % on all data
+
+    @property
+    def places(self) -> list[str]:
+        return sorted({place_of(k) for k in self.terms})
+
+    def equation(self) -> str:
+        """``T_crank [N m] += c_th * theta, c_th = -1.52e+03 N m/rad [95 % CI ...]``, one line per place."""
+        lines = []
+        for place in self.places:
+            keys = [k for k in self.terms if place_of(k) == place]
+            rhs = " + ".join(f"{k.split('.', 1)[1]}·{FORMS[k][1]}" if FORMS[k][1] != "1" else k.split(".", 1)[1]
+                             for k in keys)
+            vals = "; ".join(_coef_text(k, self.terms[k], self.ci.get(k)) for k in keys)
+            lines.append(f"{PLACE_SYMBOL[place]} {rhs}   with {vals}")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        out = {"where": self.places, "equation": self.equation(),
+               "terms": [{"place": place_of(k), "form": FORMS[k][1], "coefficient": k.split(".", 1)[1],
+                          "value": _r(v), "unit": term_param(k).unit, "meaning": term_param(k).doc,
+                          "ci95": [_r(x) for x in self.ci[k]] if k in self.ci else None}
+                         for k, v in self.terms.items()],
+               "residual_x_noise_before": round(self.cost_before, 3), "residual_x_noise_after": round(self.cost_after, 3),
+               "fit_percent_before": round(self.fit_before, 2), "fit_percent_after": round(self.fit_after, 2),
+               "sparse_regression": {k: _r(v) for k, v in self.sparse.items()},
+               "screened": [[k, round(c, 3)] for k, c in self.screened[:6]]}
+        if self.validation:
+            out["validation"] = self.validation
+        return out
+
+
+def _r(v: float) -> float:
+    return float(f"{v:.4g}")
+
+
+def _coef_text(key: str, v: float, ci=None) -> str:
+    unit = term_param(key).unit
+    s = f"{key.split('.', 1)[1]} = {v:.4g} {unit}"
+    if ci is not None:
+        s += f" (95 % CI {ci[0]:.4g} to {ci[1]:.4g})"
+    return s
+
+
+def _screen(rep: Replayer, base, keys: list[str], ranges: dict[str, float]) -> list[tuple[str, float, float]]:
+    """Each form alone on top of ``base``: its coefficient over both signs and SCREEN_MAGS magnitudes.
+
+    Returns (form, best J, best coefficient), best first.
+    """
+    models, index = [], []
+    for k in keys:
+        for m in np.geomspace(1e-3, 1.0, SCREEN_MAGS) * ranges[k]:
+            for sgn in (-1.0, 1.0):
+                models.append(ModelSpec(effects=base.model.effects, beta=base.model.beta, K=base.model.K,
+                                        terms={**base.model.terms, k: sgn * float(m)}))
+                index.append((k, sgn * float(m)))
+    costs = []
+    for i in range(0, len(models), SCREEN_BATCH):
+        for sims in rep.simulate_many(models[i:i + SCREEN_BATCH]):
+            costs.append(rep.log_cost(sims))
+    best: dict[str, tuple[float, float]] = {}
+    for (k, c), j in zip(index, costs):
+        if not math.isfinite(j):
+            continue
+        if k not in best or j < best[k][0]:
+            best[k] = (j, c)
+    return sorted(((k, j, c) for k, (j, c) in best.items()), key=lambda x: x[1])
+
+
+def propose(rep: Replayer, base, *, confidence=None) -> Proposal | None:
+    """The best sparse term for the residual of ``base`` (a diagnosis Fit), fitted inside the model.
+
+    ``confidence(rep, fit)`` (optional) returns confidence intervals {(effect, name): (lo, hi)}.
+    Returns None when no form lowers the residual.
+    """
+    from ehas_env.measurement import diagnosis as D
+
+    keys = list(FORMS)
+    ranges = {k: coefficient_range(k, rep, base.sims) for k in keys}
+    keys = [k for k in keys if ranges[k] > 0]
+    sparse = sparse_force_terms(rep, base.sims)
+    screened = _screen(rep, base, keys, ranges)
+    screened = [s for s in screened if s[1] < base.cost * (1.0 - D.SKIP_MARGIN)]
+    if not screened and not sparse:
+        return None
+
+    def fit_terms(start_terms: dict[str, float]):
+        free = [D.FreeParam(D.TERM, k, -4.0 * max(abs(c), 1e-3 * ranges[k]), 4.0 * max(abs(c), 1e-3 * ranges[k]), False)
+                for k, c in start_terms.items()]
+        free += [fp for n in base.model.effects for fp in D.own_params(n)] + D.recal_params(base.model.effects)
+        start = {}
+        for fp in free:
+            if fp.effect == D.TERM:
+                start[(fp.effect, fp.name)] = start_terms[fp.name]
+            elif fp.effect is None:
+                start[(None, fp.name)] = base.model.beta if fp.name == "beta" else base.model.K
+            else:
+                start[(fp.effect, fp.name)] = base.model.effects[fp.effect][fp.name]
+        fixed = ModelSpec(effects=base.model.effects, beta=base.model.beta, K=base.model.K)
+        return D.fit(rep, free, start, fixed, max_nfev=D.MAX_NFEV)
+
+    def score(f) -> float:
+        return 10.0 * math.log10(base.cost / f.cost) - PENALTY_PER_TERM_DB * len(f.model.terms)
+
+    tries = [{k: c} for k, _, c in screened[:FIT_TOP]]
+    if sparse and set(sparse) not in [set(t) for t in tries]:
+        tries.append(dict(sparse))
+    fits = [fit_terms(t) for t in tries]
+    best = max(fits, key=score)
+    # add further forms while each lowers the residual clearly
+    while len(best.model.terms) < MAX_TERMS:
+        extra = [k for k, _, _ in screened if k not in best.model.terms][:2]
+        if not extra:
+            break
+        cands = [fit_terms({**best.model.terms, k: next(c for kk, _, c in screened if kk == k)}) for k in extra]
+        cand = max(cands, key=score)
+        if 10.0 * math.log10(best.cost / cand.cost) < ADD_TERM_DB:
+            break
+        best = cand
+    if best.cost >= base.cost * (1.0 - D.SKIP_MARGIN):
+        return None
+    # drop forms that no longer carry anything (a sparse start can keep a tiny one)
+    ci = {}
+    if confidence is not None:
+        for (eff, name), lohi in confidence(rep, best).items():
+            if eff == D.TERM:
+                ci[name] = lohi
+    return Proposal(terms=dict(best.model.terms), ci=ci, cost_before=base.cost, cost_after=best.cost,
+                    fit_before=base.table.overall, fit_after=best.table.overall, fit=best,
+                    screened=[(k, j) for k, j, _ in screened], sparse=sparse)
+
+
+# --- the effect file ----------------------------------------------------------------------------
+
+
+def effect_source(proposal: Proposal, name: str, *, origin: str = "") -> str:
+    """The text of a user effect file (docs/effects-and-controllers.md) holding the proposed terms.
+
+    Each coefficient becomes a parameter: its magnitude (the sign is written into the term), default the
+    fitted value, typical range half to twice it, bounds 0 to 20 times it.
+    """
+    cls_name = "".join(part.capitalize() for part in name.split("_") if part) or "Proposed"
+    if not cls_name[0].isalpha():
+        cls_name = "Proposed" + cls_name
+    params, methods, mains = [], [], []
+    for place in proposal.places:
+        keys = [k for k in proposal.terms if place_of(k) == place]
+        args: list[str] = []
+        pnames = []
+        body = []
+        for k in keys:
+            coef = k.split(".", 1)[1]
+            pname = f"{SHORT[place]}{coef[1:]}"
+            v = proposal.terms[k]
+            mag = abs(v)
+            p = term_param(k)
+            ci = proposal.ci.get(k)
+            ci_txt = f", 95 % CI {ci[0]:.4g} to {ci[1]:.4g}" if ci else ""
+            params.append(f'        Param("{pname}", "{p.unit}", {mag:.6g}, (0.0, {20.0 * mag:.6g}),\n'
+                          f'              "{p.doc} (fitted: {v:.4g}{ci_txt})", typical=({0.5 * mag:.6g}, {2.0 * mag:.6g})),')
+            pnames.append(pname)
+            mains.append((mag, pname))
+            sign = "-" if v < 0 else ""
+            for a in FORMS[k][3]:
+                if a not in args:
+                    args.append(a)
+            if place == "chamber_flows":
+                body.append((coef, sign, pname))
+            else:
+                expr = FORMS[k][2].format(c=pname)
+                body.append(f"{sign}({expr})" if sign else f"({expr})")
+        sig = ", ".join((["i"] if place == "valve_current" else []) + args + pnames)
+        lines = [f"    @staticmethod", f"    def {place}({sig}):"]
+        if place == "chamber_flows":
+            lines += ["        dqa = 0.0", "        dqb = 0.0"]
+            pos, neg = [], []
+            for coef, sign, pname in body:
+                c = f"{sign}{pname}" if not sign else f"(-{pname})"
+                always, negl = FLOW_CODE[coef]
+                if negl is None:
+                    lines += ["        " + ln.format(c=c) for ln in always]
+                else:
+                    pos += [ln.format(c=c) for ln in always]
+                    neg += [ln.format(c=c) for ln in negl]
+            if pos or neg:
+                lines.append("        if qc >= 0.0:")
+                lines += ["            " + ln for ln in pos] or ["            pass"]
+                lines.append("        else:")
+                lines += ["            " + ln for ln in neg] or ["            pass"]
+            lines.append("        return dqa, dqb")
+        elif place == "valve_current":
+            lines.append("        return i + " + " + ".join(body))
+        else:
+            lines.append("        return " + " + ".join(body))
+        methods.append("\n".join(lines))
+    main = max(mains)[1]
+    eq = proposal.equation().replace('"', "'")
+    doc = (f'"""{name}: a term proposed by ehas diagnose{(" for " + origin) if origin else ""}.\n\n'
+           f"{eq}\n\n"
+           "Residual (geometric mean of noise-normalised residual energy, 1 = noise): "
+           f"{proposal.cost_before:.3g} -> {proposal.cost_after:.3g}; fit {proposal.fit_before:.1f} % -> "
+           f"{proposal.fit_after:.1f} %.\n"
+           "Rename the file, the class and ``name``, give the parameters physical names and documentation,\n"
+           "then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit\n"
+           '"""')
+    expl = textwrap.shorten("Proposed by the diagnosis, not yet a physical explanation: " + eq.replace("\n", "; "),
+                            600)
+    sigt = "the residual it was fitted to: " + ", ".join(FORMS[k][1] for k in proposal.terms)
+    text = "\n".join([
+        doc, "import math", "", "from ehas_env.physics.effects import Effect, Param", "", "",
+        f"class {cls_name}(Effect):",
+        f'    name = "{name}"',
+        f'    title = "proposed term ({", ".join(p.replace("_", " ") for p in proposal.places)})"',
+        "    params = (", *params, "    )",
+        f'    main_param = "{main}"',
+        f"    explanation = {expl!r}",
+        f"    signature = {sigt!r}",
+        "", "\n\n".join(methods), ""])
+    if "math." not in text.split('import math', 1)[1]:
+        text = text.replace("import math\n\n", "", 1)
+    return text
+
+
+def write_effect(path, proposal: Proposal, *, origin: str = "", overwrite: bool = False) -> "Path":
+    """Write the effect file ``DIR/NAME.py`` (the effect is named NAME); returns its path."""
+    from pathlib import Path
+
+    from ehas_env.output.files import atomic_write_text
+
+    path = Path(path)
+    name = path.stem
+    if path.suffix != ".py" or not name.isidentifier():
+        raise ValueError(f"--write-effect {path}: give DIR/NAME.py with NAME a Python identifier (it names the effect)")
+    text = effect_source(proposal, name, origin=origin)
+    compile(text, str(path), "exec")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return atomic_write_text(path, text)
