@@ -1,25 +1,18 @@
-"""The plant linearised at an operating point, as python-control transfer functions.
+"""The plant linearised at an operating point, as python-control models, for the tuners and curves.
 
-Valve (identified 2nd order) x flow gain at the operating point x actuator /
-crank / inertia with chamber compliance::
-
-    q_c'' = wn^2 (K i - q_c) - 2 zeta wn q_c'                 (valve, K in m^3/s per mA)
-    C P_L' = Kq q_c - Kce P_L - a omega                       (chambers, C = 1/(beta (1/V_A + 1/V_B)))
-    I_eff omega' = a P_L - B omega                            (crank and discs)
-
-with, at the operating point (crank angle theta0, load pressure P_L0, valve flow q_c0):
-
-* ``Kq = sqrt((Ps - P_L0) / dp_n)``: the orifice law's flow gain (sqrt(220/70) = 1.773 at P_L0 = 0);
-* ``Kc = |q_c0| / (2 sqrt(dp_n (Ps - P_L0)))``: its flow-pressure coefficient - zero at null
-  flow for the critically lapped valve, which is why the hydraulic mode is barely damped there;
-* ``Kce = Kc + C_leak + C_ext / 2`` (Merritt's total flow-pressure coefficient);
-* ``a = A r cos(theta0)`` (m^3/rad), ``I_eff = I + m_piston (r cos theta0)^2``, ``B = b (r cos theta0)^2``.
+The linearisation is the compiled model's own right-hand side differentiated
+numerically (:func:`ehas_env.physics.linearise.linearise`): every effect the
+plant carries, built-in or a user's file, is in it.  Here it is put in the
+coordinates a hydraulic engineer reads -- valve states, load pressure
+P_L = P_A - P_B (bar), crank angle and rate -- with the pressure sum dropped
+where nothing depends on it, and the controller's load-pressure feedback
+(``Kdp``, static or high-passed) closed around it.  Merritt's hand-derived
+model (``C P_L' = Kq q_c - Kce P_L - a omega``, ``I omega' = a P_L - B omega``,
+the identified valve) is the tests' oracle for it.
 
 The input is the valve current in mA, outputs theta in deg and P_L in bar.  The
 controller's sample-and-hold (half a period) and any transport delay are a
-Pade approximation at the input.  The controller's load-pressure feedback
-(``Kdp``, static or high-passed) can be closed around the plant, giving the
-plant the PI sees.
+Pade approximation at the input.
 
 Examples
 --------
@@ -35,8 +28,6 @@ from __future__ import annotations
 import math
 
 import control
-
-from ehas_env.physics.effects.base import effect_value
 import numpy as np
 
 from ehas_env.physics.rig import BAR, LPM
@@ -48,8 +39,7 @@ class LinearPlant:
     Parameters
     ----------
     plant : ehas_env.simulation.plant.Plant, optional
-        Plant whose parameter slots (effects included) are linearised; default
-        ``Plant(disc_sets)``.
+        Plant (effects included) to linearise; default ``Plant(disc_sets)``.
     disc_sets : int
         Used when ``plant`` is not given.
     theta_deg : float
@@ -66,86 +56,78 @@ class LinearPlant:
 
     def __init__(self, plant=None, *, disc_sets: int = 3, theta_deg: float = 0.0, load_bar: float = 0.0,
                  flow_lpm: float = 0.0, rate_hz: float = 1000.0, pade_order: int = 2):
+        from ehas_env.physics.linearise import linearise
+
         if plant is None:
             from ehas_env.simulation.plant import Plant
 
             plant = Plant(disc_sets=disc_sets)
-        s = plant.slots()  # supply droop, backlash, deadband and dry friction have no small-signal term here
+        s = plant.slots()
+        if not abs(load_bar * BAR) < s["supply"]:
+            raise ValueError(f"load_bar must lie within +-{s['supply'] / BAR:g} bar (the supply), got {load_bar!r}")
+        self.plant = plant
         self.disc_sets = plant.rig.disc_sets
         self.slots = s
-        self.theta0 = math.radians(theta_deg)
-        self.load0 = load_bar * BAR
-        self.flow0 = abs(flow_lpm) * LPM
         self.rate_hz = float(rate_hz)
         self.pade_order = int(pade_order)
-        if not abs(self.load0) < s["supply"]:
-            raise ValueError(f"load_bar must lie within +-{s['supply'] / BAR:g} bar (the supply), got {load_bar!r}")
-        r, A = s["radius"], s["area"]
-        c = math.cos(self.theta0)
-        x0 = r * math.sin(self.theta0)
-        va, vb = A * s["half_stroke"] + s["dead_volume"] + A * x0, A * s["half_stroke"] + s["dead_volume"] - A * x0
-        self.C = 1.0 / (s["beta"] * (1.0 / va + 1.0 / vb))  # m^3/Pa
-        self.Kq = math.sqrt((s["supply"] - abs(self.load0)) / s["rated_drop"])  # -
-        self.Kc = self.flow0 / (2.0 * math.sqrt(s["rated_drop"] * (s["supply"] - abs(self.load0))))  # m^3/s/Pa
-        self.Kce = self.Kc + effect_value(s, "internal_leakage", "C_leak") + 0.5 * effect_value(s, "external_leakage", "C_ext")
-        self.a = A * r * c  # m^3 per rad
-        self.I = s["inertia"] + effect_value(s, "piston_mass", "m") * (r * c) ** 2  # kg m^2
-        self.B = effect_value(s, "viscous_friction", "b") * (r * c) ** 2  # N m s/rad
         self.delay = 0.5 / self.rate_hz + s["tau"]  # s: zero-order hold + transport delay
+        lin = linearise(plant, theta_deg=theta_deg, load_bar=load_bar, flow_lpm=abs(flow_lpm))
+        self.lin = lin
+        self.A, self.B, self.states = _load_pressure_coordinates(lin)
+        self.C = np.zeros((2, len(self.states)))
+        self.C[0, self.states.index("theta")] = math.degrees(1.0)
+        self.C[1, self.states.index("p_load")] = 1.0
 
     # -- numbers ---------------------------------------------------------------
+    def _index(self, *names) -> list[int]:
+        return [self.states.index(n) for n in names]
+
     @property
     def velocity_gain(self) -> float:
-        """Steady crank rate per valve current, deg/s per mA (no load, no leakage)."""
-        return math.degrees(self.slots["K"] * self.Kq / self.a)
+        """Steady crank rate per valve current, deg/s per mA (the crank free: theta's own terms left out)."""
+        keep = [j for j, n in enumerate(self.states) if n != "theta"]
+        x = np.linalg.solve(self.A[np.ix_(keep, keep)], -self.B[keep, 0])
+        return math.degrees(float(x[keep.index(self.states.index("omega"))]))
+
+    def _hydraulic_pair(self) -> complex:
+        idx = self._index("p_load", "theta", "omega")
+        ev = np.linalg.eigvals(self.A[np.ix_(idx, idx)])
+        return complex(max(ev, key=abs))
 
     @property
     def hydraulic_wn(self) -> float:
-        """Hydraulic natural frequency, rad/s: sqrt(a^2 / (C I))."""
-        return math.sqrt(self.a**2 / (self.C * self.I))
+        """Natural frequency of the crank-oil mode, rad/s (eigenvalues of the load-pressure/crank block)."""
+        return abs(self._hydraulic_pair())
 
     @property
     def hydraulic_zeta(self) -> float:
-        """Damping ratio of the hydraulic mode from Kce and B (no valve dynamics)."""
-        return (self.Kce * self.I + self.B * self.C) / (2.0 * math.sqrt(self.C * self.I) * math.sqrt(self.a**2 + self.Kce * self.B))
+        """Damping ratio of the crank-oil mode (no valve dynamics)."""
+        lam = self._hydraulic_pair()
+        return float(-lam.real / abs(lam)) if abs(lam) > 0 else 0.0
 
     # -- models ----------------------------------------------------------------
     def state_space(self, Kdp: float = 0.0, dp_hp: float = 0.0) -> control.StateSpace:
         """Input current u (mA) -> outputs (theta deg, P_L bar), pressure feedback closed, no delay.
 
-        States: q_c (m^3/s), q_c' , P_L (bar), theta (rad), omega (rad/s)[, low-passed P_L (bar)].
+        States: those of the linearisation with P_L (bar) for the two chamber pressures
+        [, the pressure feedback's low-passed P_L (bar)].
         """
-        s = self.slots
-        wn, z, Kv = s["wn"], s["zeta"], s["K"]
-        A = np.zeros((5, 5))
-        Bm = np.zeros((5, 1))
-        A[0, 1] = 1.0
-        A[1, 0] = -wn * wn
-        A[1, 1] = -2.0 * z * wn
-        Bm[1, 0] = wn * wn * Kv
-        # P_L in bar: C * BAR * P_L' = Kq q_c - Kce BAR P_L - a omega
-        A[2, 0] = self.Kq / (self.C * BAR)
-        A[2, 2] = -self.Kce / self.C
-        A[2, 4] = -self.a / (self.C * BAR)
-        A[3, 4] = 1.0
-        A[4, 2] = self.a * BAR / self.I
-        A[4, 4] = -self.B / self.I
-        Cm = np.zeros((2, 5))
-        Cm[0, 3] = math.degrees(1.0)
-        Cm[1, 2] = 1.0
+        A, B, C = self.A.copy(), self.B.copy(), self.C.copy()
+        pl = self.states.index("p_load")
         if Kdp != 0.0:
             if dp_hp > 0.0:
                 # i = u - Kdp (P_L - z), z' = dp_hp (P_L - z): feed back the high-passed pressure
+                n = A.shape[0]
                 A = np.pad(A, ((0, 1), (0, 1)))
-                Bm = np.pad(Bm, ((0, 1), (0, 0)))
-                Cm = np.pad(Cm, ((0, 0), (0, 1)))
-                A[5, 2] = dp_hp
-                A[5, 5] = -dp_hp
-                A[1, 2] -= wn * wn * Kv * Kdp
-                A[1, 5] += wn * wn * Kv * Kdp
+                B = np.pad(B, ((0, 1), (0, 0)))
+                C = np.pad(C, ((0, 0), (0, 1)))
+                A[n, pl] = dp_hp
+                A[n, n] = -dp_hp
+                A[:, pl] -= B[:, 0] * Kdp
+                A[:, n] += B[:, 0] * Kdp
             else:
-                A[1, 2] -= wn * wn * Kv * Kdp
-        return control.ss(A, Bm, Cm, np.zeros((2, 1)))
+                A[:, pl] -= B[:, 0] * Kdp
+        return control.ss(A, B, C, np.zeros((2, 1)))
 
     def delay_tf(self) -> control.TransferFunction:
         """Pade approximation of the input delay (zero-order hold + transport)."""
@@ -154,38 +136,19 @@ class LinearPlant:
         num, den = control.pade(self.delay, self.pade_order)
         return control.tf(num, den)
 
-    def _polys(self, Kdp: float, dp_hp: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(theta numerator, P_L numerator, common denominator), descending powers, theta deg, P_L bar.
-
-        With V = K wn^2 / Vd the valve, M = (C s + Kce)(I s + B) + a^2 and H the pressure
-        feedback's filter (1, or s / (s + dp_hp)), closing i = u - Kdp H P_L gives
-        theta/u = Kq a K wn^2 / (s [M Vd + Kdp H Kq K wn^2 (I s + B) / BAR]) (rad), P_L/u alike.
-        """
-        s = self.slots
-        vn = s["K"] * s["wn"] ** 2
-        vd = np.array([1.0, 2.0 * s["zeta"] * s["wn"], s["wn"] ** 2])
-        load = np.array([self.I, self.B])  # I s + B
-        m = np.polyadd(np.polymul([self.C, self.Kce], load), [self.a**2])
-        hp = np.array([1.0, dp_hp]) if (Kdp != 0.0 and dp_hp > 0.0) else np.array([1.0])
-        hn = np.array([1.0, 0.0]) if (Kdp != 0.0 and dp_hp > 0.0) else np.array([1.0])
-        core = np.polymul(np.polymul(m, vd), hp)
-        if Kdp != 0.0:
-            core = np.polyadd(core, Kdp * self.Kq * vn / BAR * np.polymul(hn, load))
-        den = np.polymul(core, [1.0, 0.0])
-        num_theta = math.degrees(1.0) * self.Kq * self.a * vn * hp
-        num_load = self.Kq * vn / BAR * np.polymul(np.polymul(load, hp), [1.0, 0.0])
-        return num_theta, num_load, den
+    def _tf(self, out: int, Kdp: float, dp_hp: float) -> control.TransferFunction:
+        ss = self.state_space(Kdp, dp_hp)
+        g = control.ss2tf(ss.A, ss.B, ss.C[out:out + 1], ss.D[out:out + 1])
+        return control.minreal(g, tol=1e-9 * max(1.0, float(np.abs(ss.A).max())) ** 0, verbose=False)
 
     def tf(self, Kdp: float = 0.0, dp_hp: float = 0.0, delay: bool = True) -> control.TransferFunction:
         """theta (deg) / u (mA), the plant the position loop sees (with pressure feedback ``Kdp``)."""
-        num, _, den = self._polys(Kdp, dp_hp)
-        g = control.tf(num, den)
+        g = self._tf(0, Kdp, dp_hp)
         return g * self.delay_tf() if delay else g
 
     def tf_load(self, Kdp: float = 0.0, dp_hp: float = 0.0, delay: bool = True) -> control.TransferFunction:
         """P_L (bar) / u (mA)."""
-        _, num, den = self._polys(Kdp, dp_hp)
-        g = control.tf(num, den)
+        g = self._tf(1, Kdp, dp_hp)
         return g * self.delay_tf() if delay else g
 
     def open_loop_poles(self, Kdp: float = 0.0, dp_hp: float = 0.0) -> np.ndarray:
@@ -226,6 +189,31 @@ class LinearPlant:
                 hi = mid
         wu = math.sqrt(lo * hi)
         return 1.0 / abs(g(1j * wu)), wu
+
+
+def _load_pressure_coordinates(lin) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """(A, B, state names) of a linearisation with (pa, pb) replaced by P_L = pa - pb in bar and the
+    pressure sum, which is dropped when nothing else depends on it (the usual case)."""
+    names = list(lin.states)
+    ia, ib = names.index("pa"), names.index("pb")
+    n = len(names)
+    # x_new = T x_old: p_load = (pa - pb) / BAR, p_sum = (pa + pb) / BAR
+    T = np.eye(n)
+    T[ia, :] = 0.0
+    T[ib, :] = 0.0
+    T[ia, ia], T[ia, ib] = 1.0 / BAR, -1.0 / BAR
+    T[ib, ia], T[ib, ib] = 1.0 / BAR, 1.0 / BAR
+    Ti = np.linalg.inv(T)
+    A = T @ lin.A @ Ti
+    B = T @ lin.B
+    names[ia], names[ib] = "p_load", "p_sum"
+    others = [j for j in range(n) if j != ib]
+    scale = np.abs(A).max()
+    if np.all(np.abs(A[others, ib]) <= 1e-12 * scale):  # nothing depends on the sum: drop it
+        A = A[np.ix_(others, others)]
+        B = B[others]
+        names = [names[j] for j in others]
+    return A, B, tuple(names)
 
 
 def _phase_at(g, w, near):

@@ -153,44 +153,22 @@ def valve_tf(valve: str = "grey_box", supply_bar: float = 220.0, slots: dict | N
 
 
 def linear_plant(plant=None, valve: str | None = None):
-    """State-space model i (mA) -> (theta deg, P_A - P_B bar) linearised at mid-stroke, at rest.
+    """State-space model i (mA) -> (theta deg, P_A - P_B bar) at mid-stroke, at rest.
 
-    Mid-stroke, P_A = P_B = Ps/2, q_c = 0: the land flows are
-    Q_A = -Q_B = sqrt(Ps / dp_n) q_c and do not depend on the chamber
-    pressures (critically lapped lands, K_c = 0); chambers of volume V0;
-    I theta'' = r A (P_A - P_B) - b r^2 theta' (+ leakages, piston mass, viscous
-    friction of the effects).  Coulomb/Stribeck friction, backlash, deadband
-    and supply droop are not linear at rest and are left out.
+    The project's one linearisation (``ehas_controllers.linear_model.LinearPlant``,
+    the compiled model differentiated numerically): every smooth effect of the
+    plant is in it; Coulomb/Stribeck friction, backlash and a deadband have no
+    small-signal term at rest and are left out (see ``ehas_env.physics.linearise``).
+    ``valve`` swaps the plant's valve model.
     """
-    import control
-
-    from ehas_env.physics.effects.base import effect_value
+    from ehas_controllers.linear_model import LinearPlant
     from ehas_env.simulation.plant import Plant
 
     plant = plant if plant is not None else Plant()
-    s = plant.slots()
-    valve = valve or getattr(plant, "valve", "grey_box")
-    ps = s["supply"]
-    kq = math.sqrt(ps / s["rated_drop"])
-    A, r, beta = s["area"], s["radius"], s["beta"]
-    v0 = A * s["half_stroke"] + s["dead_volume"]
-    c = beta / v0
-    inertia = s["inertia"] + effect_value(s, "piston_mass", "m") * r * r
-    cl, ce, b = (effect_value(s, "internal_leakage", "C_leak"), effect_value(s, "external_leakage", "C_ext"),
-                 effect_value(s, "viscous_friction", "b"))
-    # mechanical + chamber part: states (pa, pb, theta, omega), input q_c (m^3/s)
-    Am = np.array([
-        [c * (-cl - ce), c * cl, 0.0, -c * A * r],
-        [c * cl, c * (-cl - ce), 0.0, c * A * r],
-        [0.0, 0.0, 0.0, 1.0],
-        [r * A / inertia, -r * A / inertia, 0.0, -b * r * r / inertia],
-    ])
-    Bm = np.array([[c * kq], [-c * kq], [0.0], [0.0]])
-    Cm = np.array([[0.0, 0.0, math.degrees(1.0), 0.0], [1.0 / BAR, -1.0 / BAR, 0.0, 0.0]])
-    mech = control.ss(Am, Bm, Cm, np.zeros((2, 1)))
-    vtf = valve_tf(valve, ps / BAR, s if valve == "grey_box" else None)
-    vss = control.tf2ss(vtf * LPM)  # i (mA) -> q_c (m^3/s)
-    return control.series(vss, mech)
+    if valve is not None and valve != plant.valve:
+        plant = Plant(disc_sets=plant.rig.disc_sets, effects=plant.effects or None, rig=plant.rig, valve=valve,
+                      dt=plant.dt, substeps=plant.substeps)
+    return LinearPlant(plant).state_space()
 
 
 def position_loop(plant=None, controller=None, valve: str | None = None, pade_order: int = 3) -> dict:

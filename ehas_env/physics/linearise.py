@@ -59,11 +59,12 @@ class Linearisation:
         return float(np.max(np.abs(ev))) / (2.0 * math.pi)
 
 
-def operating_state(plant, theta_deg: float = 0.0, load_bar: float = 0.0) -> np.ndarray:
-    """At rest at ``theta_deg`` with P_A - P_B = ``load_bar`` around Ps/2, valve at null."""
+def operating_state(plant, theta_deg: float = 0.0, load_bar: float = 0.0, flow_lpm: float = 0.0) -> np.ndarray:
+    """At rest at ``theta_deg`` with P_A - P_B = ``load_bar`` around Ps/2, valve no-load flow ``flow_lpm``."""
     s = plant.initial_state(theta_deg)
     ps = plant.rig.supply
     s[4], s[5] = 0.5 * (ps + load_bar * 1e5), 0.5 * (ps - load_bar * 1e5)
+    s[2] = flow_lpm * 1e-3 / 60.0
     return s
 
 
@@ -101,18 +102,19 @@ def _state_scale(name: str) -> float:
 
 
 def linearise(plant, *, theta_deg: float = 0.0, load_bar: float = 0.0, current_mA: float = 0.0,
-              keep_nonsmooth: bool = False) -> Linearisation:
+              flow_lpm: float = 0.0, keep_nonsmooth: bool = False) -> Linearisation:
     """Linearisation of ``plant`` (any effects) at rest at ``theta_deg`` with ``load_bar`` across the piston.
 
-    States that nothing depends on (the supply without a supply effect, the piston
-    states of a rigid rod, the valve states of the other valve model) are dropped.
+    States that do not move at this point (the supply without a supply effect, the
+    piston states of a rigid rod, the valve states of the other valve model) are dropped.
 
     Parameters
     ----------
     plant : ehas_env.simulation.plant.Plant
         The plant, with its effects.
-    theta_deg, load_bar, current_mA : float
-        Operating point: crank angle (deg), P_A - P_B (bar), valve command (mA).
+    theta_deg, load_bar, current_mA, flow_lpm : float
+        Operating point: crank angle (deg), P_A - P_B (bar), valve command (mA), valve
+        no-load flow (LPM; its orifice slopes give the flow-pressure coefficient K_c).
     keep_nonsmooth : bool
         Differentiate non-smooth effects as they are (default: switched off).
 
@@ -122,9 +124,17 @@ def linearise(plant, *, theta_deg: float = 0.0, load_bar: float = 0.0, current_m
         A, B, C, D with state names; ``.state_space()`` gives python-control's object.
     """
     m = plant.model
-    s0 = operating_state(plant, theta_deg, load_bar)
+    s0 = operating_state(plant, theta_deg, load_bar, flow_lpm)
+    if flow_lpm:
+        # a valve passing flow is an operating point only with the piston moving at the speed that flow
+        # gives (chamber pressures steady): otherwise d(P')/d(x) would carry the filling of a locked chamber
+        q_a = m.land_flows(s0[2], s0[4], s0[5], s0[6], plant.rig.rated_drop)[0]
+        s0[1] = q_a / (plant.rig.area * plant.rig.radius * math.cos(s0[0]))
+        s0[8] = plant.rig.radius * math.cos(s0[0]) * s0[1]
     A, b = jacobian(plant, s0, current_mA, keep_nonsmooth=keep_nonsmooth)
-    keep = [j for j in range(m.N_STATES) if np.any(A[:, j] != 0.0) or m.STATE_NAMES[j] in ("theta", "omega")]
+    # a state whose rate is identically zero at this point is a constant here (the supply without a supply
+    # effect, the other valve model's states): it is dropped, its value held
+    keep = [j for j in range(m.N_STATES) if np.any(A[j, :] != 0.0) or m.STATE_NAMES[j] in ("theta", "omega")]
     keep = [j for j in keep if m.STATE_NAMES[j] not in ("xp", "vp") or _two_body(m, plant)]
     A = A[np.ix_(keep, keep)]
     B = b[keep].reshape(-1, 1)
