@@ -13,11 +13,12 @@ A controller is anything with
   environment accept;
 * a readable ``repr`` of its gains with units.
 
-Classical controllers can also say which :class:`ehas_env.simulation.plant.RigController`
-they are for a given plant (:meth:`Controller.rig_gains`), so simulations take
-the compiled closed loop (``ehas_env.physics.kernel.run_rig_controller`` and the
-batched :mod:`ehas_controllers.batch_sim`) instead of calling ``act`` from
-Python every millisecond.
+Classical controllers can also give their compiled form for a given plant
+(:meth:`Controller.rig_gains`: an object with ``law_id()`` and ``gains_vector()``;
+a :class:`CompiledController` is its own), so simulations run the law compiled
+into the model (``closed_loop`` of ``ehas_env/simulation/loops.py``, the batched
+:mod:`ehas_controllers.batch_sim`, the environment's step) instead of calling
+``act`` from Python every millisecond.
 
 Files are found by type in two registries:
 

@@ -342,5 +342,5 @@ def gains_table(ctrl) -> list[tuple[str, float, str]]:
 
 
 def as_array(ctrl: PIFF) -> np.ndarray:
-    """The gains in ``kernel.run_rig_controller`` order."""
+    """The gains in the order of the compiled law :func:`pi_ff_law`."""
     return np.array([getattr(ctrl, k) for k in GAIN_NAMES], dtype=float)

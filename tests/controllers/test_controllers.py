@@ -1,6 +1,6 @@
 """Controllers: the shared interface, the PI + feed-forward law, files, the batched simulator, the linear model.
 
-Truth used: the compiled closed loop of ehas_env (kernel.run_rig_controller via
+Truth used: the compiled closed loop of ehas_env (the model's compiled closed_loop via
 Plant.simulate_closed_loop) and ehas_env.simulation.metrics for the Python twin and the batch
 simulator; the rig's analytic numbers (velocity gain, hydraulic frequency) and the
 series expansion of the inverse plant written out by hand for the linear model.

@@ -1,5 +1,5 @@
 """The tracking environment against independent truth: the plant's own closed-loop
-simulators (kernel.run_rig_controller and Plant's Python loop), the % error
+simulators (the model's compiled closed_loop and Plant's Python loop), the % error
 definition of ehas_env.simulation.metrics, gymnasium's and stable-baselines3's checkers, and
 invariants (same seed -> same episode, a valve at null holds the crank still)."""
 from __future__ import annotations
@@ -127,7 +127,7 @@ def test_book_controller_in_residual_mode_tracks_within_one_percent():
 @pytest.mark.parametrize("effects", [None, {"coulomb_friction": {"Fc": 300}, "transport_delay": {"tau": 0.004}},
                                      {"backlash": {}, "supply_droop": {}}])
 def test_residual_zero_action_reproduces_the_plant_closed_loop(effects):
-    # Independent path: kernel.run_rig_controller (Plant.simulate_closed_loop)
+    # Independent path: the compiled closed_loop (Plant.simulate_closed_loop)
     sensors = Sensors(theta_noise_deg=0.0, pressure_noise_bar=0.0, flow_noise_lpm=0.0)  # ADC/DAC, no noise
     ctrl = book_controller()
     res = Plant(disc_sets=5, effects=effects, sensors=sensors).simulate_closed_loop(

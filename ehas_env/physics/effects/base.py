@@ -86,9 +86,10 @@ class Param:
 class Effect:
     """A named physical addition to the baseline plant.
 
-    Subclasses set the class attributes and implement :meth:`apply`, which
-    writes the effect's parameter values into the general model's parameter
-    slots (see ``ehas_env.physics.kernel.SLOTS``).  Registering happens on subclassing.
+    Subclasses set the class attributes and write their physics as static
+    methods named after :data:`PLACES` (or, for a recalibration of baseline
+    numbers, :meth:`apply`).  Registering happens on subclassing; the contract
+    is docs/effects-and-controllers.md.
     """
 
     name: ClassVar[str] = ""
