@@ -106,6 +106,19 @@ def crank_accel(theta, omega, force, torque, m, inertia, r):
 
 
 @njit(cache=True, inline="always")
+def stop(s, j, jr, limit):
+    """State j held within +-limit; its rate state jr (if >= 0) zeroed outward at the stop."""
+    if s[j] >= limit:
+        s[j] = limit
+        if jr >= 0 and s[jr] > 0.0:
+            s[jr] = 0.0
+    elif s[j] <= -limit:
+        s[j] = -limit
+        if jr >= 0 and s[jr] < 0.0:
+            s[jr] = 0.0
+
+
+@njit(cache=True, inline="always")
 def spool_stops(s, P):
     """Spool at its end stops for |q_c| >= i_max K: clip q_c, zero q_c' outward.
 
@@ -113,31 +126,11 @@ def spool_stops(s, P):
     (|theta_a| = x_f0 / r, outward rate zeroed).
     """
     if P[I_VALVE_MODEL] == WHITE_BOX:
-        qw = P[I_WB_K3] * P[I_WB_XVMAX]
         s[3] = 0.0
-        if s[2] > qw:
-            s[2] = qw
-        elif s[2] < -qw:
-            s[2] = -qw
-        tm = P[I_WB_XF0] / P[I_WB_R]
-        if s[9] >= tm:
-            s[9] = tm
-            if s[10] > 0.0:
-                s[10] = 0.0
-        elif s[9] <= -tm:
-            s[9] = -tm
-            if s[10] < 0.0:
-                s[10] = 0.0
+        stop(s, 2, -1, P[I_WB_K3] * P[I_WB_XVMAX])
+        stop(s, 9, 10, P[I_WB_XF0] / P[I_WB_R])
         return
-    qmax = P[I_K] * P[I_IMAX]
-    if s[2] >= qmax:
-        s[2] = qmax
-        if s[3] > 0.0:
-            s[3] = 0.0
-    elif s[2] <= -qmax:
-        s[2] = -qmax
-        if s[3] < 0.0:
-            s[3] = 0.0
+    stop(s, 2, 3, P[I_K] * P[I_IMAX])
 
 
 @njit(cache=True, inline="always")

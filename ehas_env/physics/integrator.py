@@ -76,6 +76,12 @@ def measure(s, P, out):
 
 
 @njit(cache=True, inline="always")
+def rk4_work(s):
+    """Scratch arrays of one RK4 step (k1, k2, k3, k4, tmp) for a state like s."""
+    return np.empty_like(s), np.empty_like(s), np.empty_like(s), np.empty_like(s), np.empty_like(s)
+
+
+@njit(cache=True, inline="always")
 def rates(s, i_valve, P, ds, bench_supply):
     """The model's rates; with bench_supply >= 0 only the valve's, on the flow bench at that supply (Pa)."""
     if bench_supply < 0.0:
@@ -142,11 +148,7 @@ def run_open_loop(s, P, cmd, dt, nsub, hist, out):
 
     Row k of ``out`` holds the outputs at t_k and the command issued then.
     """
-    k1 = np.empty_like(s)
-    k2 = np.empty_like(s)
-    k3 = np.empty_like(s)
-    k4 = np.empty_like(s)
-    tmp = np.empty_like(s)
+    k1, k2, k3, k4, tmp = rk4_work(s)
     hist[:] = 0.0
     for k in range(cmd.shape[0]):
         measure(s, P, out[k])
@@ -164,11 +166,7 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
     q_c * sqrt(supply / rated_drop).  out[k] = (flow m^3/s, q_c m^3/s, valve current mA).
     """
     s = np.zeros(N_STATES)
-    k1 = np.empty_like(s)
-    k2 = np.empty_like(s)
-    k3 = np.empty_like(s)
-    k4 = np.empty_like(s)
-    tmp = np.empty_like(s)
+    k1, k2, k3, k4, tmp = rk4_work(s)
     h = dt / nsub
     tau = P[I_TAU]
     scale = math.sqrt(max(supply, 0.0) / P[I_DROP])

@@ -75,11 +75,7 @@ def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, 
     METRICS; error window [k0, k1)) and, when ``out`` has rows, the outputs of
     every period (layout ``OUT_NAMES``).
     """
-    k1v = np.empty_like(s)
-    k2v = np.empty_like(s)
-    k3v = np.empty_like(s)
-    k4v = np.empty_like(s)
-    tmp = np.empty_like(s)
+    k1v, k2v, k3v, k4v, tmp = rk4_work(s)
     row = np.zeros(N_OUT)
     adc, dac, gain_err, u_max = sensor[0], sensor[1], sensor[2], sensor[3]
     mem = np.zeros(8)
@@ -182,11 +178,7 @@ def run_relay(s, P, d, hyst, bias, dt, nsub, hist, theta_out, u_out):
     The set point is 0 deg; the relay starts at +d and switches when the error
     crosses +-hyst deg.  theta_out (deg) and u_out (mA) receive the run.
     """
-    k1 = np.empty_like(s)
-    k2 = np.empty_like(s)
-    k3 = np.empty_like(s)
-    k4 = np.empty_like(s)
-    tmp = np.empty_like(s)
+    k1, k2, k3, k4, tmp = rk4_work(s)
     row = np.zeros(N_OUT)
     hist[:] = 0.0
     state = 1.0
