@@ -92,11 +92,17 @@ def run(args) -> int:
         status(f"{len(campaign.runs)} runs read; replaying them, then fitting every candidate effect, stacking "
                "and checking what is left (about 20-60 s on two cores)", "diagnose")
         say = (lambda msg: status(msg, "diagnose"))
+    model = None
+    if getattr(args, "model", None):  # diagnose on that rig, its effects on (docs/model-file.md)
+        from ehas_env.measurement.model_file import load_model
+
+        model = load_model(args.model)
+        print(f"baseline: model {model.label}")
     print(campaign.summary())
     print()
     res = diagnose_open(campaign, candidates=candidates, base_effects=base, holdout=holdout,
                         stack=not args.no_stack, propose=not args.no_propose, window_s=window,
-                        progress=not args.quiet, log=say)
+                        progress=not args.quiet, log=say, model=model)
     first = res.first
     print(where_it_fails(res.full, res.baseline_all, "baseline" + (" + " + " + ".join(base) if base else "")))
     print()

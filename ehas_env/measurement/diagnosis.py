@@ -841,7 +841,7 @@ def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
 
 def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | None = None, holdout=None,
                   stack: bool = True, propose: bool = True, window_s: float = FIT_WINDOW_S,
-                  progress: bool = False, log=None) -> OpenDiagnosis:
+                  progress: bool = False, log=None, model=None) -> OpenDiagnosis:
     """The open-world diagnosis: the best model of the library, then whether it explains the campaign.
 
     1. Runs named by ``holdout`` (default :func:`default_holdout`) are kept out of the fit; the others are
@@ -872,8 +872,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     if not train_runs:
         raise ValueError("--holdout: every run is held out; nothing is left to fit")
     train_c = windowed(Campaign(campaign.path, train_runs), window_s)
-    rep = Replayer(train_c)
-    full = Replayer(campaign)
+    rep = Replayer(train_c, model=model)  # model: a model file's rig (docs/model-file.md), default the book's
+    full = Replayer(campaign, model=rep.model)
     parts = {}
     for i, case in enumerate(full.cases):
         if case.run.name in held:
