@@ -226,6 +226,14 @@ def evidence_text(rep: Replayer, null, entry) -> str:
     if entry is None:
         worst = max(before.values(), key=lambda s: s.ratio)
         what = "baseline" + "".join(f" + {n}" for n in null.model.effects)
+        from ehas_env.measurement.diagnosis import VERDICT_X
+
+        if null.cost > VERDICT_X:
+            return (f"no effect of the library explains the residual: the recalibrated {what} (beta = "
+                    f"{null.model.beta:.3g} Pa, K = {null.model.K:.4g} LPM/mA) leaves residuals at {null.cost:.2f}x "
+                    f"the noise variance, above noise (clean campaigns stay below {VERDICT_X:g}x; worst: "
+                    f"{worst.key}, {worst.ratio:.1f}x its noise level), and no candidate removes a significant "
+                    "share of them: see the verdict and the proposed term")
         return (f"nothing beats noise: the recalibrated {what} (beta = {null.model.beta:.3g} Pa, "
                 f"K = {null.model.K:.4g} LPM/mA) leaves residuals at {null.cost:.2f}x the noise variance, "
                 f"geometric mean over runs and signals (worst: {worst.key}, {worst.ratio:.1f}x its noise level), "
