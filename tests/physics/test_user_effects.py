@@ -110,3 +110,30 @@ def test_a_broken_effect_file_is_one_clear_error(tmp_path, capsys):
     assert main(["effects", "--effects-path", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert "bad.py" in err and "nonexistent_module_xyz" in err and len(err.splitlines()) == 1
+
+
+def test_bench_and_diagnose_take_the_effect_from_its_folder(spring_dir, tmp_path, capsys):
+    """bench puts the user's effect in its robustness table; diagnose finds it hidden in a campaign."""
+    import json
+
+    from ehas_env.cli.main import main
+
+    ctrl = tmp_path / "book.json"
+    from ehas_controllers.piff import PIFF
+
+    PIFF.book().save(ctrl)
+    assert main(["bench", str(ctrl), "--effects-path", str(spring_dir), "--out", str(tmp_path / "bench")]) == 0
+    rows = (tmp_path / "bench" / "benchmark_robustness.csv").read_text()
+    assert "torsion_spring" in rows
+    capsys.readouterr()
+    camp = tmp_path / "camp"
+    k = 3000.0
+    assert main(["simulate-campaign", "--effects-path", str(spring_dir), "--effects", f"torsion_spring:k={k}",
+                 "--seed", "3", "--out", str(camp)]) == 0
+    out = tmp_path / "diag.json"
+    assert main(["diagnose", str(camp), "--effects-path", str(spring_dir), "--candidates", "torsion_spring",
+                 "--no-stack", "--no-propose", "--quiet", "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    top = res["ranking"][0]
+    assert top["effect"] == "torsion_spring"
+    assert top["params"]["k"] == pytest.approx(k, rel=0.1)
