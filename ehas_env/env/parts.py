@@ -219,17 +219,28 @@ def _draw_effects(spec, rng) -> dict:
             params = {p.name: p.typical for p in eff.params if p.typical is not None}
         if not isinstance(params, dict):
             raise ValueError(f"randomise['effects']['{name}'] must be 'typical' or {{param: (low, high)}}, got {params!r}")
-        values = {}
-        for p in eff.params:  # the effect's order, not the user's: same draws for the same ranges
-            if p.name not in params:
-                continue
-            r = params[p.name]
-            if isinstance(r, (int, float)):
-                values[p.name] = float(r)
-                continue
-            values[p.name] = _draw(f"effects.{name}.{p.name}", r, rng, *p.bounds, log=p.log_scale)
         for key in params:
             eff.param(key)  # names an unknown parameter
+        # a draw that breaks the effect's own constraints (Stribeck: breakaway >= sliding force) is
+        # drawn again: the ranges of two parameters can overlap where their values may not
+        for _attempt in range(100):
+            values = {}
+            for p in eff.params:  # the effect's order, not the user's: same draws for the same ranges
+                if p.name not in params:
+                    continue
+                r = params[p.name]
+                if isinstance(r, (int, float)):
+                    values[p.name] = float(r)
+                    continue
+                values[p.name] = _draw(f"effects.{name}.{p.name}", r, rng, *p.bounds, log=p.log_scale)
+            try:
+                eff.resolve(values)
+                break
+            except ValueError as exc:
+                error = exc
+        else:
+            raise ValueError(f"randomise['effects']['{name}']: 100 draws from {params} all broke the effect's "
+                             f"constraints ({error})")
         out[name] = values
     return out
 

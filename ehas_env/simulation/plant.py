@@ -27,6 +27,7 @@ from ehas_env.physics import layout as K
 from ehas_env.physics.codegen import current_model
 from ehas_env.physics.effects import REGISTRY, resolve_effects
 from ehas_env.physics.effects.base import effect_slots
+from ehas_env.cli.options import MAX_SAMPLES, check_field, check_run_length
 from ehas_env.simulation.control_laws import N_GAINS, compiled_form, law_id
 from ehas_env.simulation.metrics import tracking_errors
 from ehas_env.simulation.reference import SineReference
@@ -96,7 +97,9 @@ class RigController:
 
     def __post_init__(self):
         for name, value in asdict(self).items():
-            if not math.isfinite(value):
+            if name != "rate_hz":
+                check_field("gain", value, f"RigController: {name}")
+            elif not math.isfinite(value):
                 raise ValueError(f"RigController: {name} must be finite, got {value!r}")
         if self.rate_hz <= 0:
             raise ValueError(f"RigController: rate_hz must be positive, got {self.rate_hz!r}")
@@ -367,6 +370,7 @@ class Plant:
             duration = cycles / ref.freq_hz
         if not (math.isfinite(duration) and duration > 0):
             raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
+        check_run_length(duration, self.dt, where=f"a closed-loop run of {duration:g} s")
         n = int(round(duration / self.dt))
         rng = np.random.default_rng(self.seed)
         noise = self.sensors.theta_noise(n, rng)
@@ -497,6 +501,8 @@ def _check_current(current_mA, name: str) -> np.ndarray:
     cmd = np.asarray(current_mA, dtype=float).ravel()
     if cmd.size == 0:
         raise ValueError(f"{name} is empty; expected one current in mA per sample period")
+    if cmd.size > MAX_SAMPLES:
+        raise ValueError(f"{name} holds {cmd.size:,} samples; at most {MAX_SAMPLES:,} per run")
     bad = np.flatnonzero(~np.isfinite(cmd))
     if bad.size:
         raise ValueError(f"{name} holds a non-finite value ({cmd[bad[0]]!r}) at sample {bad[0]}; expected finite mA")
