@@ -206,6 +206,7 @@ class EpisodePacker:
     def __init__(self, st: parts.StepSettings):
         self.st = st
         self._cache: dict = {}
+        self._size = None
 
     def __call__(self, ep: parts.Episode) -> tuple[np.ndarray, dict]:
         key = repr((ep.disc_sets, ep.amplitude_deg, ep.freq_hz, ep.cycles, ep.effects, ep.sensors, ep.theta0_deg,
@@ -215,6 +216,11 @@ class EpisodePacker:
             if len(self._cache) > 256:
                 self._cache.clear()
             hit = self._cache[key] = parts.pack_episode(ep, self.st)
+            if self._size is None:
+                self._size = hit[0].size
+            elif hit[0].size != self._size:  # the plant is on another compiled model than the env's
+                raise ValueError("effects or controller laws were loaded after this environment was made; "
+                                 "make the environment again (or load them first, e.g. effects_path=)")
         C, desc = hit
         C = C.copy()
         C[bk.C_SEED] = ep.noise_seed

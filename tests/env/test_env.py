@@ -17,9 +17,7 @@ import pytest
 
 import ehas_env  # noqa: F401  (registers ehas/Tracking-v0)
 from ehas_env.env import batch_kernel as bk
-from ehas_env.physics.codegen import current_model
-
-K = current_model()
+from ehas_env.physics import layout as K  # baseline indices: the same in every model
 from ehas_env.env.parts import MultiSine, draw_episode
 from ehas_env.simulation.metrics import tracking_errors
 from ehas_env.simulation.plant import Plant, RigController
@@ -229,7 +227,7 @@ def test_non_finite_state_terminates_and_restores_a_finite_state():
     env = TrackingEnv()
     env.reset(seed=0)
     env.step(np.array([0.2], np.float32))
-    env._C[bk.C_P + K.IDX["beta"]] = np.inf  # a corrupted parameter makes the state non-finite
+    env._C[bk.C_P + env._model.IDX["beta"]] = np.inf  # a corrupted parameter makes the state non-finite
     obs, r, term, trunc, info = env.step(np.array([0.2], np.float32))
     assert term and info["termination"] == "non_finite_state"
     assert np.all(np.isfinite(obs)) and math.isfinite(r)
@@ -432,7 +430,7 @@ def test_unknown_reset_option_is_named():
 def test_plant_kwargs_reach_the_plant():
     env = TrackingEnv(plant_kwargs={"inertia": 1.0})
     env.reset(seed=0)
-    assert env._C[bk.C_P + K.IDX["inertia"]] == 1.0
+    assert env._C[bk.C_P + env._model.IDX["inertia"]] == 1.0
 
 
 # -- rendering ----------------------------------------------------------------------

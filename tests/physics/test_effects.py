@@ -8,9 +8,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from ehas_env.physics.codegen import current_model
-
-K = current_model()
+from ehas_env.physics import layout as K  # baseline indices: the same in every model
 from ehas_env.physics.effects import REGISTRY, get_effect, parse_spec
 from ehas_env.simulation.plant import Plant
 from ehas_env.physics.rig import BAR, LPM
@@ -21,7 +19,7 @@ A, R = 7.658e-4, 0.05
 def constant_current_run(plant, current_mA, n=1500, theta0=-35.0):
     s = plant.initial_state(theta_deg=theta0 if current_mA > 0 else -theta0)
     out = np.zeros((n, K.N_OUT))
-    K.run_open_loop(s, plant.param_vector, np.full(n, current_mA), plant.dt, plant.substeps,
+    plant.model.run_open_loop(s, plant.param_vector, np.full(n, current_mA), plant.dt, plant.substeps,
                     np.zeros(K.history_length(0.05, plant.dt)), out)
     return out
 
@@ -114,9 +112,9 @@ def test_supply_droop_matches_accumulator_law():
     plant = Plant(disc_sets=1, effects={"supply_droop": {"Q_pump": 10.0, "V_acc": 1.0, "p0": 100.0}})
     s = plant.initial_state()
     s[6] = 180 * BAR
-    ds = np.zeros(K.N_STATES)
+    ds = np.zeros(plant.model.N_STATES)
     s[4] = s[5] = 90 * BAR
-    K.derivatives(s, 0.0, plant.param_vector, ds)
+    plant.model.derivatives(s, 0.0, plant.param_vector, ds)
     cap = 1e-3 * 100 * BAR / (180 * BAR) ** 2 + 0.5e-3 / 1e9
     assert ds[6] == pytest.approx(10 * LPM / cap, rel=1e-9)
 
@@ -188,7 +186,7 @@ def test_bulk_modulus_scales_hydraulic_frequency_with_sqrt_beta():
         s = plant.initial_state()
         s[1] = 1e-3
         out = np.zeros((4000, K.N_OUT))
-        K.run_open_loop(s, plant.param_vector, np.zeros(4000), plant.dt, plant.substeps, np.zeros(600), out)
+        plant.model.run_open_loop(s, plant.param_vector, np.zeros(4000), plant.dt, plant.substeps, np.zeros(600), out)
         w = out[:, K.O_OMEGA]
         up = np.flatnonzero((w[:-1] < 0) & (w[1:] >= 0))
         return (up.size - 1) / ((up[-1] - up[0]) * plant.dt)

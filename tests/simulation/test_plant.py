@@ -7,9 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ehas_env.physics.codegen import current_model
-
-K = current_model()
+from ehas_env.physics import layout as K  # baseline indices: the same in every model
 from ehas_env.physics.effects import REGISTRY
 from ehas_env.simulation.plant import Plant, RigController
 from ehas_env.simulation.reference import SineReference
@@ -20,7 +18,7 @@ from ehas_env.simulation.sensors import Sensors
 
 def run_from_state(plant: Plant, state: np.ndarray, current: np.ndarray) -> np.ndarray:
     out = np.zeros((current.size, K.N_OUT))
-    K.run_open_loop(state.copy(), plant.param_vector, current, plant.dt, plant.substeps,
+    plant.model.run_open_loop(state.copy(), plant.param_vector, current, plant.dt, plant.substeps,
                     np.zeros(K.history_length(0.05, plant.dt)), out)
     return out
 
@@ -40,10 +38,10 @@ def test_kernel_rhs_matches_reference(effect):
         ])
         s[7] = 0.05 * math.sin(s[0]) + rng.uniform(-4e-4, 4e-4)
         i_v = rng.uniform(-20, 20)
-        ds = np.zeros(K.N_STATES)
-        K.derivatives(s, i_v, P, ds)
-        ref = reference_rhs(dict(zip(K.STATE_NAMES, s)), i_v, slots)
-        expected = np.array([ref[name] for name in K.STATE_NAMES])
+        ds = np.zeros(plant.model.N_STATES)
+        plant.model.derivatives(s, i_v, P, ds)
+        ref = reference_rhs(dict(zip(plant.model.STATE_NAMES, s)), i_v, slots)
+        expected = np.array([ref[name] for name in plant.model.STATE_NAMES])
         np.testing.assert_allclose(ds, expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
 
 
