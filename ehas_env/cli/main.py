@@ -102,8 +102,18 @@ def main(argv: list[str] | None = None) -> int:
     130   interrupted (Ctrl-C); the previous complete output is left in place
     ====  =====================================================================
 
-    ``ehas CMD | head`` ends quietly when the reader closes the pipe.
+    ``ehas CMD | head`` ends quietly when the reader closes the pipe.  A SIGTERM (a job
+    scheduler's stop, ``kill``) is handled as Ctrl-C: outputs stay whole, status 130.
     """
+    import signal
+
+    def _terminate(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread: leave the signal alone
+        previous = None
     try:
         return _main(argv)
     except BrokenPipeError:
@@ -115,6 +125,9 @@ def main(argv: list[str] | None = None) -> int:
         except (OSError, ValueError):
             pass
         return 141
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def _main(argv) -> int:
