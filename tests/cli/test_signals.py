@@ -1,6 +1,7 @@
 """A SIGTERM (a scheduler's stop, ``kill``) ends a command as Ctrl-C does: one line, status 130, nothing half-written."""
 from __future__ import annotations
 
+import shutil
 import signal
 import subprocess
 import sys
@@ -12,8 +13,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_sigterm_during_bench_is_a_clean_interrupt(tmp_path):
     out = tmp_path / "bench"
-    cmd = [sys.executable, "-m", "ehas_env.cli.main", "bench", str(ROOT / "results/controllers/model.json"),
-           "--out", str(out)]
+    ehas = shutil.which("ehas") or str(Path(sys.executable).with_name("ehas"))  # the console script users run
+    cmd = [ehas, "bench", str(ROOT / "results/controllers/model.json"), "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     first = proc.stderr.readline()  # the command has started its work (its first status line)
     assert first.startswith("[bench]"), first
