@@ -230,7 +230,8 @@ def run_benchmark(controllers, out_dir, *, cycles: float = DEFAULT_CYCLES, plant
     csv_text = _csv(controllers, names, results, command)
     atomic_write_text(out / "benchmark.csv", csv_text)
     pngs = {name: heatmap(results[name], out / f"heatmap_{_slug(name)}.png",
-                          title=f"{name} on {_model_label(plant_kwargs)}: rms % position error",
+                          title=f"controller '{name}' on the {_model_label(plant_kwargs)} model"
+                                + ("" if plant_kwargs else " (no effects, ideal sensors)") + ": rms % position error",
                           command=command) for name in names}
     if robust:
         atomic_write_text(out / "benchmark_robustness.csv", _robust_csv(robust, names, command, len(conds)))
@@ -394,7 +395,9 @@ def heatmap(rows, path, title: str = "", command: str = "ehas bench") -> Path:
             ax.text(j, i, txt, ha="center", va="center", fontsize=7, color="w" if m[i, j] > 1 else "k")
     ax.set_xticks(range(len(cols)), [f"{f:g} Hz\n{a:g} deg" for f, a in cols], fontsize=7)
     ax.set_yticks(range(len(sets)), [f"{n} sets" for n in sets], fontsize=8)
-    fig.colorbar(im, ax=ax, label="rms % position error")
+    ax.set_xlabel("reference: frequency, amplitude (sine, 5 periods, first excluded)", fontsize=8)
+    ax.set_ylabel("load: disc sets on the crank", fontsize=8)
+    fig.colorbar(im, ax=ax, label="rms position error, % of amplitude (log scale)")
     ax.set_title(title or "rms % position error", fontsize=10)
     fig.tight_layout()
     fig.text(0.005, 0.005, f"regenerate: {command}", fontsize=6, color="0.4")

@@ -239,8 +239,12 @@ def tune_model_based(disc_sets: int = 3, *, phase_margin_deg: float = 50.0, band
     ]
     if bode_path is not None:
         report["bode_png"] = str(save_bode(pi["loop"], lp_op.tf(kdp, hp), bode_path,
-                                           title=f"model-based loop, {disc_sets} disc sets, "
-                                                 f"{getattr(getattr(plant, 'plant_model', None), 'label', 'book rig')}",
+                                           title=f"{getattr(getattr(plant, 'plant_model', None), 'label', 'book rig')}, "
+                                                 f"{disc_sets} disc sets: model-based PI (Kp {pi['Kp']:.3g} mA/deg, "
+                                                 f"Ki {pi['Ki']:.3g} mA/(deg s))\nlinearised at {amplitude_deg:g} deg / "
+                                                 f"{freq_hz:g} Hz ({flow:.1f} LPM mean flow), ZOH delay; loop broken "
+                                                 f"at the position error" + (f", Kdp {kdp:.3g} mA/bar closed inside G"
+                                                                              if kdp else ""),
                                            note=bode_note))
         lines.append(f"  Bode plot: {report['bode_png']}")
     return TuneResult(ctrl, report, lines)
@@ -264,14 +268,14 @@ def save_bode(loop, plant_tf, path, title: str = "", note: str = ""):
     f = w / (2 * math.pi)
     gm, pm, _sm, wpc, wgc, _ = control.stability_margins(loop)
     cl = control.feedback(loop, 1)
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
     for sys, label in ((plant_tf, "plant G (deg/mA)"), (loop, "loop L = C G"), (cl, "closed loop T")):
         r = sys(1j * w)
         ax1.semilogx(f, 20 * np.log10(np.abs(r)), label=label)
         ax2.semilogx(f, np.degrees(np.unwrap(np.angle(r))), label=label)
     ax1.axhline(0, color="k", lw=0.5)
     ax2.axhline(-180, color="k", lw=0.5)
-    ax1.axvline(wgc / (2 * math.pi), color="g", ls=":", label=f"crossover {wgc / (2 * math.pi):.2f} Hz")
+    ax1.axvline(wgc / (2 * math.pi), color="g", ls=":", label=f"crossover {wgc / (2 * math.pi):.2f} Hz, PM {pm:.1f} deg")
     if np.isfinite(gm):
         ax1.axvline(wpc / (2 * math.pi), color="r", ls=":", label=f"GM {20 * math.log10(gm):.1f} dB")
     ax2.set_title(f"phase margin {pm:.1f} deg", fontsize=9)
@@ -282,7 +286,7 @@ def save_bode(loop, plant_tf, path, title: str = "", note: str = ""):
     ax1.set_ylim(-80, 60)
     ax2.set_ylim(-450, 0)
     if title:
-        ax1.set_title(title)
+        ax1.set_title(title, fontsize=9)
     fig.tight_layout()
     if note:
         fig.text(0.005, 0.003, note, fontsize=6, color="0.4")

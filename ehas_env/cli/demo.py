@@ -50,7 +50,8 @@ def design_point_section(out: Path) -> str:
     gains = RigController.book()
     res = plant.simulate_closed_loop(gains, amplitude_deg=30.0, freq_hz=3.0, cycles=5)
     csv_path, _ = res.to_csv(out / "design_point", notes="ehas demo: book gains at the design point")
-    plot_run(res, out / "design_point.png", title="design point: +-30 deg, 3 Hz, 7 disc sets, book gains")
+    plot_run(res, out / "design_point.png", title="design point +-30 deg, 3 Hz, 7 disc sets: book rig model (no effects, sensor noise), "
+             f"book gains (Kp {gains.Kp:g} mA/deg, Ki {gains.Ki:g} mA/(deg s), Kv, Ka feed-forward)")
     err = res.tracking_errors()
     steady = res.t >= 1.0 / 3.0
     return (
@@ -101,6 +102,29 @@ def _relocate(tmp: Path, final: Path) -> None:
                 atomic_write_text(f, text.replace(str(tmp), str(final)))
 
 
+#: commands of a section's "Regenerate:" line that write into the demo's own (existing) folders
+_REWRITES = ("ehas simulate-campaign ", "ehas diagnose ")
+
+
+def _runnable_regenerate(body: str) -> str:
+    """A section's ``Regenerate:`` commands run as written after the demo: they replace the demo's
+    own campaign and diagnosis folders, which exist then, so they need ``--overwrite``.
+
+    >>> _runnable_regenerate("Regenerate: `ehas diagnose c --out d` then `ehas diagnose e --overwrite`")
+    'Regenerate: `ehas diagnose c --out d --overwrite` then `ehas diagnose e --overwrite`'
+    """
+    import re
+
+    def fix(line: str) -> str:
+        if not line.lstrip().startswith("Regenerate"):
+            return line
+        return re.sub(r"`((?:%s)[^`]*)`" % "|".join(map(re.escape, _REWRITES)),
+                      lambda m: f"`{m.group(1)}`" if "--overwrite" in m.group(1).split() else f"`{m.group(1)} --overwrite`",
+                      line)
+
+    return "\n".join(fix(line) for line in body.split("\n"))
+
+
 def _run(args, out: Path) -> None:
     from ehas_env.output.files import atomic_write_text
 
@@ -123,5 +147,6 @@ def _run(args, out: Path) -> None:
             body = section(out).strip()
         if body.startswith("#"):  # the section's own title: ours stands above it
             body = body.split("\n", 1)[1] if "\n" in body else ""
+        body = _runnable_regenerate(body)
         parts += [f"## {title}", "", body.strip(), "", f"_({time.perf_counter() - t0:.1f} s)_", ""]
         atomic_write_text(out / "README.md", "\n".join(parts))

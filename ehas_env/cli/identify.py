@@ -271,11 +271,16 @@ def plot_bode(models, path, data=None, title: str = "", f_range=None, coherence_
             ax[1].semilogx(f[ok], np.degrees(np.unwrap(np.angle(h[ok]))), ".", ms=3, color="0.5")
         hi = min(hi, 0.5 / data.dt)
     f = np.geomspace(lo, hi, 400)
-    for label, sys_ in models:
+    # the first model wide and solid, the others thinner with their own dashes: curves that
+    # coincide (a fit on its truth) stay visible one over the other
+    styles = [dict(lw=3.0, ls="-", alpha=0.55), dict(lw=1.6, ls="--"), dict(lw=1.6, ls="-."), dict(lw=1.6, ls=":"),
+              dict(lw=1.3, ls=(0, (6, 2, 1, 2)))]
+    for k, (label, sys_) in enumerate(models):
         num, den = np.squeeze(sys_.num[0][0]), np.squeeze(sys_.den[0][0])
         g = np.polyval(np.atleast_1d(num), 2j * np.pi * f) / np.polyval(np.atleast_1d(den), 2j * np.pi * f)
-        ax[0].semilogx(f, 20 * np.log10(np.abs(g)), label=label)
-        ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(g))), label=label)
+        st = styles[k % len(styles)]
+        ax[0].semilogx(f, 20 * np.log10(np.abs(g)), label=label, color=f"C{k}", **st)
+        ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(g))), label=label, color=f"C{k}", **st)
     ax[0].set_ylabel("magnitude, dB")
     ax[1].set_ylabel("phase, deg")
     ax[1].set_xlabel("frequency, Hz")

@@ -322,7 +322,8 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
     figs = []
     for name, est in overlay_runs.items():
         fname = "overlay_chirp.png" if "chirp" in name else "overlay_prms.png"
-        figs.append(plot_overlay(est, out / fname, title=f"{name}, book-level noise: 2p0z fit"))
+        figs.append(plot_overlay(est, out / fname, title=f"valve (grey box, 70 bar bench) flow: {name}, book-level "
+                                 f"noise; model: 2p0z fitted", zoom_s=1.0 if "chirp" in name else 0.25))
     models = [("truth (book chirp model)", G)]
     if book_prms_tf is not None:
         models.append(("book PRMS model", book_prms_tf))

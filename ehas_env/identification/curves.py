@@ -325,8 +325,11 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     loop = position_loop(plant, ctrl, valve)
     files.append(_plot_loop(loop, out / "position_loop_bode.png",
                             title=(f"{pm.label}: " if pm is not None else "")
-                                  + f"position loop, {plant.rig.disc_sets} disc sets, {valve}, Kp {ctrl.Kp:g} mA/deg, "
-                                  f"Ki {ctrl.Ki:g} mA/(deg s)"))
+                                  + f"position loop (linearised at mid-stroke, at rest), {plant.rig.disc_sets} disc sets, "
+                                  f"{'book rig' if pm is None else 'model'}, valve {valve}\n"
+                                  f"controller: Kp {ctrl.Kp:g} mA/deg, Ki {ctrl.Ki:g} mA/(deg s)"
+                                  + (f", Kdp {ctrl.Kdp:g} mA/bar" if ctrl.Kdp else "")
+                                  + f", ZOH half-sample delay; loop broken at the valve current"))
     sweep = []
     for n in range(1, 8):
         p = Plant(disc_sets=n, effects=plant.effects or None, **({"valve": valve} if valve != "grey_box" else {}),
@@ -372,25 +375,37 @@ def _plot_loop(loop: dict, path, title: str):
     plt = _pyplot()
     L = loop["L"]
     w = np.geomspace(2 * math.pi * 0.05, 2 * math.pi * 500, 2000)
-    g = np.squeeze(L(1j * w))
-    fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    # evaluated just right of the imaginary axis: the undamped resonance at rest then drops the
+    # phase by 180 deg, as any lightly damped resonance does, instead of an arbitrary +-180 step
+    g = np.squeeze(L(1e-3 * w + 1j * w))
+    fig, ax = plt.subplots(2, 1, figsize=(8, 7.5), sharex=True)
     f = w / (2 * math.pi)
-    ax[0].semilogx(f, 20 * np.log10(np.abs(g)))
+    ax[0].semilogx(f, 20 * np.log10(np.abs(g)), color="C0", label="loop L at the valve current")
     ax[0].axhline(0, color="k", lw=0.6)
-    ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(g))))
+    ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(g))), color="C0")
     ax[1].axhline(-180, color="k", lw=0.6)
     if np.isfinite(loop["crossover_hz"]):
         for a in ax:
-            a.axvline(loop["crossover_hz"], color="C2", lw=0.8, ls="--")
-        ax[1].annotate(f"PM {loop['phase_margin_deg']:.1f} deg", (loop["crossover_hz"], -180 + loop["phase_margin_deg"]),
-                       fontsize=8, color="C2")
+            a.axvline(loop["crossover_hz"], color="C2", lw=1.0, ls="--",
+                      label=f"gain crossover {loop['crossover_hz']:.2f} Hz: phase margin {loop['phase_margin_deg']:.1f} deg"
+                      if a is ax[0] else None)
+        ax[1].annotate("", xy=(loop["crossover_hz"], -180 + loop["phase_margin_deg"]), xytext=(loop["crossover_hz"], -180),
+                       arrowprops=dict(arrowstyle="<->", color="C2", lw=1.5))
     if np.isfinite(loop["phase_crossover_hz"]):
         for a in ax:
-            a.axvline(loop["phase_crossover_hz"], color="C3", lw=0.8, ls="--")
-        ax[0].annotate(f"GM {loop['gain_margin_db']:.1f} dB", (loop["phase_crossover_hz"], -loop["gain_margin_db"]),
-                       fontsize=8, color="C3")
+            a.axvline(loop["phase_crossover_hz"], color="C3", lw=1.0, ls="--",
+                      label=f"phase crossover {loop['phase_crossover_hz']:.1f} Hz: gain margin {loop['gain_margin_db']:.1f} dB"
+                      if a is ax[0] else None)
+        ax[0].annotate("", xy=(loop["phase_crossover_hz"], -loop["gain_margin_db"]), xytext=(loop["phase_crossover_hz"], 0),
+                       arrowprops=dict(arrowstyle="<->", color="C3", lw=1.5))
+    if np.isfinite(loop.get("hydraulic_hz", math.nan)):
+        for a in ax:
+            a.axvline(loop["hydraulic_hz"], color="0.5", lw=0.8, ls=":",
+                      label=f"hydraulic resonance {loop['hydraulic_hz']:.1f} Hz (undamped at rest)" if a is ax[0] else None)
+    ax[0].legend(fontsize=7, loc="lower left")
+    ax[0].set_ylim(max(ax[0].get_ylim()[0], -100), ax[0].get_ylim()[1])
     ax[0].set_ylabel("|L|, dB")
-    ax[1].set_ylabel("phase L, deg")
+    ax[1].set_ylabel("phase of L, deg")
     ax[1].set_xlabel("frequency, Hz")
     for a in ax:
         a.grid(True, which="both", alpha=0.3)

@@ -200,7 +200,7 @@ def plot(res: dict, path: Path) -> Path:
     from ehas_env.output.files import atomic_write_bytes
 
     best = res["ranking"][0]
-    labels = [f"{t['amplitude_deg']:g}deg {t['freq_hz']:g}Hz {t['disc_sets']}s" for t in res["tests"]]
+    labels = [f"{t['amplitude_deg']:g} deg, {t['freq_hz']:g} Hz\n{t['disc_sets']} disc sets" for t in res["tests"]]
     x = np.arange(len(labels))
     cols = {"analytic (book)": [t["load_analytic_kN"] for t in res["tests"]],
             "measured (book)": [t["load_test_kN"] for t in res["tests"]],
@@ -210,9 +210,14 @@ def plot(res: dict, path: Path) -> Path:
     for k, (lab, v) in enumerate(cols.items()):
         ax.bar(x + (k - 1) * w, v, w, label=lab)
     ax.set_xticks(x, labels, fontsize=8)
-    ax.set_ylabel("peak load [kN]")
-    ax.set_title("book rig tests: peak actuator load", fontsize=9)
-    ax.legend(fontsize=8)
+    ax.set_ylabel("peak actuator load [kN]")
+    ax.set_xlabel("the book's closed-loop sine tests (tables 1.9-1.15)", fontsize=8)
+    fb = res["fits"][best]
+    fp = ", ".join(f"{k} = {v:.4g} {fb['units'][k]}" for k, v in fb.get("params", {}).items())
+    ax.set_title(f"peak actuator load: the book's pure-inertia value, the rig's measurement,\nand the book rig "
+                 f"model's force balance with {best}" + (f" ({fp})" if fp else "") + " fitted", fontsize=9)
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(axis="y", alpha=0.3)
     buf = io.BytesIO()
     fig.tight_layout()
     fig.savefig(buf, format="png", dpi=90)

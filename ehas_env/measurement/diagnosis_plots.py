@@ -208,26 +208,35 @@ def hysteresis(path, rep, sims_by_label: dict[str, list], run_index: int | None 
         ax.set_title(case.run.label(), fontsize=9)
         if col == 0:
             ax.legend(fontsize=7, markerscale=5)
+    fig.suptitle("actuator load against crank velocity over the steady cycles (after the first): measured (black dots) "
+                 "and each model, one panel per closed-loop run", fontsize=9)
     return _save(plt, fig, path)
 
 
-def fit_bars(path, tables: dict, title: str = "fit % per signal") -> Path:
-    """Grouped bars: fit % per signal for each model (``tables``: label -> FitTable)."""
+def fit_bars(path, tables: dict, title: str = "") -> Path:
+    """Grouped bars: fit % per signal for each model (``tables``: label -> FitTable), values printed on the bars."""
     labels = list(tables)
     signals = list(tables[labels[0]].per_signal) + ["overall"]
-    plt, fig, axes = _figure(1, size=(9.0, 3.2))
+    plt, fig, axes = _figure(1, size=(9.5, 3.8))
     ax = axes[0, 0]
     x = np.arange(len(signals))
     w = 0.8 / len(labels)
+    lo = min(min(t.per_signal.values(), default=0) for t in tables.values())
+    bottom = max(min(lo - 5, 90), -100)
     for k, label in enumerate(labels):
         vals = [tables[label].per_signal.get(s, np.nan) for s in signals[:-1]] + [tables[label].overall]
-        ax.bar(x + (k - (len(labels) - 1) / 2) * w, vals, w, label=label)
-    ax.set_xticks(x, signals, fontsize=8)
-    ax.set_ylabel("fit % (NRMSE)")
-    lo = min(min(t.per_signal.values(), default=0) for t in tables.values())
-    ax.set_ylim(max(min(lo - 5, 90), -100), 100)
-    ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=8)
+        bars = ax.bar(x + (k - (len(labels) - 1) / 2) * w, vals, w, label=label)
+        for b, v in zip(bars, vals):
+            if np.isfinite(v):
+                ax.text(b.get_x() + b.get_width() / 2, max(v, bottom) + 0.5, f"{v:.1f}", ha="center", va="bottom",
+                        fontsize=6, rotation=90)
+    ax.set_xticks(x, [NAMES.get(s, s) if s != "overall" else "overall (all signals)" for s in signals], fontsize=8)
+    ax.set_ylabel("fit %, 100 (1 - NRMSE)")
+    ax.set_ylim(bottom, 108)
+    ax.axhline(100, color="0.5", lw=0.6)
+    ax.set_title(title or ("fit % per signal, measurement against each model (100 % = the model reproduces it)\n"
+                           "models: " + " -> ".join(labels)), fontsize=9)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0), borderaxespad=0.2)
     return _save(plt, fig, path)
 
 

@@ -224,11 +224,8 @@ def _params_text(params: dict) -> str:
     return ";".join(f"{k}={v:g}" for k, v in params.items())
 
 
-@pytest.mark.xfail(strict=True, reason="results/benchmark_robustness.csv (and benchmark.md's robustness table) "
-                   "predate bulk_modulus's typical range 0.70-0.85 GPa: they show beta=6e+08, today's middle is "
-                   "7.75e+08; regenerate with `ehas bench` (the rows at the committed parameters do reproduce: "
-                   "test_fresh_robustness_reproduces_the_committed_rows)")
 def test_committed_robustness_table_is_for_todays_typical_effects():
+    """results/benchmark_robustness.csv is for today's `typical` middles (regenerate with `ehas bench`)."""
     rows = _data_rows(COMMITTED_ROBUSTNESS)
     committed = {r["effect"]: r["params"] for r in rows if r["effect"] != "none"}
     assert committed == {name: _params_text(p) for name, p in typical_effects().items()}
