@@ -11,7 +11,7 @@ from ehas_env.physics import layout as K  # baseline indices: the same in every 
 from ehas_env.physics.effects import REGISTRY
 from ehas_env.simulation.plant import Plant, RigController
 from ehas_env.simulation.reference import SineReference
-from ehas_env.physics.reference_rhs import rhs as reference_rhs
+from twin import assert_rhs_matches_twin
 from ehas_env.physics.rig import BAR, LPM
 from ehas_env.simulation.sensors import Sensors
 
@@ -29,20 +29,13 @@ def run_from_state(plant: Plant, state: np.ndarray, current: np.ndarray) -> np.n
 def test_kernel_rhs_matches_reference(effect):
     rng = np.random.default_rng(7)
     plant = Plant(disc_sets=4, effects=[effect] if effect else None)
-    slots = plant.slots()
-    P = plant.param_vector
     for _ in range(20):
         s = np.array([
             rng.uniform(-0.6, 0.6), rng.uniform(-3, 3), rng.uniform(-4e-4, 4e-4), rng.uniform(-0.05, 0.05),
             rng.uniform(10e5, 210e5), rng.uniform(10e5, 210e5), rng.uniform(150e5, 220e5), 0.0, rng.uniform(-0.1, 0.1),
         ])
         s[7] = 0.05 * math.sin(s[0]) + rng.uniform(-4e-4, 4e-4)
-        i_v = rng.uniform(-20, 20)
-        ds = np.zeros(plant.model.N_STATES)
-        plant.model.derivatives(s, i_v, P, ds)
-        ref = reference_rhs(dict(zip(plant.model.STATE_NAMES, s)), i_v, slots)
-        expected = np.array([ref[name] for name in plant.model.STATE_NAMES])
-        np.testing.assert_allclose(ds, expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
+        assert_rhs_matches_twin(plant, s, rng.uniform(-20, 20))
 
 
 # -- analytic checks -----------------------------------------------------------
