@@ -26,6 +26,7 @@ import numpy as np
 
 EHAS_ID = "ehas/Tracking-v0"
 V_SCALE_DEG_S = 30.0 * 2.0 * math.pi * 3.0  # design point's peak rate, +-30 deg at 3 Hz (docs/rig.md)
+A_SCALE_DEG_S2 = 30.0 * (2.0 * math.pi * 3.0) ** 2  # design point's peak acceleration (the env's scale)
 DP_SCALE_BAR = 110.0  # half the 220 bar supply (docs/rig.md): the ``power`` action shape's load scale
 RATED_CURRENT_MA = 20.0  # the env's action scale: a = 1 is 20 mA (docs/rig.md: +-20 mA servo amplifier)
 
@@ -169,7 +170,7 @@ class AgentInterface(gym.Wrapper):
         squared error makes the light conditions' share of the return ~100x
         smaller than the heavy ones', the absolute error ~10x.
     shape : str
-        ``constant``, ``velocity`` or ``power``: the action's authority at each
+        ``constant``, ``velocity``, ``power``, ``reference`` or ``reference_sq``: the action's authority at each
         control period, :func:`authority` of the environment's latest
         ``info`` (reference rate, load pressure).
 
@@ -244,11 +245,48 @@ def authority(shape: str, m) -> float | np.ndarray:
         return 1.0
     if not m:
         return 0.0 * np.asarray(0.0)
+    if shape == "reference":
+        return reference_authority(m)
+    if shape == "reference_sq":
+        return reference_authority(m) ** 2
     f = np.minimum(np.abs(np.asarray(m["theta_ref_dot"], dtype=float)) / V_SCALE_DEG_S, 1.0)
     if shape == "power":
         dp = np.asarray(m["p_a_bar"], dtype=float) - np.asarray(m["p_b_bar"], dtype=float)
         f = f * np.minimum(np.abs(dp) / DP_SCALE_BAR, 1.0)
     return f
+
+
+def reference_authority(m) -> float | np.ndarray:
+    """The ``reference`` action shape: the reference's velocity x acceleration amplitudes over the design point's.
+
+    For a sine ``A sin(w t)``: ``(A w / 565 deg/s) * (A w^2 / 10659 deg/s^2)``, each at most 1,
+    from the sample's reference and its derivatives (``rd^2 - r rdd = (A w)^2``,
+    ``rdd^2 - rd rddd = (A w^2)^2``): constant over an episode once the fade-in is
+    over, a function of the task alone (no feedback through the plant's state,
+    which the ``power`` shape has: a correction that raises the load pressure raises
+    its own authority), ~0.004 at 10 deg / 1 Hz, 1 at the design point 30 deg / 3 Hz.
+    Missing keys count as a reference at rest (authority 0).  ``reference_sq``, its
+    square, concentrates the authority further on the fast, large references
+    (~2e-5 at 10 deg / 1 Hz, 0.012 at 10 deg / 3 Hz, 0.2 at 20 deg / 3 Hz, 1 at
+    30 deg / 3 Hz): the tuned loop is nearly proportional and lightly damped with
+    heavy disc stacks, so a bias of a fraction of a mA, or a switching correction, costs
+    the slow and small references far more than they could gain.
+
+    Examples
+    --------
+    >>> import math
+    >>> w = 2 * math.pi * 3.0
+    >>> float(reference_authority({"theta_ref_deg": 0.0, "theta_ref_dot": 30 * w, "theta_ref_ddot": 0.0,
+    ...                            "theta_ref_dddot": -30 * w ** 3}))
+    1.0
+    """
+    def g(key):
+        return np.asarray(m.get(key, 0.0), dtype=float)
+
+    r, rd, rdd, rddd = g("theta_ref_deg"), g("theta_ref_dot"), g("theta_ref_ddot"), g("theta_ref_dddot")
+    v = np.sqrt(np.maximum(rd * rd - r * rdd, 0.0)) / V_SCALE_DEG_S
+    acc = np.sqrt(np.maximum(rdd * rdd - rd * rddd, 0.0)) / A_SCALE_DEG_S2
+    return np.minimum(v, 1.0) * np.minimum(acc, 1.0)
 
 
 def env_kwargs(cfg, controller_desc: dict | None = None) -> dict:
