@@ -62,7 +62,7 @@ from ehas_env.cli.options import ENV_KWARGS, check_field
 
 ALGOS = ("ppo", "sac", "td3")
 ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
-ACTION_SHAPES = ("constant", "velocity", "power")
+ACTION_SHAPES = ("constant", "velocity", "power", "reference", "reference_sq")
 RESIDUAL_BASES = ("tuned", "book")
 # randomised quantities and the bounds each value must respect
 RANDOMISE_KEYS = {
@@ -84,10 +84,11 @@ _TRAIN_DEFAULTS = {
     "clip_obs": 10.0,
     "eval_episodes": 5,
     "torch_threads": 1,
-    "vec_env": "dummy",
+    "vec_env": "batched",
     "log_interval_s": 30.0,
     "validate_every": 0,
     "validate_conditions": 16,
+    "validate_metric": "mean",
 }
 
 
@@ -120,8 +121,10 @@ class TrainConfig:
         ``torch.set_num_threads``: the machine has 2 cores; 1 keeps the second free
         for the environments.
     vec_env : str
-        ``dummy`` (all environments in this process: the plant steps in ~10 us,
-        far below the learner's cost) or ``subproc``.
+        ``batched`` (default: the native batched environment behind an SB3 ``VecEnv``,
+        all environments stepped in one compiled call, :mod:`ehas_train.batched`;
+        other environment ids fall back to ``dummy``), ``dummy`` (SB3's
+        ``DummyVecEnv`` of Python environments, for comparison) or ``subproc``.
     log_interval_s : float
         Seconds between progress lines in the log.
     validate_every : int
@@ -132,6 +135,12 @@ class TrainConfig:
         not monotonic; this is early stopping on held-out conditions).
     validate_conditions : int
         Size of that validation set.
+    validate_metric : str
+        What the kept model minimises: ``mean`` (the mean rms % error) or
+        ``no_worse`` (that mean plus 10 x the mean excess over the classical
+        reference on the same conditions beyond 0.05 points: a model that loses
+        somewhere to the classical controller is kept only if it gains far more
+        elsewhere).
     hyper : dict
         Keyword arguments of the stable-baselines3 algorithm class.
     env_id : str
@@ -149,9 +158,12 @@ class TrainConfig:
     action_shape : str
         Authority of a full action over time (``ehas_train.envs.authority``):
         ``constant`` (``action_scale_mA`` always), ``velocity`` (scaled by the
-        reference rate) or ``power`` (by the reference rate and the load
-        pressure): a residual that fades where the classical loop is already
-        good, so that the policy's imprecision cannot disturb it there.
+        reference rate), ``power`` (by the reference rate and the load
+        pressure), ``reference`` (by the reference's velocity x acceleration
+        amplitudes, a function of the task alone) or ``reference_sq`` (its
+        square): a residual that fades where
+        the classical loop is already good, so that the policy's imprecision
+        cannot disturb it there.
     reward : str
         ``env`` (the environment's ``-(e/A)^2`` per period) or ``abs``
         (``-|e|/A``, closer to the benchmark's mean of rms errors; see
@@ -180,10 +192,11 @@ class TrainConfig:
     clip_obs: float = 10.0
     eval_episodes: int = 5
     torch_threads: int = 1
-    vec_env: str = "dummy"
+    vec_env: str = "batched"
     log_interval_s: float = 30.0
     validate_every: int = 0
     validate_conditions: int = 16
+    validate_metric: str = "mean"
     hyper: dict = field(default_factory=dict)
     env_id: str = "ehas/Tracking-v0"
     residual: bool = False
@@ -279,8 +292,10 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
             raise ValueError(f"{where} {key} must be true or false, got {t[key]!r}")
     for key in ("clip_obs", "log_interval_s"):
         t[key] = check_field(key, t[key], f"{where} {key}")
-    if t["vec_env"] not in ("dummy", "subproc"):
-        raise ValueError(f"{where} vec_env must be 'dummy' or 'subproc', got {t['vec_env']!r}")
+    if t["validate_metric"] not in ("mean", "no_worse"):
+        raise ValueError(f"{where} validate_metric must be 'mean' or 'no_worse', got {t['validate_metric']!r}")
+    if t["vec_env"] not in ("batched", "dummy", "subproc"):
+        raise ValueError(f"{where} vec_env must be 'batched', 'dummy' or 'subproc', got {t['vec_env']!r}")
 
     hyper = copy.deepcopy(_table(raw, "algo", source))
     _check_hyper(t["algo"], hyper, source)
@@ -324,7 +339,7 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
         checkpoint_every=t["checkpoint_every"], vecnormalize=t["vecnormalize"], norm_reward=t["norm_reward"],
         clip_obs=float(t["clip_obs"]), eval_episodes=t["eval_episodes"], torch_threads=t["torch_threads"],
         vec_env=t["vec_env"], log_interval_s=float(t["log_interval_s"]), validate_every=t["validate_every"],
-        validate_conditions=t["validate_conditions"], hyper=hyper, env_id=env_id,
+        validate_conditions=t["validate_conditions"], validate_metric=t["validate_metric"], hyper=hyper, env_id=env_id,
         residual=residual, controller=controller, action_repeat=action_repeat, action_scale_mA=action_scale,
         reward_scale=reward_scale, action_penalty=float(action_penalty), action_shape=action_shape,
         reward=reward, env_kwargs=env_kwargs, randomise=randomise, source=source,

@@ -35,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="override [train] total_steps")
     parser.add_argument("--seed", type=option("--seed", "seed"), metavar="S", help="override [train] seed")
     parser.add_argument("--n-envs", type=option("--n-envs", "n_envs"), metavar="N", help="override [train] n_envs")
+    parser.add_argument("--vec-env", choices=("batched", "dummy", "subproc"), default=None,
+                        help="override [train] vec_env: batched (default: the native batched environment behind "
+                             "an SB3 VecEnv, ehas_train.batched), dummy (SB3's DummyVecEnv, for comparison) or subproc")
     parser.add_argument("--max-minutes", type=option("--max-minutes", "max_minutes"), metavar="M",
                         help="wall-clock budget: stop (and save) after M minutes even before --total-steps")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -62,6 +65,8 @@ def resolve_config(args):
         changes["seed"] = args.seed
     if args.n_envs is not None:
         changes["n_envs"] = args.n_envs
+    if getattr(args, "vec_env", None) is not None:
+        changes["vec_env"] = args.vec_env
     if changes:
         cfg = cfg.replace(**changes)
     if args.residual and not cfg.residual:
@@ -99,7 +104,8 @@ def _command(args) -> str:
         parts += ["--config", args.config]
     parts += ["--out", args.out]
     for flag, value in (("--total-steps", args.total_steps), ("--seed", args.seed), ("--n-envs", args.n_envs),
-                        ("--max-minutes", args.max_minutes), ("--model", getattr(args, "model", None))):
+                        ("--vec-env", getattr(args, "vec_env", None)), ("--max-minutes", args.max_minutes),
+                        ("--model", getattr(args, "model", None))):
         if value is not None:
             parts += [flag, str(value)]
     for flag in ("no_tensorboard", "drop_checkpoints"):
@@ -121,8 +127,8 @@ def run_sweep_command(args) -> int:
     for flag in ("resume", "residual"):
         if getattr(args, flag):
             raise ValueError(f"--{flag} does not combine with --sweep (put it in the config file)")
-    for flag in ("total_steps", "seed", "n_envs", "max_minutes"):
-        if getattr(args, flag) is not None:
+    for flag in ("total_steps", "seed", "n_envs", "vec_env", "max_minutes"):
+        if getattr(args, flag, None) is not None:
             raise ValueError(f"--{flag.replace('_', '-')} does not combine with --sweep: set it in the config "
                              "file or sweep it in [sweep.space]")
     spec = load_sweep(args.config)

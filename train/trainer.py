@@ -8,7 +8,12 @@ Output folder (``out``)::
     metrics.json          steps, training time, returns, final deterministic evaluation
     learning_curve.csv    one row per finished training episode
     learning_curve.png    return and rms % error against environment steps
-    tb/                   TensorBoard logs (``tensorboard --logdir out/tb``)
+    tb/                   TensorBoard logs (``tensorboard --logdir out/tb``): SB3's scalars and, under
+                          ``ehas/``, the training episodes' rms % error, saturation share (periods at
+                          +-20 mA), stroke-end share and running count, and at each validation the mean
+                          rms % error on the held-out conditions beside the classical reference's
+                          (``validation_base_rms_error_pct``: the residual's base, or the tuned
+                          controller for a direct agent)
     checkpoints/          last checkpoint: model, statistics, replay buffer, state.json
 
 A checkpoint is written every ``checkpoint_every`` environment steps: the
@@ -36,9 +41,12 @@ from ehas_env.output.files import atomic_write_bytes, atomic_write_text
 
 from .config import TrainConfig, algo_class
 from . import envs as E
+from .batched import make_training_vec_env
 
 log = logging.getLogger("ehas_train")
 
+NO_WORSE_TOL = 0.05  # points: validate_metric = "no_worse" charges excesses over the classical reference beyond this
+NO_WORSE_WEIGHT = 10.0
 CURVE_COLUMNS = ("timesteps", "episode", "return", "length", "rms_error_pct", "peak_error_pct", "wall_s")
 
 
@@ -173,10 +181,34 @@ class BestKeeper:
         self.conditions = validation_conditions(cfg)
         self.rows: list[dict] = []
         state = self.state()
-        self.best = state["mean_rms_error_pct"] if state else float("inf")
+        self.best = state.get("score", state["mean_rms_error_pct"]) if state else float("inf")
         if (Path(out) / "validation.csv").exists():
             with open(Path(out) / "validation.csv", newline="") as fh:
                 self.rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+
+    def reference_score(self) -> float | None:
+        """Mean rms % error of the classical reference on the validation conditions (computed once).
+
+        The residual's base controller alone (zero action); for a direct agent, the
+        best tuned classical controller (``tuned``) run the same way.
+        """
+        if not hasattr(self, "_ref"):
+            self._ref = None
+            try:
+                from .config import parse_config
+                from .evaluate import evaluate_policy
+
+                desc = self.controller_desc if self.cfg.residual else E.resolve_controller_spec("tuned")
+                cfg = self.cfg if self.cfg.residual else parse_config(
+                    {"train": {"algo": "sac"}, "env": {"residual": True, "kwargs": dict(self.cfg.env_kwargs)}})
+                cycles = max(3.0, float(self.cfg.env_kwargs.get("cycles", 3.0)))
+                rows = evaluate_policy(cfg, lambda o: np.zeros((len(o), 1), np.float32), self.conditions,
+                                       controller_desc=desc, cycles=cycles)
+                self._ref_rms = np.array([r["rms_error_pct"] for r in rows])
+                self._ref = float(self._ref_rms.mean())
+            except (ValueError, FileNotFoundError, KeyError) as exc:
+                log.warning("no classical reference for the TensorBoard validation plot: %s", exc)
+        return self._ref
 
     def state(self) -> dict | None:
         p = self.folder / "state.json"
@@ -193,25 +225,40 @@ class BestKeeper:
 
         cycles = max(3.0, float(self.cfg.env_kwargs.get("cycles", 3.0)))
         rows = evaluate_policy(self.cfg, policy, self.conditions, controller_desc=self.controller_desc, cycles=cycles)
-        score = float(np.mean([r["rms_error_pct"] for r in rows]))
+        mean = score = float(np.mean([r["rms_error_pct"] for r in rows]))
+        if getattr(self.cfg, "validate_metric", "mean") == "no_worse" and self.reference_score() is not None:
+            excess = np.maximum(np.array([r["rms_error_pct"] for r in rows]) - self._ref_rms - NO_WORSE_TOL, 0.0)
+            score = mean + NO_WORSE_WEIGHT * float(excess.mean())
         step = int(model.num_timesteps)
+        try:  # TensorBoard: the validation figure beside the base (classical) controller's on the same conditions
+            model.logger.record("ehas/validation_rms_error_pct", mean)
+            model.logger.record("ehas/validation_score", score)
+            model.logger.record("ehas/validation_peak_error_pct", float(np.mean([r["peak_error_pct"] for r in rows])))
+            model.logger.record("ehas/validation_saturation_frac", float(np.mean([r["saturation_frac"] for r in rows])))
+            ref = self.reference_score()
+            if ref is not None:
+                model.logger.record("ehas/validation_base_rms_error_pct", ref)
+        except AttributeError:  # a model without a logger (never trained)
+            pass
         if score < self.best:
             self.best = score
             _save_bytes(self.folder / "model.zip", model.save)
             if vn is not None:
                 _save_bytes(self.folder / "vecnormalize.pkl", lambda b: b.write(_pickle(vn)))
             atomic_write_text(self.folder / "state.json", json.dumps(
-                {"num_timesteps": step, "mean_rms_error_pct": score, "train_time_s": train_time_s,
-                 "conditions": self.conditions}, indent=2))
-        self.rows.append({"timesteps": step, "mean_rms_error_pct": score, "best_rms_error_pct": self.best})
+                {"num_timesteps": step, "mean_rms_error_pct": mean, "score": score, "train_time_s": train_time_s,
+                 "validate_metric": getattr(self.cfg, "validate_metric", "mean"), "conditions": self.conditions},
+                indent=2))
+        self.rows.append({"timesteps": step, "mean_rms_error_pct": mean, "score": score, "best_score": self.best})
         buf = io.StringIO()
         w = csv.writer(buf)
-        w.writerow(["timesteps", "mean_rms_error_pct", "best_rms_error_pct"])
+        w.writerow(["timesteps", "mean_rms_error_pct", "score", "best_score"])
         for r in self.rows:
-            w.writerow([int(r["timesteps"]), f"{r['mean_rms_error_pct']:.6g}", f"{r['best_rms_error_pct']:.6g}"])
+            w.writerow([int(r["timesteps"]), f"{r['mean_rms_error_pct']:.6g}", f"{r.get('score', r['mean_rms_error_pct']):.6g}",
+                        f"{r.get('best_score', r.get('best_rms_error_pct', float('nan'))):.6g}"])
         atomic_write_text(Path(out) / "validation.csv", buf.getvalue())
-        log.info("validation at step %d: mean rms %.4f %% over %d held-out conditions (best %.4f %%)", step, score,
-                 len(self.conditions), self.best)
+        log.info("validation at step %d: mean rms %.4f %% over %d held-out conditions (score %.4f, best %.4f)", step,
+                 mean, len(self.conditions), score, self.best)
         return score
 
 
@@ -226,6 +273,16 @@ def _callbacks(cfg, ckpt: Checkpointer, curve_rows: list, clock: dict, progress:
                 ep = info.get("episode")
                 if ep is None:
                     continue
+                rms = _num(info.get("rms_error_pct", ep.get("rms_error_pct")))
+                stroke = bool(info.get("hit_stroke_end", info.get("termination") == "stroke_end"))
+                if np.isfinite(rms):  # TensorBoard: the controls figures of the training episodes
+                    self.logger.record_mean("ehas/episode_rms_error_pct", rms)
+                sat = info.get("saturation_frac")
+                if sat is not None:
+                    self.logger.record_mean("ehas/episode_saturation_frac", float(sat))
+                self.logger.record_mean("ehas/stroke_end_share", float(stroke))
+                clock["stroke_ends"] = clock.get("stroke_ends", 0) + int(stroke)
+                self.logger.record("ehas/stroke_end_terminations", clock["stroke_ends"])
                 curve_rows.append({
                     "timesteps": int(self.num_timesteps), "episode": len(curve_rows) + 1, "return": float(ep["r"]),
                     "length": int(ep["l"]), "rms_error_pct": _num(info.get("rms_error_pct", ep.get("rms_error_pct"))),
@@ -372,7 +429,7 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
     # that fails there (an environment argument out of range) leaves nothing behind
     created = not out.exists()
     try:
-        venv = E.make_vec_env(cfg, controller_desc=controller_desc)
+        venv = make_training_vec_env(cfg, controller_desc=controller_desc)
     except BaseException:
         if created and out.exists() and not resume:
             shutil.rmtree(out, ignore_errors=True)
@@ -420,6 +477,9 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
         model.tensorboard_log = None
 
     keeper = BestKeeper(cfg, out, controller_desc) if cfg.validate_every and E.is_tracking_env(cfg.env_id) else None
+    if keeper is not None and resume and keeper.state() is None and int(model.num_timesteps) > 0:
+        # no kept model (e.g. --drop-checkpoints): the model resumed from competes too
+        keeper.validate(model, out, before)
     remaining = cfg.total_steps - int(model.num_timesteps)
     clock = {"start": time.time(), "before": before, "last_log": time.time(),
              "limit_s": None if max_minutes is None else 60.0 * max_minutes, "stopped_by_time": False}
@@ -507,28 +567,48 @@ def evaluate_final(out, episodes: int, seed: int = 10_000) -> dict:
 
 
 def plot_learning_curve(rows: list[dict], path, title: str = "") -> None:
-    """Return (and rms % error, when the env reports it) against environment steps."""
+    """Return (and rms % error, when the env reports it) against environment steps.
+
+    Dots are training episodes (exploration noise included), the line their moving
+    mean over 20 episodes.  The return axis is cut to the range of the moving mean
+    (and the bulk of the episodes) so that a few early disasters do not flatten the
+    curve; the episodes left below the axis are counted in the legend.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     has_rms = any(np.isfinite(r.get("rms_error_pct", float("nan"))) for r in rows)
-    fig, axes = plt.subplots(2 if has_rms else 1, 1, figsize=(7, 5 if has_rms else 3), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(2 if has_rms else 1, 1, figsize=(7.5, 5.5 if has_rms else 3), sharex=True, squeeze=False)
     axes = axes[:, 0]
     if rows:
         steps = np.array([r["timesteps"] for r in rows], dtype=float)
         ret = np.array([r["return"] for r in rows], dtype=float)
-        axes[0].plot(steps, ret, ".", ms=2, alpha=0.3, color="C0")
-        axes[0].plot(steps, _smooth(ret), color="C0", label="episode return (moving mean)")
+        sm = _smooth(ret)
+        fin = ret[np.isfinite(ret)]
+        lo = hi = None
+        if fin.size:
+            lo = min(np.nanmin(sm), np.percentile(fin, 2.0))
+            hi = max(np.nanmax(sm), np.percentile(fin, 99.5))
+            pad = 0.08 * max(hi - lo, 1e-9)
+            lo, hi = lo - pad, hi + pad
+        below = int(np.sum(fin < lo)) if lo is not None else 0
+        axes[0].plot(steps, ret, ".", ms=2, alpha=0.3, color="C0",
+                     label="training episode" + (f" ({below} below the axis)" if below else ""))
+        axes[0].plot(steps, sm, color="C0", lw=1.5, label="moving mean, 20 episodes")
+        if lo is not None and lo < hi:
+            axes[0].set_ylim(lo, hi)
+        axes[0].legend(loc="lower right", fontsize=7)
         if has_rms:
             rms = np.array([r["rms_error_pct"] for r in rows], dtype=float)
-            axes[1].semilogy(steps, rms, ".", ms=2, alpha=0.3, color="C1")
-            axes[1].semilogy(steps, _smooth(rms), color="C1")
-            axes[1].set_ylabel("rms % position error")
-    axes[0].set_ylabel("episode return")
+            axes[1].semilogy(steps, rms, ".", ms=2, alpha=0.3, color="C1", label="training episode")
+            axes[1].semilogy(steps, _smooth(rms), color="C1", lw=1.5, label="moving mean, 20 episodes")
+            axes[1].set_ylabel("rms position error,\n% of amplitude (log)")
+            axes[1].legend(loc="upper right", fontsize=7)
+    axes[0].set_ylabel("episode return (reward sum)")
     axes[-1].set_xlabel("environment steps")
-    axes[0].set_title(title, fontsize=9)
+    axes[0].set_title((title + ": " if title else "") + "training episodes, exploration noise included", fontsize=9)
     for ax in axes:
         ax.grid(True, alpha=0.3)
     fig.tight_layout()

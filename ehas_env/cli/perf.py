@@ -14,7 +14,13 @@ classic-control environment):
   ``Pendulum-v1`` in gymnasium's ``SyncVectorEnv`` at the same N;
 * the peak resident memory of a fresh process that imports, builds and steps
   the N = 8192 batch (a subprocess, so that nothing else in this run counts;
-  a first short process fills the compiled-code cache, so compiling does not).
+  a first short process fills the compiled-code cache, so compiling does not);
+* training throughput (when stable-baselines3 is installed; ``--training-steps 0``
+  skips it): env-steps per second of PPO and SAC training (``ehas_train.throughput``,
+  the bundled ``ppo`` and ``residual_sac_gentle`` configs) with the batched
+  ``VecEnv`` adapter against SB3's ``DummyVecEnv``, same config, same run, rounds
+  alternating, and the share of a training step spent in the vector env and in
+  the compiled plant step.
 
 The machine is shared (other processes may be running): the load average at
 the start and the end is recorded beside the figures.
@@ -34,6 +40,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 DEFAULT_SIZES = "1,64,1024,8192"
+TRAINING_STEPS = 16_384  # agent steps per timed training run (PPO: 4 rollouts of 8 x 512; SAC: after learning_starts)
 PARALLEL_MIN_ENVS = 1024  # batches from this size are also measured with the opt-in prange loop
 TARGETS = {
     "single_vs_pendulum": 1.2,  # single env steps/s over Pendulum-v1's
@@ -53,6 +60,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="alternating rounds per comparison, 1..1000 (default 3)")
     parser.add_argument("--sizes", default=DEFAULT_SIZES, help=f"batch sizes (default {DEFAULT_SIZES})")
     parser.add_argument("--overwrite", action="store_true", help="replace an earlier perf.md / perf.json in --out")
+    parser.add_argument("--training-steps", type=number("--training-steps", "agent steps", 0, 10_000_000, integer=True),
+                        default=None,
+                        help=f"agent steps of each timed training run (default {TRAINING_STEPS} x --seconds / 3; "
+                             "0 skips the training throughput)")
     parser.add_argument("--rss-envs", type=number("--rss-envs", "environments", 0, 1_000_000, integer=True), default=8192,
                         help="batch size of the peak-memory run in a fresh process (default 8192; 0 skips it)")
 
@@ -69,6 +80,8 @@ def _command(args) -> str:
         parts.append(f"--sizes {args.sizes}")
     if args.rss_envs != 8192:
         parts.append(f"--rss-envs {args.rss_envs}")
+    if getattr(args, "training_steps", None) is not None:
+        parts.append(f"--training-steps {args.training_steps}")
     return " ".join(parts)
 
 
@@ -299,6 +312,9 @@ def run(args) -> int:
         memory = measure_rss(args.rss_envs, args.seconds)
         bar.update()
     bar.close()
+    steps = getattr(args, "training_steps", None)
+    training = measure_training(max(64, round(TRAINING_STEPS * args.seconds / 3.0)) if steps is None else steps,
+                                args.repeats)
     load_end = _load()
 
     targets = [
@@ -327,6 +343,7 @@ def run(args) -> int:
         "single": single,
         "batched": batched,
         "memory": memory,
+        "training": training,
         "targets": targets,
     }
     out.mkdir(parents=True, exist_ok=True)
@@ -337,6 +354,60 @@ def run(args) -> int:
         print(f"{'MET ' if t['met'] else 'MISS'}  {t['what']}: {t['measured']} (target {t['target']})")
     print(f"wrote {out / 'perf.md'} and {out / 'perf.json'}")
     return 0
+
+
+def measure_training(steps: int, repeats: int) -> list[dict] | None:
+    """PPO and SAC training throughput, batched adapter vs DummyVecEnv (None without stable-baselines3)."""
+    if not steps:
+        return None
+    try:
+        from ehas_train import throughput
+    except ImportError:  # the rl extra is not installed
+        return None
+    out = []
+    for algo, n_envs in (("ppo", None), ("sac", None), ("ppo", 64)):  # the bundled configs, and PPO on 64 envs
+        cfg = throughput.bundled(algo, n_envs)
+        if algo == "sac":  # gradient steps from 1000 transitions on: the timed steps are training steps
+            cfg = throughput.with_learning_starts(cfg, min(int(cfg.hyper.get("learning_starts", 100)), 1_000))
+            warmup = int(cfg.hyper["learning_starts"]) + 500
+        else:  # one rollout, so that the timed part is whole rollouts and updates
+            warmup = cfg.n_envs * int(cfg.hyper.get("n_steps", 2048))
+        print(f"ehas perf: {algo.upper()} training throughput ({cfg.n_envs} envs), batched vs DummyVecEnv ({steps} "
+              f"agent steps x {repeats} rounds each)", file=sys.stderr)
+        out.append(throughput.measure(cfg, steps=steps, warmup=warmup, repeats=repeats))
+    return out
+
+
+def _training_md(rows: list[dict]) -> list[str]:
+    lines = [
+        "",
+        "## Training throughput (stable-baselines3, batched VecEnv vs DummyVecEnv)",
+        "",
+        "Each bundled config trained with SB3 on the same machine in the same run, once through the batched "
+        "adapter (`ehas_train.batched.BatchedTrackingVecEnv`: every environment stepped in one compiled call, "
+        "the default of `ehas train`) and once through SB3's `DummyVecEnv` of `ehas/Tracking-v0` environments "
+        "(`[train] vec_env = \"dummy\"`); rounds alternate, medians count. Agent steps: transitions the agent "
+        "sees (each action held `action_repeat` control periods); env-steps: 1 ms control periods. Env share: "
+        "time in the vector env's `step_wait` over the training time; plant share: time in the compiled plant "
+        "step (batched only). The rest is SB3 and torch (policy, buffers, gradient steps).",
+        "",
+        "| algorithm (config) | envs | action repeat | vector env | agent steps/s | env-steps/s | env share | "
+        "plant share | speed-up |",
+        "|---|---:|---:|---|---:|---:|---:|---:|---:|",
+    ]
+    for t in rows:
+        for kind in ("batched", "dummy"):
+            r = t[kind]
+            ps = f"{r['plant_share']:.1%}" if "plant_share" in r else "-"
+            sp = f"{t['speedup']:.2f}x" if kind == "batched" else ""
+            lines.append(f"| {t['algo'].upper()}{' residual' if t['residual'] else ''} (`{Path(t['config']).name}`) | "
+                         f"{t['n_envs']} | {t['action_repeat']} | {kind} | {r['agent_steps_per_s']:,.0f} | "
+                         f"{r['env_steps_per_s']:,.0f} | {r['env_share']:.1%} | {ps} | {sp} |")
+    lines += ["", f"Timed: {rows[0]['steps']} agent steps per run (PPO: whole rollouts, so at least one rollout of "
+              "envs x n_steps) after an untimed warm-up (PPO: one rollout; SAC: `learning_starts`, lowered to 1000 "
+              "here, + 500 steps, so that gradient steps are timed). The last PPO row is the bundled config with 64 "
+              "environments: the batched env makes many environments cheap, DummyVecEnv does not."]
+    return lines
 
 
 def render_markdown(rep: dict) -> str:
@@ -408,5 +479,7 @@ def render_markdown(rep: dict) -> str:
             f"resident (after the imports alone: {mem['import_rss_mb']:.1f} MB); it stepped "
             f"{mem['env_steps_per_s']:,.0f} env-steps/s.",
         ]
+    if rep.get("training"):
+        lines += _training_md(rep["training"])
     lines += ["", f"Compile or cache load before the first step: {rep['settings']['warmup_s']} s.", ""]
     return "\n".join(lines)

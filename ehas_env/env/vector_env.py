@@ -15,7 +15,13 @@ termination are those of :mod:`ehas_env.env.tracking_env`; the differences:
   for the environments whose episode ended, ``rms_error_pct``,
   ``peak_error_pct``, ``metric_complete``, ``episode_steps`` with their
   ``_key`` masks;
-* the base controller of residual mode must have a compiled law (``RigController``, ``PIFF``, a user law);
+* the base controller of residual mode must have a compiled law (``RigController``, ``PIFF``, a user law),
+  or be a gain schedule (``for_plant(disc_sets)`` returning such a controller): each
+  episode then runs its disc sets' entry, compiled;
+* :meth:`TrackingVectorEnv.step_rows` steps a subset of rows without autoreset
+  and :meth:`TrackingVectorEnv.episode_amplitudes` gives each row's reference
+  amplitude: what an adapter that holds actions or resets rows itself needs
+  (``ehas_train.batched``);
 * rows are stepped by one serial numba loop (the default, fastest on the
   shared 2-core machine: ``ehas perf`` measures both) or, with
   ``parallel=True``, by a ``prange`` loop on every core, which pays only when
@@ -85,6 +91,10 @@ class TrackingVectorEnv(VectorEnv):
             raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
         if render_mode is not None:
             raise ValueError("TrackingVectorEnv does not render; render a single TrackingEnv instead")
+        self._schedule = None
+        if controller is not None and callable(getattr(controller, "for_plant", None)):
+            self._schedule, self._schedule_laws = controller, {}
+            controller = self._schedule_law(int(disc_sets))
         if controller is not None and parts.controller_mode(controller, float(dt))[0] != bk.MODE_RIG:
             raise ValueError("the vector env's residual mode takes a controller with a compiled law (compiled into "
                              f"the step); {type(controller).__name__} has only act(): use TrackingEnv, which calls "
@@ -196,10 +206,49 @@ class TrackingVectorEnv(VectorEnv):
                 self._rngs[i] = seeding.np_random(None)[0]
             ep = parts.draw_episode(self._defaults, self._options, self._rngs[i])
             C, _ = self._packer(ep)
+            if self._schedule is not None:  # the episode's entry of the gain schedule
+                _, gains, law = parts.controller_mode(self._schedule_law(ep.disc_sets), self._st.dt)
+                C[bk.C_GAINS:bk.C_GAINS + bk.N_GAIN_SLOTS] = gains
+                C[bk.C_LAW] = law
             if self.max_episode_steps is not None:
                 C[bk.C_NSTEPS] = min(C[bk.C_NSTEPS], self.max_episode_steps)
             self._C[i] = C
         self._model.batch_reset(self._X, self._C, self._W, mask, self._obs, self._raw)
+
+    def _schedule_law(self, disc_sets: int):
+        hit = self._schedule_laws.get(disc_sets)
+        if hit is None:
+            entry = self._schedule.for_plant(int(disc_sets))
+            hit = self._schedule_laws[disc_sets] = entry.rig_gains() if callable(getattr(entry, "rig_gains", None)) else entry
+        return hit
+
+    def step_rows(self, actions, active):
+        """Step only the rows with ``active[i]``, without autoreset: ``(obs, rewards, terminated, truncated)``.
+
+        Rows whose episode ended stay ended until the caller resets them
+        (``reset(options={"reset_mask": mask})``); inactive rows get reward 0
+        and no end flags.  Unscaled values of the latest sample:
+        :meth:`raw`.  Not to be mixed with :meth:`step`'s autoreset in one
+        episode.
+        """
+        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs)
+        if not np.isfinite(a).all():
+            raise ValueError("step_rows: actions must be finite (normalised currents in [-1, 1])")
+        if not self._started:
+            raise RuntimeError("step_rows() before reset()")
+        terminated = np.empty(self.num_envs, bool)
+        truncated = np.empty(self.num_envs, bool)
+        self._model.batch_step(self._X, self._C, self._W, a, np.asarray(active, bool), self._obs, self._raw,
+                               self._rew, terminated, truncated, parallel=self.parallel)
+        return self._obs.copy(), self._rew.copy(), terminated, truncated
+
+    def raw(self, name: str) -> np.ndarray:
+        """The unscaled quantity ``name`` (a key of ``info``: ``theta_deg``, ``p_a_bar`` ...) of every row, a view."""
+        return self._raw[:, bk.RAW_NAMES.index(name)]
+
+    def episode_amplitudes(self) -> np.ndarray:
+        """Each row's reference amplitude, deg (the % error's normaliser)."""
+        return self._C[:, bk.C_AMP].copy()
 
     def _raw_info(self) -> dict:
         info = dict(zip(bk.RAW_NAMES, self._raw.T.copy()))
