@@ -78,6 +78,11 @@ def resolve_controller_spec(spec: str, results_dir: str | Path = "results/contro
     """
     if spec == "book":
         return {"source": "book", "data": None}
+    if str(spec).endswith(".py"):  # a controller file in Python (ehas_controllers.base.CompiledController)
+        from ehas_controllers.base import load_controller
+
+        ctrl = load_controller(spec)
+        return {"source": str(Path(spec).resolve()), "data": ctrl.to_dict(), "file": str(Path(spec).resolve())}
     if spec == "tuned":
         path = tuned_controller_path(results_dir)
         if path is None:
@@ -99,8 +104,10 @@ def classical_controller(desc: dict | None):
         from ehas_controllers.piff import PIFF
 
         return PIFF.book()
-    from ehas_controllers.base import controller_from_dict
+    from ehas_controllers.base import controller_from_dict, load_controller
 
+    if desc.get("file"):
+        load_controller(desc["file"])  # a Python controller file registers its law and type
     return controller_from_dict(desc["data"])
 
 
