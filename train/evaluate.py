@@ -304,6 +304,15 @@ def write_agent_readme(path, summary_row: dict, base_row: dict | None, eval_comm
     if base_row is not None:
         L.append(f"| its base controller alone | {base_row['mean_rms_error_pct']:.4f} | {base_row['worst_rms_error_pct']:.3f} | "
                  f"{base_row.get('rms_30deg_3hz_7sets', float('nan')):.3f} |")
+    if (path / "vs_classical.md").exists():
+        vs = json.loads((path / "vs_classical.json").read_text()) if (path / "vs_classical.json").exists() else {}
+        n = vs.get("nominal", {})
+        L += ["", "## Against the best classical controller", "",
+              f"[vs_classical.md](vs_classical.md) (`{vs.get('command', 'python -m ehas_train.versus ' + str(path))}`): "
+              "every one of the 63 conditions beside the best classical controller, and the robustness table (each "
+              "library effect at its typical value)"
+              + (f"; worse by more than {vs.get('tolerance_points', 0.05):g} points on **{n['worse_count']}** of 63 "
+                 f"conditions (largest excess {n['max_excess_points']:+.3f} points)" if n else "") + "."]
     L += ["", "## Files", "", "- `model.zip`: the policy (stable-baselines3 zip);",
           "- `vecnormalize.pkl`: observation normalisation statistics;" if (path / "vecnormalize.pkl").exists() else "",
           "- `config.json`: the resolved training configuration (environment, action hold and scale, base controller);",
