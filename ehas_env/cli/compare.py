@@ -69,6 +69,7 @@ def run(args) -> int:
     tables = {"baseline": rep.fit_table(baseline_sims)}
     sims = {"baseline": baseline_sims}
     null = fitted = None
+    ci = None
     if requested and args.fit:
         from ehas_env.measurement.diagnosis import calibrate
 
@@ -76,6 +77,13 @@ def run(args) -> int:
         with working(f"calibrating {', '.join(requested)} ({n_par} parameter(s)) with beta and K on "
                      f"{len(campaign.runs)} runs", "compare"):
             null, fitted = calibrate(rep, requested)
+        with working("confidence intervals of the fitted numbers", "compare"):
+            ci = fit_intervals(rep, fitted)
+        absolute = rep.absolute(fitted.model)
+        for r in ci:  # beta and K as the plant runs them (a --model rig scales them)
+            if r["effect"] == "baseline":
+                f = (absolute.beta / fitted.model.beta) if r["param"] == "beta" else (absolute.K / fitted.model.K)
+                r.update(value=r["value"] * f, low=r["low"] * f, high=r["high"] * f)
         after_model = fitted.model
         tables["baseline, beta/K recal."] = null.table
         sims["baseline, beta/K recal."] = null.sims
@@ -97,7 +105,7 @@ def run(args) -> int:
     print(format_fit_tables(tables))
     if after_model is not None:
         print()
-        print(describe_model(rep.absolute(after_model), fitted=args.fit))
+        print(describe_model(rep.absolute(after_model), fitted=args.fit, ci=ci))
         before, after = tables["baseline"].overall, tables[label_after].overall
         print(f"\noverall fit: {before:.1f} % -> {after:.1f} % ({after - before:+.1f} points)")
     command = "ehas compare " + " ".join(shlex.quote(a) for a in _argv())
@@ -105,13 +113,16 @@ def run(args) -> int:
         from ehas_env.measurement.model_file import save_model
 
         model = rep.absolute(after_model or ModelSpec())
+        cal = _calibration(campaign, tables, label_after, command)
+        if ci:
+            cal["ci95"] = ci
         path = save_model(args.save_model, model.effects, beta=model.beta, K=model.K, base=base_model,
-                          calibration=_calibration(campaign, tables, label_after, command), command=command)
+                          calibration=cal, command=command)
         print(f"model file: {path}")
     if outputs is not None:
         with outputs as tmp, working("writing the report and its figures", "compare"):
             report = write_report(tmp, rep, sims, tables, campaign=campaign, command=command,
-                                  after_label=label_after, after_model=after_model, fitted=args.fit,
+                                  after_label=label_after, after_model=after_model, fitted=args.fit, ci=ci,
                                   **({"title": f"Model vs measurement: {base_model.label}"} if base_model else {}))
         print(f"report: {Path(args.out) / report.name}")
     print(f"elapsed {time.perf_counter() - t0:.1f} s")
@@ -149,16 +160,45 @@ def held_out_text(model, campaign, table) -> str:
             f"per signal: {per}")
 
 
-def describe_model(model, fitted: bool = True) -> str:
-    """Lines naming the model's numbers with units."""
+def fit_intervals(rep, fitted) -> list[dict]:
+    """95 % confidence intervals of every number ``fitted`` (a calibration Fit) fitted, as JSON-ready rows
+    {effect, param, value, low, high, unit} (``effect`` "baseline" for beta and K; see
+    :func:`ehas_env.measurement.diagnosis.confidence`)."""
+    from ehas_env.measurement.diagnosis import _unit, _value_of, confidence
+
+    ci = confidence(rep, fitted) if fitted.free else {}
+    rows = []
+    for fp in fitted.free:
+        if (fp.effect, fp.name) in ci:
+            lo, hi = ci[(fp.effect, fp.name)]
+            rows.append({"effect": fp.effect or "baseline", "param": fp.name, "value": float(_value_of(fitted.model, fp)),
+                         "low": float(lo), "high": float(hi), "unit": _unit(fp.effect, fp.name)})
+    return rows
+
+
+def describe_model(model, fitted: bool = True, ci: list | None = None) -> str:
+    """Lines naming the model's numbers with units (and their 95 % confidence intervals, ``ci`` from
+    :func:`fit_intervals`)."""
     from ehas_env.physics.effects import get_effect
 
+    band = {(r["effect"], r["param"]): (r["low"], r["high"]) for r in (ci or [])}
+
+    def num(effect, k, v, unit, fmt=".4g"):
+        s = f"{k} = {v:{fmt}} {unit}"
+        if (effect, k) in band:
+            lo, hi = band[(effect, k)]
+            s += f" (95 % CI {lo:{fmt}} to {hi:{fmt}})"
+        return s
+
     how = "fitted" if fitted else "as given"
-    lines = [f"model ({how}): baseline beta = {model.beta:.4g} Pa, K = {model.K:.5g} LPM/mA"]
+    lines = [f"model ({how}): baseline {num('baseline', 'beta', model.beta, 'Pa')}, "
+             f"{num('baseline', 'K', model.K, 'LPM/mA', '.5g')}"]
     for n, ps in model.effects.items():
         cls = get_effect(n)
-        vals = ", ".join(f"{k} = {v:.4g} {cls.param(k).unit}" for k, v in ps.items())
+        vals = ", ".join(num(n, k, v, cls.param(k).unit) for k, v in ps.items())
         lines.append(f"  + {n} ({cls.title}): {vals}")
+    if ci:
+        lines.append("  (95 % confidence intervals: cluster-robust, from the fit's Jacobian; docs/measurement-format.md)")
     return "\n".join(lines)
 
 
@@ -197,7 +237,7 @@ def fit_markdown(tables: dict) -> str:
 
 
 def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command: str, after_label=None,
-                 after_model=None, fitted=False, diagnosis=None, title="Model vs measurement") -> Path:
+                 after_model=None, fitted=False, diagnosis=None, title="Model vs measurement", ci=None) -> Path:
     """Write report.md and its PNGs into ``out``; return the report's path.
 
     ``sims``/``tables`` map model labels (first: the baseline) to simulated runs
@@ -277,7 +317,7 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
 
     # 4. what was added, 5. the error drop
     if after_label:
-        lines += ["## 4. What was added", "", "```", describe_model(after_model, fitted), "```", ""]
+        lines += ["## 4. What was added", "", "```", describe_model(after_model, fitted, ci), "```", ""]
         for name in after_model.effects:
             from ehas_env.physics.effects import get_effect
 

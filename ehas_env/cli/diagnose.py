@@ -14,8 +14,9 @@ shows what the remaining residual follows and proposes the missing term
 ``ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit``).
 ``--json`` writes the JSON of docs/measurement-format.md; ``--out`` a report.md
 with plots.  ``--with NAME[,NAME...]`` starts from a model that already has
-those effects.  Candidates are the library's effects; effects loaded with
-``--effects-path`` are tried only when ``--candidates`` names them (or ``all``).
+those effects.  Candidates are the library's effects and the effects of the
+``--effects-path`` folders (``--candidates`` narrows or widens that: names,
+``library``, ``all``).
 """
 from __future__ import annotations
 
@@ -38,8 +39,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "validation residual, then look again")
     parser.add_argument("--no-stack", action="store_true", help="one round: rank the candidates, keep at most one")
     parser.add_argument("--candidates", default="", metavar="NAME[,NAME...]",
-                        help="try only these effects; 'library' = every effect of ehas's library (the default), "
-                             "'all' = those and every effect loaded with --effects-path")
+                        help="try only these effects; 'library' = every effect of ehas's library, 'all' = those "
+                             "and every other registered effect (default: the library and the effects of "
+                             "--effects-path)")
     parser.add_argument("--holdout", default=None, metavar="RUN[,RUN...]",
                         help="runs kept out of the fit for validation ('none': none); default with >= 4 runs: "
                              "one closed-loop run per 4 runs, the most central one")
@@ -66,7 +68,7 @@ def run(args) -> int:
 
     t0 = time.perf_counter()
     base = parse_spec(args.with_effects) if args.with_effects else {}
-    candidates = resolve_candidates(args.candidates)
+    candidates = resolve_candidates(args.candidates, getattr(args, "effects_path", None))
     for n, p in base.items():
         get_effect(n).resolve(p)  # bad values refused before any work
     window = FIT_WINDOW_S if args.fit_window is None else args.fit_window
@@ -99,6 +101,11 @@ def run(args) -> int:
         model = load_model(args.model)
         print(f"baseline: model {model.label}")
     print(campaign.summary())
+    if not args.candidates and candidates:
+        from ehas_env.measurement.diagnosis import library_effects
+
+        print(f"candidates: the library and, from --effects-path, "
+              f"{', '.join(c for c in candidates if c not in library_effects())}")
     print()
     res = diagnose_open(campaign, candidates=candidates, base_effects=base, holdout=holdout,
                         stack=not args.no_stack, propose=not args.no_propose, window_s=window,

@@ -20,7 +20,9 @@ minimised by iteratively reweighted least squares.  A candidate's score is the
 reduction of J in decibels, 10 log10(J_null / J_candidate), less
 :data:`PENALTY_PER_PARAM` dB per fitted parameter of the effect (so an effect
 with more parameters must explain clearly more to rank higher: Stribeck
-friction over Coulomb friction only when the breakaway peak is really there).
+friction over Coulomb friction only when the breakaway peak is really there; a
+Stribeck fit without one, Fs <= :data:`DEGENERATE_STRIBECK` Fc, hands its fit to
+Coulomb friction, refitted from its sliding level: :func:`coulomb_from_stribeck`).
 It *beats noise* when it scores at least :data:`MIN_SCORE` and lowers J by at
 least :data:`MIN_GAIN`; when no candidate does, the diagnosis is ``"none"``.
 Effects stack: :func:`diagnose` accepts effects already added
@@ -114,6 +116,10 @@ def fit_range(effect: str, pname: str) -> FreeParam:
         lo, hi = max(blo, tlo / 1.6), min(bhi, thi * 1.6)
     log = lo > 0 and hi / lo >= 8.0
     return FreeParam(effect, pname, lo, hi, log, _step(effect, pname))
+
+
+#: numbers the model resolves in stairs, in integrator sub-steps: the delay is a whole number of sub-steps
+STAIRCASE = {("transport_delay", "tau"): 1.0}
 
 
 def _step(effect: str, pname: str) -> float:
@@ -351,14 +357,34 @@ def library_effects() -> list[str]:
     return sorted(n for n, c in REGISTRY.items() if c.__module__.startswith("ehas_env.physics.effects."))
 
 
-def resolve_candidates(spec) -> list[str] | None:
+def effects_from_paths(paths) -> list[str]:
+    """Names of the registered effects whose files lie in ``paths`` (``--effects-path`` folders or files)."""
+    import sys
+    from pathlib import Path
+
+    if paths is None:
+        return []
+    roots = [Path(p).resolve() for p in ([paths] if isinstance(paths, (str, Path)) else paths)]
+    out = []
+    for n, cls in sorted(REGISTRY.items()):
+        f = getattr(sys.modules.get(cls.__module__), "__file__", None)
+        if f is None:
+            continue
+        f = Path(f).resolve()
+        if any(f == r or r in f.parents for r in roots):
+            out.append(n)
+    return out
+
+
+def resolve_candidates(spec, effects_path=None) -> list[str] | None:
     """Candidates from ``--candidates``: names, ``library`` (every library effect) or
-    ``all`` (every registered effect, the user's too); None when empty (library)."""
-    if spec is None:
-        return None
-    items = [c.strip() for c in (spec.split(",") if isinstance(spec, str) else spec) if c.strip()]
+    ``all`` (every registered effect, the user's too).  Empty: the library, plus the effects of
+    ``effects_path`` (the ``--effects-path`` folders the user pointed at); None when that is the library
+    alone."""
+    items = [c.strip() for c in (spec.split(",") if isinstance(spec, str) else (spec or [])) if c.strip()]
     if not items:
-        return None
+        extra = effects_from_paths(effects_path)
+        return library_effects() + [n for n in extra if n not in library_effects()] if extra else None
     out: list[str] = []
     for c in items:
         names = library_effects() if c == "library" else sorted(REGISTRY) if c == "all" else [c]
@@ -388,6 +414,30 @@ def _beta(free: list[FreeParam]) -> FreeParam | None:
 NESTED = {"stribeck_friction": ("coulomb_friction", {"Fc": "Fc"})}
 
 
+#: a Stribeck fit whose breakaway force is within this factor of its sliding force is Coulomb friction
+#: (the breakaway peak is not there): it stands for coulomb_friction, refitted from its sliding level
+DEGENERATE_STRIBECK = 1.1
+
+
+def degenerate_stribeck(f: Fit | None) -> bool:
+    """True when ``f`` holds a Stribeck friction with no breakaway peak worth the name (Fs ~ Fc)."""
+    st = f.model.effects.get("stribeck_friction") if f is not None else None
+    return bool(st) and st.get("Fs", 0.0) <= DEGENERATE_STRIBECK * st.get("Fc", 0.0)
+
+
+def coulomb_from_stribeck(rep: Replayer, f: Fit) -> Fit:
+    """Coulomb friction refitted (with beta, K and the other effects of ``f``) from a degenerate Stribeck fit's
+    sliding level: the same force with two parameters fewer.  (Where the closed loop hides friction behind
+    a recalibrated beta, Coulomb's own scan can miss the valley that Stribeck's three parameters found.)"""
+    st = f.model.effects["stribeck_friction"]
+    others = {n: dict(p) for n, p in f.model.effects.items() if n != "stribeck_friction"}
+    effects = {**others, "coulomb_friction": {"Fc": float(st["Fc"])}}
+    fixed = ModelSpec(effects=effects, beta=f.model.beta, K=f.model.K, terms=dict(f.model.terms))
+    free = own_params("coulomb_friction") + [fp for n in others for fp in own_params(n)] + recal_params(effects)
+    start = {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}
+    return fit(rep, free, start, fixed)
+
+
 def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | None = None) -> Fit:
     """Stage 1: the effect's own parameters only, on top of the null model (scan, then a short fit).
 
@@ -401,8 +451,19 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
         for mine, theirs in mapping.items():
             start[(effect, mine)] = prev.model.effects[inner][theirs]
     main = next(fp for fp in free if fp.name == get_effect(effect).main_param)
-    return fit(rep, free, start, null.model, scan=main, max_nfev=SCREEN_NFEV * len(free), tol=1e-3,
-               null_cost=null.cost)
+    f = fit(rep, free, start, null.model, scan=main, max_nfev=SCREEN_NFEV * len(free), tol=1e-3,
+            null_cost=null.cost)
+    if f.cost < null.cost * 10.0 ** (-MIN_SCORE / 10.0):
+        return f
+    # not clearly helpful: the recalibrated beta and K may have absorbed part of the effect (friction in
+    # position-only logs helps only with beta and K moved back): scan again from the centre of their ranges
+    rp = {fp.name for fp in recal_params(null.model.effects)}
+    centre = ModelSpec(effects=null.model.effects, beta=BULK_MODULUS if "beta" in rp else null.model.beta,
+                       K=VALVE_K if "K" in rp else null.model.K, terms=dict(null.model.terms))
+    if (centre.beta, centre.K) == (null.model.beta, null.model.K):
+        return f
+    g = fit(rep, free, start, centre, scan=main, max_nfev=SCREEN_NFEV * len(free), tol=1e-3, null_cost=null.cost)
+    return g if g.cost < f.cost else f
 
 
 def refine_candidate(rep: Replayer, effect: str, screened: Fit, null: Fit, base_effects: dict) -> Fit:
@@ -478,6 +539,13 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
             bar.update()
     if bar:
         bar.close()
+    # a Stribeck fit without a breakaway peak is Coulomb friction: Coulomb gets that fit (fewer parameters,
+    # so it ranks above it), and the peak is claimed only when it is really there
+    st = fits.get("stribeck_friction")
+    if "coulomb_friction" in fits and degenerate_stribeck(st) and st.cost < fits["coulomb_friction"].cost:
+        c = coulomb_from_stribeck(rep, st)
+        if c.cost < fits["coulomb_friction"].cost:
+            fits["coulomb_friction"] = c
     entries = []
     for n, f in fits.items():
         k = len(get_effect(n).params)
@@ -613,7 +681,12 @@ def default_holdout(campaign: Campaign) -> list[str]:
     return [cl[i].name for i in order[:k]]
 
 
-def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float = 0.25) -> dict:
+CI_BLOCK_S = 0.25  # clusters of the confidence intervals: stretches of this length of each run ...
+CI_LAGS = 0  # ... whose covariance with this many following clusters of the same run is counted too
+
+
+def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float | None = None,
+               lags: int | None = None) -> dict:
     """Confidence intervals of every fitted number of ``f``: {(effect, name): (low, high)}.
 
     The covariance is the cluster-robust ("sandwich") estimate of the weighted least-squares fit,
@@ -627,6 +700,8 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float = 0.25
 
     from ehas_env.measurement.replay import COST_SIGNALS
 
+    block_s = CI_BLOCK_S if block_s is None else block_s
+    lags = CI_LAGS if lags is None else lags
     free = f.free
     if not free:
         return {}
@@ -654,7 +729,7 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float = 0.25
     for case, sim in zip(rep.cases, sims_all[0]):
         if sim is None:
             continue
-        nblk = int(math.ceil(case.run.n * case.run.dt / block_s)) + 1
+        nblk = int(math.ceil(case.run.n * case.run.dt / block_s)) + 1 + lags  # empty slots: no cross-run lags
         idx = np.arange(case.skip, case.run.n)
         cid = offset + (idx * case.run.dt / block_s).astype(int)
         for s in case.signals:
@@ -669,6 +744,13 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float = 0.25
     g = np.zeros((offset, p))
     np.add.at(g, cl, Jm * r0[:, None])
     meat = g.T @ g
+    # residuals correlated beyond one cluster (a slow limit cycle, model error that follows the sine):
+    # Bartlett-weighted covariances of each cluster with the next ``lags`` ones (Newey-West over clusters);
+    # clusters of different runs are separated by the empty slot at the end of each run's range
+    for lag in range(1, lags + 1):
+        w_l = 1.0 - lag / (lags + 1.0)
+        c = g[:-lag].T @ g[lag:]
+        meat += w_l * (c + c.T)
     cov = Hi @ meat @ Hi * (G / max(G - p, 1))
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     tq = float(student.ppf(0.5 + level / 2.0, max(G - p, 1)))
@@ -681,6 +763,11 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float = 0.25
         else:
             d = tq * si * (fp.hi - fp.lo)
             lo, hi = v - d, v + d
+        if (fp.effect, fp.name) in STAIRCASE:
+            # the model resolves this number only to a stair (the delay to the integrator's sub-step): values
+            # within one stair of the fit simulate alike, so the data cannot place the truth closer than that
+            res = STAIRCASE[(fp.effect, fp.name)] * min((c.dt for c in rep.cases), default=1e-3) / rep.substeps
+            lo, hi = min(lo, v - res), max(hi, v + res)
         if fp.effect not in (None, TERM):
             blo, bhi = get_effect(fp.effect).param(fp.name).bounds
             lo, hi = max(lo, blo), min(hi, bhi)
@@ -709,7 +796,7 @@ def sanity(f: Fit, effect: str) -> str | None:
             where = "lower" if u <= 1e-3 else "upper"
             return (f"{fp.name} = {vals[fp.name]:.4g} {p.unit} sits at the {where} end of its range "
                     f"[{fp.lo:.4g}, {fp.hi:.4g}]")
-    if effect == "stribeck_friction" and vals.get("Fs", 0.0) < 1.02 * vals.get("Fc", 0.0):
+    if effect == "stribeck_friction" and vals.get("Fs", 0.0) <= DEGENERATE_STRIBECK * vals.get("Fc", 0.0):
         return (f"breakaway force Fs = {vals['Fs']:.4g} N is not above the sliding force Fc = {vals['Fc']:.4g} N: "
                 "Coulomb friction says the same with fewer parameters")
     return None
@@ -896,12 +983,25 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             cur_val = _parts_cost(full, cur_sims, parts)
         say(f"round {len(rounds)}: best {d.found}" + (f" on top of {', '.join(base)}" if base else ""))
         kept = None
+        judged = set()
         for e in [e for e in d.ranking if e.beats_noise][:3]:
-            f = e.fit
-            why = sanity(f, e.effect)
+            effect, f, note = e.effect, e.fit, ""
+            if effect == "stribeck_friction" and degenerate_stribeck(f) and "coulomb_friction" not in base:
+                # no breakaway peak: it is Coulomb friction, refitted from its sliding level
+                st = f.model.effects[effect]
+                f = coulomb_from_stribeck(rep, f)
+                effect = "coulomb_friction"
+                note = (f"stands for stribeck_friction, whose breakaway force Fs = {st['Fs']:.4g} N is not above its "
+                        f"sliding force Fc = {st['Fc']:.4g} N; ")
+                if d.null.cost - f.cost < MIN_GAIN:
+                    continue
+            if effect in judged:
+                continue
+            judged.add(effect)
+            why = sanity(f, effect)
             if why and "end of its range" in why:
-                f = _widen(rep, f, e.effect)
-                why = sanity(f, e.effect)
+                f = _widen(rep, f, effect)
+                why = sanity(f, effect)
             sims = full.simulate(f.model)
             val = _parts_cost(full, sims, parts)
             held_idx = [i for i, c in enumerate(full.cases) if c.run.name in held]
@@ -910,10 +1010,10 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             if why is None and val is not None and cur_val is not None and val > cur_val * (1.0 - VAL_GAIN):
                 why = (f"does not lower the residual of the validation data enough ({cur_val:.3g} -> {val:.3g} "
                        "noise variances)")
-            step = Step(e.effect, why is None, why or "sane, and lowers the residual of the fit and validation data",
+            step = Step(effect, why is None, note + (why or "sane, and lowers the residual of the fit and validation data"),
                         f, f.cost, val, fval)
             steps.append(step)
-            say(f"  {e.effect}: {'kept' if step.kept else 'not kept'} ({step.reason})")
+            say(f"  {effect}: {'kept' if step.kept else 'not kept'} ({step.reason})")
             if why is None:
                 kept = (e, f, sims, val)
                 break

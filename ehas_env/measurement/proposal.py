@@ -328,7 +328,22 @@ def propose(rep: Replayer, base, *, confidence=None) -> Proposal | None:
         best = cand
     if best.cost >= base.cost * (1.0 - D.SKIP_MARGIN):
         return None
-    # drop forms that no longer carry anything (a sparse start can keep a tiny one)
+    # drop forms that no longer carry anything (a sparse start can keep one): backward elimination by the rule
+    # that adds them, a form stays only when leaving it out raises the residual by at least ADD_TERM_DB
+    # (each subset refitted from the larger model's values: a single form's own fit may have stopped short)
+    fitted = {frozenset(f.model.terms): f for f in fits}
+    while len(best.model.terms) > 1:
+        subs = []
+        for drop in best.model.terms:
+            keep = frozenset(k for k in best.model.terms if k != drop)
+            f = fit_terms({k: best.model.terms[k] for k in keep})
+            if keep in fitted and fitted[keep].cost < f.cost:
+                f = fitted[keep]
+            subs.append(f)
+        sub = min(subs, key=lambda f: f.cost)
+        if 10.0 * math.log10(sub.cost / best.cost) >= ADD_TERM_DB:
+            break
+        best = sub
     ci = {}
     if confidence is not None:
         for (eff, name), lohi in confidence(rep, best).items():

@@ -152,13 +152,20 @@ def test_compare_fit_raises_the_fit_writes_report_and_model(viscous_dir, tmp_pat
     m = re.search(r"overall fit: ([0-9.]+) % -> ([0-9.]+) %", text)
     assert m and float(m.group(2)) > float(m.group(1))
     assert "viscous_friction" in text and "N s/m" in text
+    # the fitted numbers with their 95 % confidence intervals, printed, in the report and in the model file
+    m = re.search(r"b = ([0-9.e+]+) N s/m \(95 % CI ([0-9.e+]+) to ([0-9.e+]+)\)", text)
+    assert m and float(m.group(2)) <= float(m.group(1)) <= float(m.group(3)), text
+    assert "beta = " in text and "Pa (95 % CI" in text
     report = (out / "report.md").read_text()
     for section in ("## 1. The campaign", "## 2. Where the baseline fails", "## 3. What was tried",
                     "## 4. What was added", "## 5. The error drop"):
         assert section in report
     for png in re.findall(r"!\[[^]]*\]\(([^)]+)\)", report):
         assert (out / png).stat().st_size > 1000
+    assert "95 % CI" in report
     kw = load_model(model)
+    ci = {(r["effect"], r["param"]): r for r in json.loads(model.read_text())["calibration"]["ci95"]}
+    assert ci[("viscous_friction", "b")]["low"] <= 3700.0 * 1.1 and ci[("viscous_friction", "b")]["unit"] == "N s/m"
     assert kw["effects"]["viscous_friction"]["b"] == pytest.approx(3700.0, rel=0.1)
     assert abs(kw["rig"].beta / truth["beta"] - 1) < 0.1
     plant = plant_from_model(model, disc_sets=4)
