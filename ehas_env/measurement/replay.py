@@ -234,10 +234,12 @@ class Replayer:
         if not model.terms:
             return plant.model, plant.param_vector, plant
         from ehas_env.measurement.proposal_terms import extended_model, term_slots
+        from ehas_env.physics.effects.base import mark_effects_on
 
         ext = extended_model()
         named = plant.slots()
         named.update(term_slots(model.terms))
+        mark_effects_on(named)
         return ext, np.array([named.get(n, 0.0) for n in ext.SLOTS], dtype=float), plant
 
     def absolute(self, model: ModelSpec) -> ModelSpec:

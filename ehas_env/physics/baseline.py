@@ -95,13 +95,12 @@ def chamber_rates(x, v, qa_in, qb_in, area, half_stroke, dead_volume, beta):
 
 
 @njit(cache=True, inline="always")
-def crank_accel(theta, omega, force, torque, m, inertia, r):
+def crank_accel(c, sn, omega, force, torque, m, inertia, r):
     """Rigid rod: I th'' = (F - m x'') r cos th + T with x = r sin th, solved for th'', rad/s^2.
 
-    ``force`` acts on the piston along +x, ``torque`` directly on the crank,
-    ``m`` is the piston's moving mass.
+    ``c``, ``sn``: cos and sin of the crank angle; ``force`` acts on the piston along +x,
+    ``torque`` directly on the crank, ``m`` is the piston's moving mass.
     """
-    c, sn = math.cos(theta), math.sin(theta)
     return (force * r * c + torque + m * r * r * sn * c * omega * omega) / (inertia + m * r * r * c * c)
 
 

@@ -26,7 +26,7 @@ import numpy as np
 from ehas_env.physics import layout as K
 from ehas_env.physics.codegen import current_model
 from ehas_env.physics.effects import REGISTRY, resolve_effects
-from ehas_env.physics.effects.base import effect_slots
+from ehas_env.physics.effects.base import effect_slots, mark_effects_on
 from ehas_env.cli.options import MAX_SAMPLES, check_field, check_run_length
 from ehas_env.simulation.control_laws import N_GAINS, compiled_form, law_id
 from ehas_env.simulation.metrics import tracking_errors
@@ -309,7 +309,7 @@ class Plant:
             REGISTRY[name].apply(values, s)
         for name in self.effects:
             REGISTRY[name].adjust(s, self.dt / self.substeps)
-        return s
+        return mark_effects_on(s)
 
     def _param_vector(self) -> np.ndarray:
         s = self.slots()

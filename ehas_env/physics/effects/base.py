@@ -185,6 +185,13 @@ def effect_value(slots: dict, name: str, param: str) -> float:
     return slots.get(f"{name}.{param}", 0.0) if slots.get(f"{name}.on") else 0.0
 
 
+def mark_effects_on(slots: dict) -> dict:
+    """Set the ``effects_on`` slot from the effects' on flags (0 lets the compiled model take the
+    baseline's short path); call after changing any ``<effect>.on``.  Returns ``slots``."""
+    slots["effects_on"] = 1.0 if any(v for k, v in slots.items() if k.endswith(".on")) else 0.0
+    return slots
+
+
 def effect_slots(name: str, values: dict[str, float] | None) -> dict[str, float]:
     """The model slots of effect ``name``: on flag 1 (0 when ``values`` is None), values in SI."""
     cls = get_effect(name)
