@@ -27,6 +27,8 @@ import sys
 import time
 from pathlib import Path
 
+from ehas_env.cli.options import number
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md)")
@@ -45,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--holdout", default=None, metavar="RUN[,RUN...]",
                         help="runs kept out of the fit for validation ('none': none); default with >= 4 runs: "
                              "one closed-loop run per 4 runs, the most central one")
-    parser.add_argument("--fit-window", type=float, default=None, metavar="S",
+    parser.add_argument("--fit-window", type=number("--fit-window", "s", 0.5, 600.0), default=None, metavar="S",
                         help="seconds of each closed-loop run the fit uses (default 3; the rest validates)")
     parser.add_argument("--write-effect", default=None, metavar="DIR/NAME.py",
                         help="when the campaign is unexplained, write the proposed term as an effect file NAME")
