@@ -49,7 +49,8 @@ COMPILED_PARTS = (
 )
 MARKER = "# >>> compiled"
 _PKG_ROOT = Path(__file__).resolve().parents[2]
-_MODELS: dict[str, object] = {}
+_MODELS: dict[str, object] = {}  # by the hash of the generated text
+_BY_PARTS: dict[tuple, object] = {}  # by the effect classes and law functions it was made from
 
 
 def cache_dir() -> Path:
@@ -292,11 +293,17 @@ def build_model(effects=None, laws=None):
     """
     from ehas_env.physics.effects import REGISTRY
 
-    spec = ModelSource(list(REGISTRY.values()) if effects is None else effects,
-                     compiled_laws() if laws is None else laws)
+    effects = list(REGISTRY.values()) if effects is None else list(effects)
+    laws = compiled_laws() if laws is None else list(laws)
+    # the same classes and laws give the same text: skip regenerating it (every Plant asks for its model)
+    key = (tuple(effects), tuple(laws))
+    if key in _BY_PARTS:
+        return _BY_PARTS[key]
+    spec = ModelSource(effects, laws)
     text = spec.source()
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
     if digest in _MODELS:
+        _BY_PARTS[key] = _MODELS[digest]
         return _MODELS[digest]
     name = f"ehas_model_{digest}"
     folder = cache_dir()
@@ -315,6 +322,7 @@ def build_model(effects=None, laws=None):
     mspec.loader.exec_module(module)
     module.SPEC = spec
     _MODELS[digest] = module
+    _BY_PARTS[key] = module
     return module
 
 

@@ -276,10 +276,7 @@ class Plant:
         self.dt = float(dt)
         self.substeps = substeps
         self.seed = seed
-        self._model = current_model()
-        missing = [n for n in self.effects if n not in self._model.EFFECTS]
-        if missing:  # registered after the model was built: rebuild
-            raise RuntimeError(f"effects {missing} are not in the compiled model")
+        self._model = current_model()  # every registered effect, so every resolved effect is in it
         self._P = self._param_vector()
         self._hist_len = K.history_length(TAU_MAX, self.dt)
 
