@@ -332,10 +332,16 @@ def _callbacks(cfg, ckpt: Checkpointer, curve_rows: list, clock: dict, progress:
         def _on_training_end(self) -> None:
             self.bar.close()
 
-    class TimeLimit(BaseCallback):
-        """Stops learning once the wall-clock budget (this session's part) is spent."""
+    class Limits(BaseCallback):
+        """Stops learning at ``total_steps`` or once the wall-clock budget (this session's part) is spent.
+
+        SB3 alone stops only at a rollout's end: PPO resumed from a checkpoint written
+        mid-rollout (Ctrl-C) would overshoot by up to a rollout.
+        """
 
         def _on_step(self) -> bool:
+            if self.num_timesteps >= cfg.total_steps:
+                return False
             if clock["limit_s"] is not None and time.time() - clock["start"] >= clock["limit_s"]:
                 clock["stopped_by_time"] = True
                 return False
@@ -352,7 +358,7 @@ def _callbacks(cfg, ckpt: Checkpointer, curve_rows: list, clock: dict, progress:
                 self.next_at = (self.num_timesteps // cfg.validate_every + 1) * cfg.validate_every
             return True
 
-    cbs = [Curve(), Checkpoint(), TimeLimit()]
+    cbs = [Curve(), Checkpoint(), Limits()]
     if keeper is not None:
         cbs.append(Validate())
     if progress:

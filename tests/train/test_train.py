@@ -281,6 +281,10 @@ def test_ctrl_c_writes_a_checkpoint(tmp_path, smoke_cfg):
     with pytest.raises(TrainingInterrupted, match="--resume"):
         train(cfg, tmp_path, progress=False, tensorboard=False, callbacks=[CtrlC()])
     assert Checkpointer(tmp_path / "checkpoints").state()["num_timesteps"] == 1000
+    # mid-rollout (PPO collects 800 steps per rollout here): the resumed run still ends at total_steps,
+    # where SB3 alone would finish its last rollout (1000 + 4 x 800 = 4200)
+    metrics = train(cfg.replace(eval_episodes=0), tmp_path, resume=True, progress=False, tensorboard=False)
+    assert metrics["num_timesteps"] == 4000
 
 
 @pytest.mark.parametrize("name", ["sac_smoke", "td3_smoke", "residual_sac_smoke"])
