@@ -8,6 +8,9 @@ error that names the file, the section and the key.
 
 File layout (every section but ``[train]`` optional)::
 
+    format = "ehas-train-config"  # what the file is; optional, checked when given
+    version = 1                   # of this layout; optional, checked when given
+
     [train]
     algo = "sac"                # ppo | sac | td3
     total_steps = 200_000       # environment steps over all batched envs
@@ -61,6 +64,9 @@ from pathlib import Path
 from ehas_env.cli.options import ENV_KWARGS, check_field
 
 ALGOS = ("ppo", "sac", "td3")
+VALIDATE_METRICS = ("mean", "no_worse", "fewest_worse")
+CONFIG_FORMAT = "ehas-train-config"  # the optional top-level format key of a training configuration
+CONFIG_VERSION = 1
 ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
 ACTION_SHAPES = ("constant", "velocity", "power", "reference", "reference_sq")
 RESIDUAL_BASES = ("tuned", "book")
@@ -88,6 +94,7 @@ _TRAIN_DEFAULTS = {
     "log_interval_s": 30.0,
     "validate_every": 0,
     "validate_conditions": 16,
+    "validate_grid": False,
     "validate_metric": "mean",
 }
 
@@ -135,12 +142,20 @@ class TrainConfig:
         not monotonic; this is early stopping on held-out conditions).
     validate_conditions : int
         Size of that validation set.
+    validate_grid : bool
+        Add the benchmark's 63 grid conditions to the validation set, all run
+        over as many reference periods as the benchmark (5): model selection then
+        targets the benchmark itself, and the random conditions and the
+        robustness table (``python -m ehas_train.versus``) are what it was not
+        selected on.
     validate_metric : str
-        What the kept model minimises: ``mean`` (the mean rms % error) or
+        What the kept model minimises: ``mean`` (the mean rms % error),
         ``no_worse`` (that mean plus 10 x the mean excess over the classical
         reference on the same conditions beyond 0.05 points: a model that loses
         somewhere to the classical controller is kept only if it gains far more
-        elsewhere).
+        elsewhere) or ``fewest_worse`` (first the number of conditions where it
+        is worse than the classical reference by more than 0.05 points, then the
+        mean: score = 100 x that count + mean).
     hyper : dict
         Keyword arguments of the stable-baselines3 algorithm class.
     env_id : str
@@ -196,6 +211,7 @@ class TrainConfig:
     log_interval_s: float = 30.0
     validate_every: int = 0
     validate_conditions: int = 16
+    validate_grid: bool = False
     validate_metric: str = "mean"
     hyper: dict = field(default_factory=dict)
     env_id: str = "ehas/Tracking-v0"
@@ -273,11 +289,26 @@ def load_config(path) -> TrainConfig:
     return parse_config(read_toml(path), source=str(path))
 
 
+def _check_kind(raw: dict, source: str) -> None:
+    """The optional ``format`` and ``version`` keys: another kind of file, or a newer layout, is refused."""
+    if "format" in raw and raw["format"] != CONFIG_FORMAT:
+        raise ValueError(f"{source}: format = {raw['format']!r}: not a training configuration "
+                         f"(expected format = {CONFIG_FORMAT!r})")
+    if "version" in raw:
+        v = raw["version"]
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise ValueError(f"{source}: version must be a whole number from 1 to {CONFIG_VERSION}, got {v!r}")
+        if v > CONFIG_VERSION:
+            raise ValueError(f"{source}: version = {v} is a newer layout than this ehas reads (up to "
+                             f"{CONFIG_VERSION}); upgrade ehas")
+
+
 def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
     """Validate the parsed TOML ``raw`` and build a :class:`TrainConfig`."""
     if not isinstance(raw, dict):
         raise ValueError(f"{source}: expected a table of sections, got {type(raw).__name__}")
-    _no_unknown(raw, ("train", "algo", "env", "randomise"), source, "top level (sections)")
+    _no_unknown(raw, ("format", "version", "train", "algo", "env", "randomise"), source, "top level")
+    _check_kind(raw, source)
     train = _table(raw, "train", source, required=True)
     _no_unknown(train, tuple(_TRAIN_DEFAULTS), source, "[train]")
     t = {**_TRAIN_DEFAULTS, **train}
@@ -287,13 +318,14 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
     for key in ("total_steps", "n_envs", "checkpoint_every", "eval_episodes", "torch_threads", "validate_every",
                 "validate_conditions", "seed"):
         t[key] = check_field(key, t[key], f"{where} {key}")
-    for key in ("vecnormalize", "norm_reward"):
+    for key in ("vecnormalize", "norm_reward", "validate_grid"):
         if not isinstance(t[key], bool):
             raise ValueError(f"{where} {key} must be true or false, got {t[key]!r}")
     for key in ("clip_obs", "log_interval_s"):
         t[key] = check_field(key, t[key], f"{where} {key}")
-    if t["validate_metric"] not in ("mean", "no_worse"):
-        raise ValueError(f"{where} validate_metric must be 'mean' or 'no_worse', got {t['validate_metric']!r}")
+    if t["validate_metric"] not in VALIDATE_METRICS:
+        raise ValueError(f"{where} validate_metric must be one of {', '.join(repr(m) for m in VALIDATE_METRICS)}, "
+                         f"got {t['validate_metric']!r}")
     if t["vec_env"] not in ("batched", "dummy", "subproc"):
         raise ValueError(f"{where} vec_env must be 'batched', 'dummy' or 'subproc', got {t['vec_env']!r}")
 
@@ -339,7 +371,8 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
         checkpoint_every=t["checkpoint_every"], vecnormalize=t["vecnormalize"], norm_reward=t["norm_reward"],
         clip_obs=float(t["clip_obs"]), eval_episodes=t["eval_episodes"], torch_threads=t["torch_threads"],
         vec_env=t["vec_env"], log_interval_s=float(t["log_interval_s"]), validate_every=t["validate_every"],
-        validate_conditions=t["validate_conditions"], validate_metric=t["validate_metric"], hyper=hyper, env_id=env_id,
+        validate_conditions=t["validate_conditions"], validate_grid=t["validate_grid"],
+        validate_metric=t["validate_metric"], hyper=hyper, env_id=env_id,
         residual=residual, controller=controller, action_repeat=action_repeat, action_scale_mA=action_scale,
         reward_scale=reward_scale, action_penalty=float(action_penalty), action_shape=action_shape,
         reward=reward, env_kwargs=env_kwargs, randomise=randomise, source=source,

@@ -41,6 +41,7 @@ from . import envs as E
 
 I_MAX = 20.0  # mA, servo amplifier (docs/rig.md)
 DESIGN_POINT = (7, 3.0, 30.0)  # disc sets, Hz, deg: the rig's design point (docs/rig.md)
+WORSE_TOL = 0.05  # points of rms % error: a learned controller counts as worse than a classical one beyond this
 
 
 def grid_conditions() -> list[tuple[int, float, float]]:

@@ -60,6 +60,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .config import CONFIG_FORMAT, CONFIG_VERSION
+
 DISTRIBUTIONS = ("choice", "uniform", "loguniform", "randint")
 SWEEP_KEYS = ("seed", "trials", "metric", "mode", "space")
 
@@ -306,7 +308,8 @@ def _write(spec: SweepSpec, out: Path, rows: list, best, command: str) -> None:
         atomic_write_text(out / "best_config.toml",
                           f"# best trial ({best}) of the sweep `{command}`: {spec.metric} = {b['objective']:.6g}\n"
                           f"# train it: ehas train --algo {b['config']['train']['algo']} --config "
-                          f"{out / 'best_config.toml'} --out DIR\n" + to_toml(b["config"]))
+                          f"{out / 'best_config.toml'} --out DIR\n"
+                          + to_toml({"format": CONFIG_FORMAT, "version": CONFIG_VERSION, **b["config"]}))
         lines += ["", f"Best: trial {best}, {spec.metric} = {b['objective']:.6g}, values "
                   + ", ".join(f"`{k} = {v}`" for k, v in b["params"].items()) + "; its configuration is "
                   "`best_config.toml`."]

@@ -35,7 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-WORSE_TOL = 0.05  # points of rms % error: a condition counts as worse beyond this
+from .evaluate import WORSE_TOL
+
 
 
 def classical_candidates(folder="results/controllers") -> list[Path]:

@@ -45,8 +45,8 @@ from .batched import make_training_vec_env
 
 log = logging.getLogger("ehas_train")
 
-NO_WORSE_TOL = 0.05  # points: validate_metric = "no_worse" charges excesses over the classical reference beyond this
-NO_WORSE_WEIGHT = 10.0
+NO_WORSE_WEIGHT = 10.0  # validate_metric = "no_worse": weight of the mean excess over the classical reference
+FEWEST_WORSE_WEIGHT = 100.0  # validate_metric = "fewest_worse": per condition worse than the classical reference
 CURVE_COLUMNS = ("timesteps", "episode", "return", "length", "rms_error_pct", "peak_error_pct", "wall_s")
 
 
@@ -155,14 +155,17 @@ def read_curve(path) -> list[dict]:
 
 # -- callbacks ----------------------------------------------------------------
 def validation_conditions(cfg) -> list[tuple[int, float, float]]:
-    """The held-out validation conditions (disc sets, Hz, deg): seeded draws from ``[randomise]``.
+    """The validation conditions (disc sets, Hz, deg).
 
-    Drawn continuously from the ranges, so they are (almost surely) not the
-    benchmark's grid points.
+    Seeded draws from ``[randomise]``, drawn continuously from the ranges so that
+    they are (almost surely) not the benchmark's grid points; with
+    ``validate_grid`` the benchmark's 63 grid conditions come first.
     """
+    from .evaluate import grid_conditions
+
     rng = np.random.default_rng(cfg.seed + 7919)
     rnd, kw = cfg.randomise, cfg.env_kwargs
-    out = []
+    out = list(grid_conditions()) if getattr(cfg, "validate_grid", False) else []
     for _ in range(cfg.validate_conditions):
         n = int(rng.integers(rnd["disc_sets"][0], rnd["disc_sets"][1] + 1)) if "disc_sets" in rnd else int(kw.get("disc_sets", 3))
         f = float(rng.uniform(*rnd["freq_hz"])) if "freq_hz" in rnd else float(kw.get("freq_hz", 1.0))
@@ -181,6 +184,11 @@ class BestKeeper:
         self.conditions = validation_conditions(cfg)
         self.rows: list[dict] = []
         state = self.state()
+        if state is not None and (state.get("validate_metric", "mean") != getattr(cfg, "validate_metric", "mean")
+                                  or [tuple(c) for c in state["conditions"]] != self.conditions):
+            log.info("the kept model was validated on other conditions or by another metric: it competes again")
+            state = None
+            shutil.rmtree(self.folder, ignore_errors=True)
         self.best = state.get("score", state["mean_rms_error_pct"]) if state else float("inf")
         if (Path(out) / "validation.csv").exists():
             with open(Path(out) / "validation.csv", newline="") as fh:
@@ -201,14 +209,37 @@ class BestKeeper:
                 desc = self.controller_desc if self.cfg.residual else E.resolve_controller_spec("tuned")
                 cfg = self.cfg if self.cfg.residual else parse_config(
                     {"train": {"algo": "sac"}, "env": {"residual": True, "kwargs": dict(self.cfg.env_kwargs)}})
-                cycles = max(3.0, float(self.cfg.env_kwargs.get("cycles", 3.0)))
                 rows = evaluate_policy(cfg, lambda o: np.zeros((len(o), 1), np.float32), self.conditions,
-                                       controller_desc=desc, cycles=cycles)
+                                       controller_desc=desc, cycles=self.cycles())
                 self._ref_rms = np.array([r["rms_error_pct"] for r in rows])
                 self._ref = float(self._ref_rms.mean())
             except (ValueError, FileNotFoundError, KeyError) as exc:
                 log.warning("no classical reference for the TensorBoard validation plot: %s", exc)
         return self._ref
+
+    def cycles(self) -> float:
+        """Reference periods per validation run: the benchmark's when it validates on the benchmark's grid."""
+        from .evaluate import DEFAULT_CYCLES
+
+        if getattr(self.cfg, "validate_grid", False):
+            return DEFAULT_CYCLES
+        return max(3.0, float(self.cfg.env_kwargs.get("cycles", 3.0)))
+
+    def score(self, rms: np.ndarray) -> tuple[float, int]:
+        """(score to minimise, conditions worse than the classical reference by more than WORSE_TOL)."""
+        from .evaluate import WORSE_TOL
+
+        mean = float(rms.mean())
+        metric = getattr(self.cfg, "validate_metric", "mean")
+        if self.reference_score() is None:
+            return mean, -1
+        excess = rms - self._ref_rms - WORSE_TOL
+        worse = int(np.count_nonzero(excess > 0))
+        if metric == "mean":
+            return mean, worse
+        if metric == "no_worse":
+            return mean + NO_WORSE_WEIGHT * float(np.maximum(excess, 0.0).mean()), worse
+        return FEWEST_WORSE_WEIGHT * worse + mean, worse
 
     def state(self) -> dict | None:
         p = self.folder / "state.json"
@@ -223,12 +254,11 @@ class BestKeeper:
             o = vn.normalize_obs(obs) if vn is not None else obs
             return model.predict(o, deterministic=True)[0]
 
-        cycles = max(3.0, float(self.cfg.env_kwargs.get("cycles", 3.0)))
-        rows = evaluate_policy(self.cfg, policy, self.conditions, controller_desc=self.controller_desc, cycles=cycles)
-        mean = score = float(np.mean([r["rms_error_pct"] for r in rows]))
-        if getattr(self.cfg, "validate_metric", "mean") == "no_worse" and self.reference_score() is not None:
-            excess = np.maximum(np.array([r["rms_error_pct"] for r in rows]) - self._ref_rms - NO_WORSE_TOL, 0.0)
-            score = mean + NO_WORSE_WEIGHT * float(excess.mean())
+        rows = evaluate_policy(self.cfg, policy, self.conditions, controller_desc=self.controller_desc,
+                               cycles=self.cycles())
+        rms = np.array([r["rms_error_pct"] for r in rows])
+        mean = float(rms.mean())
+        score, worse = self.score(rms)
         step = int(model.num_timesteps)
         try:  # TensorBoard: the validation figure beside the base (classical) controller's on the same conditions
             model.logger.record("ehas/validation_rms_error_pct", mean)
@@ -238,6 +268,7 @@ class BestKeeper:
             ref = self.reference_score()
             if ref is not None:
                 model.logger.record("ehas/validation_base_rms_error_pct", ref)
+                model.logger.record("ehas/validation_conditions_worse", worse)
         except AttributeError:  # a model without a logger (never trained)
             pass
         if score < self.best:
@@ -246,19 +277,24 @@ class BestKeeper:
             if vn is not None:
                 _save_bytes(self.folder / "vecnormalize.pkl", lambda b: b.write(_pickle(vn)))
             atomic_write_text(self.folder / "state.json", json.dumps(
-                {"num_timesteps": step, "mean_rms_error_pct": mean, "score": score, "train_time_s": train_time_s,
+                {"num_timesteps": step, "mean_rms_error_pct": mean, "score": score, "worse": worse,
+                 "train_time_s": train_time_s,
                  "validate_metric": getattr(self.cfg, "validate_metric", "mean"), "conditions": self.conditions},
                 indent=2))
-        self.rows.append({"timesteps": step, "mean_rms_error_pct": mean, "score": score, "best_score": self.best})
+        self.rows.append({"timesteps": step, "mean_rms_error_pct": mean, "score": score, "best_score": self.best,
+                          "worse": worse})
         buf = io.StringIO()
         w = csv.writer(buf)
-        w.writerow(["timesteps", "mean_rms_error_pct", "score", "best_score"])
+        # worse: conditions worse than the classical reference by more than WORSE_TOL (-1: no reference)
+        w.writerow(["timesteps", "mean_rms_error_pct", "score", "best_score", "worse"])
         for r in self.rows:
             w.writerow([int(r["timesteps"]), f"{r['mean_rms_error_pct']:.6g}", f"{r.get('score', r['mean_rms_error_pct']):.6g}",
-                        f"{r.get('best_score', r.get('best_rms_error_pct', float('nan'))):.6g}"])
+                        f"{r.get('best_score', r.get('best_rms_error_pct', float('nan'))):.6g}",
+                        int(r.get("worse", -1)) if np.isfinite(r.get("worse", -1)) else -1])
         atomic_write_text(Path(out) / "validation.csv", buf.getvalue())
-        log.info("validation at step %d: mean rms %.4f %% over %d held-out conditions (score %.4f, best %.4f)", step,
-                 mean, len(self.conditions), score, self.best)
+        log.info("validation at step %d: mean rms %.4f %% over %d conditions, %s worse than classical "
+                 "(score %.4f, best %.4f)", step, mean, len(self.conditions), worse if worse >= 0 else "?", score,
+                 self.best)
         return score
 
 

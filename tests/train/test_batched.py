@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -237,7 +238,12 @@ def test_reference_authority_is_a_function_of_the_task():
     assert float(at(30.0, 3.0, 0.123)) == pytest.approx(1.0)
     assert float(at(10.0, 1.0, 0.3)) == pytest.approx(float(at(10.0, 1.0, 0.7)))  # constant along the sine
     assert float(at(10.0, 1.0, 0.3)) == pytest.approx((10 * w / E.V_SCALE_DEG_S) * (10 * w * w / E.A_SCALE_DEG_S2))
-    assert float(E.authority("reference_sq", {"theta_ref_dot": 1.0})) == 0.0 or True
+    m20 = lambda t: {k: v * 20.0 / 30.0 for k, v in {  # noqa: E731  20 deg / 3 Hz: both amplitudes 2/3 of the design point's
+        "theta_ref_deg": 30 * math.sin(3 * w * t), "theta_ref_dot": 30 * 3 * w * math.cos(3 * w * t),
+        "theta_ref_ddot": -30 * (3 * w) ** 2 * math.sin(3 * w * t),
+        "theta_ref_dddot": -30 * (3 * w) ** 3 * math.cos(3 * w * t)}.items()}
+    assert float(E.authority("reference", m20(0.05))) == pytest.approx((2 / 3) ** 2)
+    assert float(E.authority("reference_sq", m20(0.05))) == pytest.approx((2 / 3) ** 4)
     assert float(E.authority("reference", {})) == 0.0
 
 
@@ -256,6 +262,31 @@ def test_tensorboard_scalars(tmp_path):
     tags = set(ea.Tags()["scalars"])
     assert {"ehas/episode_rms_error_pct", "ehas/episode_saturation_frac", "ehas/stroke_end_terminations",
             "ehas/validation_rms_error_pct", "ehas/validation_base_rms_error_pct"} <= tags
+
+
+def test_validation_on_the_grid_ranks_by_conditions_worse_first():
+    """validate_grid puts the benchmark's 63 conditions first; fewest_worse counts losses before the mean."""
+    from ehas_train.evaluate import WORSE_TOL, grid_conditions
+    from ehas_train.trainer import BestKeeper, validation_conditions
+
+    raw = smoke_cfg().to_file_dict()
+    raw["train"].update(validate_grid=True, validate_conditions=5, validate_metric="fewest_worse")
+    cfg = parse_config(raw)
+    conds = validation_conditions(cfg)
+    assert conds[:63] == grid_conditions() and len(conds) == 68
+    assert conds[63:] == validation_conditions(cfg.replace(validate_grid=False))  # the same random draws
+
+    keeper = BestKeeper(cfg, Path("/nonexistent"), None)
+    assert keeper.cycles() == 5.0  # as the benchmark scores them
+    keeper._ref, keeper._ref_rms = 1.0, np.ones(4)
+    at_tol = np.array([1.0 + WORSE_TOL - 1e-9, 0.5, 0.5, 0.5])
+    one_worse = np.array([1.0 + WORSE_TOL + 1e-3, 0.1, 0.1, 0.1])
+    assert keeper.score(at_tol)[1] == 0 and keeper.score(one_worse)[1] == 1
+    assert keeper.score(at_tol)[0] < keeper.score(one_worse)[0]  # though one_worse has the lower mean
+    mean_cfg = cfg.replace(validate_metric="mean")
+    k2 = BestKeeper(mean_cfg, Path("/nonexistent"), None)
+    k2._ref, k2._ref_rms = 1.0, np.ones(4)
+    assert k2.score(one_worse) == (pytest.approx(one_worse.mean()), 1)
 
 
 def test_validate_metric_no_worse_is_checked():

@@ -65,6 +65,10 @@ def test_bundled_configs_are_valid(name):
     ({"train": {"algo": "sac"}, "randomise": {"effects": {"coulomb_frictio": {"Fc": [0, 1]}}}}, "unknown effect"),
     ({"train": {"algo": "sac"}, "env": {"action_scale_mA": 30.0}}, "action_scale_mA must be a number in (0, 20] mA"),
     ({"train": {"algo": "ppo"}, "algo": {"action_noise_std": 0.1}}, "applies to sac/td3"),
+    ({"format": "ehas-model", "train": {"algo": "sac"}}, "format = 'ehas-model': not a training configuration"),
+    ({"version": 2, "train": {"algo": "sac"}}, "version = 2 is a newer layout"),
+    ({"version": "1", "train": {"algo": "sac"}}, "version must be a whole number from 1 to 1"),
+    ({"train": {"algo": "sac", "validate_grid": 1}}, "validate_grid must be true or false"),
 ])
 def test_config_errors_name_the_key(raw, message):
     with pytest.raises(ValueError) as exc:
