@@ -202,14 +202,23 @@ def generate(effects_dir, specs) -> None:
                    capture_output=True, text=True)
 
 
-def memory_campaign(effects, seed, *, duration=3.0, position_only=False, plan=None):
+def memory_campaign(effects, seed, *, duration=3.0, position_only=False, plan=None, rig_scale=None):
     """A simulated campaign (4 closed-loop runs + the valve chirp; position only: theta, reference and
-    current of the closed-loop runs) and its truth."""
+    current of the closed-loop runs) and its truth.
+
+    ``rig_scale`` ``{"beta": f, "K": g}``: the rig's bulk modulus and valve gain set to ``f`` and ``g``
+    times the book's instead of the random +-5 % / +-1 % perturbation."""
     from ehas_env.cli.campaign import simulate_campaign
     from ehas_env.measurement.campaign import Campaign, validate_run
+    from ehas_env.measurement.model_file import PlantModel
+    from ehas_env.physics.rig import RigParams
 
     kw = {} if plan is None else {"plan": plan}
-    runs, truth = simulate_campaign(effects, seed=seed, perturb=True, duration=duration, valve=not position_only, **kw)
+    if rig_scale:
+        rig = RigParams()
+        kw["model"] = PlantModel(rig=rig.replace(**{k: getattr(rig, k) * v for k, v in rig_scale.items()}))
+    runs, truth = simulate_campaign(effects, seed=seed, perturb=not rig_scale, duration=duration,
+                                    valve=not position_only, **kw)
     if position_only:
         runs = [(n, {k: v for k, v in c.items() if k in POS_ONLY}, m) for n, c, m in runs]
     return Campaign(None, [validate_run(n, c, m) for n, c, m in runs]), truth

@@ -58,6 +58,8 @@ from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
 #: book's identified gain (fit 95.4 %).  Outside these the bulk_modulus and
 #: valve_dynamics effects take over.
 BETA_RANGE = (0.93, 1.07)
+#: the effects that re-open the baseline's numbers (beta; the valve's K, wn, zeta) over their full ranges
+RECALIBRATIONS = ("bulk_modulus", "valve_dynamics")
 K_RANGE = (0.97, 1.03)
 PENALTY_PER_PARAM = 0.2  # dB per fitted effect parameter
 MIN_SCORE = 0.3  # dB: a candidate must remove at least 7 % of the null model's residual energy ...
@@ -110,7 +112,7 @@ def fit_range(effect: str, pname: str) -> FreeParam:
         return FreeParam(effect, pname, -m, m, False, _step(effect, pname))
     lo = max(blo, tlo / 4.0) if tlo > 0 else blo
     hi = min(bhi, thi * 4.0)
-    if effect in ("valve_dynamics", "bulk_modulus") or (effect, pname) == ("supply_droop", "p0"):
+    if effect in RECALIBRATIONS or (effect, pname) == ("supply_droop", "p0"):
         # recalibrations and the precharge act strongly (the loop's stability hangs on beta and wn):
         # a narrower range, scanned finely enough to land in the valley
         lo, hi = max(blo, tlo / 1.6), min(bhi, thi * 1.6)
@@ -453,6 +455,16 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
     main = next(fp for fp in free if fp.name == get_effect(effect).main_param)
     f = fit(rep, free, start, null.model, scan=main, max_nfev=SCREEN_NFEV * len(free), tol=1e-3,
             null_cost=null.cost)
+    if effect in RECALIBRATIONS and len(free) > 1:
+        # it re-opens numbers of the baseline: screen it also from the recalibrated baseline's numbers
+        # (its others at the book's values), so that a valve whose gain alone is off is not judged only
+        # with a typical worn valve's wn of 82 rad/s
+        neutral = {(fp.effect, fp.name): min(max(getattr(null.model, fp.name) if fp.name in ("beta", "K")
+                                                 else get_effect(effect).param(fp.name).default, fp.lo), fp.hi)
+                   for fp in free}
+        g = fit(rep, free, neutral, null.model, scan=main, max_nfev=SCREEN_NFEV * len(free), tol=1e-3,
+                null_cost=null.cost)
+        f = g if g.cost < f.cost else f
     if f.cost < null.cost * 10.0 ** (-MIN_SCORE / 10.0):
         return f
     # not clearly helpful: the recalibrated beta and K may have absorbed part of the effect (friction in

@@ -130,6 +130,35 @@ def test_position_only_coulomb_gives_coulomb_first():
     assert res.model.effects["coulomb_friction"]["Fc"] == pytest.approx(700.0, rel=0.3)
 
 
+@pytest.mark.parametrize("scale, hidden, position_only", [
+    ({"beta": 0.75}, {}, False),
+    ({"K": 0.9}, {}, False),
+    ({"beta": 1.25, "K": 1.1}, {}, False),
+    ({"K": 0.88}, {}, True),
+    ({"K": 0.9}, {"coulomb_friction": {"Fc": 400.0}}, False),
+    ({"beta": 0.75}, {"viscous_friction": {"b": 3000.0}}, False),
+], ids=["beta-25%", "K-10%", "beta+25%,K+10%", "K-12%,position-only", "K-10%+coulomb", "beta-25%+viscous"])
+def test_beta_and_K_beyond_the_recalibration_ranges_are_named(scale, hidden, position_only):
+    """beta beyond +-7 % and K beyond +-3 % of the book's: the diagnosis names the effect that re-opens that number
+    (bulk_modulus: beta, valve_dynamics: the valve's K) with its value, beside a hidden effect, and nothing else."""
+    from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
+
+    camp, _ = memory_campaign(hidden, SEED + 40 + len(scale) + int(position_only), duration=2.0,
+                              position_only=position_only, plan=SHORT_PLAN, rig_scale=scale)
+    res = diagnose_open(camp, propose=False)
+    want = {"beta": "bulk_modulus", "K": "valve_dynamics"}
+    assert res.verdict == "explained", (res.kept, res.to_json()["unexplained"])
+    assert sorted(res.kept) == sorted([want[k] for k in scale] + list(hidden)), res.kept
+    eff = res.model.effects
+    if "beta" in scale:
+        assert eff["bulk_modulus"]["beta"] == pytest.approx(BULK_MODULUS * scale["beta"], rel=0.05)
+    if "K" in scale:
+        assert eff["valve_dynamics"]["K"] == pytest.approx(VALVE_K * scale["K"], rel=0.03)
+    for name, params in hidden.items():
+        for k, v in params.items():
+            assert eff[name][k] == pytest.approx(v, rel=0.3)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("position_only", [False, True])
 def test_coulomb_hidden_gives_coulomb_first(position_only):
