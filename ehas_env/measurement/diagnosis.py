@@ -467,8 +467,22 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
         f = g if g.cost < f.cost else f
     if f.cost < null.cost * 10.0 ** (-MIN_SCORE / 10.0):
         return f
-    # not clearly helpful: the recalibrated beta and K may have absorbed part of the effect (friction in
-    # position-only logs helps only with beta and K moved back): scan again from the centre of their ranges
+    # not clearly helpful: an effect kept before that re-opened beta or K (bulk_modulus, valve_dynamics) may
+    # have absorbed part of this one (a valve gain fitted low where friction slows the crank, in position-only
+    # logs): screen again with that number free as well
+    reopened = [fp for n in null.model.effects if n in RECALIBRATIONS for fp in own_params(n)
+                if fp.name == get_effect(n).main_param]
+    if reopened:
+        # from the typical start, not from the scan's end: with the number held, the scan runs to the bound
+        start2 = {**start, **{(fp.effect, fp.name): null.model.effects[fp.effect][fp.name] for fp in reopened}}
+        g = fit(rep, free + reopened, start2, null.model, max_nfev=SCREEN_NFEV * (len(free) + 1), tol=1e-3,
+                null_cost=null.cost)
+        if g.cost < f.cost:
+            f = g
+            if f.cost < null.cost * 10.0 ** (-MIN_SCORE / 10.0):
+                return f
+    # the recalibrated beta and K may have absorbed part of the effect (friction in position-only logs helps
+    # only with beta and K moved back): scan again from the centre of their ranges
     rp = {fp.name for fp in recal_params(null.model.effects)}
     centre = ModelSpec(effects=null.model.effects, beta=BULK_MODULUS if "beta" in rp else null.model.beta,
                        K=VALVE_K if "K" in rp else null.model.K, terms=dict(null.model.terms))
