@@ -542,7 +542,8 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
 
     selected = None
     if keeper is not None:
-        keeper.validate(model, out, train_time)  # the final model competes too
+        if not keeper.rows or int(keeper.rows[-1]["timesteps"]) != int(model.num_timesteps):
+            keeper.validate(model, out, train_time)  # the final model competes too
         selected = keeper.state()
     if selected is not None:
         # the best validated model is the result; the last one stays in checkpoints/
