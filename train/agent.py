@@ -25,6 +25,7 @@ import io
 import json
 import pickle
 import warnings
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -260,21 +261,61 @@ def load_agent(path, warn: bool = True) -> LearnedController:
         what = ", ".join(p.name for p in pickles)
         warnings.warn(PICKLE_WARNING.format(what=what), PickleWarning, stacklevel=2)
     if in_folder and cfg_path.exists():
-        saved = json.loads(cfg_path.read_text())
+        saved = read_agent_config(cfg_path)
         controller_desc = saved.pop("controller_resolved", None)
         cfg = config_from_resolved(saved, source=str(cfg_path))
     else:
         controller_desc = None
         cfg = parse_config({"train": {"algo": _algo_of_zip(model_path)}}, source=str(model_path))
-    model = algo_class(cfg.algo).load(model_path, device="cpu")
+    try:
+        model = algo_class(cfg.algo).load(model_path, device="cpu")
+    except (OSError, EOFError, KeyError, ValueError, RuntimeError, pickle.UnpicklingError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{model_path}: not a {cfg.algo.upper()} model saved by stable-baselines3 "
+                         f"({' '.join(str(exc).split()) or type(exc).__name__})") from None
     obs_stats = None
     if in_folder and norm_path.exists():
-        with norm_path.open("rb") as fh:
-            obs_stats = pickle.load(fh)
+        try:
+            with norm_path.open("rb") as fh:
+                obs_stats = pickle.load(fh)
+        except Exception as exc:  # noqa: BLE001 - unpickling other bytes fails in any way: the file is not the stats
+            raise ValueError(f"{norm_path}: not the observation statistics of a training (VecNormalize): "
+                             f"{' '.join(str(exc).split()) or type(exc).__name__}") from None
+        if not hasattr(obs_stats, "normalize_obs"):
+            raise ValueError(f"{norm_path}: holds a {type(obs_stats).__name__}, not the observation statistics "
+                             "of a training (VecNormalize)")
         obs_stats.training = False
         obs_stats.norm_reward = False
     return LearnedController(model, cfg, controller_desc, obs_stats, name=folder.name if in_folder else path.stem,
                              path=str(path))
+
+
+AGENT_CONFIG_FORMAT = "ehas-agent-config"  # config.json of an agent folder (the resolved training configuration)
+AGENT_CONFIG_VERSION = 1
+
+
+def read_agent_config(path: Path) -> dict:
+    """An agent folder's ``config.json``: JSON, an object, the resolved configuration of ``ehas train``.
+
+    Its ``format`` and ``version`` keys (agents trained before they were written lack them) are checked.
+    """
+    try:
+        saved = json.loads(Path(path).read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file; expected the JSON written by ehas train") from None
+    if not isinstance(saved, dict):
+        raise ValueError(f"{path}: expected a JSON object (the resolved training configuration written by "
+                         f"ehas train), got {type(saved).__name__}")
+    fmt = saved.pop("format", AGENT_CONFIG_FORMAT)
+    if fmt != AGENT_CONFIG_FORMAT:
+        raise ValueError(f"{path}: format = {fmt!r}; expected {AGENT_CONFIG_FORMAT!r} (an agent folder's config.json)")
+    version = saved.pop("version", AGENT_CONFIG_VERSION)
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= AGENT_CONFIG_VERSION:
+        raise ValueError(f"{path}: version = {version!r}; this ehas reads versions 1 to {AGENT_CONFIG_VERSION}")
+    if not isinstance(saved.get("algo"), str):
+        raise ValueError(f"{path}: no 'algo' key; expected the resolved training configuration written by ehas train")
+    return saved
 
 
 TRUST_ENV = "EHAS_TRUSTED_AGENTS"
@@ -324,8 +365,6 @@ def trust_agent(path) -> None:
 
 def _algo_of_zip(path: Path) -> str:
     """Algorithm of a bare stable-baselines3 zip (from its stored policy class)."""
-    import zipfile
-
     with zipfile.ZipFile(path) as z:
         data = z.read("data").decode("utf-8", errors="replace")
     for algo, marker in (("sac", "stable_baselines3.sac"), ("td3", "stable_baselines3.td3"),

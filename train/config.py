@@ -254,7 +254,11 @@ class TrainConfig:
 def config_from_resolved(d: dict, source: str = "<resolved>") -> TrainConfig:
     """Rebuild a :class:`TrainConfig` from its :meth:`TrainConfig.to_dict` form (an agent's config.json)."""
     fields_ = {k: v for k, v in d.items() if k in TrainConfig.__dataclass_fields__ and k != "source"}
-    return parse_config(TrainConfig(**fields_).to_file_dict(), source=source)
+    try:
+        raw = TrainConfig(**fields_).to_file_dict()
+    except (TypeError, AttributeError) as exc:
+        raise ValueError(f"{source}: not a resolved training configuration ({' '.join(str(exc).split())})") from None
+    return parse_config(raw, source=source)
 
 
 def bundled_config(name: str) -> Path:

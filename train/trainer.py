@@ -459,7 +459,9 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
     torch.set_num_threads(cfg.torch_threads)
 
     if resume:
-        saved = json.loads((out / "config.json").read_text()) if (out / "config.json").exists() else None
+        from .agent import read_agent_config
+
+        saved = read_agent_config(out / "config.json") if (out / "config.json").exists() else None
         controller_desc = saved["controller_resolved"] if saved and "controller_resolved" in saved else None
         if saved is not None:
             _check_same_task(cfg, saved)
@@ -511,7 +513,10 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
                     tensorboard_log=str(out / "tb") if tensorboard else None,
                     **_algo_kwargs(cfg, venv.action_space.shape[0]))
     out.mkdir(parents=True, exist_ok=True)
-    resolved = {**cfg.to_dict(), "controller_resolved": controller_desc}
+    from .agent import AGENT_CONFIG_FORMAT, AGENT_CONFIG_VERSION
+
+    resolved = {"format": AGENT_CONFIG_FORMAT, "version": AGENT_CONFIG_VERSION, **cfg.to_dict(),
+                "controller_resolved": controller_desc}
     atomic_write_text(out / "config.json", json.dumps(resolved, indent=2, default=str))
     if tensorboard and model.tensorboard_log is None:
         model.tensorboard_log = str(out / "tb")

@@ -154,6 +154,13 @@ def _main(argv) -> int:
     if module is None:
         parser.error(f"command '{args.command}' is not available in this installation")
     name = f"ehas {args.command}"
+    import warnings
+
+    def _show(message, category, filename, lineno, file=None, line=None):
+        # a warning is one line too, in the command's name (not Python's file:line and source line)
+        print(f"{name}: warning: {_one_line(message)}", file=sys.stderr if file is None else file)
+
+    shown, warnings.showwarning = warnings.showwarning, _show
     try:
         rc = int(module.run(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers
@@ -190,6 +197,8 @@ def _main(argv) -> int:
         return _unexpected(name, exc)
     except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, traceback on request
         return _unexpected(name, exc)
+    finally:
+        warnings.showwarning = shown
 
 
 def _one_line(exc: BaseException) -> str:

@@ -6,6 +6,7 @@ bundled ``ppo_smoke.toml``); one agent is trained once per module and shared.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -261,6 +262,38 @@ def test_interrupted_training_resumes_from_its_last_checkpoint(tmp_path, smoke_c
     steps = [r["timesteps"] for r in read_curve(tmp_path / "learning_curve.csv")]
     assert steps == sorted(steps) and steps[-1] <= 4800 and len(steps) > 10
     assert metrics["train_time_s"] > state["train_time_s"]
+
+
+@pytest.mark.parametrize("file, content, message", [
+    ("config.json", "{", "config.json: not valid JSON (line 1"),
+    ("config.json", "[1]", "config.json: expected a JSON object"),
+    ("config.json", '{"format": "ehas-model", "algo": "ppo"}', "format = 'ehas-model'; expected 'ehas-agent-config'"),
+    ("config.json", '{"format": "ehas-agent-config", "version": 9, "algo": "ppo"}', "version = 9; this ehas reads"),
+    ("config.json", '{"n_envs": 4}', "config.json: no 'algo' key"),
+    ("model.zip", "not a zip", "model.zip: not a PPO model saved by stable-baselines3"),
+    ("vecnormalize.pkl", "garbage", "vecnormalize.pkl: not the observation statistics of a training"),
+])
+def test_a_damaged_agent_folder_is_refused_naming_the_file(trained, tmp_path, capsys, file, content, message):
+    import shutil
+
+    from ehas_env.cli.main import main
+
+    folder = tmp_path / "agent"
+    shutil.copytree(trained[0], folder)
+    (folder / file).write_text(content)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        load_agent(folder, warn=False)
+    assert main(["bench", str(folder), "--out", str(tmp_path / "bench")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert message in err[-1] and err[-1].startswith("ehas bench: error: ")
+    # the pickle warning is one line in the command's name, not Python's file:line and source line
+    assert all(line.startswith("ehas bench: ") for line in err), err
+    assert not (tmp_path / "bench").exists()
+
+
+def test_agent_config_json_carries_its_format(trained):
+    doc = json.loads((trained[0] / "config.json").read_text())
+    assert doc["format"] == "ehas-agent-config" and doc["version"] == 1
 
 
 def test_resume_refuses_a_different_task(tmp_path, smoke_cfg):
