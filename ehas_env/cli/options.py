@@ -179,6 +179,19 @@ FIELDS: dict[str, Range] = {
     # loop's arithmetic stays finite (1e308 overflows)
     "gain": Range(-1e6, 1e6, ""),
     "rate_hz": Range(1, 1e6, "Hz"),
+    # the Python API's plant (ehas_env.simulation.plant.Plant): a load inertia up to a crank held still
+    # (1e9 kg m^2 clamps it in the tests); a period from the fastest controller rate (1 MHz) to the
+    # slowest logging rate a campaign may have (100 Hz)
+    "inertia_kgm2": Range(1e-6, 1e12, "kg m^2"),
+    "dt": Range(1e-6, 0.01, "s"),
+    "substeps": Range(1, 1000, "RK4 sub-steps per period", integer=True),
+    # its measurement chain (ehas_env.simulation.sensors.Sensors); flow noise as ehas excite --flow-noise
+    "theta_noise_deg": Range(0, 10, "deg"),
+    "pressure_noise_bar": Range(0, 100, "bar"),
+    "flow_noise_lpm": Range(0, 25, "LPM"),
+    "adc_bits": Range(0, 32, "bits", integer=True),
+    "dac_bits": Range(0, 32, "bits", integer=True),
+    "lvdt_gain_error": Range(-0.5, 0.5, ""),
     # training ([train], [algo], [env])
     "total_steps": Range(1, 1e10, "steps", integer=True),
     "n_envs": Range(1, 65_536, "environments", integer=True),

@@ -14,7 +14,9 @@ not know (a logger's ``oil_temp_C``) are ignored and listed in
 :attr:`Campaign.warnings`; ``columns={"theta_deg": "Angle1"}`` (the command
 line's ``--columns theta_deg=Angle1``) maps a logger's names onto the format's;
 values whose size betrays another unit (theta in rad, pressures in Pa or psi,
-current in A, time in ms, load in N) are refused with the likely cause.  Files
+current in A or uA, time in ms, load in N) are refused with the likely cause, and
+so are values no rig produces (a crank beyond its stroke ends, a flow far beyond
+what the valve passes, sampling faster than 1 MHz).  Files
 of the folder that are not runs are skipped and each is reported with the
 reason.  :func:`write_campaign` validates
 every run first and writes the folder all at once, so a failure never leaves a
@@ -38,6 +40,7 @@ from __future__ import annotations
 import errno
 import json
 import math
+import numbers
 import os
 import shutil
 import stat
@@ -47,8 +50,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ehas_env.cli.options import FIELDS, MAX_SAMPLES
 from ehas_env.output.files import atomic_write_text
-from ehas_env.physics.rig import AREA, BAR, CRANK_RADIUS, LPM, MAX_SETS, MIN_SETS, THETA_STROKE_END, VALVE_K
+from ehas_env.physics.rig import (AREA, BAR, CRANK_RADIUS, LPM, MAX_SETS, MIN_SETS, RATED_CURRENT, RATED_VALVE_DROP,
+                                  THETA_STROKE_END, VALVE_K)
 from ehas_env.measurement.runfile import write_run as _write_run_files
 
 #: the format's columns and their units
@@ -77,6 +82,10 @@ MAX_GAP = 5
 #: relative tolerance on the sample spacing (loggers write times rounded)
 DT_TOLERANCE = 0.01
 MIN_RATE_HZ = 100.0  # the replay's integrator needs at least 100 Hz sampling
+#: fastest sampling: the plant's shortest period (``FIELDS["dt"]``, 1 us) and the fastest controller rate
+MAX_RATE_HZ = FIELDS["rate_hz"].hi
+#: largest run file read, bytes: MAX_SAMPLES rows of nine columns of about 20 characters
+MAX_CSV_BYTES = 200 * MAX_SAMPLES
 MIN_SAMPLES = 20
 CONTROLLER_REQUIRED = ("Kp", "Ki", "Kv", "Ka", "rate_hz")
 CONTROLLER_OPTIONAL = ("Kj", "Kdp", "dp_hp")
@@ -218,6 +227,28 @@ def parse_column_map(text: str | None) -> dict[str, str]:
     return out
 
 
+def check_column_map(columns) -> dict[str, str]:
+    """``read_campaign``'s ``columns``: a dict format name -> the logger's column name (what
+    :func:`parse_column_map` returns), checked as that function checks ``--columns``."""
+    if columns is None:
+        return {}
+    if not isinstance(columns, dict):
+        hint = f" (parse_column_map({columns!r}) makes one)" if isinstance(columns, str) else ""
+        raise CampaignError(f"columns must be a dict {{format column: logger column}}, got "
+                            f"{type(columns).__name__}{hint}")
+    for new, old in columns.items():
+        if new not in COLUMNS:
+            raise CampaignError(f"columns: {new!r} is not a column of the measurement format; the keys must be "
+                                f"among {', '.join(COLUMNS)}")
+        if not isinstance(old, str) or not old.strip():
+            raise CampaignError(f"columns: {new!r} maps to {old!r}; expected the logger's column name (text)")
+    olds = list(columns.values())
+    dup = next((o for o in olds if olds.count(o) > 1), None)
+    if dup is not None:
+        raise CampaignError(f"columns: the logger's column {dup!r} is mapped to two format columns")
+    return columns
+
+
 def _entry_problem(p: Path) -> str | None:
     """Why a folder entry named like a run file cannot be one (None when it is a readable regular file)."""
     try:
@@ -253,6 +284,9 @@ def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
         the measurement format (the message names the file, line or key, and
         what is expected).
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise CampaignError(f"the campaign must be a folder's path (a str or Path), got {type(path).__name__}")
+    columns = check_column_map(columns)
     folder = Path(path)
     if folder.exists() and not folder.is_dir():
         hint = f" (it is a run file: give its folder, {folder.parent})" if folder.suffix.lower() in (".csv", ".json") else ""
@@ -304,6 +338,7 @@ def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
 def read_run(csv_path, columns: dict[str, str] | None = None) -> Run:
     """Read and validate one run (its CSV and the JSON sidecar beside it)."""
     csv_path = Path(csv_path)
+    columns = check_column_map(columns)
     json_path = csv_path.with_suffix(".json")
     if not json_path.is_file():
         raise CampaignError(f"{csv_path}: sidecar {json_path.name} is missing; every RUN.csv needs a RUN.json saying "
@@ -317,8 +352,12 @@ def read_run(csv_path, columns: dict[str, str] | None = None) -> Run:
     return run
 
 
-def _read_text(path: Path, what: str) -> str:
+def _read_text(path: Path, what: str, max_bytes: int | None = None) -> str:
     try:
+        size = path.stat().st_size if max_bytes is not None else 0
+        if max_bytes is not None and size > max_bytes:
+            raise CampaignError(f"{path}: {size:,} bytes, more than the {max_bytes:,} a {what} of a run may have "
+                                f"(at most {MAX_SAMPLES:,} samples): split the run")
         raw = path.read_bytes()
     except PermissionError:
         raise CampaignError(f"{path}: cannot be read (permission denied); expected a readable {what}") from None
@@ -362,12 +401,18 @@ def _separator(header: str, csv_path: Path) -> str:
 
 def _parse_csv(csv_path: Path, rename: dict[str, str] | None = None) -> tuple[list[str], np.ndarray, list[str], dict]:
     """(format column names, data, ignored logger columns, the ``rename`` entries used) of a run file."""
-    text = _read_text(csv_path, "CSV file")
+    text = _read_text(csv_path, "CSV file", MAX_CSV_BYTES)
     lines = text.splitlines()  # \n, \r\n and \r line ends alike
     while lines and not lines[-1].strip():
         lines.pop()
     if not lines:
         raise CampaignError(f"{csv_path}: empty file; expected a header line (t,current_mA,...) and one row per sample")
+    if len(lines) == 1:
+        raise CampaignError(f"{csv_path}: a header line and no samples; expected one row per sample after it "
+                            f"(at least {MIN_SAMPLES})")
+    if len(lines) - 1 > MAX_SAMPLES:
+        raise CampaignError(f"{csv_path}: {len(lines) - 1:,} rows; a run holds at most {MAX_SAMPLES:,} samples: "
+                            "split the run")
     sep = _separator(lines[0], csv_path)
     decimal_comma = sep != "," and any("," in c for c in lines[1].split(sep)) if len(lines) > 1 else False
     raw = [c.strip().strip('"') for c in lines[0].split(sep)]
@@ -376,6 +421,7 @@ def _parse_csv(csv_path: Path, rename: dict[str, str] | None = None) -> tuple[li
     used = {new: old for new, old in rename.items() if old in raw}
     names = [back.get(c, c) for c in raw]
     keep, ignored = known_columns(names, str(csv_path), renamed={back[c] for c in raw if c in back})
+    ignored = [c or f"(unnamed column {names.index(c) + 1})" for c in ignored]
     width = len(names)
     data = np.empty((len(lines) - 1, len(keep)))
     for k, line in enumerate(lines[1:]):
@@ -461,6 +507,15 @@ def check_units(cols: dict, meta: dict, dt: float | None, where: str) -> None:
         refuse("t", f"samples {dt:.6g} apart, which would be {1 / dt:g} Hz in seconds; t looks logged in ms, not s "
                     "(divide by 1000)")
     supply = float(meta.get("supply_bar", 220.0))
+    i = peak("current_mA")
+    if i is not None and i > 50.0 * RATED_CURRENT:
+        why = "the values look like uA, not mA (divide by 1000)" if i < 2e3 * RATED_CURRENT else "expected mA"
+        refuse("current_mA", f"peak {i:.4g} mA, far beyond the servo amplifier's +-{RATED_CURRENT:g} mA; {why}")
+    q = peak("flow_lpm")
+    q_max = VALVE_K * RATED_CURRENT * math.sqrt(supply * BAR / RATED_VALVE_DROP)  # wide open, the whole supply across
+    if q is not None and q > 10.0 * q_max:
+        refuse("flow_lpm", f"peak {q:.4g} LPM, where the valve passes at most about {q_max:.3g} LPM at {supply:g} bar; "
+                           "expected LPM")
     for c in ("p_a_bar", "p_b_bar", "p_s_bar"):
         p = peak(c)
         if p is None:
@@ -481,6 +536,10 @@ def check_units(cols: dict, meta: dict, dt: float | None, where: str) -> None:
             if th is not None and amp >= 2.0 and 0.4 < math.degrees(th) / amp < 2.5:
                 refuse(c, f"peak {th:.4g}, where the sidecar's amplitude is {amp:g} deg; {th:.4g} rad = "
                           f"{math.degrees(th):.3g} deg: the angle looks logged in rad, not deg (multiply by 180/pi)")
+            lim = math.degrees(THETA_STROKE_END)
+            if th is not None and th > 1.1 * lim:
+                refuse(c, f"peak {th:.4g} deg, beyond the stroke ends at +-{lim:.2f} deg; expected the crank angle "
+                          "in deg")
         # the flow a sine of this amplitude needs, and the current the valve needs for it
         q_lpm = AREA * CRANK_RADIUS * 2.0 * math.pi * f * math.radians(amp) / LPM
         i_need = q_lpm / VALVE_K
@@ -520,6 +579,12 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
     with its header on line 1); 0 names samples instead of lines.
     """
     where = where or name
+    if not isinstance(columns, dict):
+        raise CampaignError(f"{where}: expected the run's columns as a dict {{name: values}}, got "
+                            f"{type(columns).__name__}")
+    bad = next((c for c in columns if not isinstance(c, str)), None)
+    if bad is not None:
+        raise CampaignError(f"{where}: column name {bad!r} is not text; the format's columns are: {', '.join(COLUMNS)}")
     check_column_names(list(columns), where)
     meta = validate_meta(meta, where=(str(Path(where).with_suffix(".json")) if csv_path else f"{where} sidecar"))
     kind = meta["kind"]
@@ -531,16 +596,17 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
     if missing:
         raise CampaignError(f"{where}: required column '{missing[0]}' is missing; a {kind} run needs "
                             f"{', '.join(REQUIRED[kind])}")
-    cols = {c: np.asarray(v, dtype=float).ravel() for c, v in columns.items()}
+    cols = {c: _column_values(v, c, where) for c, v in columns.items()}
     lengths = {c: v.size for c, v in cols.items()}
     if len(set(lengths.values())) > 1:
         raise CampaignError(f"{where}: columns differ in length {lengths}; expected one value per sample in every column")
     t = cols.pop("t")
     if t.size < MIN_SAMPLES:
-        raise CampaignError(f"{where}: {t.size} samples; expected at least {MIN_SAMPLES}")
+        raise CampaignError(f"{where}: {t.size} sample{'' if t.size == 1 else 's'}; expected at least {MIN_SAMPLES}")
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        raise CampaignError(f"{where}, {at(bad[0])}: time 't' is missing; every row needs its sample time in s")
+        what = "is missing" if np.isnan(t[bad[0]]) else f"= {t[bad[0]]:g} is not finite"
+        raise CampaignError(f"{where}, {at(bad[0])}: time 't' {what}; every row needs its sample time in s")
     d = np.diff(t)
     back = np.flatnonzero(d <= 0)
     if back.size:
@@ -556,6 +622,9 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
     check_units(cols, meta, dt, where)
     if 1.0 / dt < MIN_RATE_HZ:
         raise CampaignError(f"{where}: sampled at {1 / dt:g} Hz; expected at least {MIN_RATE_HZ:g} Hz (rigs log at 1-5 kHz)")
+    if 1.0 / dt > MAX_RATE_HZ:
+        raise CampaignError(f"{where}: sampled at {1 / dt:g} Hz ({dt:.3g} s apart); expected at most {MAX_RATE_HZ:g} Hz "
+                            "(rigs log at 1-5 kHz; t in s)")
     t = t[0] + dt * np.arange(t.size)
 
     interpolated = {}
@@ -576,6 +645,34 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
     if kind == "closed_loop":
         _check_reference(run, where, at)
     return run
+
+
+#: what numpy's dtype kinds hold, for refusals
+_KINDS = {"b": "true/false values", "c": "complex numbers", "U": "text", "S": "bytes", "O": "Python objects",
+          "M": "dates", "m": "time spans", "V": "records"}
+
+
+def _column_values(values, name: str, where: str) -> np.ndarray:
+    """A column given in memory as a 1-D float array (NaN or None: a missing sample), or CampaignError."""
+    unit = COLUMNS.get(name, "")
+    what = f"{where}, column '{name}': expected one number in {unit} per sample"
+    try:
+        arr = np.asarray(values)
+    except (TypeError, ValueError):  # ragged nested lists
+        raise CampaignError(f"{what}, got a ragged {type(values).__name__}") from None
+    if arr.ndim == 0 or sum(d > 1 for d in arr.shape) > 1:  # a column vector (n, 1) is one column
+        shape = f"the single value {values!r}" if arr.ndim == 0 else f"an array of shape {arr.shape}"
+        raise CampaignError(f"{what} (a 1-D sequence), got {shape}")
+    arr = arr.ravel()
+    if arr.dtype.kind == "O":  # None (a missing sample) among numbers is fine
+        k = next((k for k, v in enumerate(arr) if v is not None
+                  and (isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real))), None)
+        if k is not None:
+            raise CampaignError(f"{what}, got {arr[k]!r} at sample {k}")
+        return np.array([np.nan if v is None else float(v) for v in arr])
+    if arr.dtype.kind not in "iuf":
+        raise CampaignError(f"{what}, got {_KINDS.get(arr.dtype.kind, arr.dtype)}")
+    return np.asarray(arr, dtype=float)
 
 
 def _longest_gap(miss: np.ndarray) -> tuple[int, int]:
@@ -641,7 +738,9 @@ def validate_meta(meta, where: str = "sidecar") -> dict:
     """
     if not isinstance(meta, dict):
         raise CampaignError(f"{where}: expected a JSON object {{\"kind\": ..., ...}}, got {type(meta).__name__}")
-    kind = meta.get("kind")
+    if "kind" not in meta:
+        raise CampaignError(f"{where}: key 'kind' is missing; expected one of {', '.join(KINDS)}")
+    kind = meta["kind"]
     if kind not in KINDS:
         raise CampaignError(f"{where}: key 'kind' = {kind!r}; expected one of {', '.join(KINDS)}")
     out = dict(meta)
@@ -680,11 +779,13 @@ def validate_meta(meta, where: str = "sidecar") -> dict:
         if key not in allowed:
             raise CampaignError(f"{w}: key '{key}' is not a setting of the rig's controller; expected "
                                 f"{', '.join(CONTROLLER_REQUIRED)} and optionally {', '.join(CONTROLLER_OPTIONAL)}")
-    c = {key: _number(ctrl, key, w, "a finite gain") for key in ("Kp", "Ki", "Kv", "Ka")}
+    g = FIELDS["gain"]
+    gain = f"a gain in [{g.lo:g}, {g.hi:g}]"
+    c = {key: _number(ctrl, key, w, gain, lo=g.lo, hi=g.hi) for key in ("Kp", "Ki", "Kv", "Ka")}
     for key in CONTROLLER_OPTIONAL:
-        c[key] = _number(ctrl, key, w, "a finite gain", default=0.0)
-    c["rate_hz"] = _number(ctrl, "rate_hz", w, f"the controller rate in Hz, at least {MIN_RATE_HZ:g}",
-                           lo=MIN_RATE_HZ)
+        c[key] = _number(ctrl, key, w, gain, lo=g.lo, hi=g.hi, default=0.0)
+    c["rate_hz"] = _number(ctrl, "rate_hz", w, f"the controller rate in Hz, in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}]",
+                           lo=MIN_RATE_HZ, hi=MAX_RATE_HZ)
     out["controller"] = c
     return out
 

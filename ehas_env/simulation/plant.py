@@ -18,20 +18,22 @@ True
 from __future__ import annotations
 
 import math
+import numbers
+import os
+from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, field
-
 
 import numpy as np
 
 from ehas_env.physics import layout as K
 from ehas_env.physics.codegen import current_model
-from ehas_env.physics.effects import REGISTRY, resolve_effects
+from ehas_env.physics.effects import REGISTRY, get_effect, resolve_effects
 from ehas_env.physics.effects.base import effect_slots, mark_effects_on
-from ehas_env.cli.options import MAX_SAMPLES, check_field, check_run_length
+from ehas_env.cli.options import MAX_SAMPLES, check_field, check_number, check_run_length, check_samples
 from ehas_env.simulation.control_laws import N_GAINS, compiled_form, law_id
 from ehas_env.simulation.metrics import tracking_errors
 from ehas_env.simulation.reference import SineReference
-from ehas_env.physics.rig import BAR, LPM, INERTIA_PER_SET, RigParams, check_disc_sets
+from ehas_env.physics.rig import BAR, LPM, INERTIA_PER_SET, RigParams
 from ehas_env.measurement.runfile import write_run
 from ehas_env.simulation.sensors import Sensors
 
@@ -97,12 +99,7 @@ class RigController:
 
     def __post_init__(self):
         for name, value in asdict(self).items():
-            if name != "rate_hz":
-                check_field("gain", value, f"RigController: {name}")
-            elif not math.isfinite(value):
-                raise ValueError(f"RigController: {name} must be finite, got {value!r}")
-        if self.rate_hz <= 0:
-            raise ValueError(f"RigController: rate_hz must be positive, got {self.rate_hz!r}")
+            check_field("rate_hz" if name == "rate_hz" else "gain", value, f"RigController: {name}")
 
 
 @dataclass
@@ -203,17 +200,17 @@ class Plant:
         Effects of the library to switch on: ``{"coulomb_friction": {"Fc": 300}}``,
         ``["viscous_friction"]`` (defaults) or ``"coulomb_friction:Fc=300"``.
     inertia : float, optional
-        Load inertia in kg m^2, overriding ``disc_sets`` (must be > 0).
+        Load inertia in kg m^2, overriding ``disc_sets`` (1e-6 to 1e12; 1e9 holds the crank still).
     rig : RigParams, optional
         Baseline parameters (defaults: the book's rig).
     sensors : Sensors, optional
         Measurement chain; ideal (no noise, no quantization) by default.
     dt : float
-        Control/sample period, s (rig: 1 ms).
+        Control/sample period, s, 1e-6 to 0.01 (rig: 1 ms).
     substeps : int
-        RK4 sub-steps per period (>= 10 recommended: the chambers are stiff).
+        RK4 sub-steps per period, 1 to 1000 (>= 10 recommended: the chambers are stiff).
     seed : int, optional
-        Seed of the sensor noise; same seed -> bit-identical runs.
+        Seed of the sensor noise, 0 to 2**32 - 1; same seed -> bit-identical runs.
     valve : {"grey_box", "white_box"}
         The servo valve: the book's identified transfer function (default) or
         the first-principles model of :mod:`ehas_env.physics.white_box_valve` (torque
@@ -239,15 +236,20 @@ class Plant:
                  valve: str = "grey_box", white_box=None, effects_path=None, model=None):
         from ehas_env.physics.effects import load_effects_path
 
+        _check_effects_path(effects_path)
         load_effects_path(effects_path)
-        check_disc_sets(disc_sets)
+        disc_sets = check_field("disc_sets", disc_sets)
+        effects = _check_effects(effects)
+        inertia_where = "inertia"
         if model is not None:  # a model file is the plant (ehas_env.measurement.model_file)
             from ehas_env.measurement.model_file import as_model
 
             model = as_model(model)
             load_effects_path(list(model.effects_path) or None)
             rig = rig if rig is not None else model.rig
-            inertia = inertia if inertia is not None else float(disc_sets) * model.inertia_per_set
+            if inertia is None:
+                inertia = float(disc_sets) * model.inertia_per_set
+                inertia_where = f"inertia ({disc_sets} disc sets x the model's inertia_per_set_kgm2)"
             effects = {**model.effects, **resolve_effects(effects)}
             valve = model.valve if valve == "grey_box" else valve
             white_box = white_box if white_box is not None else model.white_box_valve()
@@ -260,22 +262,20 @@ class Plant:
             raise ValueError(f"white_box must be a WhiteBoxValve, got {type(white_box).__name__}")
         self.valve = valve
         self.white_box = white_box if white_box is not None else WhiteBoxValve()
+        if rig is not None and not isinstance(rig, RigParams):
+            raise ValueError(f"rig must be a RigParams (ehas_env.physics.rig), got {_brief(rig)}")
         rig = rig or RigParams()
         rig = rig.replace(disc_sets=int(disc_sets), inertia=disc_sets * INERTIA_PER_SET)
         if inertia is not None:
-            if not (isinstance(inertia, (int, float)) and math.isfinite(inertia) and inertia > 0):
-                raise ValueError(f"inertia must be a positive number of kg m^2, got {inertia!r}")
-            rig = rig.replace(inertia=float(inertia))
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and 0 < dt <= 0.01):
-            raise ValueError(f"dt must be a sample period in (0, 0.01] s, got {dt!r}")
-        if not (isinstance(substeps, int) and substeps >= 1):
-            raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+            rig = rig.replace(inertia=check_field("inertia_kgm2", inertia, inertia_where))
+        dt = check_field("dt", dt)
+        substeps = check_field("substeps", substeps)
+        self.sensors = _check_sensors(sensors)
+        self.seed = None if seed is None else check_field("seed", seed)
         self.rig = rig
         self.effects = resolve_effects(effects)
-        self.sensors = sensors if sensors is not None else Sensors.ideal()
         self.dt = float(dt)
         self.substeps = substeps
-        self.seed = seed
         self._model = current_model()  # every registered effect, so every resolved effect is in it
         self._P = self._param_vector()
         self._hist_len = K.history_length(TAU_MAX, self.dt)
@@ -319,6 +319,7 @@ class Plant:
 
     def initial_state(self, theta_deg: float = 0.0) -> np.ndarray:
         """At rest at ``theta_deg`` with P_A = P_B = Ps/2 (reference model)."""
+        check_number(theta_deg, "theta_deg", "deg", -90.0, 90.0)  # the crank's geometry; the stroke ends lie inside
         s = np.zeros(self._model.N_STATES)
         for name in self._model.EFFECTS:
             for st in REGISTRY[name].states:
@@ -341,6 +342,7 @@ class Plant:
         0.0
         """
         cmd = _check_current(current_mA, "current_mA")
+        check_field("theta0_deg", theta0_deg)
         out = np.zeros((cmd.size, K.N_OUT))
         s = self.initial_state(theta0_deg)
         self._model.run_open_loop(s, self._P, cmd, self.dt, self.substeps, np.zeros(self._hist_len), out)
@@ -357,24 +359,34 @@ class Plant:
         ``t, theta_deg, theta_ref_deg, theta_ref_dot, theta_ref_ddot, theta_ref_dddot,
         p_a_bar, p_b_bar, p_s_bar`` (deg, deg/s, deg/s^2, deg/s^3, bar), plus the
         reference's ``amplitude_deg`` (learned controllers normalise the error by it).
-        The run lasts ``duration`` s, or ``cycles`` reference periods.
+        The run lasts ``duration`` s, or ``cycles`` reference periods.  Numbers are checked against the
+        ranges of ``ehas_env.cli.options.FIELDS`` (docs/errors.md): amplitude in (0, 44.43) deg, frequency
+        in (0, 50] Hz, cycles in (0, 10000], duration in (0, 600] s, theta0_deg in [-40, 40] deg.
         """
         controller = RigController.book() if controller is None else controller
-        ref = reference if reference is not None else SineReference(amplitude_deg, freq_hz)
+        compiled = _check_controller(controller, self.rig.disc_sets)
+        if reference is None:
+            check_field("amplitude_deg", amplitude_deg)
+            check_field("freq_hz", freq_hz)
+            ref = SineReference(amplitude_deg, freq_hz)
+        else:
+            ref = _check_reference(reference)
+        check_field("theta0_deg", theta0_deg)
         if duration is None:
-            if not (math.isfinite(cycles) and cycles > 0):
-                raise ValueError(f"cycles must be a positive number, got {cycles!r}")
+            check_field("cycles", cycles)
             duration = cycles / ref.freq_hz
-        if not (math.isfinite(duration) and duration > 0):
-            raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
-        check_run_length(duration, self.dt, where=f"a closed-loop run of {duration:g} s")
+            what = f"cycles {cycles:g} at freq_hz {ref.freq_hz:g}"
+        else:
+            check_field("duration_s", duration, "duration")
+            what = f"duration {duration:g} s"
+        check_run_length(duration, self.dt, where=what)
         n = int(round(duration / self.dt))
+        check_samples(n, f"{what} ({duration:g} s at dt = {self.dt:g} s)")
         rng = np.random.default_rng(self.seed)
         noise = self.sensors.theta_noise(n, rng)
         out = np.zeros((n, K.N_OUT))
         s = self.initial_state(theta0_deg)
         hist = np.zeros(self._hist_len)
-        compiled = compiled_form(controller, self.rig.disc_sets)
         if compiled is not None:
             rate = getattr(compiled, "rate_hz", 1.0 / self.dt)
             if abs(rate * self.dt - 1.0) > 1e-9:
@@ -413,7 +425,12 @@ class Plant:
             meas = {"t": t, "theta_deg": th, "theta_ref_deg": r, "theta_ref_dot": rd, "theta_ref_ddot": rdd,
                     "theta_ref_dddot": rddd, "p_a_bar": s[4] / BAR, "p_b_bar": s[5] / BAR, "p_s_bar": s[6] / BAR,
                     "amplitude_deg": amp}
-            u = float(controller.act(meas))
+            raw = controller.act(meas)
+            try:
+                u = float(raw)
+            except (TypeError, ValueError):
+                raise ValueError(f"controller {type(controller).__name__}: act() returned {_brief(raw)} at t = {t:g} s; "
+                                 "expected a current in mA (one finite number)") from None
             if not math.isfinite(u):
                 raise ValueError(f"controller {type(controller).__name__} returned a non-finite current {u!r} at t = {t:g} s")
             u = min(max(u, -self.rig.i_max), self.rig.i_max)
@@ -432,8 +449,7 @@ class Plant:
         25.45
         """
         cmd = _check_current(current_mA, "current_mA")
-        if not (math.isfinite(supply_bar) and supply_bar > 0):
-            raise ValueError(f"supply_bar must be a positive pressure in bar, got {supply_bar!r}")
+        check_field("supply_bar", supply_bar)
         out = np.zeros((cmd.size, 3))
         self._model.run_valve_test(self._P, cmd, self.dt, self.substeps, supply_bar * BAR, np.zeros(self._hist_len), out)
         t = np.arange(cmd.size) * self.dt
@@ -494,14 +510,112 @@ class ValveTestResult:
         return write_run(path, cols, meta)
 
 
+#: what numpy's dtype kinds hold, for refusals
+_KINDS = {"b": "booleans", "c": "complex numbers", "U": "text", "S": "bytes", "O": "Python objects",
+          "M": "dates", "m": "time spans", "V": "records"}
+
+
+def _brief(value) -> str:
+    """``repr(value)`` on one line, at most 60 characters (an array's repr spans lines)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _check_current(current_mA, name: str) -> np.ndarray:
-    cmd = np.asarray(current_mA, dtype=float).ravel()
+    what = f"{name} must be a 1-D sequence of currents in mA, one per sample period"
+    try:
+        arr = np.asarray(current_mA)
+    except (TypeError, ValueError):  # ragged nested lists
+        raise ValueError(f"{what}; got a ragged {type(current_mA).__name__}") from None
+    if arr.dtype.kind not in "iuf":
+        held = _brief(arr.item()) if arr.ndim == 0 else f"an array of {_KINDS.get(arr.dtype.kind, arr.dtype)}"
+        raise ValueError(f"{what}; got {held}")
+    if arr.ndim == 0:
+        raise ValueError(f"{what}; got the single number {_brief(arr.item())}")
+    if sum(d > 1 for d in arr.shape) > 1:
+        raise ValueError(f"{what}; got an array of shape {arr.shape}")
+    cmd = np.asarray(arr, dtype=float).ravel()
     if cmd.size == 0:
         raise ValueError(f"{name} is empty; expected one current in mA per sample period")
     if cmd.size > MAX_SAMPLES:
         raise ValueError(f"{name} holds {cmd.size:,} samples; at most {MAX_SAMPLES:,} per run")
     bad = np.flatnonzero(~np.isfinite(cmd))
     if bad.size:
-        raise ValueError(f"{name} holds a non-finite value ({cmd[bad[0]]!r}) at sample {bad[0]}; expected finite mA")
+        raise ValueError(f"{name} holds a non-finite value ({float(cmd[bad[0]])!r}) at sample {bad[0]}; "
+                         "expected finite mA")
     return cmd
 
+
+def _check_controller(controller, disc_sets: int):
+    """The controller's compiled form (None: a Python ``act``); ValueError for anything that is no controller."""
+    if isinstance(controller, type):
+        raise ValueError(f"controller must be a controller object, got the class {controller.__name__} "
+                         f"(create one: {controller.__name__}(...))")
+    compiled = compiled_form(controller, disc_sets)
+    if compiled is None and not callable(getattr(controller, "act", None)):
+        raise ValueError("controller must be a RigController or an object with act(measurement) -> current in mA, "
+                         f"got {_brief(controller)}")
+    return compiled
+
+
+def _check_reference(reference):
+    if isinstance(reference, type) or not callable(reference) or not all(
+            hasattr(reference, a) for a in ("amplitude_deg", "freq_hz", "kernel_vector", "to_dict")):
+        raise ValueError(f"reference must be a SineReference (ehas_env.simulation.reference), got {_brief(reference)}")
+    return reference
+
+
+#: the fields of :class:`Sensors` and their ranges (``ehas_env.cli.options.FIELDS``)
+SENSOR_FIELDS = ("theta_noise_deg", "pressure_noise_bar", "flow_noise_lpm", "adc_bits", "dac_bits", "lvdt_gain_error")
+
+
+def _check_sensors(sensors) -> Sensors:
+    if sensors is None:
+        return Sensors.ideal()
+    if not isinstance(sensors, Sensors):
+        raise ValueError("sensors must be a Sensors (ehas_env.simulation.sensors: Sensors() realistic, Sensors.ideal() "
+                         f"none), got {_brief(sensors)}")
+    for name in SENSOR_FIELDS:
+        check_field(name, getattr(sensors, name), f"sensors: {name}")
+    return sensors
+
+
+def _check_effects_path(paths) -> None:
+    if paths is None or isinstance(paths, (str, os.PathLike)):
+        return
+    if isinstance(paths, (list, tuple)) and all(isinstance(p, (str, os.PathLike)) for p in paths):
+        return
+    raise ValueError(f"effects_path must be a folder or file of user effects (a str or Path) or a list of them, "
+                     f"got {_brief(paths)}")
+
+
+def _check_effects(effects):
+    """``effects`` as :func:`resolve_effects` takes it, its shape and value types checked (the bounds are the
+    effects' own); an iterator of names becomes a list."""
+    if effects is None or isinstance(effects, str):
+        return effects
+    if isinstance(effects, Mapping):
+        for name, values in effects.items():
+            if values is None:
+                continue
+            if not isinstance(values, Mapping):
+                raise ValueError(f"effects: the parameters of '{name}' must be a dict {{param: value}} (or None for "
+                                 f"the defaults), got {_brief(values)}")
+            cls = get_effect(name)
+            for key, v in values.items():
+                if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+                    p = cls.param(key)  # an unknown parameter is named first
+                    lo, hi = p.bounds
+                    unit = f" {p.unit}" if p.unit else ""
+                    raise ValueError(f"effect '{name}': parameter '{key}' must be a number in [{lo:g}, {hi:g}]{unit}, "
+                                     f"got {_brief(v)}")
+        return effects
+    if isinstance(effects, (bytes, numbers.Number)) or not isinstance(effects, Iterable):
+        raise ValueError("effects must be a dict {name: {param: value}}, a list of effect names or a spec such as "
+                         f"'coulomb_friction:Fc=300', got {_brief(effects)}")
+    effects = list(effects)
+    for name in effects:
+        if not isinstance(name, str):
+            raise ValueError(f"effects: a list holds effect names (text), got {_brief(name)}; known effects: "
+                             f"{', '.join(sorted(REGISTRY))}")
+    return effects
