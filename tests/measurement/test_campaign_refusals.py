@@ -11,12 +11,14 @@ folder, a folder without runs) is not repeated here.
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+from refusals import refused  # tests/ is on sys.path (conftest.py)
 
 import ehas_env.measurement.campaign as campaign
 from ehas_env.cli.campaign import simulate_campaign
@@ -39,14 +41,7 @@ def camp(tmp_path, runs):
     return write_campaign(tmp_path / "camp", runs)
 
 
-def refused(call, *patterns, exc=CampaignError) -> str:
-    with pytest.raises(exc) as info:
-        call()
-    msg = str(info.value)
-    assert "\n" not in msg, msg  # one line
-    for p in patterns:
-        assert p in msg, msg
-    return msg
+refused = functools.partial(refused, exc=CampaignError)  # every refusal here is a CampaignError
 
 
 def edit_lines(path: Path, fn):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from refusals import refused  # tests/ is on sys.path (conftest.py)
 
 from ehas_env.cli.options import MAX_SAMPLES
 from ehas_env.simulation.plant import Plant, RigController
@@ -21,14 +22,6 @@ from ehas_env.simulation.sensors import Sensors
 NAN, INF = float("nan"), float("inf")
 
 
-def refused(call, *patterns, exc=ValueError) -> str:
-    with pytest.raises(exc) as info:
-        call()
-    msg = str(info.value)
-    assert "\n" not in msg, msg  # one line
-    for p in patterns:
-        assert p in msg, msg
-    return msg
 
 
 @pytest.fixture(scope="module")
