@@ -131,15 +131,14 @@ def test_position_only_coulomb_gives_coulomb_first():
 
 
 @pytest.mark.parametrize("scale, hidden, position_only", [
-    ({"beta": 0.75}, {}, False),
-    ({"K": 0.9}, {}, False),
-    ({"beta": 1.25, "K": 1.1}, {}, False),
-    ({"K": 0.88}, {}, True),
-    ({"K": 0.9}, {"coulomb_friction": {"Fc": 400.0}}, False),
-    ({"beta": 0.75}, {"viscous_friction": {"b": 3000.0}}, False),
-    ({"K": 0.9}, {"coulomb_friction": {"Fc": 400.0}}, True),
-], ids=["beta-25%", "K-10%", "beta+25%,K+10%", "K-12%,position-only", "K-10%+coulomb", "beta-25%+viscous",
-        "K-10%+coulomb,position-only"])
+    pytest.param({"beta": 0.75}, {}, False, id="beta-25%"),
+    pytest.param({"K": 0.9}, {}, False, id="K-10%"),
+    pytest.param({"beta": 1.25, "K": 1.1}, {}, False, id="beta+25%,K+10%", marks=pytest.mark.slow),
+    pytest.param({"K": 0.88}, {}, True, id="K-12%,position-only", marks=pytest.mark.slow),
+    pytest.param({"K": 0.9}, {"coulomb_friction": {"Fc": 400.0}}, False, id="K-10%+coulomb", marks=pytest.mark.slow),
+    pytest.param({"beta": 0.75}, {"viscous_friction": {"b": 3000.0}}, False, id="beta-25%+viscous"),
+    pytest.param({"K": 0.9}, {"coulomb_friction": {"Fc": 400.0}}, True, id="K-10%+coulomb,position-only"),
+])
 def test_beta_and_K_beyond_the_recalibration_ranges_are_named(scale, hidden, position_only):
     """beta beyond +-7 % and K beyond +-3 % of the book's: the diagnosis names the effect that re-opens that number
     (bulk_modulus: beta, valve_dynamics: the valve's K) with its value, beside a hidden effect, and nothing else."""
