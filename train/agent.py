@@ -222,7 +222,9 @@ class MeasurementObserver:
         self.k += 1
         a = self.a_held
         if self.agent.cfg.action_shape != "constant":
-            a *= float(E.authority(self.agent.cfg.action_shape, m))
+            sets = self.agent.disc_sets if self.agent.disc_sets is not None else self.agent.cfg.env_kwargs.get(
+                "disc_sets", 3)
+            a *= float(E.authority(self.agent.cfg.action_shape, m, sets))
         return float(self.inner.current(a, m))
 
 

@@ -139,7 +139,7 @@ class BatchedTrackingVecEnv(VecEnv):
             active = ~ended
             if self.shape != "constant":
                 last = {k: v.raw(k) for k in _SHAPE_KEYS}
-                applied = a * np.asarray(E.authority(self.shape, last), np.float32).reshape(n, 1)
+                applied = a * np.asarray(E.authority(self.shape, last, v.episode_disc_sets()), np.float32).reshape(n, 1)
             else:
                 applied = a
             t0 = time.perf_counter()

@@ -68,7 +68,7 @@ VALIDATE_METRICS = ("mean", "no_worse", "fewest_worse")
 CONFIG_FORMAT = "ehas-train-config"  # the optional top-level format key of a training configuration
 CONFIG_VERSION = 1
 ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
-ACTION_SHAPES = ("constant", "velocity", "power", "reference", "reference_sq")
+ACTION_SHAPES = ("constant", "velocity", "power", "reference", "reference_sq", "reference_sq_load")
 RESIDUAL_BASES = ("tuned", "book")
 # randomised quantities and the bounds each value must respect
 RANDOMISE_KEYS = {

@@ -28,6 +28,7 @@ EHAS_ID = "ehas/Tracking-v0"
 V_SCALE_DEG_S = 30.0 * 2.0 * math.pi * 3.0  # design point's peak rate, +-30 deg at 3 Hz (docs/rig.md)
 A_SCALE_DEG_S2 = 30.0 * (2.0 * math.pi * 3.0) ** 2  # design point's peak acceleration (the env's scale)
 DP_SCALE_BAR = 110.0  # half the 220 bar supply (docs/rig.md): the ``power`` action shape's load scale
+MAX_DISC_SETS = 7  # the rig's heaviest stack (docs/rig.md): the ``reference_sq_load`` action shape's load scale
 RATED_CURRENT_MA = 20.0  # the env's action scale: a = 1 is 20 mA (docs/rig.md: +-20 mA servo amplifier)
 
 
@@ -197,6 +198,7 @@ class AgentInterface(gym.Wrapper):
         self._amp = 1.0
         self.shape = shape
         self._last = {}
+        self._sets = None
         self.action_penalty = float(action_penalty)
         self.action_repeat = int(action_repeat)
         self.action_scale = float(action_scale)
@@ -208,7 +210,8 @@ class AgentInterface(gym.Wrapper):
         total = 0.0
         for _ in range(self.action_repeat):
             if self.shape != "constant":
-                obs, r, term, trunc, info = self.env.step(a * np.float32(authority(self.shape, self._last)))
+                obs, r, term, trunc, info = self.env.step(a * np.float32(authority(self.shape, self._last,
+                                                                                   self._sets)))
                 self._last = info
             else:
                 obs, r, term, trunc, info = self.env.step(a)
@@ -225,14 +228,16 @@ class AgentInterface(gym.Wrapper):
         self._last = info
         if "episode" in info:
             self._amp = float(info["episode"]["amplitude_deg"])
+            self._sets = info["episode"].get("disc_sets")
         return obs, info
 
 
-def authority(shape: str, m) -> float | np.ndarray:
+def authority(shape: str, m, disc_sets=None) -> float | np.ndarray:
     """Fraction of ``action_scale`` a full action commands now (the ``action_shape``).
 
     ``m`` holds ``theta_ref_dot`` (deg/s), ``p_a_bar`` and ``p_b_bar`` (scalars
-    or arrays: an env's ``info`` or a controller's measurement).
+    or arrays: an env's ``info`` or a controller's measurement); ``disc_sets``
+    (a scalar or one per row) the load, for ``reference_sq_load``.
 
     * ``constant``: 1;
     * ``velocity``: ``|theta_ref'| / 565 deg/s`` (the design point's peak rate),
@@ -241,7 +246,13 @@ def authority(shape: str, m) -> float | np.ndarray:
       authority where the valve delivers flow against load, which is where the
       orifice law departs from the linear feed-forward; nil where the reference
       is slow or the load light, so that the policy's imprecision there cannot
-      disturb a classical loop that is already good.
+      disturb a classical loop that is already good;
+    * ``reference``, ``reference_sq``: :func:`reference_authority`, its square;
+    * ``reference_sq_load``: ``reference_sq`` times ``disc_sets / 7``: the same
+      current accelerates one disc set seven times as much as seven, so a full
+      action commands about the same crank acceleration at every load (without
+      it, a correction sized for the heavy stacks is a disturbance on the light
+      ones).  The disc sets are known on the rig, as the gain schedule knows them.
 
     Examples
     --------
@@ -256,6 +267,10 @@ def authority(shape: str, m) -> float | np.ndarray:
         return reference_authority(m)
     if shape == "reference_sq":
         return reference_authority(m) ** 2
+    if shape == "reference_sq_load":
+        if disc_sets is None:
+            raise ValueError("action_shape 'reference_sq_load' needs the disc sets of the plant")
+        return reference_authority(m) ** 2 * np.asarray(disc_sets, dtype=float) / MAX_DISC_SETS
     f = np.minimum(np.abs(np.asarray(m["theta_ref_dot"], dtype=float)) / V_SCALE_DEG_S, 1.0)
     if shape == "power":
         dp = np.asarray(m["p_a_bar"], dtype=float) - np.asarray(m["p_b_bar"], dtype=float)

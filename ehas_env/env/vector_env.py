@@ -122,6 +122,7 @@ class TrackingVectorEnv(VectorEnv):
         self._W = np.zeros((n, *bk.W_SHAPE))
         self._obs = np.zeros((n, self._st.n_obs), np.float32)
         self._raw = np.zeros((n, bk.N_RAW))
+        self._sets = np.zeros(n)
         self._rew = np.zeros(n)
         self._n_done = 0  # environments whose episode ended at the last step (reset at the next)
         self._done = np.zeros(n, bool)
@@ -205,6 +206,7 @@ class TrackingVectorEnv(VectorEnv):
             if self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(None)[0]
             ep = parts.draw_episode(self._defaults, self._options, self._rngs[i])
+            self._sets[i] = ep.disc_sets
             C, _ = self._packer(ep)
             if self._schedule is not None:  # the episode's entry of the gain schedule
                 _, gains, law = parts.controller_mode(self._schedule_law(ep.disc_sets), self._st.dt)
@@ -245,6 +247,10 @@ class TrackingVectorEnv(VectorEnv):
     def raw(self, name: str) -> np.ndarray:
         """The unscaled quantity ``name`` (a key of ``info``: ``theta_deg``, ``p_a_bar`` ...) of every row, a view."""
         return self._raw[:, bk.RAW_NAMES.index(name)]
+
+    def episode_disc_sets(self) -> np.ndarray:
+        """Each row's disc sets (its episode's load)."""
+        return self._sets.copy()
 
     def episode_amplitudes(self) -> np.ndarray:
         """Each row's reference amplitude, deg (the % error's normaliser)."""

@@ -51,7 +51,7 @@ def test_vecenv_spaces_shapes_dtypes():
     venv.close()
 
 
-@pytest.mark.parametrize("shape", ["power", "reference", "reference_sq", "constant"])
+@pytest.mark.parametrize("shape", ["power", "reference", "reference_sq", "reference_sq_load", "constant"])
 def test_same_transitions_as_dummy_vec_env(shape):
     """Environment i seeded s + i: the same observations, rewards, ends, terminal observations and metrics."""
     raw = smoke_cfg().to_file_dict()
@@ -244,6 +244,11 @@ def test_reference_authority_is_a_function_of_the_task():
         "theta_ref_dddot": -30 * (3 * w) ** 3 * math.cos(3 * w * t)}.items()}
     assert float(E.authority("reference", m20(0.05))) == pytest.approx((2 / 3) ** 2)
     assert float(E.authority("reference_sq", m20(0.05))) == pytest.approx((2 / 3) ** 4)
+    # the load's share: one disc set gets a seventh of seven's authority (a row per env)
+    assert E.authority("reference_sq_load", m20(0.05), np.array([1, 7])) == pytest.approx(
+        [(2 / 3) ** 4 / 7, (2 / 3) ** 4])
+    with pytest.raises(ValueError, match="needs the disc sets"):
+        E.authority("reference_sq_load", m20(0.05))
     assert float(E.authority("reference", {})) == 0.0
 
 
