@@ -49,8 +49,7 @@ def _episode_return(cfg, policy, seeds):
 
 
 # -- configs ------------------------------------------------------------------------
-@pytest.mark.parametrize("name", ["ppo", "sac", "td3", "residual_sac", "residual_sac_gentle", "ppo_smoke",
-                                  "sac_smoke", "td3_smoke", "residual_sac_smoke"])
+@pytest.mark.parametrize("name", sorted(p.stem for p in bundled_config("ppo").parent.glob("*.toml")))
 def test_bundled_configs_are_valid(name):
     cfg = load_config(bundled_config(name))
     assert cfg.algo in ("ppo", "sac", "td3")
