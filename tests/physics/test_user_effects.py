@@ -112,6 +112,23 @@ def test_a_broken_effect_file_is_one_clear_error(tmp_path, capsys):
     assert "bad.py" in err and "nonexistent_module_xyz" in err and len(err.splitlines()) == 1
 
 
+@pytest.mark.parametrize("body, message", [
+    ('    @staticmethod\n    def piston_forse(v, k):\n        return -k * v\n',
+     "static method 'piston_forse' is not a place where physics enters"),
+    ("    pass\n", "holds no physics: write at least one static method named after a place"),
+])
+def test_an_effect_that_would_do_nothing_is_refused(tmp_path, capsys, body, message):
+    """A misspelt place, or no place at all, would leave the model unchanged without a word."""
+    from ehas_env.cli.main import main
+
+    (tmp_path / "typo.py").write_text(
+        "from ehas_env.physics.effects.base import Effect, Param\n\n\nclass Typo(Effect):\n"
+        "    name = 'typo_effect'\n    params = (Param('k', 'N s/m', 1.0, (0.0, 10.0), 'a damping'),)\n" + body)
+    assert main(["effects", "--effects-path", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "typo.py" in err and message in err, err
+
+
 def test_bench_and_diagnose_take_the_effect_from_its_folder(spring_dir, tmp_path, capsys):
     """bench puts the user's effect in its robustness table; diagnose finds it hidden in a campaign."""
     import json

@@ -114,6 +114,15 @@ class Effect:
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         if cls.name:
+            # a misspelt place would add nothing, silently
+            strays = [k for k, v in vars(cls).items()
+                      if isinstance(v, staticmethod) and not k.startswith("_") and k not in PLACES]
+            if strays:
+                raise ValueError(f"effect '{cls.name}': static method '{strays[0]}' is not a place where physics "
+                                 f"enters; the places are {', '.join(PLACES)} (name a helper _{strays[0]})")
+            if not cls.terms() and getattr(cls.apply, "__func__", None) is Effect.apply.__func__:
+                raise ValueError(f"effect '{cls.name}' holds no physics: write at least one static method named "
+                                 f"after a place ({', '.join(PLACES)}), or apply() for a recalibration")
             old = REGISTRY.get(cls.name)
             if old is not None and (old.__module__, old.__qualname__) != (cls.__module__, cls.__qualname__):
                 raise RuntimeError(f"effect name '{cls.name}' registered twice: by {old.__module__} and {cls.__module__}")
