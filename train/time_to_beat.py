@@ -152,7 +152,7 @@ def _probe_callback(cfg, controller_desc, best: dict, every_s: float, stop_when_
 
 
 def run_one(config_path, out: Path, best: dict, *, budget_min: float, probe_every_s: float,
-            stop_when_beaten: bool, seed: int | None = None) -> dict:
+            stop_when_beaten: bool, seed: int | None = None, command: str | None = None) -> dict:
     """Train one configuration with grid probes; returns its summary."""
     from . import envs as E
     from .config import load_config
@@ -173,7 +173,7 @@ def run_one(config_path, out: Path, best: dict, *, budget_min: float, probe_ever
         shutil.rmtree(run_dir)
     t0 = time.time()
     metrics = train(cfg, run_dir, progress=False, tensorboard=True, keep_checkpoints=False, callbacks=[cb],
-                    max_minutes=budget_min + 1.0, command=f"python -m ehas_train.time_to_beat {config_path}")
+                    max_minutes=budget_min + 1.0, command=command or f"python -m ehas_train.time_to_beat {config_path}")
     wall = time.time() - t0
     buf = io.StringIO()
     cols = ("train_time_s", "timesteps", "mean_rms_error_pct", "ref_mean_rms_error_pct", "worse_count",
@@ -285,7 +285,7 @@ def main(argv=None) -> int:
     for c in a.configs:
         t_load = _load()
         runs.append(run_one(c, out, best, budget_min=a.budget_min, probe_every_s=a.probe_every,
-                            stop_when_beaten=not a.keep_training, seed=a.seed))
+                            stop_when_beaten=not a.keep_training, seed=a.seed, command=command))
         r = runs[-1]
         r.update(command=command, load_start=t_load, load_end=_load(), budget_min=a.budget_min,
                  stop_when_beaten=not a.keep_training, probe_every_s=a.probe_every,
