@@ -481,8 +481,9 @@ def readme(out) -> str:
     out = Path(out)
     parts = {p.stem: json.loads(p.read_text()) for p in sorted(out.glob("*.json"))}
     L = ["# Open-world diagnosis: acceptance figures (issue 12)", "",
-         "Regenerate: `python -m ehas_env.measurement.acceptance --out results/diagnosis_acceptance` "
-         "(all parts; `--parts ool,pairs,clean,ci,time,readme` for some), or "
+         "Regenerate: each part's command is in its `PART.json` (`command`); all parts: "
+         "`python -m ehas_env.measurement.acceptance --out results/diagnosis_acceptance --ool-cases 2` "
+         "(`--parts ool,pairs,clean,ci,recal,time,readme` for some), or "
          "`EHAS_ACCEPTANCE_OUT=results/diagnosis_acceptance python -m pytest -m slow -n 0 "
          "tests/measurement/test_diagnosis_open.py` then `--parts readme`. "
          "Campaigns: 4 closed-loop runs + a valve chirp (position only: the 4 closed-loop runs, theta and "
