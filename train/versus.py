@@ -16,7 +16,7 @@ controller is computed by :func:`ehas_train.time_to_beat.best_classical`.
 
 Command line::
 
-    python -m ehas_train.versus results/agents/residual_sac_wins
+    python -m ehas_train.versus results/agents/residual_sac_load
 """
 from __future__ import annotations
 
