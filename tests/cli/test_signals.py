@@ -28,3 +28,30 @@ def test_sigterm_during_bench_is_a_clean_interrupt(tmp_path):
     assert "Traceback" not in err
     assert not out.exists() or not any(out.iterdir())  # no half-written output set
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no leftover temporaries
+
+
+def test_ctrl_c_during_training_checkpoints_and_the_resume_ends_at_total_steps(tmp_path):
+    """Ctrl-C: one line naming the step and --resume, status 130; the resumed run ends at total_steps exactly."""
+    import json
+
+    from ehas_train.config import bundled_config
+
+    out = tmp_path / "run"
+    ehas = shutil.which("ehas") or str(Path(sys.executable).with_name("ehas"))
+    cmd = [ehas, "train", "--algo", "ppo", "--config", str(bundled_config("ppo_smoke")), "--out", str(out),
+           "--no-progress", "--no-tensorboard", "--total-steps", "400000"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not (out / "checkpoints" / "state.json").exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+    time.sleep(0.5)  # mid-rollout, most likely
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("ehas train: interrupted at step ") and "--resume" in last, err
+    cmd[cmd.index("400000")] = "14000"
+    r = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert json.loads((out / "metrics.json").read_text())["num_timesteps"] == 14000
