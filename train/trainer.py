@@ -372,11 +372,13 @@ def _callbacks(cfg, ckpt: Checkpointer, curve_rows: list, clock: dict, progress:
         """Stops learning at ``total_steps`` or once the wall-clock budget (this session's part) is spent.
 
         SB3 alone stops only at a rollout's end: PPO resumed from a checkpoint written
-        mid-rollout (Ctrl-C) would overshoot by up to a rollout.
+        mid-rollout (Ctrl-C) would overshoot by up to a rollout.  A rollout that ends at
+        ``total_steps`` is left to finish, so that its update is made.
         """
 
         def _on_step(self) -> bool:
-            if self.num_timesteps >= cfg.total_steps:
+            n, n_roll = self.locals.get("n_steps"), self.locals.get("n_rollout_steps")
+            if self.num_timesteps >= cfg.total_steps and n is not None and n_roll is not None and n + 1 < n_roll:
                 return False
             if clock["limit_s"] is not None and time.time() - clock["start"] >= clock["limit_s"]:
                 clock["stopped_by_time"] = True
