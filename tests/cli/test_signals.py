@@ -42,7 +42,10 @@ def test_ctrl_c_during_training_checkpoints_and_the_resume_ends_at_total_steps(t
     ehas = shutil.which("ehas") or str(Path(sys.executable).with_name("ehas"))
     cmd = [ehas, "train", "--algo", "ppo", "--config", str(bundled_config("ppo_smoke")), "--out", str(out),
            "--no-progress", "--no-tensorboard", "--total-steps", "400000"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # a shell's background job ignores SIGINT, and children inherit that: give the command the default, as a
+    # terminal's Ctrl-C finds it
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 600  # a fresh machine compiles the simulator first
     while not (out / "checkpoints" / "state.json").exists() and time.time() < deadline and proc.poll() is None:
         time.sleep(0.2)
