@@ -44,7 +44,7 @@ def run(args) -> int:
     from ehas_env.measurement.replay import ModelSpec, Replayer, format_fit_tables
     from ehas_env.output.progress import status, working
 
-    from ehas_env.output.outputs import OutputSet, check_file
+    from ehas_env.output.outputs import OutputSet, check_file, check_not_input
 
     t0 = time.perf_counter()
     requested = parse_spec(args.effects) if args.effects else {}
@@ -54,7 +54,10 @@ def run(args) -> int:
         resolve_effects(requested)  # bad values refused before any work
     # the output paths, before any work
     if args.save_model:
+        check_not_input(args.save_model, "--save-model", [args.campaign])
         check_file(args.save_model, "--save-model", overwrite=args.overwrite)
+    if args.out:
+        check_not_input(args.out, "--out", [args.campaign])
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     base_model = None
     if getattr(args, "model", None):  # a saved model: the baseline, validated on this campaign (docs/model-file.md)

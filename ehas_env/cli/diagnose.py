@@ -66,7 +66,7 @@ def run(args) -> int:
     from ehas_env.physics.effects import get_effect, parse_spec
     from ehas_env.measurement.replay import format_fit_tables
     from ehas_env.measurement.residuals import follows_text, where_it_fails
-    from ehas_env.output.outputs import OutputSet, check_file
+    from ehas_env.output.outputs import OutputSet, check_file, check_not_input
 
     t0 = time.perf_counter()
     base = parse_spec(args.with_effects) if args.with_effects else {}
@@ -81,8 +81,12 @@ def run(args) -> int:
         holdout = [] if args.holdout.strip().lower() == "none" else [h.strip() for h in args.holdout.split(",") if h.strip()]
     # the output paths, before any work
     if args.json:
+        check_not_input(args.json, "--json", [args.campaign])
         check_file(args.json, "--json", overwrite=args.overwrite)
+    if args.out:
+        check_not_input(args.out, "--out", [args.campaign])
     if args.write_effect:
+        check_not_input(args.write_effect, "--write-effect", [args.campaign])
         we = Path(args.write_effect)
         if we.suffix != ".py" or not we.stem.isidentifier():
             raise ValueError(f"--write-effect {we}: give DIR/NAME.py with NAME a Python identifier (it names the effect)")

@@ -94,13 +94,16 @@ def run(args) -> int:
         raise ValueError(f"--zeros must be fewer than --poles (a proper transfer function), got --poles {args.poles} "
                          f"--zeros {args.zeros}")
     command = _command(args)
-    from ehas_env.output.outputs import OutputSet, check_file
+    from ehas_env.output.outputs import OutputSet, check_file, check_not_input
 
     # the output paths, before any work
     if args.json:
+        check_not_input(args.json, "--json", [args.run])
         check_file(args.json, "--json", overwrite=args.overwrite)
     outputs = None
     if args.run is not None and not args.no_plots:
+        check_not_input(Path(args.out) if args.out else Path("results/identify") / Path(args.run).stem, "--out",
+                        [args.run])
         outputs = OutputSet(Path(args.out) if args.out else Path("results/identify") / Path(args.run).stem, "--out",
                             overwrite=args.overwrite)
 

@@ -127,6 +127,31 @@ def check_folder(path, option: str | None = "--out", *, overwrite: bool = False)
     return path
 
 
+def check_not_input(path, option: str | None, inputs) -> None:
+    """Refuse an output ``path`` that is one of the command's ``inputs``, holds one, or lies in an input folder's
+    files: even with ``--overwrite``, a command never writes over what it reads.
+
+    >>> check_not_input("camp", "--out", ["camp"])
+    Traceback (most recent call last):
+    ...
+    ehas_env.output.outputs.OutputError: --out camp is this command's input camp; write the output elsewhere
+    """
+    out = Path(path).absolute().resolve()
+    for item in inputs:
+        if item is None or str(item) == "":
+            continue
+        src = Path(item).absolute().resolve()
+        if out == src:
+            raise OutputError(f"{_label(option, Path(path))} is this command's input {item}; write the output "
+                              "elsewhere")
+        if src.is_relative_to(out):
+            raise OutputError(f"{_label(option, Path(path))} holds this command's input {item}; replacing it would "
+                              "delete the input: write the output elsewhere")
+        if src.is_dir() and out.is_relative_to(src) and out.suffix.lower() in (".csv", ".json"):
+            raise OutputError(f"{_label(option, Path(path))} lies among the run files of the input {item}; write "
+                              "the output elsewhere")
+
+
 def check_file(path, option: str | None = None, *, overwrite: bool = False, suffix: str | None = None) -> Path:
     """Check that the file ``path`` can be written (before any work).
 

@@ -194,3 +194,22 @@ def test_seeded_bench_is_byte_identical(tmp_path, capsys):
     a, b = snapshot(tmp_path / "a"), snapshot(tmp_path / "b")
     a.pop("benchmark_timing.json"), b.pop("benchmark_timing.json")  # wall times
     assert a and a == b
+
+
+@pytest.mark.parametrize("argv, culprit", [
+    (["compare", "{camp}", "--out", "{camp}", "--overwrite"], "--out"),
+    (["diagnose", "{camp}", "--out", "{tmp}", "--overwrite", "--quiet"], "--out"),  # a folder holding the input
+    (["diagnose", "{camp}", "--json", "{camp}/cl_3sets_20deg_1hz.json", "--overwrite", "--quiet"], "--json"),
+    (["compare", "{camp}", "--save-model", "{camp}/model.json", "--overwrite"], "--save-model"),
+])
+def test_outputs_never_replace_the_commands_input(tmp_path, capsys, argv, culprit):
+    """Even with --overwrite, a command does not write over (or delete) the campaign it reads."""
+    camp = tmp_path / "camp"
+    assert main(["simulate-campaign", "--duration", "0.3", "--seed", "1", "--out", str(camp)]) == 0
+    capsys.readouterr()
+    before = snapshot(camp)
+    args = [a.format(camp=camp, tmp=tmp_path) for a in argv]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and culprit in err and "input" in err, err
+    assert snapshot(camp) == before
