@@ -476,9 +476,12 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
     created = not out.exists()
     try:
         venv = make_training_vec_env(cfg, controller_desc=controller_desc)
-    except BaseException:
+    except BaseException as exc:
         if created and out.exists() and not resume:
             shutil.rmtree(out, ignore_errors=True)
+        if isinstance(exc, TypeError) or type(exc).__module__.startswith("gymnasium"):
+            # an [env.kwargs] key the environment does not take, an id gymnasium does not know
+            raise ValueError(f"{cfg.source}: [env]: {' '.join(str(exc).split())}") from None
         raise
     cls = algo_class(cfg.algo)
     curve_rows: list[dict] = []
@@ -511,9 +514,14 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
         if cfg.vecnormalize:
             vecnorm = VecNormalize(venv, norm_obs=True, norm_reward=cfg.norm_reward, clip_obs=cfg.clip_obs,
                                    gamma=cfg.hyper.get("gamma", 0.99))
-        model = cls("MlpPolicy", vecnorm or venv, seed=cfg.seed, device="cpu", verbose=0,
-                    tensorboard_log=str(out / "tb") if tensorboard else None,
-                    **_algo_kwargs(cfg, venv.action_space.shape[0]))
+        try:
+            model = cls("MlpPolicy", vecnorm or venv, seed=cfg.seed, device="cpu", verbose=0,
+                        tensorboard_log=str(out / "tb") if tensorboard else None,
+                        **_algo_kwargs(cfg, venv.action_space.shape[0]))
+        except (AssertionError, ValueError, TypeError, RuntimeError) as exc:
+            # stable-baselines3's own checks of [algo] (n_steps, batch_size, a network too large to allocate)
+            venv.close()
+            raise ValueError(f"{cfg.source}: [algo]: {' '.join(str(exc).split())[:300]}") from None
     out.mkdir(parents=True, exist_ok=True)
     from .agent import AGENT_CONFIG_FORMAT, AGENT_CONFIG_VERSION
 

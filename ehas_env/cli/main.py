@@ -142,6 +142,12 @@ def _main(argv) -> int:
     if args.command is None:
         parser.print_help()
         return 0
+    empty = _empty_value(parser, args)
+    if empty:
+        # argparse takes '' as a value; the commands would read it as "not given" (or as the current folder)
+        print(f"ehas {args.command}: error: {empty}: the value is empty; give a value (see ehas {args.command} "
+              "--help)", file=sys.stderr)
+        return 2
     if getattr(args, "effects_path", None):
         from ehas_env.physics.effects import load_effects_path
 
@@ -199,6 +205,19 @@ def _main(argv) -> int:
         return _unexpected(name, exc)
     finally:
         warnings.showwarning = shown
+
+
+def _empty_value(parser, args) -> str | None:
+    """The option (or argument) given an empty string, if any."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
+    for action in sub._actions:
+        value = getattr(args, action.dest, None)
+        if value is action.default or value == action.default:
+            continue  # not given
+        values = value if isinstance(value, list) else [value]
+        if any(isinstance(v, str) and v.strip() == "" for v in values):
+            return action.option_strings[-1] if action.option_strings else action.metavar or action.dest
+    return None
 
 
 def _one_line(exc: BaseException) -> str:

@@ -344,6 +344,10 @@ def load_model(path) -> PlantModel:
         Not a model file, or a field out of range: one line naming the file and the field.
     """
     path = Path(path)
+    if str(path) in ("", "."):
+        raise ValueError("model file: the path is empty; give a model JSON file (docs/model-file.md)")
+    if path.is_dir():
+        raise ValueError(f"model file {path} is a folder; expected a model JSON file (docs/model-file.md)")
     if not path.is_file():
         raise FileNotFoundError(f"model file {path} does not exist")
     try:

@@ -371,3 +371,19 @@ def test_broken_pipe_in_a_command(capsys, monkeypatch):
     monkeypatch.setattr(os, "dup2", lambda *a: None)  # keep pytest's stdout
     rc, _, err = run_cli(["effects"], capsys)
     assert rc == 141 and err == []
+
+
+@pytest.mark.parametrize("argv, culprit", [
+    (["simulate", "--model", "", "--out", "{tmp}/x"], "--model: the value is empty"),
+    (["effects", ""], "name: the value is empty"),
+    (["bench", ""], "CONTROLLER_FILE: the value is empty"),
+    (["simulate", "--model", "{tmp}", "--out", "{tmp}/x"], "is a folder; expected a model JSON file"),
+])
+def test_an_empty_value_or_a_folder_for_a_file_is_refused(tmp_path, capsys, argv, culprit):
+    """'' was read as "not given" (or as the current folder); a folder given as a model file "did not exist"."""
+    from ehas_env.cli.main import main as ehas_main
+
+    assert ehas_main([a.format(tmp=tmp_path) for a in argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and culprit in err, err
+    assert not (tmp_path / "x").exists()

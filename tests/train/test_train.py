@@ -76,6 +76,23 @@ def test_config_errors_name_the_key(raw, message):
     assert message in str(exc.value) and "my.toml" in str(exc.value)
 
 
+@pytest.mark.parametrize("change, message", [
+    (("algo", "n_steps", 0), "[algo]: `n_steps * n_envs` must be greater than 1"),
+    (("kwargs", "dics_sets", 3), "[env]: TrackingVectorEnv.__init__() got an unexpected keyword argument 'dics_sets'"),
+    (("env", "id", "ehas/Bogus-v0"), "[env]: Environment `Bogus` doesn't exist"),
+])
+def test_config_errors_found_by_the_libraries_are_one_line_and_leave_nothing(tmp_path, smoke_cfg, change, message):
+    """stable-baselines3's and gymnasium's own refusals (before training starts) name the section; no folder is left."""
+    raw = smoke_cfg.to_file_dict()
+    section, key, value = change
+    (raw["env"]["kwargs"] if section == "kwargs" else raw[section])[key] = value
+    cfg = parse_config(raw, source="my.toml")
+    with pytest.raises(ValueError) as exc:
+        train(cfg, tmp_path / "run", progress=False, tensorboard=False)
+    assert str(exc.value).startswith("my.toml: ") and message in str(exc.value), str(exc.value)
+    assert not (tmp_path / "run").exists()
+
+
 def test_bad_toml_file_names_the_file(tmp_path):
     p = tmp_path / "bad.toml"
     p.write_text("[train\nalgo = 'sac'\n")
