@@ -449,8 +449,11 @@ def _run_interrupt(case: Case, tmp: Path, fx: Path, cmd: str) -> Result:
     before_parent = {p.name for p in parent.iterdir()}
     sig = o["signal"]
     t0 = time.monotonic()
+    # a shell's background job ignores SIGINT and children inherit that: give the command the default handler,
+    # as a terminal's Ctrl-C finds it (run in the background, the campaign otherwise saw SIGINT ignored)
     p = subprocess.Popen(EHAS + argv, cwd=tmp, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                         text=True, errors="replace", stdin=subprocess.DEVNULL)
+                         text=True, errors="replace", stdin=subprocess.DEVNULL,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     lines: list[str] = []
     first = threading.Event()
 
