@@ -58,8 +58,6 @@ from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
 #: book's identified gain (fit 95.4 %).  Outside these the bulk_modulus and
 #: valve_dynamics effects take over.
 BETA_RANGE = (0.93, 1.07)
-#: the effects that re-open the baseline's numbers (beta; the valve's K, wn, zeta) over their full ranges
-RECALIBRATIONS = ("bulk_modulus", "valve_dynamics")
 K_RANGE = (0.97, 1.03)
 PENALTY_PER_PARAM = 0.2  # dB per fitted effect parameter
 MIN_SCORE = 0.3  # dB: a candidate must remove at least 7 % of the null model's residual energy ...
@@ -101,6 +99,12 @@ class FreeParam:
         return (v - self.lo) / (self.hi - self.lo)
 
 
+def reopens_baseline(effect: str) -> bool:
+    """Whether ``effect`` re-opens the baseline's numbers over their full ranges (its ``kind`` is
+    ``"recalibration"``: bulk_modulus for beta, valve_dynamics for the valve's K, wn, zeta)."""
+    return get_effect(effect).kind == "recalibration"
+
+
 def fit_range(effect: str, pname: str) -> FreeParam:
     """The range a parameter is fitted over: its typical range widened 4x (1.6x for the strongly acting
     recalibrations), inside its bounds."""
@@ -112,7 +116,7 @@ def fit_range(effect: str, pname: str) -> FreeParam:
         return FreeParam(effect, pname, -m, m, False, _step(effect, pname))
     lo = max(blo, tlo / 4.0) if tlo > 0 else blo
     hi = min(bhi, thi * 4.0)
-    if effect in RECALIBRATIONS or (effect, pname) == ("supply_droop", "p0"):
+    if reopens_baseline(effect) or (effect, pname) == ("supply_droop", "p0"):
         # recalibrations and the precharge act strongly (the loop's stability hangs on beta and wn):
         # a narrower range, scanned finely enough to land in the valley
         lo, hi = max(blo, tlo / 1.6), min(bhi, thi * 1.6)
@@ -455,7 +459,7 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
     main = next(fp for fp in free if fp.name == get_effect(effect).main_param)
     f = fit(rep, free, start, null.model, scan=main, max_nfev=SCREEN_NFEV * len(free), tol=1e-3,
             null_cost=null.cost)
-    if effect in RECALIBRATIONS and len(free) > 1:
+    if reopens_baseline(effect) and len(free) > 1:
         # it re-opens numbers of the baseline: screen it also from the recalibrated baseline's numbers
         # (its others at the book's values), so that a valve whose gain alone is off is not judged only
         # with a typical worn valve's wn of 82 rad/s
@@ -470,7 +474,7 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
     # not clearly helpful: an effect kept before that re-opened beta or K (bulk_modulus, valve_dynamics) may
     # have absorbed part of this one (a valve gain fitted low where friction slows the crank, in position-only
     # logs): screen again with that number free as well
-    reopened = [fp for n in null.model.effects if n in RECALIBRATIONS for fp in own_params(n)
+    reopened = [fp for n in null.model.effects if reopens_baseline(n) for fp in own_params(n)
                 if fp.name == get_effect(n).main_param]
     if reopened:
         # from the typical start, not from the scan's end: with the number held, the scan runs to the bound
