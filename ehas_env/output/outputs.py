@@ -19,7 +19,11 @@ Every writing command does two things through this module:
 Two shapes of output set:
 
 * a **folder** that belongs to the command (``ehas compare --out DIR``): the
-  folder is the set and is swapped whole;
+  folder is the set and is swapped whole.  It carries a record of the files
+  the command wrote (:data:`RECORD`); ``--overwrite`` replaces a folder only
+  when every file in it is on that record, so a user's own files (a folder of
+  notes given as ``--out`` by mistake, a file added to an output since) are
+  never deleted;
 * **members** of a shared folder (``ehas simulate --out results/simulate/run``
   writes ``run.csv`` + ``run.json``; ``ehas bench --out results`` writes
   ``benchmark*`` and ``heatmap_*.png``): the set is the files matching the
@@ -51,6 +55,8 @@ from pathlib import Path
 TMP = "ehas-tmp"  # a run's output being written
 OLD = "ehas-old"  # the previous output, moved aside during the swap
 DONE = "ehas-done"  # the previous output after a complete swap, being deleted
+#: the record of a folder set's files, written last into the folder (see :func:`foreign_files`)
+RECORD = ".ehas-output.json"
 _STALE = re.compile(r"^\.(?P<name>.*)\.(?P<what>ehas-tmp|ehas-old|ehas-done)\.(?P<pid>\d+)$")
 _ATOMIC_TMP = re.compile(r"^\..+\.(?P<pid>\d+)\.[A-Za-z0-9_]+\.tmp$")  # ehas_env.output.files temporaries
 
@@ -123,8 +129,68 @@ def check_folder(path, option: str | None = "--out", *, overwrite: bool = False)
             raise OutputError(f"{_label(option, path)} already exists and is not empty; pass --overwrite to "
                               "replace it")
         if entries:
+            foreign = foreign_files(path)
+            if foreign:
+                shown = ", ".join(str(f) for f in foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+                raise OutputError(f"{_label(option, path)} holds files no ehas run wrote there ({shown}); "
+                                  "--overwrite replaces only an ehas output folder: move them out or give a new folder")
             probe_writable(path, _label(option, path))
     return path
+
+
+def foreign_files(folder) -> list[Path]:
+    """The files in ``folder`` (relative paths) that are not on its ehas output record.
+
+    A folder without a record (the user's own folder, or an output of an ehas
+    version before the record) has no file on it.  Leftovers of killed runs
+    and empty folders do not count.
+
+    >>> import tempfile, pathlib
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> with OutputSet(root / "report", option="--out") as tmp:
+    ...     _ = (tmp / "report.md").write_text("# new\\n")
+    >>> foreign_files(root / "report")
+    []
+    >>> _ = (root / "report" / "my_notes.txt").write_text("mine")
+    >>> foreign_files(root / "report")
+    [PosixPath('my_notes.txt')]
+    """
+    import json
+
+    folder = Path(folder)
+    try:
+        record = json.loads((folder / RECORD).read_text(encoding="utf-8"))
+        known = set(record["files"]) if record.get("format") == "ehas-output-set" else set()
+    except (OSError, ValueError, KeyError, TypeError):
+        known = set()
+    out = []
+    for f in sorted(_files(folder)):
+        rel = f.relative_to(folder)
+        if rel.as_posix() == RECORD or (len(rel.parts) == 1 and (_STALE.match(rel.name) or _ATOMIC_TMP.match(rel.name))):
+            continue
+        if rel.as_posix() not in known:
+            out.append(rel)
+    return out
+
+
+def _files(folder: Path):
+    for root, dirs, names in os.walk(folder, followlinks=False):
+        for n in names + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
+            yield Path(root) / n
+
+
+def write_record(folder) -> None:
+    """Write ``folder``'s record of its files (:data:`RECORD`): they are this ehas output's own."""
+    import json
+
+    folder = Path(folder)
+    files = sorted(f.relative_to(folder).as_posix() for f in _files(folder))
+    files = [f for f in files if f != RECORD]
+    text = json.dumps({"format": "ehas-output-set", "version": 1,
+                       "about": "the files an ehas command wrote here; --overwrite replaces the folder only if "
+                                "it holds no other file",
+                       "files": files}, indent=1) + "\n"
+    (folder / RECORD).write_text(text, encoding="utf-8")
 
 
 def check_not_input(path, option: str | None, inputs) -> None:
@@ -366,6 +432,7 @@ class OutputSet:
         """Swap the temporary folder in (see the class docstring)."""
         tmp, pid = self.tmp, os.getpid()
         if self.members is None:
+            write_record(tmp)
             final = self.path.absolute()
             old = final.parent / f".{final.name}.{OLD}.{pid}"
             if final.exists():

@@ -14,11 +14,14 @@ from ehas_env.output.outputs import OutputError, OutputSet, clean_stale, stem_se
 
 
 def snapshot(folder: Path) -> dict:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+    """The files and their bytes (a folder set's record of its files aside)."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name != O.RECORD}
 
 
 def hidden(folder: Path) -> list:
-    return [p.name for p in folder.rglob(".*")]
+    """Hidden leftovers (temporaries of a run), not the records of folder sets."""
+    return [p.name for p in folder.rglob(".*") if p.name != O.RECORD]
 
 
 def write_set(out: Path, files: dict, **kw) -> None:
@@ -35,6 +38,38 @@ def test_folder_set_is_replaced_whole(tmp_path):
     write_set(out, {"a.md": "2"}, overwrite=True)
     assert snapshot(out) == {"a.md": b"2"}  # b.png of the earlier run is gone: no mixed set
     assert hidden(tmp_path) == []
+
+
+def test_overwrite_never_deletes_files_ehas_did_not_write(tmp_path):
+    # a user's own folder given as --out by mistake
+    mine = tmp_path / "thesis"
+    (mine / "data").mkdir(parents=True)
+    (mine / "thesis.tex").write_text("mine")
+    (mine / "data" / "rig_log.csv").write_text("t\n0\n")
+    before = snapshot(mine)
+    with pytest.raises(OutputError, match=r"--out .*thesis holds files no ehas run wrote there "
+                                          r"\(data/rig_log.csv, thesis.tex\)"):
+        write_set(mine, {"a.md": "1"}, overwrite=True)
+    assert snapshot(mine) == before
+    # an earlier output (nested folders too) is on its record and is replaced ...
+    out = tmp_path / "report"
+    with OutputSet(out, "--out") as tmp:
+        (tmp / "sub").mkdir()
+        (tmp / "sub" / "x.csv").write_text("1")
+        (tmp / "a.md").write_text("1")
+    assert O.foreign_files(out) == []
+    write_set(out, {"a.md": "2"}, overwrite=True)
+    assert snapshot(out) == {"a.md": b"2"}
+    # ... until the user adds a file of their own to it
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match=r"holds files no ehas run wrote there \(notes.txt\)"):
+        write_set(out, {"a.md": "3"}, overwrite=True)
+    assert (out / "notes.txt").read_text() == "mine" and (out / "a.md").read_text() == "2"
+    # a damaged record protects everything
+    (out / "notes.txt").unlink()
+    (out / O.RECORD).write_text("{not json")
+    with pytest.raises(OutputError, match=r"\(a.md\)"):
+        write_set(out, {"a.md": "3"}, overwrite=True)
 
 
 @pytest.mark.parametrize("exc", [RuntimeError("boom"), KeyboardInterrupt()])
