@@ -175,7 +175,7 @@ def _command(truth) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--effects", default="",
+    parser.add_argument("--effects", default=None,
                         help="hidden effects, e.g. coulomb_friction:Fc=300,viscous_friction:b=2000 (default: none)")
     parser.add_argument("--out", required=True, help="campaign folder to write (must not exist or be empty)")
     from ehas_env.cli.options import number, option

@@ -23,7 +23,7 @@ from pathlib import Path
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md)")
-    parser.add_argument("--effects", default="",
+    parser.add_argument("--effects", default=None,
                         help="effects to add: NAME[,NAME...], optionally with values (coulomb_friction:Fc=300); "
                              "see `ehas diagnose` for which one is missing")
     parser.add_argument("--fit", action="store_true",
@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write the (calibrated) model as a model file for --model FILE")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier --out folder / --save-model file")
-    parser.add_argument("--columns", default="", metavar="NEW=OLD[,NEW=OLD...]",
+    parser.add_argument("--columns", default=None, metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
 

@@ -20,8 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=3,
                         help="disc sets on the crank, 1..7 (default 3)")
-    parser.add_argument("--gains", default="", help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's)")
-    parser.add_argument("--effects", default="", help="effects of the plant, e.g. 'viscous_friction:b=2000'")
+    parser.add_argument("--gains", default=None, help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's)")
+    parser.add_argument("--effects", default=None, help="effects of the plant, e.g. 'viscous_friction:b=2000'")
     parser.add_argument("--valve", choices=("grey_box", "white_box"), default="grey_box",
                         help="valve model of the position loop (default grey_box)")
     parser.add_argument("--supplies", default="70,140,220", help="supply pressures for flow vs current, bar, (0, 350]")
@@ -38,9 +38,9 @@ def run(args) -> int:
     from ehas_env.cli.options import FIELDS
     from ehas_env.output.outputs import OutputSet
 
-    items = [v for v in args.supplies.split(",") if v.strip()]
-    if not items or len(items) > 20:
-        raise ValueError(f"--supplies: expected 1 to 20 comma-separated pressures in bar, got {args.supplies!r}")
+    from ehas_env.cli.options import split_list
+
+    items = split_list(args.supplies, "--supplies", "pressures in bar", max_items=20)
     supplies = tuple(FIELDS["supply_bar"].parse(v, "--supplies: each pressure") for v in items)
     model = None
     if getattr(args, "model", None):
@@ -55,7 +55,7 @@ def run(args) -> int:
     plant = Plant(disc_sets=args.disc_sets, effects=args.effects or None, **kw)
     parts = ["ehas", "curves"]
     for flag, value, default in (("--out", args.out, "results/curves"), ("--disc-sets", str(args.disc_sets), "3"),
-                                 ("--gains", args.gains, ""), ("--effects", args.effects, ""),
+                                 ("--gains", args.gains, None), ("--effects", args.effects, None),
                                  ("--valve", args.valve, "grey_box"), ("--supplies", args.supplies, "70,140,220"),
                                  ("--model", getattr(args, "model", None) or "", "")):
         if value != default:

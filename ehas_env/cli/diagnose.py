@@ -27,20 +27,20 @@ import sys
 import time
 from pathlib import Path
 
-from ehas_env.cli.options import number
+from ehas_env.cli.options import number, split_list
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md)")
     parser.add_argument("--json", default=None, metavar="FILE", help="write the diagnosis as JSON (docs/measurement-format.md)")
     parser.add_argument("--out", default=None, metavar="DIR", help="folder for report.md and plots")
-    parser.add_argument("--with", dest="with_effects", default="", metavar="NAME[,NAME...]",
+    parser.add_argument("--with", dest="with_effects", default=None, metavar="NAME[,NAME...]",
                         help="effects already added (fitted with each candidate): find the next one")
     parser.add_argument("--stack", action="store_true",
                         help="stack effects (the default): keep the best while it is sane and lowers the "
                              "validation residual, then look again")
     parser.add_argument("--no-stack", action="store_true", help="one round: rank the candidates, keep at most one")
-    parser.add_argument("--candidates", default="", metavar="NAME[,NAME...]",
+    parser.add_argument("--candidates", default=None, metavar="NAME[,NAME...]",
                         help="try only these effects; 'library' = every effect of ehas's library, 'all' = those "
                              "and every other registered effect (default: the library and the effects of "
                              "--effects-path)")
@@ -55,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier --out folder / --json file / --write-effect file")
-    parser.add_argument("--columns", default="", metavar="NEW=OLD[,NEW=OLD...]",
+    parser.add_argument("--columns", default=None, metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
 
@@ -70,7 +70,9 @@ def run(args) -> int:
 
     t0 = time.perf_counter()
     base = parse_spec(args.with_effects) if args.with_effects else {}
-    candidates = resolve_candidates(args.candidates, getattr(args, "effects_path", None))
+    spec = None if args.candidates is None else split_list(args.candidates, "--candidates",
+                                                              "effect names (or library, all)")
+    candidates = resolve_candidates(spec, getattr(args, "effects_path", None))
     for n, p in base.items():
         get_effect(n).resolve(p)  # bad values refused before any work
     window = FIT_WINDOW_S if args.fit_window is None else args.fit_window
@@ -78,7 +80,7 @@ def run(args) -> int:
         raise ValueError(f"--fit-window {window:g}: give 0.5 to 600 s")
     holdout = None
     if args.holdout is not None:
-        holdout = [] if args.holdout.strip().lower() == "none" else [h.strip() for h in args.holdout.split(",") if h.strip()]
+        holdout = [] if args.holdout.strip().lower() == "none" else split_list(args.holdout, "--holdout", "run names (or none)")
     # the output paths, before any work
     if args.json:
         check_not_input(args.json, "--json", [args.campaign])

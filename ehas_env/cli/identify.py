@@ -63,8 +63,15 @@ def _command(args) -> str:
 
 
 def _coeffs(text: str, what: str) -> list[float]:
+    import re
+
+    from ehas_env.cli.options import split_list
+
+    # commas or blanks between coefficients ("1, 2" and "1 2" too)
+    items = split_list(re.sub(r"\s*,\s*|\s+", ",", text.strip()), f"--{what}",
+                       "polynomial coefficients (at most 11: degree 10)", max_items=11, unique=False)
     try:
-        vals = [float(v) for v in text.replace(" ", ",").split(",") if v]
+        vals = [float(v) for v in items]
     except ValueError:
         raise ValueError(f"--{what}: expected comma-separated numbers, got {text!r}") from None
     if not vals or not all(math.isfinite(v) for v in vals):

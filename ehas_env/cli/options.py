@@ -207,6 +207,25 @@ FIELDS: dict[str, Range] = {
     "gamma": Range(0, 1, "", lo_open=True),
     "tau": Range(0, 1, "", lo_open=True),
     "action_noise_std": Range(0, 10, "", lo_open=True),
+    # stable-baselines3's numeric hyper-parameters ([algo]): their meaningful ranges (a batch larger than
+    # the rollout, or zero epochs, trains nothing; gae_lambda > 1 makes the advantages diverge)
+    "gae_lambda": Range(0, 1, ""),
+    "n_steps": Range(1, 10_000_000, "steps per environment per rollout", integer=True),
+    "batch_size": Range(1, 10_000_000, "samples", integer=True),
+    "n_epochs": Range(1, 10_000, "epochs", integer=True),
+    "clip_range": Range(0, 10, "", lo_open=True),
+    "clip_range_vf": Range(0, 1e6, "", lo_open=True),
+    "ent_coef": Range(0, 100, ""),
+    "vf_coef": Range(0, 100, ""),
+    "max_grad_norm": Range(0, 1e6, "", lo_open=True),
+    "target_kl": Range(0, 100, "", lo_open=True),
+    "buffer_size": Range(1, 100_000_000, "transitions", integer=True),
+    "learning_starts": Range(0, 1e10, "steps", integer=True),
+    "gradient_steps": Range(-1, 1_000_000, "gradient steps (-1: as many as environment steps)", integer=True),
+    "policy_delay": Range(1, 10_000, "updates", integer=True),
+    "target_policy_noise": Range(0, 10, ""),
+    "target_noise_clip": Range(0, 10, ""),
+    "stats_window_size": Range(1, 1_000_000, "episodes", integer=True),
     "action_repeat": Range(1, 10_000, "control periods", integer=True),
     "action_scale_mA": Range(0, SERVO_LIMIT_MA, "mA", lo_open=True),
     "reward_scale": Range(0, 1e9, "", lo_open=True),
@@ -242,6 +261,37 @@ def check_samples(n, where: str) -> int:
     if not (isinstance(n, (int, float)) and math.isfinite(n) and 2 <= n <= MAX_SAMPLES):
         raise ValueError(f"{where} gives {_g(n)} samples; allowed 2 to {MAX_SAMPLES:,}")
     return int(n)
+
+
+def split_list(text: str, where: str, what: str, *, max_items: int = 1000, unique: bool = True) -> list[str]:
+    """The items of a comma-separated option value, stripped; every list option splits with this.
+
+    Refused: no item at all, an empty item (``70,,220``: a typo, not "skip"),
+    more than ``max_items`` items and (``unique``) an item given twice.
+
+    >>> split_list(" 70, 140 ,210", "--supplies", "pressures in bar")
+    ['70', '140', '210']
+    >>> split_list("70,,210", "--supplies", "pressures in bar")
+    Traceback (most recent call last):
+    ...
+    ValueError: --supplies: empty item in '70,,210'; give comma-separated pressures in bar
+    >>> split_list("a,b,a", "--candidates", "effect names")
+    Traceback (most recent call last):
+    ...
+    ValueError: --candidates: 'a' is given twice in 'a,b,a'
+    """
+    items = [part.strip() for part in str(text).split(",")]
+    if not any(items):
+        raise ValueError(f"{where}: expected comma-separated {what}, got {text!r}")
+    if "" in items:
+        raise ValueError(f"{where}: empty item in {text!r}; give comma-separated {what}")
+    if len(items) > max_items:
+        raise ValueError(f"{where}: at most {max_items} {what}, got {len(items)}")
+    if unique:
+        dup = next((i for k, i in enumerate(items) if i in items[:k]), None)
+        if dup is not None:
+            raise ValueError(f"{where}: {dup!r} is given twice in {text!r}")
+    return items
 
 
 def numeric_actions(parser: argparse.ArgumentParser):

@@ -86,8 +86,11 @@ def _command(args) -> str:
 
 
 def _parse_sizes(text: str) -> list[int]:
+    from ehas_env.cli.options import split_list
+
+    items = split_list(text, "--sizes", "positive integers", max_items=32)
     try:
-        sizes = [int(s) for s in text.split(",") if s.strip()]
+        sizes = [int(s) for s in items]
     except ValueError:
         raise ValueError(f"--sizes must be comma-separated positive integers, got {text!r}") from None
     if not sizes or min(sizes) < 1 or max(sizes) > 1_000_000 or len(sizes) > 32:

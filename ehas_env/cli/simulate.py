@@ -16,8 +16,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cycles", type=number("--cycles", "reference cycles", 3, 10_000), default=4.0,
                         help="reference cycles to run, 3..10000 (the first is warm-up; default 4); "
                              "at most 600 s of simulated time")
-    parser.add_argument("--effects", default="", help="effects, e.g. 'coulomb_friction:Fc=300,viscous_friction:b=2000'")
-    parser.add_argument("--gains", default="", help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's; with "
+    parser.add_argument("--effects", default=None, help="effects, e.g. 'coulomb_friction:Fc=300,viscous_friction:b=2000'")
+    parser.add_argument("--gains", default=None, help="controller gains, e.g. 'Kp=1,Ki=2' (default: the book's; with "
                                                     "--model, the book's carried over to that rig)")
     parser.add_argument("--controller", default=None, metavar="FILE",
                         help="a saved controller instead of --gains: a controller JSON (ehas tune --out) or a "
@@ -32,9 +32,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def parse_gains(text: str):
     from ehas_env.simulation.plant import RigController
 
+    from ehas_env.cli.options import split_list
+
+    if text is None:  # not given: the book's gains
+        return RigController()
     values = {}
-    for item in filter(None, (p.strip() for p in text.split(","))):
-        key, _, val = item.partition("=")
+    for item in split_list(text, "--gains", "NAME=VALUE gains, e.g. Kp=1.2,Ki=3"):
+        key, eq, val = (part.strip() for part in item.partition("="))
+        if not eq:
+            raise ValueError(f"--gains: {item!r} is not NAME=VALUE, e.g. --gains Kp=1.2,Ki=3")
+        if key in values:
+            raise ValueError(f"--gains: {key} is given twice in {text!r}")
         if key not in RigController.__dataclass_fields__:
             raise ValueError(f"--gains: unknown gain '{key}'; expected some of {', '.join(RigController.__dataclass_fields__)}")
         if key == "rate_hz":

@@ -180,7 +180,7 @@ def prbs(duration: float = 10.0, rate_hz: float = 1000.0, *, amplitude: float = 
     n = _samples(duration, rate_hz)
     _check_amplitude(amplitude, offset)
     m = _hold_samples(hold, rate_hz)
-    chips = -(-n // m)
+    chips = _chips(n, m, hold, duration, 3)  # a period of the shortest register (order 2)
     if order is None:
         order = min(max(int(math.ceil(math.log2(chips + 1))), 2), max(MLS_TAPS))
     seq = mls(order, seed)
@@ -216,11 +216,20 @@ def prms(duration: float = 10.0, rate_hz: float = 1000.0, *, amplitude: float = 
         raise ValueError(f"levels must be an integer >= 2, got {levels!r}")
     rng = np.random.default_rng(seed)
     grid = np.linspace(-amplitude, amplitude, int(levels))
-    chips = -(-n // m)
+    chips = _chips(n, m, hold, duration, 2)
     u = offset + np.repeat(grid[rng.integers(0, levels, chips)], m)[:n]
     t = np.arange(n) / rate_hz
     return Excitation(t, u, "prms", {"amplitude_mA": amplitude, "hold_s": hold, "levels": int(levels), "seed": seed,
                                      "offset_mA": offset, "duration_s": duration, "rate_hz": rate_hz})
+
+
+def _chips(n: int, m: int, hold: float, duration: float, least: int) -> int:
+    """Clock periods in the run; a signal of fewer than ``least`` is a constant or a step, not an excitation."""
+    chips = -(-n // m)
+    if chips < least:
+        raise ValueError(f"hold = {hold:g} s leaves {chips} clock period(s) in a {duration:g} s run; give hold "
+                         f"<= duration / {least} = {duration / least:g} s")
+    return chips
 
 
 def multisine(duration: float = 10.0, rate_hz: float = 1000.0, *, f0: float = 0.5, f1: float = 40.0,
@@ -250,6 +259,11 @@ def multisine(duration: float = 10.0, rate_hz: float = 1000.0, *, f0: float = 0.
     if not (isinstance(lines, (int, np.integer)) and lines >= 1):
         raise ValueError(f"lines must be a positive integer, got {lines!r}")
     df = rate_hz / n  # the DFT grid of the run: the lines are whole periods of it
+    room = max(0, min(math.floor(f1 / df + 1e-9), (n - 1) // 2) - max(math.ceil(f0 / df - 1e-9), 1) + 1)
+    if lines > room:
+        # more lines than the grid holds between f0 and f1 would be merged away without a word
+        raise ValueError(f"lines = {lines}: only {room} frequency lines of the 1/duration = {df:g} Hz grid lie "
+                         f"between f0 = {f0:g} Hz and f1 = {f1:g} Hz; give lines <= {room} or a longer duration")
     k = np.unique(np.round(np.geomspace(f0, f1, int(lines)) / df).astype(int))
     k = k[(k >= 1) & (k < n // 2)]
     if k.size == 0:

@@ -111,6 +111,20 @@ def test_each_range_is_finite_and_names_its_bounds(command, opt):
     (["train", "--algo", "sac", "--max-minutes", "nan", "--out", "t"], "--max-minutes"),
     (["nope"], "invalid choice"),
     (["simulate", "--no-such-option"], "unrecognized"),
+    # lists: an empty item is a typo, not "skip"; a name given twice is refused (split_list)
+    (["simulate", "--gains", ","], "--gains: expected comma-separated"),
+    (["simulate", "--gains", "Kp=1,Kp=2"], "--gains: Kp is given twice"),
+    (["simulate", "--gains", "Kp"], "'Kp' is not NAME=VALUE"),
+    (["curves", "--supplies", "70,,220"], "--supplies: empty item"),
+    (["perf", "--sizes", "1,,2"], "--sizes: empty item"),
+    (["identify", "--num", "1,,2", "--den", "1,2"], "--num: empty item"),
+    (["diagnose", "no_such_campaign", "--candidates", ","], "--candidates: expected comma-separated"),
+    (["diagnose", "no_such_campaign", "--candidates", "coulomb_friction,coulomb_friction"], "given twice"),
+    (["diagnose", "no_such_campaign", "--candidates", ""], "--candidates: the value is empty"),
+    (["diagnose", "no_such_campaign", "--holdout", "a,,b"], "--holdout: empty item"),
+    (["compare", "no_such_campaign", "--columns", "theta_deg=a,,t=b"], "--columns: empty item"),
+    (["excite", "prbs", "--duration", "1", "--hold", "30"], "hold = 30 s leaves 1 clock period"),
+    (["excite", "multisine", "--duration", "1", "--lines", "100000"], "only 40 frequency lines"),
 ])
 def test_examples_of_the_issue(argv, words, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -281,6 +295,10 @@ TOML = '[train]\nalgo = "ppo"\ntotal_steps = 100\nn_envs = 1\n'
     ("[algo]\ngamma = 2\n", "[algo] gamma"),
     ("[algo]\nlearning_rate = inf\n", "[algo] learning_rate"),
     ("[algo]\nn_steps = nan\n", "[algo] n_steps"),
+    ("[algo]\ngae_lambda = 5\n", "[algo] gae_lambda must be a number in [0, 1]"),
+    ("[algo]\nn_epochs = 0\n", "[algo] n_epochs must be an integer in [1, 10000]"),
+    ("[algo]\nbatch_size = 1e9\n", "[algo] batch_size must be an integer"),
+    ("[algo]\nn_steps = 16\nbatch_size = 64\n", "batch_size 64 is larger than the rollout (n_steps 16 x n_envs 1"),
     ("[randomise]\ndisc_sets = 9\n", "[randomise] disc_sets"),
     ("[randomise]\nfreq_hz = [1.0, 1e308]\n", "[randomise] freq_hz"),
     ('[randomise.effects]\nstribeck_friction = "typical"\n', "stribeck_friction"),

@@ -289,3 +289,26 @@ def test_none_among_numbers_is_a_missing_sample(runs):
     assert run.interpolated == {"flow_lpm": 2}
     np.testing.assert_allclose(run.columns["flow_lpm"][[99, 102]], q[[99, 102]])
     np.testing.assert_array_equal(run.columns["current_mA"], np.asarray(cols["current_mA"], dtype=float))
+
+
+@pytest.mark.parametrize("run", [CL, VALVE])
+def test_current_logged_in_microamps(camp, run):
+    """x1000 on a run whose true peak is a few mA lands between the servo amplifier's 20 mA and the
+    1000 mA beyond which anything is refused: the motion (closed loop) or the flow (valve run) says uA."""
+    csv = camp / f"{run}.csv"
+    peak = max(abs(float(line.split(",")[1])) for line in csv.read_text().splitlines()[1:])
+    factor = 300.0 / peak  # a 300 mA peak: inside the old 1000 mA limit
+    assert factor > 20
+    scale_column(csv, "current_mA", factor)
+    refused(lambda: read_campaign(camp), f"{run}.csv", "column 'current_mA'", "looks logged in uA")
+
+
+def test_clean_runs_are_not_taken_for_microamps(camp):
+    """The true currents (full-scale valve chirp, closed loop with the book's gains) pass."""
+    assert len(read_campaign(camp).runs) == 2
+
+
+def test_a_column_map_that_renames_nothing_is_refused(camp):
+    # a typo in --columns would silently leave a column out
+    refused(lambda: read_campaign(camp, columns={"theta_deg": "Nope"}), "--columns theta_deg=Nope",
+            "no run in", "has such a column", "current_mA")
