@@ -58,11 +58,21 @@ def _flow_range():
     return Range(0, 1e5, "LPM", lo_open=True)
 
 
+def _given(value, name: str):
+    """A path argument as given; an empty one is refused by its name (the nested parser is not checked by
+    ``ehas``'s own empty-value check)."""
+    if value is not None and not str(value).strip():
+        raise ValueError(f"{name}: the path is empty; give a model JSON file (docs/model-file.md)")
+    return value
+
+
 def run(args) -> int:
     from ehas_env.measurement import model_file as mf
 
+    for attr, name in (("file", "FILE"), ("base", "--from"), ("a", "A"), ("b", "B")):
+        _given(getattr(args, attr, None), name)
     if args.action == "show":
-        m = mf.load_model(args.file) if args.file else mf.PlantModel()
+        m = mf.load_model(args.file) if args.file is not None else mf.PlantModel()
         if args.json:
             import json
 
@@ -82,7 +92,7 @@ def run(args) -> int:
     from ehas_env.output.outputs import check_file
 
     check_file(args.file, "FILE", overwrite=args.overwrite)
-    base = mf.load_model(args.base) if args.base else mf.PlantModel()
+    base = mf.load_model(args.base) if args.base is not None else mf.PlantModel()
     doc = base.to_dict()
     doc["effects_path"] = list(base.effects_path)  # absolute; written relative to FILE's folder
     for f in mf.FIELDS:

@@ -123,6 +123,9 @@ def test_each_range_is_finite_and_names_its_bounds(command, opt):
     (["diagnose", "no_such_campaign", "--candidates", ""], "--candidates: the value is empty"),
     (["diagnose", "no_such_campaign", "--holdout", "a,,b"], "--holdout: empty item"),
     (["compare", "no_such_campaign", "--columns", "theta_deg=a,,t=b"], "--columns: empty item"),
+    (["model", "show", ""], "FILE: the path is empty"),
+    (["model", "new", "m.json", "--from", ""], "--from: the path is empty"),
+    (["model", "diff", "a.json", ""], "B: the path is empty"),
     (["excite", "prbs", "--duration", "1", "--hold", "30"], "hold = 30 s leaves 1 clock period"),
     (["excite", "multisine", "--duration", "1", "--lines", "100000"], "only 40 frequency lines"),
 ])
