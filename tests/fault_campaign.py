@@ -904,7 +904,8 @@ def list_cases() -> list[Case]:
         (S + ["--effects", "Fc=300"], "refuse", ("Fc",)),
         (S + ["--effects", "coulomb_friction,coulomb_friction"], "either", ("coulomb_friction",)),
         (S + ["--effects", "coulomb_friction:Fc=300;viscous_friction"], "accept", ()),
-        (S + ["--effects", ""], "accept", ()),
+        # '' is refused like any empty option value ("the value is empty"); leaving --effects out is "none"
+        (S + ["--effects", ""], "either", ("--effects",)),
         (S + ["--effects", "stribeck_friction:Fc=500,Fs=100"], "refuse", ("Fs", "Fc")),
         (C + ["--supplies", "0"], "refuse", ("--supplies",)),
         (C + ["--supplies", "nan"], "refuse", ("--supplies",)),
