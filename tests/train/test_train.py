@@ -77,7 +77,7 @@ def test_config_errors_name_the_key(raw, message):
 
 
 @pytest.mark.parametrize("change, message", [
-    (("algo", "n_steps", 0), "[algo]: `n_steps * n_envs` must be greater than 1"),
+    (("algo", "batch_size", 1), "[algo]: `batch_size` must be greater than 1"),
     (("kwargs", "dics_sets", 3), "[env]: TrackingVectorEnv.__init__() got an unexpected keyword argument 'dics_sets'"),
     (("env", "id", "ehas/Bogus-v0"), "[env]: Environment `Bogus` doesn't exist"),
 ])
@@ -281,7 +281,7 @@ def test_interrupted_training_resumes_from_its_last_checkpoint(tmp_path, smoke_c
 
 
 @pytest.mark.parametrize("file, content, message", [
-    ("config.json", "{", "config.json: not valid JSON (line 1"),
+    ("config.json", "{", "config.json: not valid JSON at line 1"),
     ("config.json", "[1]", "config.json: expected a JSON object"),
     ("config.json", '{"format": "ehas-model", "algo": "ppo"}', "format = 'ehas-model'; expected 'ehas-agent-config'"),
     ("config.json", '{"format": "ehas-agent-config", "version": 9, "algo": "ppo"}', "version = 9; this ehas reads"),
