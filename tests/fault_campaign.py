@@ -2024,6 +2024,23 @@ def lost_cases() -> list[Case]:
         ("bench", ["bench", "{fx}/ctrl/model.json", *BENCH_FAST, "--out", "{tmp}/out", "--overwrite"]),
         ("perf", ["perf", *PERF_FAST, "--out", "{tmp}/out", "--overwrite"]),
     ]
+    # ... nor a file the user added to an earlier output folder afterwards
+    added = {"curves": "out/curves", "simulate-campaign": "out/camp", "identify": "out/id", "compare": "out/report",
+             "diagnose": "out/diag", "demo": "out/demo"}
+    for name, folder in added.items():
+        argv = list(EARLIER[name])
+        if name in ("compare", "diagnose"):
+            argv = [a.replace("{fx}/camp", "{tmp}/camp") for a in argv]
+        argv = argv + (["--overwrite"] if name != "demo" else [])
+
+        def extra(tmp, fx, name=name, folder=folder):
+            if name in ("compare", "diagnose"):
+                with_camp(tmp, fx)
+            wtext(tmp / folder / "my_notes.txt", "what I saw on the rig\n")
+
+        cases.append(Case("lost", f"{name} --overwrite over an earlier output holding a file the user added", argv,
+                          "either", ("--overwrite", "my_notes.txt"), setup=earlier_setup(name, extra),
+                          protect=(f"{folder}/my_notes.txt",)))
     for name, argv in own:
         def setup(tmp, fx, argv=argv):
             if needs_camp(argv):
