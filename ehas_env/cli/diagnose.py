@@ -73,8 +73,12 @@ def run(args) -> int:
     spec = None if args.candidates is None else split_list(args.candidates, "--candidates",
                                                               "effect names (or library, all)")
     candidates = resolve_candidates(spec, getattr(args, "effects_path", None))
-    for n, p in base.items():
-        get_effect(n).resolve(p)  # bad values refused before any work
+    # bad values refused before any work; a parameter not given starts from its default
+    base = {n: get_effect(n).resolve(p) for n, p in base.items()}
+    both = [c for c in (spec or []) if c in base]
+    if both:
+        raise ValueError(f"--candidates: {both[0]} is already in --with (candidates are tried on top of the "
+                         f"--with effects); name effects not in --with: {', '.join(base)}")
     window = FIT_WINDOW_S if args.fit_window is None else args.fit_window
     if not 0.5 <= window <= 600:
         raise ValueError(f"--fit-window {window:g}: give 0.5 to 600 s")

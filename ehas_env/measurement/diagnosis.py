@@ -401,6 +401,13 @@ def resolve_candidates(spec, effects_path=None) -> list[str] | None:
     return out
 
 
+def with_defaults(effects: dict | None) -> dict[str, dict[str, float]]:
+    """{name: {param: value}} with every parameter an effect's values leave out at its default
+    (``--with coulomb_friction`` names no value; the fits start from each one)."""
+    return {n: {**{p.name: p.default for p in get_effect(n).params}, **dict(p or {})}
+            for n, p in (effects or {}).items()}
+
+
 def fit_null(rep: Replayer, base_effects: dict | None = None) -> Fit:
     """The baseline's best: beta and K (and the base effects' parameters) recalibrated."""
     base_effects = base_effects or {}
@@ -536,7 +543,7 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
 
     t0 = time.perf_counter()
     rep = replayer or Replayer(campaign)
-    base_effects = {n: dict(p) for n, p in (base_effects or {}).items()}
+    base_effects = with_defaults(base_effects)
     names = [n for n in (candidates or library_effects()) if n not in base_effects]
     for n in names:
         get_effect(n)
@@ -999,7 +1006,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             n = fit_window_samples(case.run, window_s)
             if n < case.run.n - 10:
                 parts[i] = n
-    base = {n: dict(p) for n, p in (base_effects or {}).items()}
+    base = with_defaults(base_effects)
     rounds, steps = [], []
     current = None  # Fit on the training data of the model kept so far
     cur_val = None

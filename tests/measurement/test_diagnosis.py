@@ -135,6 +135,22 @@ def test_diagnose_cli_writes_the_json_of_the_spec(viscous_dir, tmp_path, capsys)
     assert doc["ranking"][0]["fit_percent"] > doc["baseline"]["fit_percent"]
 
 
+def test_diagnose_with_an_effect_named_without_values_starts_from_its_defaults(viscous_dir, capsys):
+    """--with NAME gives no values: the fit starts from the effect's defaults (it was a KeyError)."""
+    folder, _ = viscous_dir
+    assert main(["diagnose", str(folder), "--no-propose", "--no-stack", "--quiet", "--with", "coulomb_friction",
+                 "--candidates", "viscous_friction"]) == 0
+    assert "baseline + coulomb_friction" in capsys.readouterr().out
+
+
+def test_diagnose_refuses_a_candidate_already_in_with(tmp_path, capsys):
+    assert main(["diagnose", str(tmp_path), "--quiet", "--with", "coulomb_friction",
+                 "--candidates", "coulomb_friction"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["ehas diagnose: error: --candidates: coulomb_friction is already in --with (candidates are tried "
+                   "on top of the --with effects); name effects not in --with: coulomb_friction"]
+
+
 def test_compare_fit_raises_the_fit_writes_report_and_model(viscous_dir, tmp_path, capsys):
     folder, truth = viscous_dir
     out, model = tmp_path / "report", tmp_path / "rig.json"

@@ -8,8 +8,13 @@ the compiled model; the plain-Python twin calls them as they are.
 """
 from __future__ import annotations
 
+import builtins
+import dis
 import inspect
 import math
+import numbers
+import re
+import types
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -35,6 +40,21 @@ QUANTITIES = {
     "i": "valve current, mA", "xp": "piston position state, m", "vp": "piston velocity state, m/s",
     "gap": "rod-joint gap x - r sin(theta), m (joint_force)", "gap_rate": "its rate, m/s (joint_force)",
 }
+#: the quantities available at each place (as :mod:`ehas_env.physics.codegen` passes them)
+_AT_RATES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "i", "p_load", "q_a", "q_b", "q_supply",
+             "x", "v")
+PLACE_QUANTITIES = {place: frozenset(_AT_RATES) for place in PLACES}
+PLACE_QUANTITIES["valve_current"] = frozenset({"i"})
+PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
+#: how many numbers a term returns at each place (state_rates: one per state, a number for one state)
+RETURNS = {"chamber_flows": 2}
+#: the only outside names a term's body may use: the compiled model copies the body alone into a module
+#: that imports these (ehas_env.physics.codegen)
+TERM_GLOBALS = ("math", "np")
+#: what an effect's name (and its parameters' and states' names) may be: it is typed in
+#: ``--effects NAME:param=value`` and becomes part of Python names in the compiled model
+NAME_RULE = "letters, digits and _, not starting with a digit"
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
 @dataclass(frozen=True)
@@ -68,6 +88,41 @@ class Param:
     log_scale: bool = False
     #: factor from ``unit`` to SI: the terms see ``value * si`` (e.g. 1e5 for bar)
     si: float = 1.0
+
+    def problem(self) -> str | None:
+        """What is wrong with this declaration (None when nothing): the rules every effect's parameters and
+        constants are held to when the effect registers."""
+        def real(v):
+            return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+
+        def pair(v):
+            return isinstance(v, (tuple, list)) and len(v) == 2 and all(real(x) for x in v)
+
+        if not isinstance(self.name, str) or not _NAME.match(self.name):
+            return f"name {self.name!r} is not allowed: use {NAME_RULE} (it is typed in --effects NAME:{self.name}=value)"
+        if not isinstance(self.unit, str):
+            return f"unit must be a string (e.g. 'N', '-'), got {self.unit!r}"
+        if not pair(self.bounds):
+            return f"bounds must be (low, high), two finite numbers, got {self.bounds!r}"
+        lo, hi = self.bounds
+        if lo > hi:
+            return f"bounds ({lo:g}, {hi:g}) are reversed: give (low, high) with low <= high"
+        if not real(self.default):
+            return f"default must be a finite number in {self.unit}, got {self.default!r}"
+        if not lo <= self.default <= hi:
+            return f"default {self.default:g} is outside its bounds [{lo:g}, {hi:g}] {self.unit}"
+        if self.typical is not None:
+            if not pair(self.typical):
+                return f"typical must be (low, high), two finite numbers, or None, got {self.typical!r}"
+            tlo, thi = self.typical
+            if not lo <= tlo <= thi <= hi:
+                return (f"typical ({tlo:g}, {thi:g}) must be a range (low <= high) inside its bounds "
+                        f"[{lo:g}, {hi:g}] {self.unit}")
+        if not real(self.si) or self.si <= 0:
+            return f"si must be a positive number (the factor from {self.unit} to SI), got {self.si!r}"
+        if not isinstance(self.doc, str):
+            return f"doc must be a string, got {self.doc!r}"
+        return None
 
     def check(self, effect: str, value) -> float:
         try:
@@ -114,6 +169,7 @@ class Effect:
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         if cls.name:
+            cls._check_declaration()
             # a misspelt place would add nothing, silently
             strays = [k for k, v in vars(cls).items()
                       if isinstance(v, staticmethod) and not k.startswith("_") and k not in PLACES]
@@ -123,10 +179,152 @@ class Effect:
             if not cls.terms() and getattr(cls.apply, "__func__", None) is Effect.apply.__func__:
                 raise ValueError(f"effect '{cls.name}' holds no physics: write at least one static method named "
                                  f"after a place ({', '.join(PLACES)}), or apply() for a recalibration")
+            cls._check_terms()
             old = REGISTRY.get(cls.name)
             if old is not None and (old.__module__, old.__qualname__) != (cls.__module__, cls.__qualname__):
                 raise RuntimeError(f"effect name '{cls.name}' registered twice: by {old.__module__} and {cls.__module__}")
             REGISTRY[cls.name] = cls
+
+    @classmethod
+    def _check_declaration(cls) -> None:
+        """The rules of an effect's declaration, the library's and a user's alike (one-line ValueErrors naming
+        the effect, its class and the field)."""
+        if not isinstance(cls.name, str) or not _NAME.match(cls.name):
+            hint = re.sub(r"\W", "_", cls.name) if isinstance(cls.name, str) else "my_effect"
+            raise ValueError(f"effect class {cls.__qualname__}: name {cls.name!r} is not allowed: use {NAME_RULE} "
+                             f"(it is typed in --effects NAME:param=value), e.g. {hint!r}")
+        who = f"effect '{cls.name}' (class {cls.__qualname__})"
+        names: dict[str, str] = {}
+        for field in ("params", "constants"):
+            items = getattr(cls, field)
+            if isinstance(items, list):
+                items = tuple(items)
+                setattr(cls, field, items)
+            if not isinstance(items, tuple):
+                raise ValueError(f"{who}: {field} must be a tuple of Param(...), e.g. {field} = (Param(...),) "
+                                 f"(mind the comma after a single one), got {type(items).__name__}")
+            for k, p in enumerate(items):
+                if not isinstance(p, Param):
+                    raise ValueError(f"{who}: {field}[{k}] must be a Param(...), got {type(p).__name__} {p!r:.60}")
+                problem = p.problem()
+                if problem:
+                    what = "parameter" if field == "params" else "constant"
+                    raise ValueError(f"{who}: {what} '{p.name}': {problem}")
+                if p.name in names:
+                    where = f"in {field}" if names[p.name] == field else f"in {names[p.name]} and {field}"
+                    raise ValueError(f"{who}: '{p.name}' is declared twice ({where}); parameters and constants "
+                                     "need distinct names")
+                names[p.name] = field
+        states = cls.states
+        if isinstance(states, list):
+            states = cls.states = tuple(states)
+        if not isinstance(states, tuple):
+            raise ValueError(f"{who}: states must be a tuple of (name, unit, initial value in SI), got "
+                             f"{type(states).__name__}")
+        for k, st in enumerate(states):
+            if not (isinstance(st, tuple) and len(st) == 3 and isinstance(st[0], str) and isinstance(st[1], str)
+                    and isinstance(st[2], numbers.Real) and not isinstance(st[2], bool) and math.isfinite(st[2])):
+                raise ValueError(f"{who}: states[{k}] must be (name, unit, initial value in SI) with a finite "
+                                 f"initial value, got {st!r}")
+            if not _NAME.match(st[0]):
+                raise ValueError(f"{who}: state name {st[0]!r} is not allowed: use {NAME_RULE}")
+            if st[0] in names:
+                raise ValueError(f"{who}: '{st[0]}' is declared twice (in {names[st[0]]} and states); parameters, "
+                                 "constants and states need distinct names")
+            names[st[0]] = "states"
+        if "state_rates" in cls.terms() and not states:
+            raise ValueError(f"{who}: state_rates gives the rates of the effect's own states, but it declares no "
+                             "states = ((name, unit, initial value in SI), ...)")
+        own = [p.name for p in cls.params]
+        if not isinstance(cls.main_param, str):
+            raise ValueError(f"{who}: main_param must be the name of one of its parameters "
+                             f"({', '.join(own) or 'it has none'}), got {cls.main_param!r}")
+        if cls.main_param and cls.main_param not in own:
+            raise ValueError(f"{who}: main_param '{cls.main_param}' is not one of its parameters "
+                             f"({', '.join(own) or 'it has none'})")
+        if not cls.main_param and own:
+            cls.main_param = own[0]  # documented default: the first parameter
+        if cls.kind not in ("physical", "recalibration"):
+            raise ValueError(f"{who}: kind must be 'physical' or 'recalibration', got {cls.kind!r}")
+        try:
+            cls.validate({p.name: p.default for p in cls.params})
+        except ValueError as exc:
+            raise ValueError(f"{who}: its parameters' defaults fail its own validate(): {exc}") from None
+
+    @classmethod
+    def _check_terms(cls) -> None:
+        """Call each term once, as plain Python, with realistic values; what it returns must be what its
+        place takes (compiling a wrong one fails deep inside numba).  One-line ValueErrors naming the
+        effect and the term."""
+        who = f"effect '{cls.name}' (class {cls.__qualname__})"
+        point = _sample_point()
+        own = {p.name: p.default * p.si for p in cls.params + cls.constants}
+        own_states = {st[0]: float(st[2]) for st in cls.states}
+        for place, fn in cls.terms().items():
+            fn = getattr(fn, "__func__", fn)
+            code = getattr(fn, "__code__", None)
+            if code is None:
+                raise ValueError(f"{who}: {place} must be a static method (def {place}(...)), got {fn!r:.60}")
+            sig = inspect.signature(fn)
+            odd = [p.name for p in sig.parameters.values()
+                   if p.kind not in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+            if odd:
+                raise ValueError(f"{who}: term {place} takes '{odd[0]}': a term's arguments are plain names, looked "
+                                 "up by name (no *args, **kwargs or keyword-only arguments)")
+            avail = PLACE_QUANTITIES[place]
+            kwargs = {}
+            for arg in sig.parameters:
+                if arg in own:
+                    kwargs[arg] = own[arg]
+                elif arg in avail:
+                    kwargs[arg] = point[arg]
+                elif arg in own_states:
+                    kwargs[arg] = own_states[arg]
+                elif arg in point["slots"]:
+                    kwargs[arg] = point["slots"][arg]
+                else:
+                    raise ValueError(
+                        f"{who}: argument '{arg}' of its term '{place}' is neither one of its parameters or "
+                        f"constants, nor its own state, nor a model quantity available there "
+                        f"({', '.join(sorted(avail))}), nor a baseline slot")
+            outside = []
+            for name in sorted(_globals_used(code)):
+                if name in fn.__globals__:
+                    value = fn.__globals__[name]
+                    if name in TERM_GLOBALS and isinstance(value, types.ModuleType) and value.__name__ in (
+                            "math", "numpy"):
+                        continue
+                    outside.append(f"'{name}'")
+                elif not hasattr(builtins, name):
+                    raise ValueError(f"{who}: term {place} uses '{name}', which its file does not define (a term "
+                                     "may use its own arguments and math; numpy only imported as np)")
+            if outside:
+                raise ValueError(f"{who}: term {place} uses {', '.join(outside)} from its file, but the compiled "
+                                 "model copies the term's own lines alone: a term may use its own arguments (a "
+                                 "fixed number goes in constants = (Param(...),)) and math; numpy only as np")
+            try:
+                out = fn(**kwargs)
+            except Exception as exc:
+                at = ", ".join(f"{k}={v:.4g}" for k, v in kwargs.items())
+                text = " ".join(str(exc).split())
+                raise ValueError(f"{who}: term {place}({at}) raised {type(exc).__name__}: {text} (terms are "
+                                 "called once with realistic values when the effect registers)") from None
+            n = RETURNS.get(place, len(cls.states) if place == "state_rates" else 1)
+            what = PLACES[place] if place != "state_rates" else (
+                "one number, the rate of its state" if n == 1 else f"a tuple of {n} numbers, the rates of its states")
+            if n == 1:
+                ok = _number(out)
+            else:
+                ok = isinstance(out, tuple) and len(out) == n and all(_number(v) for v in out)
+            if not ok:
+                got = (f"a tuple of {len(out)}" if isinstance(out, tuple) else f"{type(out).__name__} {out!r:.40}")
+                must = ("one number" if n == 1 else f"a tuple of {n} numbers")
+                raise ValueError(f"{who}: term {place} returned {got}; it must return {must}: {what}")
+            vals = out if isinstance(out, tuple) else (out,)
+            if not all(math.isfinite(v) for v in vals):
+                at = ", ".join(f"{k}={v:.4g}" for k, v in kwargs.items())
+                raise ValueError(f"{who}: term {place}({at}) returned {out!r}, not a finite number (terms are "
+                                 "called once with realistic values when the effect registers)")
 
     @classmethod
     def param(cls, name: str) -> Param:
@@ -187,6 +385,43 @@ class Effect:
 
 
 REGISTRY: dict[str, type[Effect]] = {}
+
+
+def _number(v) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
+
+
+def _globals_used(code) -> set[str]:
+    """Global names a function's code reads (its nested functions' and comprehensions' too)."""
+    names = {ins.argval for ins in dis.get_instructions(code) if ins.opname in ("LOAD_GLOBAL", "LOAD_NAME")}
+    for c in code.co_consts:
+        if isinstance(c, types.CodeType):
+            names |= _globals_used(c)
+    return names
+
+
+_POINT: dict = {}
+
+
+def _sample_point() -> dict:
+    """Realistic values of the model quantities and baseline slots (the book's rig, mid-motion, 5 mA):
+    what a term is called with once when its effect registers."""
+    if not _POINT:
+        from ehas_env.physics import layout, rig
+
+        th, om = 0.2, 0.5
+        x, v = rig.CRANK_RADIUS * math.sin(th), rig.CRANK_RADIUS * math.cos(th) * om
+        _POINT.update(theta=th, omega=om, x=x, v=v, xp=x, vp=v, pa=12.0e6, pb=9.0e6, ps=rig.SUPPLY_PRESSURE,
+                      p_load=3.0e6, qc=2.0e-4, qc_dot=1.0e-3, q_a=1.5e-4, q_b=-1.5e-4, q_supply=1.5e-4, i=5.0,
+                      gap=1.0e-4, gap_rate=0.01)
+        slots = dict.fromkeys(layout.BASE_SLOTS, 1.0)
+        slots.update(inertia=2 * rig.INERTIA_PER_SET, radius=rig.CRANK_RADIUS, area=rig.AREA,
+                     half_stroke=rig.HALF_STROKE, supply=rig.SUPPLY_PRESSURE, rated_drop=rig.RATED_VALVE_DROP,
+                     beta=rig.BULK_MODULUS, dead_volume=rig.DEAD_VOLUME, K=rig.VALVE_K * rig.LPM, wn=rig.VALVE_WN,
+                     zeta=rig.VALVE_ZETA, i_max=rig.RATED_CURRENT, tau=0.003, v_tanh=1.0e-3, valve_model=0.0,
+                     effects_on=1.0)
+        _POINT["slots"] = slots
+    return _POINT
 
 
 def effect_value(slots: dict, name: str, param: str) -> float:
