@@ -123,6 +123,7 @@ def test_each_range_is_finite_and_names_its_bounds(command, opt):
     (["diagnose", "no_such_campaign", "--candidates", ""], "--candidates: the value is empty"),
     (["diagnose", "no_such_campaign", "--holdout", "a,,b"], "--holdout: empty item"),
     (["compare", "no_such_campaign", "--columns", "theta_deg=a,,t=b"], "--columns: empty item"),
+    (["simulate", "--effects", "coulomb_friction,,viscous_friction"], "effects spec: empty item"),
     (["model", "show", ""], "FILE: the path is empty"),
     (["model", "new", "m.json", "--from", ""], "--from: the path is empty"),
     (["model", "diff", "a.json", ""], "B: the path is empty"),

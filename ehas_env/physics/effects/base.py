@@ -485,10 +485,9 @@ def parse_spec(text: str) -> dict[str, dict[str, float]]:
     """
     out: dict[str, dict[str, float]] = {}
     current = None
-    for raw in text.replace(";", ",").split(","):
-        item = raw.strip()
-        if not item:
-            continue
+    from ehas_env.cli.options import split_list
+
+    for item in split_list(text.replace(";", ","), "effects spec", "NAME[:PARAM=VALUE] items", unique=False):
         if ":" in item:
             current, item = (part.strip() for part in item.split(":", 1))
             get_effect(current)
