@@ -178,7 +178,10 @@ class CompiledController(Controller):
 
     @classmethod
     def from_dict(cls, data: dict) -> "CompiledController":
-        return cls(**dict(data.get("gains", {})))
+        import dataclasses
+
+        names = [f.name for f in dataclasses.fields(cls)] if dataclasses.is_dataclass(cls) else []
+        return cls(**gains_field(data, names))
 
 
 def _load_py(path: Path) -> Controller:
@@ -211,6 +214,31 @@ def _load_py(path: Path) -> Controller:
         raise ValueError(f"controller file {path}: CONTROLLER must be an ehas_controllers.base.Controller")
     ctrl.source = str(path)
     return ctrl
+
+
+def gains_field(data: dict, names) -> dict:
+    """The ``"gains"`` object of a controller description: present, an object, not empty, only known names.
+
+    The values are checked by the controller itself (finite numbers in their ranges).
+
+    >>> gains_field({"type": "piff"}, ["Kp", "Ki"])
+    Traceback (most recent call last):
+    ...
+    ValueError: no 'gains' field; expected "gains": {gain name: number} with some of Kp, Ki
+    """
+    names = list(names)
+    expected = f"some of {', '.join(names)}" if names else "the controller's gains"
+    if "gains" not in data:
+        raise ValueError(f"no 'gains' field; expected \"gains\": {{gain name: number}} with {expected}")
+    gains = data["gains"]
+    if not isinstance(gains, dict):
+        raise ValueError(f"'gains' must be an object of gain name -> number ({expected}), got {gains!r}")
+    if not gains and names:
+        raise ValueError(f"'gains' is empty; expected {expected}")
+    unknown = set(gains) - set(names)
+    if unknown:
+        raise ValueError(f"unknown gain(s) {', '.join(sorted(map(str, unknown)))} in 'gains'; expected {expected}")
+    return dict(gains)
 
 
 def check_measurement(measurement: dict, who: str) -> None:
@@ -265,16 +293,23 @@ def controller_from_dict(data: dict) -> Controller:
     return CONTROLLER_TYPES[kind](data)
 
 
+#: what a controller JSON file is, for the errors of the file reader (ehas_env.output.files)
+CONTROLLER_FILE = f'a controller JSON file ("format": "{FILE_FORMAT}", written by ehas tune)'
+
+
 def _load_json(path: Path) -> Controller:
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"controller file {path}: not valid JSON ({exc})") from None
-    check_file_header(data, f"controller file {path}")
+    from ehas_env.output.files import read_json
+
+    data = read_json(path, CONTROLLER_FILE)
+    where = f"controller file {path}"
+    check_file_header(data, where)
     try:
         ctrl = controller_from_dict(data)
     except (ValueError, TypeError, KeyError) as exc:
-        raise ValueError(f"controller file {path}: {exc}") from None
+        raise ValueError(f"{where}: {exc}") from None
+    if "kind" in data and data["kind"] != getattr(ctrl, "kind", None):
+        raise ValueError(f"{where}: key 'kind' = {data['kind']!r}, but a {data['type']!r} controller is "
+                         f"{getattr(ctrl, 'kind', None)!r}; remove the key or set it to {getattr(ctrl, 'kind', None)!r}")
     ctrl.source = str(path)
     return ctrl
 
@@ -283,6 +318,8 @@ def check_file_header(data, where: str) -> None:
     """Refuse a controller JSON without this format's ``format``, ``version`` and a known ``type``.
 
     The same words for every file format ehas reads: what the key holds and what is expected.
+    An optional ``kind`` must be one of :data:`KINDS` (:func:`load_controller` checks it is the
+    type's own).
     """
     if not isinstance(data, dict):
         raise ValueError(f"{where}: expected a JSON object with \"format\": \"{FILE_FORMAT}\", got {type(data).__name__}")
@@ -293,9 +330,16 @@ def check_file_header(data, where: str) -> None:
         raise ValueError(f"{where}: key 'format' = {data['format']!r}; expected {FILE_FORMAT!r}")
     if data.get("version") != FILE_VERSION:
         raise ValueError(f"{where}: key 'version' = {data.get('version')!r}; this ehas reads version {FILE_VERSION}")
+    _import_plugins()
+    known = ", ".join(sorted(CONTROLLER_TYPES))
     if "type" not in data:
-        _import_plugins()
-        raise ValueError(f"{where}: no 'type' key; expected one of {', '.join(sorted(CONTROLLER_TYPES))}")
+        raise ValueError(f"{where}: no 'type' key; expected one of {known}")
+    if not isinstance(data["type"], str) or data["type"] not in CONTROLLER_TYPES:
+        what = "is unknown" if isinstance(data["type"], str) else "is not a type name"
+        raise ValueError(f"{where}: key 'type' = {data['type']!r} {what}; expected one of {known}")
+    if "kind" in data and data["kind"] not in KINDS:
+        raise ValueError(f"{where}: key 'kind' = {data['kind']!r}; expected one of {', '.join(map(repr, KINDS))} "
+                         "(or no 'kind' key)")
 
 
 register_loader(".json", _load_json)

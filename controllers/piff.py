@@ -36,7 +36,7 @@ import numpy as np
 
 from ehas_env.simulation.control_laws import N_MEM, register_law
 
-from .base import Controller, check_measurement, register_type
+from .base import Controller, check_measurement, gains_field, register_type
 
 
 def pi_ff_law(gains, mem, t, dt, theta, r, rd, rdd, rddd, p_load, p_s, u_max):
@@ -155,12 +155,9 @@ class PIFF(Controller):
 
     @classmethod
     def from_dict(cls, data: dict) -> "PIFF":
-        gains = data.get("gains", data)
-        if not isinstance(gains, dict):
-            raise ValueError("'gains' must be an object of gain name -> number")
-        unknown = set(gains) - set(GAIN_NAMES)
-        if unknown:
-            raise ValueError(f"unknown gain(s) {', '.join(sorted(unknown))}; expected some of {', '.join(GAIN_NAMES)}")
+        if "gains" not in data and data and set(data) <= set(GAIN_NAMES):
+            data = {"gains": data}  # a bare {gain: value} dict (Python API)
+        gains = gains_field(data, GAIN_NAMES)
         kw = {k: gains[k] for k in GAIN_NAMES if k in gains}
         for key in ("i_max", "output_bits", "rate_hz", "name"):
             if key in data:
@@ -326,8 +323,15 @@ class GainSchedule(Controller):
         if not isinstance(entries, dict) or not entries:
             raise ValueError("a schedule needs 'entries': {disc_sets: {gains: {...}}}")
         name = data.get("name", "schedule")
-        return cls({k: PIFF.from_dict({**v, "name": f"{name}@{k}"}) for k, v in entries.items()}, name=name,
-                   basis=data.get("basis", ""))
+        built = {}
+        for k, v in entries.items():
+            if not isinstance(v, dict):
+                raise ValueError(f"entries[{k!r}] must be an object {{gains: {{...}}}}, got {v!r}")
+            try:
+                built[k] = PIFF.from_dict({**v, "name": f"{name}@{k}"})
+            except ValueError as exc:
+                raise ValueError(f"entries[{k!r}]: {exc}") from None
+        return cls(built, name=name, basis=data.get("basis", ""))
 
     def __repr__(self) -> str:
         lines = [f"GainSchedule '{self.name}' over disc sets {list(self.entries)}" + (f" ({self.basis})" if self.basis else "")]

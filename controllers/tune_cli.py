@@ -75,7 +75,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("relay")
     g.add_argument("--rule", choices=("zn", "tl"), default="tl",
                    help="PI rule: tl Tyreus-Luyben (default: more gain margin), zn Ziegler-Nichols")
-    g.add_argument("--relay-mA", type=option("--relay-mA", "current_mA"), default=1.0, help="relay amplitude, mA (default 1)")
+    g.add_argument("--relay-mA", type=option("--relay-mA", "relay_mA"), default=1.0, help="relay amplitude, mA (default 1)")
     g = parser.add_argument_group("schedule")
     g.add_argument("--base", choices=("model", "optimize", "relay"), default="optimize",
                    help="tuner run at each disc set (default optimize)")

@@ -475,8 +475,9 @@ def relay_experiment(plant=None, *, disc_sets: int = 3, relay_mA: float = 1.0, h
     from ehas_env.physics import layout as K
     from ehas_env.simulation.plant import TAU_MAX, Plant
 
-    if not (math.isfinite(relay_mA) and 0 < relay_mA <= 20):
-        raise ValueError(f"relay amplitude must be in (0, 20] mA, got {relay_mA!r}")
+    from ehas_env.cli.options import check_field
+
+    relay_mA = check_field("relay_mA", relay_mA, "relay_mA (the relay amplitude)")
     if not (math.isfinite(hysteresis_deg) and hysteresis_deg >= 0):
         raise ValueError(f"hysteresis must be >= 0 deg, got {hysteresis_deg!r}")
     plant = plant or Plant(disc_sets=disc_sets)
@@ -487,7 +488,9 @@ def relay_experiment(plant=None, *, disc_sets: int = 3, relay_mA: float = 1.0, h
     rises = np.flatnonzero(np.diff(u) > 0) + 1
     rises = rises[len(rises) // 3:]
     if rises.size < 4:
-        raise ValueError("relay experiment: no sustained oscillation; lengthen the run or raise the relay amplitude")
+        raise ValueError(f"relay experiment: no sustained oscillation in {duration_s:g} s with relay_mA = "
+                         f"{relay_mA:g} mA (--relay-mA) and hysteresis {hysteresis_deg:g} deg; raise the relay "
+                         "amplitude or lengthen the run")
     tu = (rises[-1] - rises[0]) / (rises.size - 1) * plant.dt
     seg = slice(rises[0], rises[-1])
     t = np.arange(n)[seg] * plant.dt

@@ -3,7 +3,9 @@
 An agent folder (what ``ehas train`` writes) holds ``model.zip`` (the policy),
 ``vecnormalize.pkl`` (observation statistics, when used) and ``config.json``
 (the resolved training configuration: environment, action hold and scale,
-residual base controller).  A bare stable-baselines3 ``.zip`` loads too (no
+residual base controller).  A folder without ``config.json``, or without
+``vecnormalize.pkl`` when ``config.json`` says ``"vecnormalize": true``, is
+refused naming the missing file.  A bare stable-baselines3 ``.zip`` loads too (no
 normalisation, the default environment settings).
 
 Loading warns (:class:`PickleWarning`): stable-baselines3 zips and the
@@ -243,6 +245,12 @@ def load_agent(path, warn: bool = True) -> LearnedController:
         Emit the :class:`PickleWarning` (the trainer turns it off for the agent
         it has just written itself).
 
+    Raises
+    ------
+    ValueError
+        A folder without ``config.json``, or without ``vecnormalize.pkl`` when its config says
+        ``vecnormalize = true``; a damaged file (named).  These are checked before any pickle is loaded.
+
     Warns
     -----
     PickleWarning
@@ -258,17 +266,25 @@ def load_agent(path, warn: bool = True) -> LearnedController:
     cfg_path = folder / "config.json"
     norm_path = folder / "vecnormalize.pkl"
     in_folder = path.is_dir()
+    if in_folder:
+        if not cfg_path.exists():
+            raise ValueError(f"agent folder {folder}: config.json is missing; an agent folder written by ehas train "
+                             "holds model.zip, config.json (its training configuration) and, when trained with "
+                             "vecnormalize = true, vecnormalize.pkl (a bare model zip loads as FOLDER/model.zip)")
+        saved = read_agent_config(cfg_path)
+        controller_desc = saved.pop("controller_resolved", None)
+        cfg = config_from_resolved(saved, source=str(cfg_path))
+        if cfg.vecnormalize and not norm_path.is_file():
+            raise ValueError(f"agent folder {folder}: vecnormalize.pkl is missing; config.json says the agent was "
+                             "trained with vecnormalize = true, so its policy needs those observation statistics")
+    else:
+        controller_desc = None
+        cfg = parse_config({"train": {"algo": _algo_of_zip(model_path)}}, source=str(model_path))
+    # the folder is whole (checked above, from its JSON): only now unpickle, after the warning
     pickles = [p for p in (model_path, norm_path) if p.exists() and (in_folder or p == model_path)]
     if warn and not _trusted(pickles):
         what = ", ".join(p.name for p in pickles)
         warnings.warn(PICKLE_WARNING.format(what=what), PickleWarning, stacklevel=2)
-    if in_folder and cfg_path.exists():
-        saved = read_agent_config(cfg_path)
-        controller_desc = saved.pop("controller_resolved", None)
-        cfg = config_from_resolved(saved, source=str(cfg_path))
-    else:
-        controller_desc = None
-        cfg = parse_config({"train": {"algo": _algo_of_zip(model_path)}}, source=str(model_path))
     try:
         model = algo_class(cfg.algo).load(model_path, device="cpu")
     except (OSError, EOFError, KeyError, ValueError, RuntimeError, pickle.UnpicklingError, zipfile.BadZipFile) as exc:
@@ -300,12 +316,10 @@ def read_agent_config(path: Path) -> dict:
 
     Its ``format`` and ``version`` keys (agents trained before they were written lack them) are checked.
     """
-    try:
-        saved = json.loads(Path(path).read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a text file; expected the JSON written by ehas train") from None
+    from ehas_env.output.files import read_json
+
+    saved = read_json(path, f"an agent folder's config.json (\"format\": \"{AGENT_CONFIG_FORMAT}\", written by "
+                            "ehas train)")
     if not isinstance(saved, dict):
         raise ValueError(f"{path}: expected a JSON object (the resolved training configuration written by "
                          f"ehas train), got {type(saved).__name__}")
@@ -367,8 +381,12 @@ def trust_agent(path) -> None:
 
 def _algo_of_zip(path: Path) -> str:
     """Algorithm of a bare stable-baselines3 zip (from its stored policy class)."""
-    with zipfile.ZipFile(path) as z:
-        data = z.read("data").decode("utf-8", errors="replace")
+    try:
+        with zipfile.ZipFile(path) as z:
+            data = z.read("data").decode("utf-8", errors="replace")
+    except (zipfile.BadZipFile, KeyError, OSError) as exc:
+        raise ValueError(f"{path}: not a model saved by stable-baselines3 (a zip holding 'data'): "
+                         f"{' '.join(str(exc).split()) or type(exc).__name__}") from None
     for algo, marker in (("sac", "stable_baselines3.sac"), ("td3", "stable_baselines3.td3"),
                          ("ppo", "ActorCriticPolicy")):
         if marker in data:

@@ -277,13 +277,18 @@ def bundled_config(name: str) -> Path:
     return path
 
 
+#: what a training config is, for the errors of the file reader (ehas_env.output.files)
+CONFIG_FILE = "a training config (a TOML file, e.g. train/configs/ppo.toml)"
+
+
 def read_toml(path) -> dict:
-    """The parsed TOML file ``path``; clear errors for a missing or malformed file."""
+    """The parsed TOML file ``path``; one-line errors naming it (missing, a folder, not UTF-8 text, not TOML)."""
+    from ehas_env.output.files import read_text
+
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"config file {path} does not exist")
+    text = read_text(path, CONFIG_FILE)
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{path}: not valid TOML: {exc}") from None
 
@@ -445,19 +450,44 @@ def _check_hyper(algo: str, hyper: dict, source: str) -> None:
         raise ValueError(f"{source}: [algo.policy_kwargs] activation_fn must be one of {', '.join(ACTIVATIONS)}, "
                          f"got {pk['activation_fn']!r}")
     if "net_arch" in pk:
-        na = pk["net_arch"]
-        ok = isinstance(na, list) and all(isinstance(n, int) and n > 0 for n in na)
-        ok = ok or (isinstance(na, dict) and all(isinstance(v, list) and all(isinstance(n, int) and n > 0 for n in v)
-                                                 for v in na.values()))
-        if not ok:
-            raise ValueError(f"{source}: [algo.policy_kwargs] net_arch must be a list of positive layer sizes "
-                             f"(or a table of such lists), got {na!r}")
+        pk["net_arch"] = _check_net_arch(pk["net_arch"], f"{source}: [algo.policy_kwargs] net_arch",
+                                         ("pi", "vf") if algo == "ppo" else ("pi", "qf"))
     for key in ("learning_rate", "gamma", "tau"):
         if key in hyper:
             check_field(key, hyper[key], f"{source}: [algo] {key}")
     for key, value in hyper.items():  # every other number: finite (TOML allows inf and nan)
         if isinstance(value, float) and not math.isfinite(value):
             raise ValueError(f"{source}: [algo] {key} must be a finite number, got {value!r}")
+
+
+#: hidden layers of a policy or value network ([algo.policy_kwargs] net_arch): at most this many layers of
+#: 1 to NET_ARCH_MAX_WIDTH units (a controller's networks have tens to hundreds; a layer of 10^9 units is an
+#: allocation of tens of GB, not a network)
+NET_ARCH_MAX_LAYERS = 8
+NET_ARCH_MAX_WIDTH = 4096
+
+
+def _check_net_arch(na, where: str, networks=("pi", "vf")):
+    """``net_arch``: a list of layer widths, or a table of such lists per network (``networks``), in range."""
+    from ehas_env.cli.options import check_number
+
+    allowed = (f"a list of at most {NET_ARCH_MAX_LAYERS} layer widths, integers in [1, {NET_ARCH_MAX_WIDTH}] "
+               f"(or a table of such lists: {', '.join(networks)})")
+
+    def layers(values, at: str) -> list:
+        if not isinstance(values, list) or len(values) > NET_ARCH_MAX_LAYERS:
+            raise ValueError(f"{at} must be {allowed}, got {values!r}")
+        return [check_number(v, f"{at} layer {k + 1}", "units", 1, NET_ARCH_MAX_WIDTH, integer=True)
+                for k, v in enumerate(values)]
+
+    if isinstance(na, dict):
+        if not na:
+            raise ValueError(f"{where} must be {allowed}, got an empty table")
+        for key in na:
+            if key not in networks:
+                raise ValueError(f"{where}: unknown network {key!r}; allowed: {', '.join(networks)}")
+        return {key: layers(v, f"{where}.{key}") for key, v in na.items()}
+    return layers(na, where)
 
 
 def _check_randomise(rnd: dict, source: str) -> None:

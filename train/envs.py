@@ -60,8 +60,9 @@ def tuned_controller_path(results_dir: str | Path = "results/controllers") -> Pa
             data = json.loads(path.read_text())
         except (OSError, json.JSONDecodeError, UnicodeDecodeError):
             continue
-        if not isinstance(data, dict) or data.get("kind", "classical") != "classical":
-            continue
+        if not isinstance(data, dict) or data.get("format") != "ehas-controller" \
+                or data.get("kind", "classical") != "classical":
+            continue  # not a controller file of ehas tune (resolve_controller_spec checks the one chosen)
         score = data.get("mean_rms_error_pct")
         if isinstance(score, (int, float)) and np.isfinite(score) and ("gains" in data or "entries" in data):
             ranked.append((float(score), str(path)))
@@ -90,12 +91,16 @@ def resolve_controller_spec(spec: str, results_dir: str | Path = "results/contro
             return {"source": f"book (no tuned controller under {results_dir})", "data": None}
     else:
         path = Path(spec)
-        if not path.is_file():
+        if not path.exists():
             raise FileNotFoundError(f"[env] controller: controller file {path} does not exist")
+    from ehas_controllers.base import CONTROLLER_FILE, check_file_header
+    from ehas_env.output.files import read_json
+
     try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"[env] controller: {path} is not valid JSON: {exc}") from None
+        data = read_json(path, CONTROLLER_FILE)
+    except ValueError as exc:
+        raise ValueError(f"[env] controller: {exc}") from None
+    check_file_header(data, f"[env] controller: controller file {path}")
     return {"source": str(path), "data": data}
 
 

@@ -37,10 +37,14 @@ from ehas_controllers.batch_sim import DEFAULT_CYCLES, METRICS
 from ehas_controllers.benchmark import AMPLITUDES, CSV_COLUMNS, DISC_SETS, FREQS  # noqa: F401
 from ehas_controllers.benchmark import rows_csv as benchmark_rows_csv
 
+from ehas_env.output.files import read_json
+
 from . import envs as E
 
 I_MAX = 20.0  # mA, servo amplifier (docs/rig.md)
 DESIGN_POINT = (7, 3.0, 30.0)  # disc sets, Hz, deg: the rig's design point (docs/rig.md)
+#: what an agent folder's metrics.json is, for the errors of the file reader
+METRICS_FILE = "the metrics written by ehas train (metrics.json)"
 WORSE_TOL = 0.05  # points of rms % error: a learned controller counts as worse than a classical one beyond this
 
 
@@ -280,7 +284,7 @@ def write_agent_readme(path, summary_row: dict, base_row: dict | None, eval_comm
     from .agent import load_agent
 
     path = Path(path)
-    metrics = json.loads((path / "metrics.json").read_text()) if (path / "metrics.json").exists() else {}
+    metrics = read_json(path / "metrics.json", METRICS_FILE) if (path / "metrics.json").exists() else {}
     agent = load_agent(path, warn=False)
     cfg = agent.cfg
     cmd = metrics.get("command") or f"ehas train --algo {cfg.algo}{' --residual' if cfg.residual else ''} --config {cfg.source} --out {path}"
@@ -306,7 +310,8 @@ def write_agent_readme(path, summary_row: dict, base_row: dict | None, eval_comm
         L.append(f"| its base controller alone | {base_row['mean_rms_error_pct']:.4f} | {base_row['worst_rms_error_pct']:.3f} | "
                  f"{base_row.get('rms_30deg_3hz_7sets', float('nan')):.3f} |")
     if (path / "vs_classical.md").exists():
-        vs = json.loads((path / "vs_classical.json").read_text()) if (path / "vs_classical.json").exists() else {}
+        vs = read_json(path / "vs_classical.json", "the comparison written by ehas train (vs_classical.json)") \
+            if (path / "vs_classical.json").exists() else {}
         n = vs.get("nominal", {})
         L += ["", "## Against the best classical controller", "",
               f"[vs_classical.md](vs_classical.md) (`{vs.get('command', 'python -m ehas_train.versus ' + str(path))}`): "
@@ -347,7 +352,7 @@ def write_agents_index(agent_paths, agents, summaries, command: str, results_dir
              "|---|---|---:|---:|---:|---|"]
         for p, agent in items:
             s = summaries[agent.name]
-            m = json.loads((p / "metrics.json").read_text()) if (p / "metrics.json").exists() else {}
+            m = read_json(p / "metrics.json", METRICS_FILE) if (p / "metrics.json").exists() else {}
             tt = m.get("train_time_s")
             L.append(f"| [{agent.name}]({p.name}/README.md) | {agent.variant} | {s['mean_rms_error_pct']:.4f} | "
                      f"{s.get('rms_30deg_3hz_7sets', float('nan')):.3f} | "
@@ -359,7 +364,7 @@ def _train_info(path) -> dict:
     p = Path(path) / "metrics.json"
     if not p.exists():
         return {}
-    m = json.loads(p.read_text())
+    m = read_json(p, METRICS_FILE)
     return {"train_time_s": m.get("train_time_s"), "num_timesteps": m.get("num_timesteps")}
 
 

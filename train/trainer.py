@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ehas_env.output.files import atomic_write_bytes, atomic_write_text
+from ehas_env.output.files import atomic_write_bytes, atomic_write_text, read_json, read_text
 
 from .config import TrainConfig, algo_class
 from . import envs as E
@@ -96,7 +96,7 @@ class Checkpointer:
     def state(self) -> dict | None:
         if not self.state_path.exists():
             return None
-        return json.loads(self.state_path.read_text())
+        return read_json(self.state_path, "the checkpoint state written by ehas train (state.json)")
 
     def save(self, model, vecnorm, curve_rows: list, train_time_s: float) -> dict:
         step = int(model.num_timesteps)
@@ -147,9 +147,12 @@ def _fmt(v) -> str:
 def read_curve(path) -> list[dict]:
     """Rows of a learning-curve CSV (numbers as floats, blanks as NaN)."""
     rows = []
-    with open(path, newline="") as fh:
-        for row in csv.DictReader(fh):
+    text = read_text(path, "a learning-curve CSV written by ehas train")
+    try:
+        for row in csv.DictReader(io.StringIO(text, newline="")):
             rows.append({k: (float(v) if v != "" else float("nan")) for k, v in row.items()})
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: not a learning curve written by ehas train ({exc})") from None
     return rows
 
 
@@ -191,8 +194,7 @@ class BestKeeper:
             shutil.rmtree(self.folder, ignore_errors=True)
         self.best = state.get("score", state["mean_rms_error_pct"]) if state else float("inf")
         if (Path(out) / "validation.csv").exists():
-            with open(Path(out) / "validation.csv", newline="") as fh:
-                self.rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+            self.rows = read_curve(Path(out) / "validation.csv")
 
     def reference_score(self) -> float | None:
         """Mean rms % error of the classical reference on the validation conditions (computed once).
@@ -243,7 +245,7 @@ class BestKeeper:
 
     def state(self) -> dict | None:
         p = self.folder / "state.json"
-        return json.loads(p.read_text()) if p.exists() else None
+        return read_json(p, "the validation state written by ehas train (state.json)") if p.exists() else None
 
     def validate(self, model, out: Path, train_time_s: float) -> float:
         from .evaluate import evaluate_policy
@@ -500,7 +502,7 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
         before = float(state["train_time_s"])
         log.info("resuming from the checkpoint at step %d", model.num_timesteps)
     elif resume and (out / "model.zip").exists():
-        done = json.loads((out / "metrics.json").read_text())
+        done = read_json(out / "metrics.json", "the metrics written by ehas train (metrics.json)")
         if cfg.vecnormalize:
             vecnorm = VecNormalize.load(str(out / "vecnormalize.pkl"), venv)
         model = cls.load(out / "model.zip", env=vecnorm or venv, device="cpu")

@@ -172,6 +172,9 @@ FIELDS: dict[str, Range] = {
     "theta0_deg": Range(-40, 40, "deg"),
     "seed": Range(0, SEED_MAX, "", integer=True),
     "current_mA": Range(0, SERVO_LIMIT_MA, "mA", lo_open=True),
+    # a relay test's amplitude (ehas tune --method relay): at least one step of the rig's 12-bit output over
+    # +-20 mA (40 mA / 4096 = 0.0098 mA); a smaller relay is rounded to 0 mA there and does not move the valve
+    "relay_mA": Range(0.01, SERVO_LIMIT_MA, "mA"),
     "offset_mA": Range(-SERVO_LIMIT_MA, SERVO_LIMIT_MA, "mA"),
     "supply_bar": Range(0, 350, "bar", lo_open=True),
     "workers": Range(1, 1024, "workers", integer=True),

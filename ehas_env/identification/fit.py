@@ -40,6 +40,7 @@ True
 """
 from __future__ import annotations
 
+import io
 import math
 import time
 from dataclasses import dataclass, field
@@ -182,17 +183,19 @@ def read_columns(path, input_name: str = "current_mA", output_name: str = "flow_
     The file is the measurement format (one header line, comma-separated,
     empty cells for missing samples); other columns are ignored.
     """
+    from ehas_env.output.files import read_text
+
     path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such run file")
-    with path.open() as fh:
-        header = fh.readline().strip()
+    text = read_text(path, f"a run CSV file (a header line with t, {input_name}, {output_name}; "
+                           "docs/measurement-format.md)")
+    lines = text.splitlines()
+    header = lines[0].strip() if lines else ""
     names = [h.strip() for h in header.split(",")]
     for col in ("t", input_name, output_name):
         if col not in names:
             raise ValueError(f"{path}: no column '{col}' in the header; columns are {', '.join(names)}")
     try:
-        data = np.genfromtxt(path, delimiter=",", skip_header=1, usecols=[names.index(c) for c in
+        data = np.genfromtxt(io.StringIO(text), delimiter=",", skip_header=1, usecols=[names.index(c) for c in
                                                                            ("t", input_name, output_name)],
                              dtype=float, invalid_raise=True, filling_values=np.nan)
     except ValueError as exc:

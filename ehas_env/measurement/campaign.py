@@ -353,24 +353,20 @@ def read_run(csv_path, columns: dict[str, str] | None = None) -> Run:
 
 
 def _read_text(path: Path, what: str, max_bytes: int | None = None) -> str:
+    """The text of a run file through the shared checked reader (ehas_env.output.files), as a CampaignError."""
+    from ehas_env.output.files import read_text
+
     try:
         size = path.stat().st_size if max_bytes is not None else 0
-        if max_bytes is not None and size > max_bytes:
-            raise CampaignError(f"{path}: {size:,} bytes, more than the {max_bytes:,} a {what} of a run may have "
-                                f"(at most {MAX_SAMPLES:,} samples): split the run")
-        raw = path.read_bytes()
-    except PermissionError:
-        raise CampaignError(f"{path}: cannot be read (permission denied); expected a readable {what}") from None
-    except IsADirectoryError:
-        raise CampaignError(f"{path}: is a folder; expected a {what}") from None
-    except OSError as exc:
-        raise CampaignError(f"{path}: cannot be read ({exc.strerror}); expected a {what}") from None
-    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
-        raise CampaignError(f"{path}: UTF-16 text; save it as UTF-8 (expected a {what})")
+    except OSError:
+        size = 0  # read_text names what is wrong with the path
+    if max_bytes is not None and size > max_bytes:
+        raise CampaignError(f"{path}: {size:,} bytes, more than the {max_bytes:,} a {what} of a run may have "
+                            f"(at most {MAX_SAMPLES:,} samples): split the run")
     try:
-        return raw.decode("utf-8-sig")  # a byte-order mark, as spreadsheet exports write, is dropped
-    except UnicodeDecodeError as exc:
-        raise CampaignError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); expected a {what}") from None
+        return read_text(path, f"a {what}", max_bytes=max_bytes)
+    except (ValueError, FileNotFoundError) as exc:
+        raise CampaignError(str(exc)) from None
 
 
 def read_sidecar(json_path) -> dict:

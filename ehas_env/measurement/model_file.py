@@ -350,12 +350,9 @@ def load_model(path) -> PlantModel:
         raise ValueError(f"model file {path} is a folder; expected a model JSON file (docs/model-file.md)")
     if not path.is_file():
         raise FileNotFoundError(f"model file {path} does not exist")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8-sig"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not valid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a text file (a model file is JSON, docs/model-file.md)") from None
+    from ehas_env.output.files import read_json
+
+    doc = read_json(path, 'a model JSON file ("format": "ehas-model", docs/model-file.md)')
     return parse_model(doc, str(path))
 
 

@@ -1,9 +1,133 @@
-"""Atomic file writing: a reader never sees a half-written file."""
+"""Reading and writing the files ehas uses, with one-line errors that name the file.
+
+Reading: :func:`read_text` is the one door through which every reader of a file
+from elsewhere (controller and model JSON, run CSVs and their sidecars, training
+TOML configs, agent folders' ``config.json``, checkpoint state) gets its text, and
+:func:`read_json` parses JSON through it.  A path that is not a readable UTF-8 text
+file is refused with one line naming the file and what it should be::
+
+    c.json: not a UTF-8 text file (byte 0x80 at offset 128); expected a controller JSON file (docs/errors.md)
+    cfg: is a folder; expected a training config (TOML file)
+    run.csv: UTF-16 text; save it as UTF-8 (expected a run CSV file)
+
+======================  ===================================================
+the path                error
+======================  ===================================================
+empty                   ValueError ``the path is empty; expected ...``
+missing                 FileNotFoundError ``PATH: does not exist; expected ...``
+a folder                ValueError ``PATH: is a folder; expected ...``
+a device or a socket    ValueError ``PATH: not a regular file; expected ...``
+unreadable              ValueError ``PATH: cannot be read (permission denied); ...``
+larger than max_bytes   ValueError ``PATH: N bytes, more than the M ...``
+UTF-16 (byte-order      ValueError ``PATH: UTF-16 text; save it as UTF-8 ...``
+mark)
+not UTF-8, or a NUL     ValueError ``PATH: not a UTF-8 text file (...); expected ...``
+byte (binary data)
+not JSON                ValueError ``PATH: not valid JSON at line L column C: ...``
+(:func:`read_json`)
+======================  ===================================================
+
+A UTF-8 byte-order mark (as spreadsheet exports and some editors write) is
+dropped.  The command line prints a ValueError or FileNotFoundError as
+``ehas CMD: error: <message>`` with exit status 2.  Named pipes (``<(...)``) are
+read like files.
+
+Writing: :func:`atomic_write_bytes` / :func:`atomic_write_text` write through a
+temporary file and an atomic rename, so a reader never sees a half-written file.
+
+Examples
+--------
+>>> import tempfile, pathlib
+>>> p = pathlib.Path(tempfile.mkdtemp()) / "x.json"
+>>> _ = p.write_bytes(b'{"a": 1}\\x80')
+>>> read_json(p, "a test JSON file")  # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+ValueError: ...x.json: not a UTF-8 text file (byte 0x80 at offset 8); expected a test JSON file
+"""
 from __future__ import annotations
 
+import json
 import os
+import stat
 import tempfile
 from pathlib import Path
+
+
+def read_text(path, what: str, *, max_bytes: int | None = None) -> str:
+    """The text of the UTF-8 file ``path``, or one clear error naming it and ``what`` it should be.
+
+    Parameters
+    ----------
+    path : path
+        The file to read.
+    what : str
+        What the file should be, with its article, e.g. ``"a controller JSON file (written by ehas tune)"``;
+        every error ends with ``expected <what>``.
+    max_bytes : int, optional
+        Refuse a larger file before reading it.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        Anything else that makes it not a readable UTF-8 text file (see the module docstring).
+    """
+    if path is None or str(path) == "":
+        raise ValueError(f"the path is empty; expected {what}")
+    path = Path(path)
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: does not exist; expected {what}") from None
+    except NotADirectoryError:
+        raise FileNotFoundError(f"{path}: does not exist (a part of the path is a file); expected {what}") from None
+    except PermissionError:
+        raise ValueError(f"{path}: cannot be read (permission denied); expected {what}") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot be read ({exc.strerror or exc}); expected {what}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise ValueError(f"{path}: is a folder; expected {what}")
+    if not (stat.S_ISREG(st.st_mode) or stat.S_ISFIFO(st.st_mode)):
+        raise ValueError(f"{path}: not a regular file; expected {what}")
+    if max_bytes is not None and st.st_size > max_bytes:
+        raise ValueError(f"{path}: {st.st_size:,} bytes, more than the {max_bytes:,} bytes allowed for {what}")
+    try:
+        raw = path.read_bytes()
+    except PermissionError:
+        raise ValueError(f"{path}: cannot be read (permission denied); expected {what}") from None
+    except IsADirectoryError:
+        raise ValueError(f"{path}: is a folder; expected {what}") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot be read ({exc.strerror or exc}); expected {what}") from None
+    if max_bytes is not None and len(raw) > max_bytes:  # a pipe has no size before it is read
+        raise ValueError(f"{path}: {len(raw):,} bytes, more than the {max_bytes:,} bytes allowed for {what}")
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise ValueError(f"{path}: UTF-16 text, not a UTF-8 text file; save it as UTF-8 (expected {what})")
+    bom = 3 if raw.startswith(b"\xef\xbb\xbf") else 0  # a UTF-8 byte-order mark is dropped
+    try:
+        text = raw[bom:].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        at = bom + exc.start
+        raise ValueError(f"{path}: not a UTF-8 text file (byte 0x{raw[at]:02x} at offset {at}); "
+                         f"expected {what}") from None
+    if "\0" in text:
+        at = raw.index(b"\0")
+        raise ValueError(f"{path}: not a UTF-8 text file (a NUL byte at offset {at}: binary data); expected {what}")
+    return text
+
+
+def read_json(path, what: str, *, max_bytes: int | None = None):
+    """The parsed JSON of the file ``path`` (:func:`read_text`; invalid JSON is one line naming line and column)."""
+    text = read_text(path, what, max_bytes=max_bytes)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}; "
+                         f"expected {what}") from None
+    except RecursionError:
+        raise ValueError(f"{path}: JSON nested too deeply; expected {what}") from None
 
 
 def atomic_write_bytes(path, data: bytes) -> Path:

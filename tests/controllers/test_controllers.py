@@ -23,6 +23,7 @@ from ehas_env.simulation.metrics import tracking_errors
 from ehas_env.simulation.plant import Plant, RigController
 from ehas_env.physics.rig import LPM, RigParams
 from ehas_env.simulation.sensors import Sensors
+from refusals import refused  # tests/ is on sys.path (conftest.py)
 
 
 @pytest.mark.parametrize("module", [base, piff, batch_sim, linear_model, tuners, benchmark])
@@ -137,6 +138,60 @@ def test_loading_errors_name_the_file(tmp_path):
     (tmp_path / "broken.json").write_text('{"type": ')
     with pytest.raises(ValueError, match="not valid JSON"):
         load_controller(tmp_path / "broken.json")
+
+
+def _file(tmp_path, **change):
+    """A controller file as ehas tune writes it, with keys changed (``...``: the key removed)."""
+    doc = PIFF(Kp=1.5).to_dict()
+    doc = {"format": "ehas-controller", "version": 1, **doc}
+    for k, v in change.items():
+        if v is ...:
+            doc.pop(k)
+        else:
+            doc[k] = v
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+@pytest.mark.parametrize("change, words", [
+    (dict(type=None), ["key 'type' = None is not a type name; expected one of", "piff"]),
+    (dict(type=["piff"]), ["key 'type' = ['piff'] is not a type name"]),
+    (dict(gains=...), ["no 'gains' field; expected \"gains\": {gain name: number} with some of Kp, Ki"]),
+    (dict(gains={}), ["'gains' is empty; expected some of Kp, Ki"]),
+    (dict(gains=[1, 2]), ["'gains' must be an object"]),
+    (dict(kind="bogus"), ["key 'kind' = 'bogus'; expected one of 'classical', 'learned'"]),
+    (dict(kind="learned"), ["key 'kind' = 'learned', but a 'piff' controller is 'classical'"]),
+    (dict(type="schedule", entries={"3": {"variant": "PI+FF"}}), ["entries['3']: no 'gains' field"]),
+])
+def test_controller_file_fields_are_refused_naming_file_and_field(tmp_path, change, words):
+    path = _file(tmp_path, **change)
+    refused(lambda: load_controller(path), f"controller file {path}: ", *words)
+
+
+@pytest.mark.parametrize("change", [dict(kind=...), dict(kind="classical"), dict(gains={"Kp": 1.0, "Ki": 2.0}),
+                                    dict(my_note="hello")])
+def test_controller_file_variants_that_are_fine(tmp_path, change):
+    assert load_controller(_file(tmp_path, **change)).kind == "classical"
+
+
+def test_bare_gains_dict_still_builds_a_piff():
+    """The Python API's bare {gain: value} dict (no file, no 'gains' key) keeps working."""
+    assert PIFF.from_dict({"Kp": 2.0}).Kp == 2.0
+    assert base.controller_from_dict({"gains": {"Kp": 2.0}}).Kp == 2.0
+
+
+@pytest.mark.parametrize("content", [bytes(range(128, 256)), b"\xff\xfe{\x00}\x00"])
+def test_controller_file_that_is_not_utf8_text(tmp_path, content):
+    path = tmp_path / "c.json"
+    path.write_bytes(content)
+    refused(lambda: load_controller(path), str(path), "UTF-8", "expected a controller JSON file")
+
+
+def test_a_folder_named_like_a_controller_file(tmp_path):
+    (tmp_path / "c.json").mkdir()
+    # a folder is an agent folder to the registry: it says what is missing there
+    refused(lambda: load_controller(tmp_path / "c.json"), "c.json", exc=(ValueError, FileNotFoundError))
 
 
 class _Learned(Controller):

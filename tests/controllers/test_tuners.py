@@ -95,6 +95,28 @@ def test_relay_rules():
         tune_relay(3, rule="magic")
 
 
+@pytest.mark.parametrize("amp", [1e-308, 0.001, 0.0, -1.0, float("nan"), 25.0])
+def test_relay_amplitude_out_of_range_names_relay_mA(amp):
+    """Below one step of the rig's 12-bit output (0.0098 mA) the relay does not move the valve."""
+    with pytest.raises(ValueError, match=r"relay_mA \(the relay amplitude\) must be a number in \[0.01, 20\] mA"):
+        relay_experiment(disc_sets=3, relay_mA=amp)
+
+
+def test_relay_without_oscillation_names_relay_mA():
+    with pytest.raises(ValueError, match=r"no sustained oscillation in 0.05 s with relay_mA = 1 mA \(--relay-mA\)"):
+        relay_experiment(disc_sets=3, relay_mA=1.0, duration_s=0.05)
+
+
+def test_cli_relay_amplitude_too_small(tmp_path, capsys):
+    from ehas_env.cli.main import main
+
+    assert main(["tune", "--method", "relay", "--relay-mA", "1e-308", "--out", str(tmp_path / "c.json"),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--relay-mA must be a number in [0.01, 20] mA, got '1e-308'" in err[0], err
+    assert not list(tmp_path.iterdir())
+
+
 def _independent_cost(ctrl, conds, cycles):
     """Mean rms % error (+100 per stroke-end hit) from Plant.simulate_closed_loop, not the batch simulator."""
     total = 0.0

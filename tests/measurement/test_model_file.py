@@ -192,15 +192,16 @@ def test_agent_trained_here_loads_without_the_pickle_warning(tmp_path, monkeypat
 
     import ehas_env  # noqa: F401
     PPO("MlpPolicy", gymnasium.make("ehas/Tracking-v0"), n_steps=64, batch_size=32, device="cpu").save(folder / "model.zip")
+    zipped = folder / "model.zip"  # a bare zip (a folder without config.json is refused)
     with pytest.warns(PickleWarning):
-        load_agent(folder)
-    trust_agent(folder)
+        load_agent(zipped)
+    trust_agent(zipped)
     with warnings.catch_warnings():
         warnings.simplefilter("error", PickleWarning)
-        load_agent(folder)  # trusted: quiet
-    (folder / "model.zip").write_bytes((folder / "model.zip").read_bytes() + b"\0")  # changed: warns again
+        load_agent(zipped)  # trusted: quiet
+    zipped.write_bytes(zipped.read_bytes() + b"\0")  # changed: warns again
     with pytest.warns(PickleWarning):
-        load_agent(folder)
+        load_agent(zipped)
 
 
 def test_parse_model_from_a_dict_and_errors_name_the_source():
