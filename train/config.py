@@ -56,6 +56,7 @@ from __future__ import annotations
 import copy
 import inspect
 import math
+import re
 import tomllib
 from dataclasses import asdict, dataclass, field
 from importlib import resources
@@ -340,6 +341,13 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
 
     hyper = copy.deepcopy(_table(raw, "algo", source))
     _check_hyper(t["algo"], hyper, source)
+    if t["algo"] == "ppo":  # a mini-batch larger than the rollout buffer: SB3 would train on nothing
+        defaults = inspect.signature(algo_class("ppo").__init__).parameters
+        n_steps, batch = (hyper.get(k, defaults[k].default) for k in ("n_steps", "batch_size"))
+        if batch > n_steps * t["n_envs"]:
+            raise ValueError(f"{source}: [algo] batch_size {batch} is larger than the rollout (n_steps {n_steps} x "
+                             f"n_envs {t['n_envs']} = {n_steps * t['n_envs']} samples); give batch_size <= "
+                             "n_steps x n_envs")
 
     env = _table(raw, "env", source)
     _no_unknown(env, ("id", "residual", "controller", "action_repeat", "action_scale_mA", "reward_scale",
@@ -429,6 +437,14 @@ def algo_class(algo: str):
 _RESERVED = ("policy", "env", "seed", "tensorboard_log", "verbose", "device", "_init_setup_model", "action_noise")
 
 
+#: the [algo] numbers with a shared range (ehas_env.cli.options.FIELDS); the one text value SB3 takes among them is
+#: SAC's automatic entropy coefficient, ent_coef = "auto" (or "auto_0.1": its start value)
+_ALGO_FIELDS = ("learning_rate", "gamma", "tau", "gae_lambda", "n_steps", "batch_size", "n_epochs", "clip_range",
+                "clip_range_vf", "ent_coef", "vf_coef", "max_grad_norm", "target_kl", "buffer_size",
+                "learning_starts", "gradient_steps", "policy_delay", "target_policy_noise", "target_noise_clip",
+                "stats_window_size")
+
+
 def _check_hyper(algo: str, hyper: dict, source: str) -> None:
     cls = algo_class(algo)
     params = inspect.signature(cls.__init__).parameters
@@ -452,9 +468,14 @@ def _check_hyper(algo: str, hyper: dict, source: str) -> None:
     if "net_arch" in pk:
         pk["net_arch"] = _check_net_arch(pk["net_arch"], f"{source}: [algo.policy_kwargs] net_arch",
                                          ("pi", "vf") if algo == "ppo" else ("pi", "qf"))
-    for key in ("learning_rate", "gamma", "tau"):
-        if key in hyper:
-            check_field(key, hyper[key], f"{source}: [algo] {key}")
+    for key in _ALGO_FIELDS:
+        value = hyper.get(key)
+        if key == "ent_coef" and isinstance(value, str) and algo != "ppo":
+            if not re.fullmatch(r"auto(_[0-9.eE+-]+)?", value):
+                raise ValueError(f"{source}: [algo] ent_coef must be a number in [0, 100], 'auto' or 'auto_START', "
+                                 f"got {value!r}")
+        elif key in hyper:
+            hyper[key] = check_field(key, value, f"{source}: [algo] {key}")
     for key, value in hyper.items():  # every other number: finite (TOML allows inf and nan)
         if isinstance(value, float) and not math.isfinite(value):
             raise ValueError(f"{source}: [algo] {key} must be a finite number, got {value!r}")

@@ -205,10 +205,10 @@ def parse_column_map(text: str | None) -> dict[str, str]:
     ...
     ValueError: --columns: 'angle' is not a column of the measurement format; NEW must be one of t, current_mA, theta_deg, theta_ref_deg, flow_lpm, p_a_bar, p_b_bar, p_s_bar, load_kN
     """
+    from ehas_env.cli.options import split_list
+
     out: dict[str, str] = {}
-    for item in (text or "").split(","):
-        if not item.strip():
-            continue
+    for item in split_list(text, "--columns", "NEW=OLD column names") if text else []:
         new, eq, old = item.partition("=")
         new, old = new.strip(), old.strip()
         if not eq or not new or not old:
@@ -331,8 +331,19 @@ def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
     unused = [f"{new}={old}" for new, old in (columns or {}).items()
               if not any(r.column_map.get(new) == old for r in runs)]
     if unused:
-        warnings.append(f"--columns {', '.join(unused)}: no run has such a column")
+        # a mapping that renames nothing is a typo: reading on would drop a column the user meant to give
+        raise CampaignError(f"--columns {', '.join(unused)}: no run in {folder} has such a column (the first "
+                            f"run's columns: {', '.join(_header(csvs[0]))})")
     return Campaign(path=folder, runs=runs, ignored=sorted(ignored), warnings=warnings)
+
+
+def _header(csv_path: Path) -> list[str]:
+    """The column names on the first line of a run file (for messages)."""
+    import re
+
+    with open(csv_path, encoding="utf-8", errors="replace") as fh:
+        line = fh.readline(4096).strip()
+    return [c.strip().strip('"') for c in re.split(r"[;,\t]", line) if c.strip()]
 
 
 def read_run(csv_path, columns: dict[str, str] | None = None) -> Run:
@@ -543,12 +554,20 @@ def check_units(cols: dict, meta: dict, dt: float | None, where: str) -> None:
         if i is not None and i_need > 0.5 and 0.0 < i < i_need / 30.0:
             refuse("current_mA", f"peak {i:.4g} mA, where following {amp:g} deg at {f:g} Hz takes about "
                                  f"{i_need:.2g} mA; the current looks logged in A, not mA (multiply by 1000)")
+        if i is not None and i > 5.0 * RATED_CURRENT and i > 25.0 * max(i_need, 0.5):
+            refuse("current_mA", f"peak {i:.4g} mA, where following {amp:g} deg at {f:g} Hz takes about "
+                                 f"{i_need:.2g} mA and the servo amplifier gives +-{RATED_CURRENT:g} mA; the current "
+                                 "looks logged in uA, not mA (divide by 1000)")
     else:
         i, q = peak("current_mA"), peak("flow_lpm")
         if i is not None and q is not None and i > 0.0 and q > 0.5 and q / i > 50.0 * VALVE_K:
             refuse("current_mA", f"peak {i:.4g} mA for a peak flow of {q:.3g} LPM ({q / i:.3g} LPM/mA, where the "
                                  f"valve gives about {VALVE_K:g} LPM/mA); the current looks logged in A, not mA "
                                  "(multiply by 1000)")
+        if i is not None and q is not None and i > 5.0 * RATED_CURRENT and q / i < VALVE_K / 25.0:
+            refuse("current_mA", f"peak {i:.4g} mA for a peak flow of {q:.3g} LPM ({q / i:.3g} LPM/mA, where the "
+                                 f"valve gives about {VALVE_K:g} LPM/mA); the current looks logged in uA, not mA "
+                                 "(divide by 1000)")
     load = peak("load_kN")
     if load is not None:
         max_kn = AREA * supply * BAR / 1e3

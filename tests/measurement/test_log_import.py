@@ -118,9 +118,9 @@ def test_columns_option_refuses_what_it_cannot_map(text, pattern):
         parse_column_map(text)
 
 
-def test_columns_option_naming_an_absent_column_is_reported(camp):
-    c = read_campaign(camp, columns={"p_s_bar": "Supply"})
-    assert any("--columns p_s_bar=Supply" in w for w in c.warnings)
+def test_columns_option_naming_an_absent_column_is_refused(camp):
+    # a mapping that renames nothing is a typo: reading on would leave out the column the user meant
+    refused(camp, "--columns p_s_bar=Supply", "no run in", "has such a column", columns={"p_s_bar": "Supply"})
 
 
 def test_renaming_onto_an_existing_column_is_a_duplicate(camp):
