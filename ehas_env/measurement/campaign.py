@@ -753,6 +753,13 @@ def validate_meta(meta, where: str = "sidecar") -> dict:
     """
     if not isinstance(meta, dict):
         raise CampaignError(f"{where}: expected a JSON object {{\"kind\": ..., ...}}, got {type(meta).__name__}")
+    # optional in a hand-written sidecar; when given, another kind of file or a newer layout is refused
+    if "format" in meta and meta["format"] != "ehas-run":
+        raise CampaignError(f"{where}: key 'format' = {meta['format']!r}; a run sidecar has \"format\": \"ehas-run\" "
+                            "(or no 'format' key)")
+    if "version" in meta and (type(meta["version"]) is not int or meta["version"] != 1):
+        raise CampaignError(f"{where}: key 'version' = {meta['version']!r}; this ehas reads run sidecars of version 1 "
+                            "(or without 'version')")
     if "kind" not in meta:
         raise CampaignError(f"{where}: key 'kind' is missing; expected one of {', '.join(KINDS)}")
     kind = meta["kind"]

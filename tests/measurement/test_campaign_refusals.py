@@ -312,3 +312,18 @@ def test_a_column_map_that_renames_nothing_is_refused(camp):
     # a typo in --columns would silently leave a column out
     refused(lambda: read_campaign(camp, columns={"theta_deg": "Nope"}), "--columns theta_deg=Nope",
             "no run in", "has such a column", "current_mA")
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("format", "ehas-controller", ("key 'format' = 'ehas-controller'", "ehas-run")),
+    ("version", 2, ("key 'version' = 2", "version 1")),
+    ("version", "1", ("key 'version' = '1'",)),
+])
+def test_sidecar_kind_and_version_are_checked_when_given(camp, key, value, words):
+    edit_json(camp / f"{CL}.json", lambda m: m.update({key: value}))
+    refused(lambda: read_campaign(camp), f"{CL}.json", *words)
+
+
+def test_sidecar_with_format_and_version_1_reads(camp):
+    edit_json(camp / f"{CL}.json", lambda m: m.update({"format": "ehas-run", "version": 1}))
+    assert len(read_campaign(camp).runs) == 2
