@@ -161,3 +161,10 @@ def test_the_command_line_refuses_a_bad_effect_file_with_status_2(tmp_path, caps
     assert len(err) == 1, err
     assert err[0].startswith("ehas effects: error: --effects-path: effect file ")
     assert "spring.py" in err[0] and "main_param 'kk' is not one of its parameters (k)" in err[0]
+
+
+@pytest.mark.parametrize("value, got", [(3, "int"), (lambda theta, k: -(k * theta), "function")])
+def test_a_place_must_hold_a_static_method(value, got):
+    # a number, or a method without @staticmethod, at a place would be skipped without a word
+    refused(lambda: define(body={"crank_torque": value}), "effect 'decl_spring'",
+            f"crank_torque must be a @staticmethod", f"got {got}")

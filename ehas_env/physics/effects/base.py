@@ -176,6 +176,10 @@ class Effect:
             if strays:
                 raise ValueError(f"effect '{cls.name}': static method '{strays[0]}' is not a place where physics "
                                  f"enters; the places are {', '.join(PLACES)} (name a helper _{strays[0]})")
+            odd = [k for k in PLACES if k in vars(cls) and not isinstance(vars(cls)[k], staticmethod)]
+            if odd:  # a number or a plain method at a place would be skipped, silently
+                raise ValueError(f"effect '{cls.name}': {odd[0]} must be a @staticmethod (the place's physics term), "
+                                 f"got {type(vars(cls)[odd[0]]).__name__}")
             if not cls.terms() and getattr(cls.apply, "__func__", None) is Effect.apply.__func__:
                 raise ValueError(f"effect '{cls.name}' holds no physics: write at least one static method named "
                                  f"after a place ({', '.join(PLACES)}), or apply() for a recalibration")
