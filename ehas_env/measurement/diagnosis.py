@@ -389,13 +389,17 @@ def resolve_candidates(spec, effects_path=None) -> list[str] | None:
     alone."""
     items = [c.strip() for c in (spec.split(",") if isinstance(spec, str) else (spec or [])) if c.strip()]
     if not items:
-        extra = effects_from_paths(effects_path)
+        extra = [n for n in effects_from_paths(effects_path) if get_effect(n).params]
         return library_effects() + [n for n in extra if n not in library_effects()] if extra else None
     out: list[str] = []
     for c in items:
         names = library_effects() if c == "library" else sorted(REGISTRY) if c == "all" else [c]
         for n in names:
-            get_effect(n)
+            if not get_effect(n).params:
+                if c == n:  # named: say why it cannot be one; 'all' passes over it
+                    raise ValueError(f"--candidates: effect '{n}' has no parameter to fit; a candidate needs one "
+                                     "(switch it on with --with instead)")
+                continue
             if n not in out:
                 out.append(n)
     return out

@@ -214,3 +214,21 @@ def test_friction_explains_the_books_load_excess():
     # a constant force lifting every peak: the least-squares constant is the mean excess
     assert fc * 1e-3 == pytest.approx(np.mean(measured - analytic), rel=0.05)
     assert res["fits"][res["ranking"][0]]["rms_kN"] < 0.6 * res["rms_baseline_kN"]
+
+
+def test_an_effect_without_parameters_is_no_candidate():
+    """Nothing to fit: named, it is refused in one line; 'all' passes over it."""
+    from ehas_env.measurement.diagnosis import resolve_candidates
+    from ehas_env.physics.effects.base import Effect
+
+    class Fixed(Effect):
+        name = "diag_fixed_offset"
+        title = "a fixed offset force"
+
+        @staticmethod
+        def piston_force(v):
+            return 0.0 * v
+
+    with pytest.raises(ValueError, match="'diag_fixed_offset' has no parameter to fit"):
+        resolve_candidates(["diag_fixed_offset"])
+    assert "diag_fixed_offset" not in resolve_candidates(["all"])
