@@ -6,11 +6,172 @@ torch, matplotlib) inside ``run`` so that building the parser stays cheap.
 """
 from __future__ import annotations
 
-import argparse
-import importlib
 import os
 import re
+import signal
 import sys
+
+
+# -- Ctrl-C and SIGTERM (issue 14) ----------------------------------------------------------------
+# When ``ehas`` runs as a program (the console script or ``python -m ehas_env.cli.main``), a Ctrl-C
+# (SIGINT) or a SIGTERM at any moment ends it with one line ``ehas CMD: interrupted`` and status 130:
+# never a traceback, never death by the signal, never status 0.  The handler is installed here, the
+# first thing the entry point runs (before argparse and the commands' imports), and acts by phase:
+#
+# ``start``     before the command runs (imports, parsing; nothing written): exit 130 at once;
+# ``work``      the command runs: the first signal raises KeyboardInterrupt, which unwinds the
+#               command (its OutputSet keeps the previous complete output or none) to :func:`main`;
+# ``stopping``  unwinding after that signal: a second signal is ignored so the cleanup finishes
+#               (a third one exits 130 at once);
+# ``done``      the command has finished (its outputs are complete) or has been reported
+#               interrupted: a signal exits 130 at once, with the line unless it was printed.
+#
+# At interpreter exit the last atexit callback ends the process with main()'s status (os._exit):
+# after it Python restores the default handlers while it tears modules down, and a Ctrl-C there
+# would kill the process by the signal.  Left: a signal in the interpreter's start-up, before this
+# module runs (the first ~30 ms: Python's own initialisation, site and its .pth files, the import of
+# ehas_env), is Python's: death by the signal, or a KeyboardInterrupt traceback (status 1 in site).
+
+
+class _Stop:
+    """The interrupt state of the ``ehas`` process (see the comment above)."""
+
+    armed = False  # the handlers below are installed: ehas runs as a program
+    phase = "start"
+    signals = 0  # SIGINT/SIGTERM received (with those delivered again)
+    signum = signal.SIGINT  # the last one
+    redelivered = 0  # signals raised again after a callback dropped their KeyboardInterrupt
+    said = False  # the "interrupted" line was printed
+    name = "ehas"  # "ehas CMD" once the command is known
+    depth = 0  # nested main() calls (ehas demo runs ehas size)
+    rc: int | None = None  # main()'s status, for the exit at the end
+
+
+def _command_name() -> str:
+    """``ehas CMD`` (from sys.argv while the parser is not built yet), or ``ehas``."""
+    if _Stop.name == "ehas":
+        cmd = next((a for a in sys.argv[1:2] if re.fullmatch(r"[a-z][a-z-]*", a)), None)
+        return f"ehas {cmd}" if cmd else "ehas"
+    return _Stop.name
+
+
+def _flush() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except BaseException:  # noqa: BLE001 - a closed pipe, a reentrant call inside a handler: go on
+            pass
+
+
+def _say(name: str | None = None) -> None:
+    """Print ``ehas CMD: interrupted`` on stderr (once, when ehas runs as a program)."""
+    if not _Stop.armed:
+        print(f"{name or 'ehas'}: interrupted", file=sys.stderr)
+        return
+    if _Stop.said:
+        return
+    _Stop.said = True
+    try:
+        sys.stderr.flush()
+    except BaseException:  # noqa: BLE001 - the handler may run inside a write to stderr
+        pass
+    try:  # os.write: a print here could be a reentrant call into stderr's buffer
+        os.write(2, f"{name or _command_name()}: interrupted\n".encode())
+    except OSError:
+        pass
+
+
+def _exit_interrupted() -> None:
+    _say()
+    _flush()
+    os._exit(130)
+
+
+def _on_signal(signum, frame):
+    _Stop.signals += 1
+    _Stop.signum = signum
+    if _Stop.phase == "work":
+        _Stop.phase = "stopping"
+        raise KeyboardInterrupt
+    if _Stop.phase == "stopping" and _Stop.signals - _Stop.redelivered < 3:
+        return  # the first signal is being handled: let the command's cleanup finish
+    _exit_interrupted()
+
+
+def _on_unraisable(unraisable, _default=sys.unraisablehook):
+    if isinstance(unraisable.exc_value, KeyboardInterrupt):
+        # raised inside a callback that cannot pass it on (a ctypes callback of numba's compiler, a weakref
+        # callback, __del__) and dropped there: no traceback; the signal is delivered again a moment later,
+        # out of the callback, to stop the command at its next step (a few times at most; main() reports
+        # the run interrupted anyway).  Not from here: raising it in this hook would be dropped as well.
+        if _Stop.phase == "stopping" and _Stop.redelivered < 20:
+            import threading
+
+            _Stop.redelivered += 1
+            timer = threading.Timer(0.01, _redeliver)
+            timer.daemon = True
+            timer.start()
+            _Stop.phase = "work"
+        return
+    if _Stop.signals:
+        return  # after an interrupt: the __del__ of an object the KeyboardInterrupt left half-built (llvmlite's)
+    _default(unraisable)
+
+
+def _redeliver() -> None:
+    import threading
+
+    if _Stop.phase != "work":
+        _Stop.redelivered -= 1  # the command ended meanwhile: nothing to deliver
+        return
+    try:
+        signal.pthread_kill(threading.main_thread().ident, _Stop.signum)
+    except (ValueError, OSError, AttributeError):
+        pass
+
+
+def _at_exit() -> None:
+    if _Stop.rc is not None:
+        _flush()
+        os._exit(_Stop.rc)
+
+
+def _is_program() -> bool:
+    """True in the ``ehas`` console script and in ``python -m ehas_env.cli.main``."""
+    argv0 = (getattr(sys, "argv", None) or [""])[0]
+    if not argv0:
+        return False
+    if os.path.splitext(os.path.basename(argv0))[0] == "ehas":
+        return True
+    try:
+        return os.path.realpath(argv0) == os.path.realpath(__file__)
+    except (OSError, ValueError):
+        return False
+
+
+def _arm() -> None:
+    if _Stop.armed:
+        return
+    try:
+        # an ignored signal (a background job's SIGINT, nohup) stays ignored
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, _on_signal)
+        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, _on_signal)
+    except (ValueError, OSError):  # not the main thread
+        return
+    import atexit
+
+    _Stop.armed = True
+    sys.unraisablehook = _on_unraisable
+    atexit.register(_at_exit)  # registered first: runs last
+
+
+if __name__ != "__main__" and _is_program():
+    _arm()
+
+import argparse  # noqa: E402 - after the handlers
+import importlib  # noqa: E402
 
 #: set to 1 to get the traceback of an unexpected error (otherwise: one line)
 DEBUG_ENV = "EHAS_DEBUG"
@@ -99,23 +260,32 @@ def main(argv: list[str] | None = None) -> int:
           sweep task failed, an unexpected error: set EHAS_DEBUG=1 for the
           traceback)
     2     bad input: an option, a file or an output path (nothing was written)
-    130   interrupted (Ctrl-C); the previous complete output is left in place
+    130   interrupted (Ctrl-C, or SIGTERM: a job scheduler's stop, ``kill``):
+          one line ``ehas CMD: interrupted``; the previous complete output (or
+          none) is left in place, or the new complete one if the signal came
+          after the command had finished
+    141   the reader of stdout went away (``ehas CMD | head``): quietly
     ====  =====================================================================
 
-    ``ehas CMD | head`` ends quietly when the reader closes the pipe.  A SIGTERM (a job
-    scheduler's stop, ``kill``) is handled as Ctrl-C: outputs stay whole, status 130.
+    Run as a program (the console script, ``python -m ehas_env.cli.main``) the
+    signal is handled at any moment, from the first import to the exit (see the
+    comment on ``_Stop``).  Called from Python (``main([...])``) a SIGTERM raises
+    KeyboardInterrupt for the duration of the call, and the interrupt is
+    reported as above.
     """
-    import signal
-
-    def _terminate(signum, frame):
-        raise KeyboardInterrupt
-
+    program = _Stop.armed and _Stop.depth == 0 and argv is None
+    nested = _Stop.depth > 0
+    _Stop.depth += 1
+    previous = None
     try:
-        previous = signal.signal(signal.SIGTERM, _terminate)
-    except ValueError:  # not the main thread: leave the signal alone
-        previous = None
-    try:
-        return _main(argv)
+        if not program and not nested:
+            previous = _catch_sigterm()
+        rc = _main(argv, program)
+    except KeyboardInterrupt:
+        if nested:
+            raise  # ehas demo running ehas size: the outer command reports it
+        _say(_Stop.name if program else "ehas")
+        rc = 130
     except BrokenPipeError:
         # the reader went away (| head): stop quietly; point stdout at devnull so the
         # interpreter's final flush does not complain either
@@ -124,21 +294,39 @@ def main(argv: list[str] | None = None) -> int:
             os.dup2(devnull, sys.stdout.fileno())
         except (OSError, ValueError):
             pass
-        return 141
+        rc = 141
     finally:
+        _Stop.depth -= 1
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+    if program:
+        if _Stop.signals and rc != 130:
+            _say(_Stop.name)  # the interrupt was swallowed inside the command: it still ends as one
+            rc = 130
+        _Stop.rc = rc
+        _Stop.phase = "done"
+    return rc
 
 
-def _main(argv) -> int:
+def _catch_sigterm():
+    """Called from Python: SIGTERM raises KeyboardInterrupt until the call returns (the previous handler)."""
+    def _terminate(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        return signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread: leave the signal alone
+        return None
+
+
+def _main(argv, program: bool = False) -> int:
+    if program:
+        _Stop.name = _command_name()
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse's usage error (status 2) or --help/--version (0): a status, not an exit
         return exc.code if isinstance(exc.code, int) else 2
-    except KeyboardInterrupt:
-        print("ehas: interrupted", file=sys.stderr)
-        return 130
     if args.command is None:
         parser.print_help()
         return 0
@@ -160,6 +348,8 @@ def _main(argv) -> int:
     if module is None:
         parser.error(f"command '{args.command}' is not available in this installation")
     name = f"ehas {args.command}"
+    if program:
+        _Stop.name = name
     import warnings
 
     def _show(message, category, filename, lineno, file=None, line=None):
@@ -168,17 +358,23 @@ def _main(argv) -> int:
 
     shown, warnings.showwarning = warnings.showwarning, _show
     try:
+        if program:
+            _Stop.phase = "work"  # from here the first signal raises KeyboardInterrupt
         rc = int(module.run(args) or 0)
+        if program:
+            _Stop.phase = "done"  # the outputs are complete: a signal now ends the process at once (status 130)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers
         return rc
     except BrokenPipeError:
         raise
     except KeyboardInterrupt:
+        if _Stop.depth > 1:
+            raise  # nested (ehas demo running ehas size): the outer command reports it
         try:
             sys.stdout.flush()
         except (OSError, ValueError):
             pass
-        print(f"{name}: interrupted", file=sys.stderr)
+        _say(name)
         return 130
     except (ValueError, FileNotFoundError, NotADirectoryError, IsADirectoryError, FileExistsError) as exc:
         # bad input: one clear line, no traceback
@@ -204,6 +400,8 @@ def _main(argv) -> int:
     except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, traceback on request
         return _unexpected(name, exc)
     finally:
+        if program and _Stop.phase == "work":
+            _Stop.phase = "done"  # a failure: no signal raises past here (main() reports it as status 130)
         warnings.showwarning = shown
 
 
@@ -247,4 +445,7 @@ def _unexpected(name: str, exc: BaseException) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # run the one imported module (ehas demo imports it too), armed as the console script is
+    from ehas_env.cli.main import main as _entry
+
+    sys.exit(_entry())

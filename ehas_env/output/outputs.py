@@ -45,11 +45,14 @@ ehas_env.output.outputs.OutputError: --out ... already exists and is not empty; 
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import fnmatch
 import os
 import re
 import shutil
+import signal
+import threading
 from pathlib import Path
 
 TMP = "ehas-tmp"  # a run's output being written
@@ -412,6 +415,9 @@ class OutputSet:
             except OSError as err:
                 self.abort()
                 raise self._named(err) from None
+            except BaseException:  # Ctrl-C just before the swap: the temporary goes too
+                self.abort()
+                raise
             return False
         self.abort()
         if isinstance(exc, OSError):
@@ -429,7 +435,11 @@ class OutputSet:
                 pass
 
     def commit(self) -> None:
-        """Swap the temporary folder in (see the class docstring)."""
+        """Swap the temporary folder in (see the class docstring); a Ctrl-C or SIGTERM waits until it is done."""
+        with _signals_held():
+            self._commit()
+
+    def _commit(self) -> None:
         tmp, pid = self.tmp, os.getpid()
         if self.members is None:
             write_record(tmp)
@@ -478,6 +488,40 @@ class OutputSet:
             name = str(self.path)
         e = OSError(err.errno or errno.EIO, err.strerror or str(err), str(name))
         return e
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM wait until the block ends (a swap is never cut in half), then act as they would have.
+
+    Only in the main thread (where Python runs signal handlers); an ignored signal stays ignored.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list = []
+    previous: dict = {}
+
+    def hold(signum, frame):
+        held.append((signum, frame))
+
+    try:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(sig)
+            if handler is None or handler == signal.SIG_IGN:
+                continue
+            previous[sig] = signal.signal(sig, hold)
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if held:
+            signum, frame = held[0]
+            handler = previous[signum]
+            if callable(handler):
+                handler(signum, frame)  # Python's default raises KeyboardInterrupt here, after the swap
+            else:
+                signal.raise_signal(signum)  # SIG_DFL: what the signal would have done
 
 
 def _tag(patterns) -> str:

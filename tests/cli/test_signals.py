@@ -63,3 +63,127 @@ def test_ctrl_c_during_training_checkpoints_and_the_resume_ends_at_total_steps(t
     r = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert json.loads((out / "metrics.json").read_text())["num_timesteps"] == 14000
+
+
+# -- Ctrl-C at any moment (issue 14): the process's own handling, from the first import to the exit --------------
+# (tests/cli/interrupt_probe.py sweeps the delays over several commands; these are its three decisive moments)
+
+def _ctrl_c_ready():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a background job's ignored SIGINT would hide everything
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _ehas_cmd() -> list[str]:
+    ehas = shutil.which("ehas")
+    return [ehas] if ehas else [sys.executable, "-m", "ehas_env.cli.main"]
+
+
+def _one_interrupted_line(err: str, name: str) -> None:
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    assert err.strip().splitlines()[-1] == f"ehas {name}: interrupted", err
+
+
+def test_ctrl_c_during_the_imports_is_130_and_one_line(tmp_path):
+    """SIGINT while the entry point imports the commands (the earlier bug: a traceback and death by the signal)."""
+    import os
+
+    env = dict(os.environ, PYTHONPROFILEIMPORTTIME="1")  # stderr shows each import statement as it completes
+    out = tmp_path / "demo"
+    proc = subprocess.Popen(_ehas_cmd() + ["demo", "--quick", "--out", str(out)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env, preexec_fn=_ctrl_c_ready)
+    seen = []
+    for line in proc.stderr:
+        seen.append(line)
+        if line.rstrip().endswith("ehas_env.cli.options"):  # the parser is loading the command modules
+            break
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, "".join(seen) + err
+    _one_interrupted_line(err, "demo")
+    assert not out.exists()  # nothing was written
+
+
+def test_ctrl_c_mid_run_keeps_the_previous_output(tmp_path):
+    out = tmp_path / "demo"
+    cmd = _ehas_cmd() + ["demo", "--quick", "--out", str(out)]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600, preexec_fn=_ctrl_c_ready)
+    assert r.returncode == 0, r.stderr
+    before = _files(out)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_ready)
+    err = ""
+    for line in proc.stderr:
+        err += line
+        if "2/2" in line:  # the design-point simulation has started: the new set is half-written
+            break
+    proc.send_signal(signal.SIGINT)
+    rest, more = proc.communicate(timeout=60)
+    err += more
+    assert proc.returncode == 130, err
+    _one_interrupted_line(err, "demo")
+    assert _files(out) == before  # the previous complete set, untouched
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries left
+
+
+def _state(pid: int) -> str:
+    """The process's state letter from /proc (R, S, T stopped, Z ended), '' when gone."""
+    try:
+        return Path(f"/proc/{pid}/status").read_text().split("State:")[1].split()[0]
+    except (OSError, IndexError):
+        return ""
+
+
+def test_ctrl_c_after_the_output_is_written_is_still_130(tmp_path):
+    """The signal after the command wrote its output (its return, the interpreter's exit): 130, one line."""
+    import os
+
+    import time
+
+    stem = tmp_path / "run"
+    cmd = [sys.executable, "-m", "ehas_env.cli.main", "simulate", "--cycles", "3", "--out", str(stem)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_ready)
+    deadline = time.time() + 300
+    while not (stem.with_suffix(".json").exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]):
+        assert proc.poll() is None and time.time() < deadline, proc.communicate()[1]
+        time.sleep(0.002)  # the sidecar is moved in last: the set is complete
+    os.kill(proc.pid, signal.SIGSTOP)  # hold it where it is, to know whether it had ended
+    while _state(proc.pid) not in ("T", "t", "Z", ""):  # stopped, or it was already exiting
+        time.sleep(0.001)
+    ended = _state(proc.pid) in ("Z", "")
+    os.kill(proc.pid, signal.SIGINT)
+    os.kill(proc.pid, signal.SIGCONT)
+    _, err = proc.communicate(timeout=60)
+    if ended:  # it had already exited: nothing to interrupt
+        assert proc.returncode == 0, err
+    else:
+        assert proc.returncode == 130, err
+        _one_interrupted_line(err, "simulate")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.json"]  # the new complete set
+
+
+def test_ctrl_c_during_the_swap_waits_until_the_new_set_is_in_place(tmp_path, monkeypatch):
+    """OutputSet.commit holds SIGINT: a Ctrl-C between its renames acts after the last one (no half swap)."""
+    import os
+
+    from ehas_env.output import outputs
+
+    final = tmp_path / "report"
+    with outputs.OutputSet(final, "--out") as tmp:
+        (tmp / "a.txt").write_text("old")
+    real_replace, calls = os.replace, []
+
+    def replace(src, dst):
+        calls.append(dst)
+        if len(calls) == 1:
+            signal.raise_signal(signal.SIGINT)  # Ctrl-C right after the first rename of the swap
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(outputs.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        with outputs.OutputSet(final, "--out", overwrite=True) as tmp:
+            (tmp / "a.txt").write_text("new")
+    assert len(calls) >= 2  # the swap went on after the signal
+    assert (final / "a.txt").read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report"]  # no temporaries, no old set aside
