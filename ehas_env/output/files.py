@@ -130,6 +130,20 @@ def read_json(path, what: str, *, max_bytes: int | None = None):
         raise ValueError(f"{path}: JSON nested too deeply; expected {what}") from None
 
 
+def _umask() -> int:
+    """The process's umask (read from /proc where there is one: setting it to learn it races with threads)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path, data: bytes) -> Path:
     """Write ``data`` to ``path`` through a temporary file and an atomic rename."""
     path = Path(path)
@@ -138,6 +152,9 @@ def atomic_write_bytes(path, data: bytes) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
         # the pid in the name lets the next run remove what a killed one left (outputs.clean_stale)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=path.parent)
+        # mkstemp makes the file private (0600); an output gets the mode any new file gets (0644 under the
+        # usual umask 022), so colleagues and a results server can read it
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()

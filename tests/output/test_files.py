@@ -156,3 +156,20 @@ def test_cli_subprocess_utf16_controller_file(tmp_path):
     assert proc.returncode == 2, proc.stderr
     assert len(lines) == 1 and lines[0].startswith(f"ehas bench: error: {f}: UTF-16 text"), proc.stderr
     assert "Traceback" not in proc.stderr and not (tmp_path / "o").exists()
+
+
+def test_written_files_get_the_mode_of_any_new_file(tmp_path):
+    """An output is as readable as a file the user makes by hand (umask), not private as mkstemp makes it."""
+    import os
+
+    from ehas_env.output.files import atomic_write_text
+
+    old = os.umask(0o022)
+    try:
+        out = atomic_write_text(tmp_path / "a.json", "{}")
+        assert (out.stat().st_mode & 0o777) == 0o644
+        os.umask(0o077)
+        out = atomic_write_text(tmp_path / "b.json", "{}")
+        assert (out.stat().st_mode & 0o777) == 0o600
+    finally:
+        os.umask(old)
