@@ -72,6 +72,7 @@ BUG_CLASSES = ("traceback", "silent", "unclear", "refused_valid", "leftover", "l
                "timeout")
 GOOD_CLASSES = ("refused", "ok", "skipped")
 TMP_MARK = re.compile(r"ehas-(tmp|old|done)")
+RECORD = ".ehas-output.json"  # ehas_env.output.outputs.RECORD: part of a folder output, not a temporary
 
 
 # -- the case ---------------------------------------------------------------------------------------
@@ -502,7 +503,8 @@ def _run_interrupt(case: Case, tmp: Path, fx: Path, cmd: str) -> Result:
         notes.append(f"signal {signal.Signals(sig).name} at {sent_at - t0:.2f} s, exit {time.monotonic() - sent_at:.2f} s later")
     after = snapshot(watch)
     hidden = sorted(n for n in {q.name for q in parent.iterdir()} - before_parent if n.startswith("."))
-    hidden += [k for k in after if TMP_MARK.search(k) or Path(k).name.startswith(".")]
+    # hidden files are temporaries, except a whole-folder output's record of its own files
+    hidden += [k for k in after if TMP_MARK.search(k) or (Path(k).name.startswith(".") and Path(k).name != RECORD)]
     top_after = {k for k in after if "/" not in k}
     stale = [k for k in earlier if k in after and after[k] == earlier[k] and earlier[k] != "DIR"]
     if hidden:
