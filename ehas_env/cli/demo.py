@@ -36,7 +36,9 @@ def sizing_section(out: Path) -> str:
 
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        cli_main(["size", "--table", "design"])
+        rc = cli_main(["size", "--table", "design"])
+    if rc != 0:  # its own error line is on stderr already
+        raise RuntimeError(f"the sizing section failed (ehas size --table design: status {rc})")
     atomic_write_text(out / "sizing.txt", buf.getvalue())
     return "```\n" + buf.getvalue().rstrip() + "\n```\n\nFull tables: `ehas size` (tables 1.1-1.6, rig tests, NAS 1638)."
 
