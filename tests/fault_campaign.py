@@ -1055,7 +1055,7 @@ def path_cases() -> list[Case]:
         a = put(argv, "{tmp}/unreadable" + suffix)
         cases.append(Case("path-in", f"{what}: unreadable", a, "refuse", ("unreadable" + suffix,),
                           skip="as root, permissions are not enforced" if IS_ROOT else "",
-                          setup=_unreadable("unreadable" + suffix, fx_copy=None)))
+                          setup=_unreadable("unreadable" + suffix, camp=needs_camp(a))))
     for what, argv, is_campaign in input_dir_slots():
         variants = [
             ("a regular file", "{tmp}/plainfile", "refuse", ("plainfile",)),
@@ -1076,8 +1076,10 @@ def path_cases() -> list[Case]:
     return cases
 
 
-def _unreadable(name, fx_copy):
+def _unreadable(name, camp: bool):
     def setup(tmp, fx):
+        if camp:  # the command's campaign is there: the unreadable file is the one culprit
+            with_camp(tmp, fx)
         wtext(tmp / name, "{}")
         os.chmod(tmp / name, 0)
     return setup
@@ -2401,6 +2403,11 @@ def write_report(folder: Path, results: list[Result], argv_used: str, started: _
     L.append("")
     L.append(f"    {argv_used}")
     L.append("")
+    L.append("As root, file permissions are not enforced and the permission cases are skipped; to run them too, run "
+             "as a normal user, e.g. as root: `chmod -R o+rX . && setpriv --reuid=nobody --regid=nogroup "
+             "--clear-groups env HOME=/tmp/nobody-home python tests/fault_campaign.py --out /tmp/fc` (a writable "
+             "HOME for the compiled-model cache), then copy `/tmp/fc` here.")
+    L.append("")
     L.append(f"Run on {started.strftime('%Y-%m-%d %H:%M UTC')} in {elapsed / 60:.1f} min; "
              f"Python {platform.python_version()}, ehas {_ehas_version()}, commit {_git_commit()}; "
              f"{'as root (permission cases skipped)' if IS_ROOT else 'as a normal user'}.")
@@ -2512,7 +2519,8 @@ def _ehas_version() -> str:
 
 def _git_commit() -> str:
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
+        # safe.directory: run as another user than the checkout's owner (the permission cases), git refuses
+        return subprocess.run(["git", "-c", f"safe.directory={ROOT}", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
                               timeout=10).stdout.strip() or "?"
     except (OSError, subprocess.TimeoutExpired):
         return "?"
