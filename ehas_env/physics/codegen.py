@@ -109,24 +109,18 @@ class ModelSource:
         self.idx = {n: k for k, n in enumerate(self.slots)}
 
     # -- code of the assembled functions ---------------------------------
-    def _arg(self, cls, name: str, place: str, ctx: set[str]) -> str:
-        own = {p.name for p in cls.params + cls.constants}
-        if name in own:
+    def _arg(self, cls, name: str, place: str) -> str:
+        kind = cls.arg_kind(name, place)
+        if kind == "param":
             return f"P[{self.idx[f'{cls.name}.{name}']}]"
-        if name in ctx:
+        if kind == "quantity":
             return name
-        st = {s[0] for s in cls.states}
-        if name in st:
+        if kind == "state":
             return f"s[{self.state_owner[f'{cls.name}.{name}']}]"
-        if name in layout.BASE_SLOTS:
-            return f"P[{layout.BASE_SLOTS.index(name)}]"
-        raise ValueError(
-            f"effect '{cls.name}': argument '{name}' of its term '{place}' is neither one of its parameters or "
-            f"constants, nor its own state, nor a model quantity available there ({', '.join(sorted(ctx))}), "
-            f"nor a baseline slot")
+        return f"P[{layout.BASE_SLOTS.index(name)}]"
 
-    def _call(self, cls, place: str, ctx: set[str]) -> str:
-        args = ", ".join(self._arg(cls, a, place, ctx) for a in cls.term_args(place))
+    def _call(self, cls, place: str) -> str:
+        args = ", ".join(self._arg(cls, a, place) for a in cls.term_args(place))
         return f"_t_{_ident(cls.name)}__{place}({args})"
 
     def _on(self, cls) -> str:
@@ -176,7 +170,7 @@ class ModelSource:
         a("        return i")
         for cls in sorted(self._with("valve_current"), key=lambda c: (c.chain_order, c.name)):
             a(f"    if {self._on(cls)}:")
-            a(f"        i = {self._call(cls, 'valve_current', {'i'})}")
+            a(f"        i = {self._call(cls, 'valve_current')}")
         a("    return i")
         a("")
         joint = self._with("joint_force")
@@ -214,35 +208,32 @@ class ModelSource:
         a("        x, v = xp, vp")
         a("    else:")
         a("        x, v = r * sn, r * c * omega")
-        ctx = {"theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "i", "p_load", "q_a", "q_b",
-               "q_supply", "x", "v"}
         a("    qa_in, qb_in = q_a, q_b")
         for cls in self._with("chamber_flows"):
             a(f"    if {self._on(cls)}:")
-            a(f"        dqa, dqb = {self._call(cls, 'chamber_flows', ctx)}")
+            a(f"        dqa, dqb = {self._call(cls, 'chamber_flows')}")
             a("        qa_in += dqa")
             a("        qb_in += dqb")
         a("    f = A * p_load")
         for cls in self._with("piston_force"):
             a(f"    if {self._on(cls)}:")
-            a(f"        f += {self._call(cls, 'piston_force', ctx)}")
+            a(f"        f += {self._call(cls, 'piston_force')}")
         a("    m = 0.0")
         for cls in self._with("moving_mass"):
             a(f"    if {self._on(cls)}:")
-            a(f"        m += {self._call(cls, 'moving_mass', ctx)}")
+            a(f"        m += {self._call(cls, 'moving_mass')}")
         a("    tq = 0.0")
         for cls in self._with("crank_torque"):
             a(f"    if {self._on(cls)}:")
-            a(f"        tq += {self._call(cls, 'crank_torque', ctx)}")
+            a(f"        tq += {self._call(cls, 'crank_torque')}")
         a("    if joint:")
         a("        gap = xp - r * sn")
         a("        gap_rate = vp - r * c * omega")
         a("        f_joint = 0.0")
         a("        m_min = 0.0")
-        jctx = ctx | {"gap", "gap_rate"}
         for cls in joint:
             a(f"        if {self._on(cls)}:")
-            a(f"            f_joint += {self._call(cls, 'joint_force', jctx)}")
+            a(f"            f_joint += {self._call(cls, 'joint_force')}")
             if any(p.name == "m_min" for p in cls.constants):
                 a(f"            m_min = max(m_min, P[{self.idx[cls.name + '.m_min']}])")
         a("        ds[7] = vp")
@@ -258,7 +249,7 @@ class ModelSource:
         a("    ds[6] = 0.0")
         for cls in self._with("supply_rate"):
             a(f"    if {self._on(cls)}:")
-            a(f"        ds[6] += {self._call(cls, 'supply_rate', ctx)}")
+            a(f"        ds[6] += {self._call(cls, 'supply_rate')}")
         for cls in self.effects:
             if not cls.states:
                 continue
@@ -267,7 +258,7 @@ class ModelSource:
                 a(f"    ds[{k}] = 0.0")
             if "state_rates" in cls.terms():
                 a(f"    if {self._on(cls)}:")
-                call = self._call(cls, "state_rates", ctx)
+                call = self._call(cls, "state_rates")
                 if len(ks) == 1:
                     a(f"        ds[{ks[0]}] = {call}")
                 else:

@@ -168,3 +168,14 @@ def test_a_place_must_hold_a_static_method(value, got):
     # a number, or a method without @staticmethod, at a place would be skipped without a word
     refused(lambda: define(body={"crank_torque": value}), "effect 'decl_spring'",
             f"crank_torque must be a @staticmethod", f"got {got}")
+
+
+def test_an_argument_that_names_nothing_is_refused_where_the_compiler_would():
+    # one resolver (Effect.arg_kind) for the check at registration and the code generator
+    def piston_force(vv, k):
+        return k * vv
+
+    refused(lambda: define(body={"piston_force": staticmethod(piston_force)}), "effect 'decl_spring'",
+            "argument 'vv' of its term 'piston_force' is neither one of its parameters", "nor a baseline slot")
+    cls = REGISTRY["coulomb_friction"]
+    assert [cls.arg_kind(a, "piston_force") for a in ("Fc", "v", "v_tanh")] == ["param", "quantity", "slot"]

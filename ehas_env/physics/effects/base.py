@@ -40,7 +40,8 @@ QUANTITIES = {
     "i": "valve current, mA", "xp": "piston position state, m", "vp": "piston velocity state, m/s",
     "gap": "rod-joint gap x - r sin(theta), m (joint_force)", "gap_rate": "its rate, m/s (joint_force)",
 }
-#: the quantities available at each place (as :mod:`ehas_env.physics.codegen` passes them)
+#: the quantities the compiled model has defined where each place's terms are called (a term's arguments resolve
+#: through :meth:`Effect.arg_kind`, in the check at registration and in :mod:`ehas_env.physics.codegen`)
 _AT_RATES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "i", "p_load", "q_a", "q_b", "q_supply",
              "x", "v")
 PLACE_QUANTITIES = {place: frozenset(_AT_RATES) for place in PLACES}
@@ -275,22 +276,8 @@ class Effect:
             if odd:
                 raise ValueError(f"{who}: term {place} takes '{odd[0]}': a term's arguments are plain names, looked "
                                  "up by name (no *args, **kwargs or keyword-only arguments)")
-            avail = PLACE_QUANTITIES[place]
-            kwargs = {}
-            for arg in sig.parameters:
-                if arg in own:
-                    kwargs[arg] = own[arg]
-                elif arg in avail:
-                    kwargs[arg] = point[arg]
-                elif arg in own_states:
-                    kwargs[arg] = own_states[arg]
-                elif arg in point["slots"]:
-                    kwargs[arg] = point["slots"][arg]
-                else:
-                    raise ValueError(
-                        f"{who}: argument '{arg}' of its term '{place}' is neither one of its parameters or "
-                        f"constants, nor its own state, nor a model quantity available there "
-                        f"({', '.join(sorted(avail))}), nor a baseline slot")
+            source = {"param": own, "quantity": point, "state": own_states, "slot": point["slots"]}
+            kwargs = {arg: source[cls.arg_kind(arg, place, who)][arg] for arg in sig.parameters}
             outside = []
             for name in sorted(_globals_used(code)):
                 if name in fn.__globals__:
@@ -374,6 +361,27 @@ class Effect:
     @classmethod
     def term_args(cls, place: str) -> list[str]:
         return list(inspect.signature(getattr(cls, place)).parameters)
+
+    @classmethod
+    def arg_kind(cls, name: str, place: str, who: str | None = None) -> str:
+        """What the argument ``name`` of the term at ``place`` stands for, looked up in this order: ``"param"``
+        (one of its parameters or constants), ``"quantity"`` (a model quantity available at the place:
+        :data:`PLACE_QUANTITIES`), ``"state"`` (its own state) or ``"slot"`` (a baseline slot).  The check at
+        registration and the code generator both resolve through here."""
+        from ehas_env.physics import layout
+
+        if name in {p.name for p in cls.params + cls.constants}:
+            return "param"
+        if name in PLACE_QUANTITIES[place]:
+            return "quantity"
+        if name in {st[0] for st in cls.states}:
+            return "state"
+        if name in layout.BASE_SLOTS:
+            return "slot"
+        raise ValueError(
+            f"{who or f'effect {cls.name!r}'}: argument '{name}' of its term '{place}' is neither one of its "
+            f"parameters or constants, nor its own state, nor a model quantity available there "
+            f"({', '.join(sorted(PLACE_QUANTITIES[place]))}), nor a baseline slot")
 
     @classmethod
     def slot_names(cls) -> list[str]:
