@@ -79,14 +79,8 @@ def read_text(path, what: str, *, max_bytes: int | None = None) -> str:
     path = Path(path)
     try:
         st = path.stat()
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: does not exist; expected {what}") from None
-    except NotADirectoryError:
-        raise FileNotFoundError(f"{path}: does not exist (a part of the path is a file); expected {what}") from None
-    except PermissionError:
-        raise ValueError(f"{path}: cannot be read (permission denied); expected {what}") from None
     except OSError as exc:
-        raise ValueError(f"{path}: cannot be read ({exc.strerror or exc}); expected {what}") from None
+        raise _unreadable(path, exc, what) from None
     if stat.S_ISDIR(st.st_mode):
         raise ValueError(f"{path}: is a folder; expected {what}")
     if not (stat.S_ISREG(st.st_mode) or stat.S_ISFIFO(st.st_mode)):
@@ -95,12 +89,8 @@ def read_text(path, what: str, *, max_bytes: int | None = None) -> str:
         raise ValueError(f"{path}: {st.st_size:,} bytes, more than the {max_bytes:,} bytes allowed for {what}")
     try:
         raw = path.read_bytes()
-    except PermissionError:
-        raise ValueError(f"{path}: cannot be read (permission denied); expected {what}") from None
-    except IsADirectoryError:
-        raise ValueError(f"{path}: is a folder; expected {what}") from None
     except OSError as exc:
-        raise ValueError(f"{path}: cannot be read ({exc.strerror or exc}); expected {what}") from None
+        raise _unreadable(path, exc, what) from None
     if max_bytes is not None and len(raw) > max_bytes:  # a pipe has no size before it is read
         raise ValueError(f"{path}: {len(raw):,} bytes, more than the {max_bytes:,} bytes allowed for {what}")
     if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
@@ -116,6 +106,19 @@ def read_text(path, what: str, *, max_bytes: int | None = None) -> str:
         at = raw.index(b"\0")
         raise ValueError(f"{path}: not a UTF-8 text file (a NUL byte at offset {at}: binary data); expected {what}")
     return text
+
+
+def _unreadable(path: Path, exc: OSError, what: str) -> Exception:
+    """The one-line error for a file that could not be opened or read (see the module docstring)."""
+    if isinstance(exc, FileNotFoundError):
+        return FileNotFoundError(f"{path}: does not exist; expected {what}")
+    if isinstance(exc, NotADirectoryError):
+        return FileNotFoundError(f"{path}: does not exist (a part of the path is a file); expected {what}")
+    if isinstance(exc, IsADirectoryError):
+        return ValueError(f"{path}: is a folder; expected {what}")
+    if isinstance(exc, PermissionError):
+        return ValueError(f"{path}: cannot be read (permission denied); expected {what}")
+    return ValueError(f"{path}: cannot be read ({exc.strerror or exc}); expected {what}")
 
 
 def read_json(path, what: str, *, max_bytes: int | None = None):

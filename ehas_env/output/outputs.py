@@ -158,13 +158,13 @@ def foreign_files(folder) -> list[Path]:
     >>> foreign_files(root / "report")
     [PosixPath('my_notes.txt')]
     """
-    import json
+    from ehas_env.output.files import read_json
 
     folder = Path(folder)
     try:
-        record = json.loads((folder / RECORD).read_text(encoding="utf-8"))
+        record = read_json(folder / RECORD, "an ehas output record")
         known = set(record["files"]) if record.get("format") == "ehas-output-set" else set()
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):  # none, or damaged: nothing is on it
         known = set()
     out = []
     for f in sorted(_files(folder)):

@@ -70,6 +70,9 @@ def test_overwrite_never_deletes_files_ehas_did_not_write(tmp_path):
     (out / O.RECORD).write_text("{not json")
     with pytest.raises(OutputError, match=r"\(a.md\)"):
         write_set(out, {"a.md": "3"}, overwrite=True)
+    (out / O.RECORD).write_text("[]")  # JSON, but not a record
+    with pytest.raises(OutputError, match=r"\(a.md\)"):
+        write_set(out, {"a.md": "3"}, overwrite=True)
 
 
 @pytest.mark.parametrize("exc", [RuntimeError("boom"), KeyboardInterrupt()])
