@@ -63,6 +63,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from effect_files import spring_effect  # beside this script (tests/)
+
 ROOT = Path(__file__).resolve().parents[1]
 TIMEOUT = 120.0
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
@@ -1716,22 +1718,7 @@ def train_cases() -> list[Case]:
 
 
 # -- effect files ------------------------------------------------------------------------------------------
-EFFECT_OK = '''"""A torsion spring centring the crank."""
-from ehas_env.physics.effects import Effect, Param
-
-
-class FcSpring(Effect):
-    name = "fc_spring"
-    title = "torsion spring on the crank"
-    params = (Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate", typical=(500.0, 5000.0)),)
-    main_param = "k"
-    explanation = "A spring pulls the crank back to 0 deg with a torque -k theta."
-    signature = "load residual in phase with position"
-
-    @staticmethod
-    def crank_torque(theta, k):
-        return -(k * theta)
-'''
+EFFECT_OK = spring_effect()
 
 
 def effect_cases() -> list[Case]:

@@ -7,6 +7,7 @@ import math
 import pytest
 
 from ehas_env.physics.effects import REGISTRY, Effect, Param
+from effect_files import spring_effect  # tests/ is on sys.path (conftest.py)
 from refusals import refused
 
 K = Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate", typical=(500.0, 5000.0))
@@ -115,22 +116,7 @@ def test_a_state_rate_per_state():
             "states[0] must be (name, unit, initial value in SI)")
 
 
-EFFECT_OK = '''"""A torsion spring centring the crank."""
-from ehas_env.physics.effects import Effect, Param
-
-
-class FcSpring(Effect):
-    name = "fc_spring"
-    title = "torsion spring on the crank"
-    params = (Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate", typical=(500.0, 5000.0)),)
-    main_param = "k"
-    explanation = "A spring pulls the crank back to 0 deg with a torque -k theta."
-    signature = "load residual in phase with position"
-
-    @staticmethod
-    def crank_torque(theta, k):
-        return -(k * theta)
-'''
+EFFECT_OK = spring_effect()
 
 
 @pytest.mark.parametrize("edit, patterns", [

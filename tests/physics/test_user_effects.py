@@ -2,28 +2,12 @@
 from __future__ import annotations
 
 import math
-import textwrap
 
 import numpy as np
 import pytest
+from effect_files import spring_effect  # tests/ is on sys.path (conftest.py)
 
-SPRING = textwrap.dedent('''
-    """A torsion spring centring the crank (a user's effect file)."""
-    from ehas_env.physics.effects import Effect, Param
-
-
-    class TorsionSpring(Effect):
-        name = "torsion_spring"
-        title = "torsion spring on the crank"
-        params = (Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate (assumed)", typical=(500.0, 5000.0)),)
-        main_param = "k"
-        explanation = "A spring pulls the crank back to 0 deg with a torque -k theta."
-        signature = "load residual in phase with position"
-
-        @staticmethod
-        def crank_torque(theta, k):
-            return -(k * theta)
-''')
+SPRING = spring_effect("torsion_spring", "TorsionSpring")
 
 
 @pytest.fixture(scope="module")
