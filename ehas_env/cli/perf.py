@@ -93,7 +93,7 @@ def _parse_sizes(text: str) -> list[int]:
         sizes = [int(s) for s in items]
     except ValueError:
         raise ValueError(f"--sizes must be comma-separated positive integers, got {text!r}") from None
-    if not sizes or min(sizes) < 1 or max(sizes) > 1_000_000 or len(sizes) > 32:
+    if min(sizes) < 1 or max(sizes) > 1_000_000:  # split_list: 1 to 32 of them
         raise ValueError(f"--sizes must be 1 to 32 comma-separated integers in [1, 1000000], got {text!r}")
     return sizes
 
