@@ -340,14 +340,7 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
         raise ValueError(f"{where} vec_env must be 'batched', 'dummy' or 'subproc', got {t['vec_env']!r}")
 
     hyper = copy.deepcopy(_table(raw, "algo", source))
-    _check_hyper(t["algo"], hyper, source)
-    if t["algo"] == "ppo":  # a mini-batch larger than the rollout buffer: SB3 would train on nothing
-        defaults = inspect.signature(algo_class("ppo").__init__).parameters
-        n_steps, batch = (hyper.get(k, defaults[k].default) for k in ("n_steps", "batch_size"))
-        if batch > n_steps * t["n_envs"]:
-            raise ValueError(f"{source}: [algo] batch_size {batch} is larger than the rollout (n_steps {n_steps} x "
-                             f"n_envs {t['n_envs']} = {n_steps * t['n_envs']} samples); give batch_size <= "
-                             "n_steps x n_envs")
+    _check_hyper(t["algo"], hyper, source, t["n_envs"])
 
     env = _table(raw, "env", source)
     _no_unknown(env, ("id", "residual", "controller", "action_repeat", "action_scale_mA", "reward_scale",
@@ -445,7 +438,7 @@ _ALGO_FIELDS = ("learning_rate", "gamma", "tau", "gae_lambda", "n_steps", "batch
                 "stats_window_size")
 
 
-def _check_hyper(algo: str, hyper: dict, source: str) -> None:
+def _check_hyper(algo: str, hyper: dict, source: str, n_envs: int) -> None:
     cls = algo_class(algo)
     params = inspect.signature(cls.__init__).parameters
     allowed = [p for p in params if p not in ("self",) + _RESERVED] + ["action_noise_std"]
@@ -479,6 +472,11 @@ def _check_hyper(algo: str, hyper: dict, source: str) -> None:
     for key, value in hyper.items():  # every other number: finite (TOML allows inf and nan)
         if isinstance(value, float) and not math.isfinite(value):
             raise ValueError(f"{source}: [algo] {key} must be a finite number, got {value!r}")
+    if algo == "ppo":  # a mini-batch larger than the rollout buffer: SB3 would train on nothing
+        n_steps, batch = (hyper.get(k, params[k].default) for k in ("n_steps", "batch_size"))
+        if batch > n_steps * n_envs:
+            raise ValueError(f"{source}: [algo] batch_size {batch} is larger than the rollout (n_steps {n_steps} x "
+                             f"n_envs {n_envs} = {n_steps * n_envs} samples); give batch_size <= n_steps x n_envs")
 
 
 #: hidden layers of a policy or value network ([algo.policy_kwargs] net_arch): at most this many layers of
