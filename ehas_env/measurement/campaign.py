@@ -332,18 +332,11 @@ def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
               if not any(r.column_map.get(new) == old for r in runs)]
     if unused:
         # a mapping that renames nothing is a typo: reading on would drop a column the user meant to give
+        first = runs[0]  # its logger's column names: those read (under their file names) and those ignored
+        names = [first.column_map.get(c, c) for c in ["t", *first.columns]] + first.ignored_columns
         raise CampaignError(f"--columns {', '.join(unused)}: no run in {folder} has such a column (the first "
-                            f"run's columns: {', '.join(_header(csvs[0]))})")
+                            f"run's columns: {', '.join(names)})")
     return Campaign(path=folder, runs=runs, ignored=sorted(ignored), warnings=warnings)
-
-
-def _header(csv_path: Path) -> list[str]:
-    """The column names on the first line of a run file (for messages)."""
-    import re
-
-    with open(csv_path, encoding="utf-8", errors="replace") as fh:
-        line = fh.readline(4096).strip()
-    return [c.strip().strip('"') for c in re.split(r"[;,\t]", line) if c.strip()]
 
 
 def read_run(csv_path, columns: dict[str, str] | None = None) -> Run:
