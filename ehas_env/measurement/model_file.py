@@ -346,12 +346,9 @@ def load_model(path) -> PlantModel:
     path = Path(path)
     if str(path) in ("", "."):
         raise ValueError("model file: the path is empty; give a model JSON file (docs/model-file.md)")
-    if path.is_dir():
-        raise ValueError(f"model file {path} is a folder; expected a model JSON file (docs/model-file.md)")
-    if not path.is_file():
-        raise FileNotFoundError(f"model file {path} does not exist")
     from ehas_env.output.files import read_json
 
+    # read_json names a missing file, a folder, a file that is not UTF-8 text or not JSON
     doc = read_json(path, 'a model JSON file ("format": "ehas-model", docs/model-file.md)')
     return parse_model(doc, str(path))
 
