@@ -142,9 +142,14 @@ def check_folder(path, option: str | None = "--out", *, overwrite: bool = False)
 
 
 def foreign_files(folder) -> list[Path]:
-    """The files in ``folder`` (relative paths) that are not on its ehas output record.
+    """The files in ``folder`` (relative paths) that are on no ehas output record.
 
-    A folder without a record (the user's own folder, or an output of an ehas
+    The records read are the folder's own, those of the folders above it (a
+    folder inside an ehas output, such as ``ehas demo``'s campaign, which its
+    README regenerates with ``ehas simulate-campaign --overwrite``, is that
+    output's) and those of the folders inside it (that campaign, regenerated,
+    carries its own record).
+    A folder on no record (the user's own folder, or an output of an ehas
     version before the record) has no file on it.  Leftovers of killed runs
     and empty folders do not count.
 
@@ -158,22 +163,42 @@ def foreign_files(folder) -> list[Path]:
     >>> foreign_files(root / "report")
     [PosixPath('my_notes.txt')]
     """
-    from ehas_env.output.files import read_json
-
     folder = Path(folder)
-    try:
-        record = read_json(folder / RECORD, "an ehas output record")
-        known = set(record["files"]) if record.get("format") == "ehas-output-set" else set()
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):  # none, or damaged: nothing is on it
-        known = set()
+    known: set[str] = set()
+    for owner in (folder.absolute(), *folder.absolute().parents):
+        below = folder.absolute().relative_to(owner).as_posix()
+        for name in _recorded(owner):
+            if below == ".":
+                known.add(name)
+            elif name.startswith(below + "/"):
+                known.add(name[len(below) + 1:])
+    files = sorted(_files(folder))
+    for f in files:  # outputs written inside it since (the demo's campaign regenerated) carry their own records
+        if f.name == RECORD and f.parent != folder:
+            below = f.parent.relative_to(folder).as_posix()
+            known.update(f"{below}/{name}" for name in _recorded(f.parent))
     out = []
-    for f in sorted(_files(folder)):
+    for f in files:
         rel = f.relative_to(folder)
-        if rel.as_posix() == RECORD or (len(rel.parts) == 1 and (_STALE.match(rel.name) or _ATOMIC_TMP.match(rel.name))):
+        if rel.name == RECORD or (len(rel.parts) == 1 and (_STALE.match(rel.name) or _ATOMIC_TMP.match(rel.name))):
             continue
         if rel.as_posix() not in known:
             out.append(rel)
     return out
+
+
+def _recorded(folder: Path) -> list[str]:
+    """The files on ``folder``'s record (none when it has no record, or a damaged one)."""
+    from ehas_env.output.files import read_json
+
+    try:
+        if not (folder / RECORD).is_file():
+            return []
+        record = read_json(folder / RECORD, "an ehas output record")
+        files = record["files"] if record.get("format") == "ehas-output-set" else []
+        return [f for f in files if isinstance(f, str)]
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):  # damaged: nothing is on it
+        return []
 
 
 def _files(folder: Path):

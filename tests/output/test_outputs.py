@@ -251,3 +251,27 @@ def test_outputs_never_replace_the_commands_input(tmp_path, capsys, argv, culpri
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and culprit in err and "input" in err, err
     assert snapshot(camp) == before
+
+
+def test_a_folder_inside_an_ehas_output_is_that_outputs_own(tmp_path):
+    """ehas demo's campaign (on the demo's record only) is replaced by the command its README gives; a file the
+    user added inside it is still protected."""
+    demo = tmp_path / "demo"
+    with OutputSet(demo, "--out") as tmp:
+        (tmp / "campaign").mkdir()
+        (tmp / "campaign" / "run.csv").write_text("1")
+        (tmp / "README.md").write_text("# demo")
+    assert not (demo / "campaign" / O.RECORD).exists()
+    assert O.foreign_files(demo / "campaign") == []
+    write_set(demo / "campaign", {"run.csv": "2"}, overwrite=True)
+    assert snapshot(demo / "campaign") == {"run.csv": b"2"}
+    (demo / "campaign" / "notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match=r"holds files no ehas run wrote there \(notes.txt\)"):
+        write_set(demo / "campaign", {"run.csv": "3"}, overwrite=True)
+    (demo / "campaign" / "notes.txt").unlink()
+    # the outer output again, over the inner one regenerated (its own record, a file the outer record lacks)
+    write_set(demo / "campaign", {"run.csv": "4", "truth.json": "{}"}, overwrite=True)
+    assert O.foreign_files(demo) == []
+    with OutputSet(demo, "--out", overwrite=True) as tmp:
+        (tmp / "README.md").write_text("# demo 2")
+    assert snapshot(demo) == {"README.md": b"# demo 2"}
