@@ -37,7 +37,7 @@ def resolve_defaults(args):
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", required=True, choices=METHODS, help="tuner: model, optimize, relay or schedule")
-    from ehas_env.cli.options import number, option
+    from ehas_env.ranges import number, option
 
     parser.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=None,
                         help="disc sets to tune for, 1..7 (model/relay default 7, the least margin; "

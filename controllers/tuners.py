@@ -475,7 +475,7 @@ def relay_experiment(plant=None, *, disc_sets: int = 3, relay_mA: float = 1.0, h
     from ehas_env.physics import layout as K
     from ehas_env.simulation.plant import TAU_MAX, Plant
 
-    from ehas_env.cli.options import check_field
+    from ehas_env.ranges import check_field
 
     relay_mA = check_field("relay_mA", relay_mA, "relay_mA (the relay amplitude)")
     if not (math.isfinite(hysteresis_deg) and hysteresis_deg >= 0):

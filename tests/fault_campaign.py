@@ -824,7 +824,7 @@ NUMERIC_VALUES = ["nan", "inf", "-inf", "-1", "0", "1e308", "1e-308", "abc", "1,
 
 
 def numeric_cases() -> list[Case]:
-    from ehas_env.cli.options import Number
+    from ehas_env.ranges import Number
 
     cases = []
     for words, parser in walk_parser():

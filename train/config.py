@@ -62,7 +62,7 @@ from dataclasses import asdict, dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from ehas_env.cli.options import ENV_KWARGS, check_field
+from ehas_env.ranges import ENV_KWARGS, check_field
 
 ALGOS = ("ppo", "sac", "td3")
 VALIDATE_METRICS = ("mean", "no_worse", "fewest_worse")
@@ -430,7 +430,7 @@ def algo_class(algo: str):
 _RESERVED = ("policy", "env", "seed", "tensorboard_log", "verbose", "device", "_init_setup_model", "action_noise")
 
 
-#: the [algo] numbers with a shared range (ehas_env.cli.options.FIELDS); the one text value SB3 takes among them is
+#: the [algo] numbers with a shared range (ehas_env.ranges.FIELDS); the one text value SB3 takes among them is
 #: SAC's automatic entropy coefficient, ent_coef = "auto" (or "auto_0.1": its start value)
 _ALGO_FIELDS = ("learning_rate", "gamma", "tau", "gae_lambda", "n_steps", "batch_size", "n_epochs", "clip_range",
                 "clip_range_vf", "ent_coef", "vf_coef", "max_grad_norm", "target_kl", "buffer_size",
@@ -488,7 +488,7 @@ NET_ARCH_MAX_WIDTH = 4096
 
 def _check_net_arch(na, where: str, networks=("pi", "vf")):
     """``net_arch``: a list of layer widths, or a table of such lists per network (``networks``), in range."""
-    from ehas_env.cli.options import check_number
+    from ehas_env.ranges import check_number
 
     allowed = (f"a list of at most {NET_ARCH_MAX_LAYERS} layer widths, integers in [1, {NET_ARCH_MAX_WIDTH}] "
                f"(or a table of such lists: {', '.join(networks)})")

@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_executor_arguments(parser)
     parser.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
-    from ehas_env.cli.options import option
+    from ehas_env.ranges import option
 
     parser.add_argument("--total-steps", type=option("--total-steps", "total_steps"), metavar="N",
                         help="override [train] total_steps")

@@ -16,7 +16,7 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="results/curves", help="output folder (default results/curves)")
-    from ehas_env.cli.options import option
+    from ehas_env.ranges import option
 
     parser.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=3,
                         help="disc sets on the crank, 1..7 (default 3)")
@@ -35,10 +35,10 @@ def run(args) -> int:
     from ehas_env.simulation.plant import Plant
     from ehas_env.cli.simulate import parse_gains
 
-    from ehas_env.cli.options import FIELDS
+    from ehas_env.ranges import FIELDS
     from ehas_env.output.outputs import OutputSet
 
-    from ehas_env.cli.options import split_list
+    from ehas_env.ranges import split_list
 
     items = split_list(args.supplies, "--supplies", "pressures in bar", max_items=20)
     supplies = tuple(FIELDS["supply_bar"].parse(v, "--supplies: each pressure") for v in items)

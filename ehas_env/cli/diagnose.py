@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from ehas_env.cli.options import number, split_list
+from ehas_env.ranges import number, split_list
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -284,7 +284,7 @@ def demo_section(outdir: Path) -> str:
     returns a short markdown summary.  About 20-40 s on two cores.
     """
     from ehas_env.measurement.campaign import read_campaign
-    from ehas_env.cli.campaign import write_simulated_campaign
+    from ehas_env.measurement.synthetic import write_simulated_campaign
     from ehas_env.cli.compare import write_report
     from ehas_env.measurement.diagnosis import diagnose
     from ehas_env.output.files import atomic_write_text

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from ehas_env.cli.options import check_samples, number, option
+from ehas_env.ranges import check_samples, number, option
 
 #: the signals of ehas_env.identification.excitation (kept here so that building the parser imports no numpy)
 KINDS = ("chirp", "prbs", "prms", "multisine")

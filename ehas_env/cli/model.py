@@ -20,7 +20,7 @@ def _option(key: str) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from ehas_env.cli.options import Number
+    from ehas_env.ranges import Number
 
     try:
         from ehas_env.measurement.model_file import FIELDS
@@ -53,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _flow_range():
-    from ehas_env.cli.options import Range
+    from ehas_env.ranges import Range
 
     return Range(0, 1e5, "LPM", lo_open=True)
 

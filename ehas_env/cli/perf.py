@@ -52,7 +52,7 @@ TARGETS = {
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="results", help="output folder (default results/)")
-    from ehas_env.cli.options import number
+    from ehas_env.ranges import number
 
     parser.add_argument("--seconds", type=number("--seconds", "s", 0, 3600, lo_open=True), default=3.0,
                         help="duration of each measurement, s, (0, 3600] (default 3)")
@@ -86,7 +86,7 @@ def _command(args) -> str:
 
 
 def _parse_sizes(text: str) -> list[int]:
-    from ehas_env.cli.options import split_list
+    from ehas_env.ranges import split_list
 
     items = split_list(text, "--sizes", "positive integers", max_items=32)
     try:

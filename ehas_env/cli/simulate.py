@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ehas_env.cli.options import FIELDS, check_run_length, number, option
+from ehas_env.ranges import FIELDS, check_run_length, number, option
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def parse_gains(text: str):
     from ehas_env.simulation.plant import RigController
 
-    from ehas_env.cli.options import split_list
+    from ehas_env.ranges import split_list
 
     if text is None:  # not given: the book's gains
         return RigController()

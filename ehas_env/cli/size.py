@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="what to print (default: all; 'design' when a design argument is given)")
     parser.add_argument("--format", choices=FORMATS, default="text",
                         help="text (default), or csv / json records of one table")
-    from ehas_env.cli.options import number, option
+    from ehas_env.ranges import number, option
 
     load = parser.add_mutually_exclusive_group()
     load.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=None,

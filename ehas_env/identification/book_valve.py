@@ -117,7 +117,7 @@ def _fmt_tf(num, den) -> str:
 def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
     """Run every experiment and write ``out/README.md`` and figures; returns the README path."""
     from ehas_env.output.files import atomic_write_text
-    from ehas_env.cli.identify import plot_bode, plot_overlay
+    from ehas_env.output.identification_plots import plot_bode, plot_overlay
     from ehas_env.output.progress import bar, status
 
     def step(what):
@@ -342,7 +342,7 @@ def study(out: Path, seeds: int = 10, quiet: bool = False) -> Path:
 def _plot_spectra(sigs: dict, G, path) -> Path:
     from scipy import signal as sps
 
-    from ehas_env.cli.identify import _save
+    from ehas_env.output.identification_plots import save
     from ehas_env.output.plots import _pyplot
 
     plt = _pyplot()
@@ -363,11 +363,11 @@ def _plot_spectra(sigs: dict, G, path) -> Path:
     ax.legend(loc="lower left", fontsize=7)
     ax2.legend(loc="upper right", fontsize=8)
     ax.set_title("where each excitation puts its power, and where the valve responds", fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _plot_sweep(sweep, path) -> Path:
-    from ehas_env.cli.identify import _save
+    from ehas_env.output.identification_plots import save
     from ehas_env.output.plots import _pyplot
 
     plt = _pyplot()
@@ -382,7 +382,7 @@ def _plot_sweep(sweep, path) -> Path:
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title("PRMS +-20 mA with book-level noise: fit % follows the output's share of power", fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def main(argv=None) -> int:

@@ -242,7 +242,7 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     from pathlib import Path
 
     from ehas_env.output.files import atomic_write_text
-    from ehas_env.cli.identify import _save, plot_bode
+    from ehas_env.output.identification_plots import plot_bode, save
     from ehas_env.simulation.plant import Plant, RigController
     from ehas_env.output.plots import _pyplot
     from ehas_env.physics.white_box_valve import WhiteBoxValve
@@ -277,7 +277,7 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
                  f"{pm.label}: flow against current (no load); dotted: rated {rated:.3g} LPM", fontsize=10)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
-    files.append(_save(fig, out / "flow_vs_current.png"))
+    files.append(save(fig, out / "flow_vs_current.png"))
 
     # 2. flow and flow gain vs stroke for three laps
     status("2/5 flow and flow gain against spool stroke", "curves")
@@ -295,7 +295,7 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     for a in ax:
         a.grid(alpha=0.3)
     ax[0].set_title("flow and flow gain against spool stroke", fontsize=10)
-    files.append(_save(fig, out / "flow_gain_vs_stroke.png"))
+    files.append(save(fig, out / "flow_gain_vs_stroke.png"))
     kq = {name: float(np.gradient(lap_flow(np.array([-1e-6, 0.0, 1e-6]), lap, 220.0, wb), 1e-3)[1]) for name, lap in laps}
 
     # 3. pressure gain
@@ -311,7 +311,7 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
     ax.set_title(f"pressure against stroke, ports blocked (radial clearance {CLEARANCE * 1e6:g} um)", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    files.append(_save(fig, out / "pressure_gain.png"))
+    files.append(save(fig, out / "pressure_gain.png"))
 
     # 4. valve Bode
     status("4/5 valve Bode plot", "curves")
@@ -369,7 +369,7 @@ def write_curves(out, *, plant=None, controller=None, supplies_bar=(70.0, 140.0,
 
 
 def _plot_loop(loop: dict, path, title: str):
-    from ehas_env.cli.identify import _save
+    from ehas_env.output.identification_plots import save
     from ehas_env.output.plots import _pyplot
 
     plt = _pyplot()
@@ -410,4 +410,4 @@ def _plot_loop(loop: dict, path, title: str):
     for a in ax:
         a.grid(True, which="both", alpha=0.3)
     ax[0].set_title(title, fontsize=9)
-    return _save(fig, path)
+    return save(fig, path)

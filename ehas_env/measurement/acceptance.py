@@ -178,7 +178,7 @@ GEN = """
 import json, sys
 from ehas_env.physics.effects import load_effects_path
 load_effects_path(sys.argv[1])
-from ehas_env.cli.campaign import write_simulated_campaign
+from ehas_env.measurement.synthetic import write_simulated_campaign
 for spec in json.loads(sys.argv[2]):
     kw = {k: spec[k] for k in ("plan", "valve") if k in spec}
     write_simulated_campaign(spec["out"], spec["effects"], seed=spec["seed"], perturb=True,
@@ -209,7 +209,7 @@ def memory_campaign(effects, seed, *, duration=3.0, position_only=False, plan=No
 
     ``rig_scale`` ``{"beta": f, "K": g}``: the rig's bulk modulus and valve gain set to ``f`` and ``g``
     times the book's instead of the random +-5 % / +-1 % perturbation."""
-    from ehas_env.cli.campaign import simulate_campaign
+    from ehas_env.measurement.synthetic import simulate_campaign
     from ehas_env.measurement.campaign import Campaign, validate_run
     from ehas_env.measurement.model_file import PlantModel
     from ehas_env.physics.rig import RigParams

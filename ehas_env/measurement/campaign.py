@@ -50,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ehas_env.cli.options import FIELDS, MAX_SAMPLES
+from ehas_env.ranges import FIELDS, MAX_SAMPLES
 from ehas_env.output.files import atomic_write_text
 from ehas_env.physics.rig import (AREA, BAR, CRANK_RADIUS, LPM, MAX_SETS, MIN_SETS, RATED_CURRENT, RATED_VALVE_DROP,
                                   THETA_STROKE_END, VALVE_K)
@@ -205,7 +205,7 @@ def parse_column_map(text: str | None) -> dict[str, str]:
     ...
     ValueError: --columns: 'angle' is not a column of the measurement format; NEW must be one of t, current_mA, theta_deg, theta_ref_deg, flow_lpm, p_a_bar, p_b_bar, p_s_bar, load_kN
     """
-    from ehas_env.cli.options import split_list
+    from ehas_env.ranges import split_list
 
     out: dict[str, str] = {}
     for item in split_list(text, "--columns", "NEW=OLD column names") if text else []:

@@ -30,7 +30,7 @@ Effects stack: :func:`diagnose` accepts effects already added
 
 Examples
 --------
->>> from ehas_env.cli.campaign import simulate_campaign
+>>> from ehas_env.measurement.synthetic import simulate_campaign
 >>> from ehas_env.measurement.campaign import Campaign, validate_run
 >>> runs, _ = simulate_campaign({"viscous_friction": {"b": 4200}}, seed=11, duration=0.5,
 ...                             plan=((1, 30.0, 3.0),), valve=False)

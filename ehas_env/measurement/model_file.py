@@ -53,7 +53,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ehas_env.cli.options import FIELDS as SHARED, Range
+from ehas_env.ranges import FIELDS as SHARED, Range
 from ehas_env.output.files import atomic_write_text
 from ehas_env.physics.rig import (BAR, BULK_MODULUS, INERTIA_PER_SET, LPM, VALVE_K, VALVE_WN, VALVE_ZETA, DEG,
                                   RigParams)

@@ -16,7 +16,7 @@ left out of the fit % (it still counts in the calibration cost).
 
 Examples
 --------
->>> from ehas_env.cli.campaign import simulate_campaign
+>>> from ehas_env.measurement.synthetic import simulate_campaign
 >>> from ehas_env.measurement.campaign import Campaign, validate_run
 >>> runs, truth = simulate_campaign({"coulomb_friction": {"Fc": 350}}, seed=5, duration=1.0,
 ...                                 plan=DEFAULT_DOC_PLAN)

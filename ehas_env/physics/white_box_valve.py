@@ -323,7 +323,7 @@ def bandwidth(sys_) -> tuple[float, float]:
 def comparison(out: Path) -> Path:
     """Write the white-box vs grey-box comparison (README.md table, step.png, bode.png) into ``out``."""
     from ehas_env.output.files import atomic_write_text
-    from ehas_env.cli.identify import _save, plot_bode
+    from ehas_env.output.identification_plots import plot_bode, save
     from ehas_env.output.plots import _pyplot
 
     out = Path(out)
@@ -357,7 +357,7 @@ def comparison(out: Path) -> Path:
     ax.set_title("step 0 -> 20 mA at t = 10 ms", fontsize=10)
     ax.legend(fontsize=8, loc="lower right")
     ax.grid(alpha=0.3)
-    step_png = _save(fig, out / "step.png")
+    step_png = save(fig, out / "step.png")
     bode_png = plot_bode([("grey box (identified)", grey), ("white box, 70 bar", white),
                           ("white box, 220 bar (rig supply)", v.transfer_function(220.0)),
                           ("white box, book's chain", chain.transfer_function(70.0))],

@@ -180,7 +180,7 @@ def add_executor_arguments(parser) -> None:
     """The command-line options every sweeping command shares."""
     parser.add_argument("--executor", choices=("local", "ray"), default="local",
                         help="where the work runs: local processes (default) or a Ray cluster")
-    from ehas_env.cli.options import option
+    from ehas_env.ranges import option
 
     parser.add_argument("--workers", type=option("--workers", "workers"), default=None,
                         help="local: worker processes (default 1 = in-process); ray: CPUs of a local Ray instance")

@@ -29,7 +29,7 @@ from ehas_env.physics import layout as K
 from ehas_env.physics.codegen import current_model
 from ehas_env.physics.effects import REGISTRY, get_effect, resolve_effects
 from ehas_env.physics.effects.base import effect_slots, mark_effects_on
-from ehas_env.cli.options import MAX_SAMPLES, check_field, check_number, check_run_length, check_samples
+from ehas_env.ranges import MAX_SAMPLES, check_field, check_number, check_run_length, check_samples
 from ehas_env.simulation.control_laws import N_GAINS, compiled_form, law_id
 from ehas_env.simulation.metrics import tracking_errors
 from ehas_env.simulation.reference import SineReference
@@ -360,7 +360,7 @@ class Plant:
         p_a_bar, p_b_bar, p_s_bar`` (deg, deg/s, deg/s^2, deg/s^3, bar), plus the
         reference's ``amplitude_deg`` (learned controllers normalise the error by it).
         The run lasts ``duration`` s, or ``cycles`` reference periods.  Numbers are checked against the
-        ranges of ``ehas_env.cli.options.FIELDS`` (docs/errors.md): amplitude in (0, 44.43) deg, frequency
+        ranges of ``ehas_env.ranges.FIELDS`` (docs/errors.md): amplitude in (0, 44.43) deg, frequency
         in (0, 50] Hz, cycles in (0, 10000], duration in (0, 600] s, theta0_deg in [-40, 40] deg.
         """
         controller = RigController.book() if controller is None else controller
@@ -565,7 +565,7 @@ def _check_reference(reference):
     return reference
 
 
-#: the fields of :class:`Sensors` and their ranges (``ehas_env.cli.options.FIELDS``)
+#: the fields of :class:`Sensors` and their ranges (``ehas_env.ranges.FIELDS``)
 SENSOR_FIELDS = ("theta_noise_deg", "pressure_noise_bar", "flow_noise_lpm", "adc_bits", "dac_bits", "lvdt_gain_error")
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from ehas_env.cli import main as cli
-from ehas_env.cli.options import Number, numeric_actions
+from ehas_env.ranges import Number, numeric_actions
 
 # the arguments each command needs before its options are even looked at
 REQUIRED = {
@@ -61,10 +61,10 @@ def assert_one_line(rc, err, command, *words):
 
 # -- numbers -----------------------------------------------------------------------------------------------
 def test_every_numeric_option_has_a_range():
-    """No command declares a number without ehas_env.cli.options (type, unit, range in one place)."""
+    """No command declares a number without ehas_env.ranges (type, unit, range in one place)."""
     bare = [(cmd, a.option_strings) for cmd, p in SUBPARSERS.items() for a in p._actions
             if a.type in (int, float)]
-    assert not bare, f"numeric options without a range (use ehas_env.cli.options.number): {bare}"
+    assert not bare, f"numeric options without a range (use ehas_env.ranges.number): {bare}"
     assert len(NUMERIC) >= 40
 
 

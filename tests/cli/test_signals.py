@@ -97,7 +97,7 @@ def test_ctrl_c_during_the_imports_is_130_and_one_line(tmp_path):
     seen = []
     for line in proc.stderr:
         seen.append(line)
-        if line.rstrip().endswith("ehas_env.cli.options"):  # the parser is loading the command modules
+        if line.rstrip().endswith("ehas_env.ranges"):  # the parser is loading the command modules
             break
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)

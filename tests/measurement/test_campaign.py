@@ -15,7 +15,7 @@ import pytest
 
 from ehas_env.measurement.campaign import (MAX_GAP, CampaignError, read_campaign, read_run, validate_meta, write_campaign,
                                write_run)
-from ehas_env.cli.campaign import simulate_campaign
+from ehas_env.measurement.synthetic import simulate_campaign
 from ehas_env.cli.main import main
 
 PLAN = ((2, 12.0, 2.0),)
@@ -68,7 +68,7 @@ def test_written_campaign_reads_back_identically(campaign_dir, small_runs):
 
 
 def test_sidecars_do_not_reveal_the_hidden_effect(tmp_path):
-    from ehas_env.cli.campaign import write_simulated_campaign
+    from ehas_env.measurement.synthetic import write_simulated_campaign
 
     folder, truth = write_simulated_campaign(tmp_path / "c", {"coulomb_friction": {"Fc": 333.0}}, seed=8,
                                              perturb=True, duration=0.5, plan=PLAN)

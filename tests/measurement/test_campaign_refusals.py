@@ -21,7 +21,7 @@ import pytest
 from refusals import refused  # tests/ is on sys.path (conftest.py)
 
 import ehas_env.measurement.campaign as campaign
-from ehas_env.cli.campaign import simulate_campaign
+from ehas_env.measurement.synthetic import simulate_campaign
 from ehas_env.measurement.campaign import CampaignError, read_campaign, validate_run, write_campaign
 
 PLAN = ((2, 12.0, 2.0),)

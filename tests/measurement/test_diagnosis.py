@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from ehas_env.measurement.campaign import Campaign, read_campaign, validate_run
-from ehas_env.cli.campaign import simulate_campaign, write_simulated_campaign
+from ehas_env.measurement.synthetic import simulate_campaign, write_simulated_campaign
 from ehas_env.cli.main import main
 from ehas_env.measurement.diagnosis import diagnose
 from ehas_env.physics.effects import REGISTRY

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ehas_env.cli.campaign import simulate_campaign
+from ehas_env.measurement.synthetic import simulate_campaign
 from ehas_env.cli.main import main
 from ehas_env.measurement.campaign import CampaignError, parse_column_map, read_campaign, write_campaign
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from ehas_env.measurement.campaign import Campaign, validate_run
-from ehas_env.cli.campaign import simulate_campaign
+from ehas_env.measurement.synthetic import simulate_campaign
 from ehas_env.simulation.metrics import fit_percent
 from ehas_env.measurement.replay import ModelSpec, Replayer, noise_level
 from ehas_env.simulation.sensors import Sensors

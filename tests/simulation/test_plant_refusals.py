@@ -4,7 +4,7 @@ Each refusal is a ValueError of one line that names the culprit (the argument,
 the effect and its parameter, the controller) and says what is allowed; nothing
 escapes as a TypeError, AttributeError, IndexError, OverflowError or numpy
 error, and nothing absurd (NaN, a string, a bool, 1e300) is taken silently.
-The ranges are those of ``ehas_env.cli.options.FIELDS``.  The first refusals
+The ranges are those of ``ehas_env.ranges.FIELDS``.  The first refusals
 (disc_sets 0/8, inertia -1, an unknown effect or parameter, Fc -3, amplitude
 44.5, a NaN current, a controller at 500 Hz) are in ``test_plant.py``.
 """
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from refusals import refused  # tests/ is on sys.path (conftest.py)
 
-from ehas_env.cli.options import MAX_SAMPLES
+from ehas_env.ranges import MAX_SAMPLES
 from ehas_env.simulation.plant import Plant, RigController
 from ehas_env.simulation.reference import SineReference
 from ehas_env.simulation.sensors import Sensors

@@ -497,7 +497,7 @@ def parse_spec(text: str) -> dict[str, dict[str, float]]:
     """
     out: dict[str, dict[str, float]] = {}
     current = None
-    from ehas_env.cli.options import split_list
+    from ehas_env.ranges import split_list
 
     for item in split_list(text.replace(";", ","), "effects spec", "NAME[:PARAM=VALUE] items", unique=False):
         if ":" in item:
