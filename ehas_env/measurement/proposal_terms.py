@@ -130,7 +130,7 @@ def extended_model():
 
     key = tuple(sorted((n, c.__module__) for n, c in REGISTRY.items()))
     if key not in _EXT:
-        _EXT[key] = build_model(list(REGISTRY.values()) + list(TERM_CLASSES.values()))
+        _EXT[key] = build_model(list(REGISTRY.values()) + list(TERM_CLASSES.values()), inline=False)
     return _EXT[key]
 
 

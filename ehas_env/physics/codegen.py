@@ -276,7 +276,7 @@ def compiled_laws() -> list:
     return control_laws.all_laws()
 
 
-def build_model(effects=None, laws=None):
+def build_model(effects=None, laws=None, inline: bool = True):
     """The compiled model module of ``effects`` (classes; default every registered effect).
 
     Writes the generated file on first use (atomically) and imports it; later
@@ -287,11 +287,13 @@ def build_model(effects=None, laws=None):
     effects = list(REGISTRY.values()) if effects is None else list(effects)
     laws = compiled_laws() if laws is None else list(laws)
     # the same classes and laws give the same text: skip regenerating it (every Plant asks for its model)
-    key = (tuple(effects), tuple(laws))
+    key = (tuple(effects), tuple(laws), bool(inline))
     if key in _BY_PARTS:
         return _BY_PARTS[key]
     spec = ModelSource(effects, laws)
     text = spec.source()
+    if not inline:
+        text = text.replace('@njit(cache=True, inline="always")', "@njit(cache=True)")
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
     if digest in _MODELS:
         _BY_PARTS[key] = _MODELS[digest]
@@ -305,8 +307,7 @@ def build_model(effects=None, laws=None):
         tmp.write_text(text)
         os.replace(tmp, path)
         if os.environ.get("EHAS_QUIET_COMPILE") != "1":
-            print("ehas: compiling the simulator for this set of effects and controllers (first run only; "
-                  "about a minute)", file=sys.stderr, flush=True)
+            _watch_compiles(name, inline)  # announced when numba starts compiling it (numba compiles lazily)
     mspec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(mspec)
     sys.modules[name] = module
@@ -317,6 +318,93 @@ def build_model(effects=None, laws=None):
     return module
 
 
-def current_model():
-    """The model of every effect and controller law registered now (built-in and user-loaded)."""
-    return build_model()
+#: measured CPU seconds to compile what a command first runs of each build, on one quiet core (results/perf.md)
+COMPILE_CPU_S = {True: 60.0, False: 10.0}
+_WATCH = {"depth": 0, "start": 0.0, "name": "", "thread": None, "est": 0.0}
+HEARTBEAT_S = 10.0
+_FRESH: dict[str, bool] = {}  # generated modules written by this process and not yet compiled: their build
+
+
+def compile_estimate_s(inline: bool) -> float:
+    """Seconds a first compile of the ``inline`` build should take now: the quiet figure scaled by the load.
+
+    Parameters
+    ----------
+    inline : bool
+        The build (see :func:`current_model`).
+
+    Returns
+    -------
+    float
+        ``COMPILE_CPU_S[inline]`` times the run queue per core when above one (2 loaded cores share it).
+    """
+    try:
+        load = os.getloadavg()[0] / max(1, os.cpu_count() or 1)
+    except OSError:
+        load = 1.0
+    return COMPILE_CPU_S[bool(inline)] * max(1.0, load)
+
+
+def _watch_compiles(module: str, inline: bool) -> None:
+    """Announce the first compile of the new generated ``module`` and print a line every HEARTBEAT_S while
+    numba compiles (numba's compile events say when it does; a cached function's load is one too, hence only
+    modules whose file was just written are announced)."""
+    import threading
+    import time
+
+    from numba.core import event
+
+    _FRESH[module] = inline
+    if _WATCH["thread"] is not None:
+        return
+
+    class _Listener(event.Listener):
+        def on_start(self, ev):
+            fn = getattr(ev.data.get("dispatcher"), "py_func", None)
+            if _WATCH["depth"] == 0:
+                _WATCH["start"] = time.monotonic()
+                _WATCH["name"] = getattr(fn, "__name__", "?")
+                mod = getattr(fn, "__module__", "")
+                if mod in _FRESH:
+                    inl = _FRESH.pop(mod)
+                    _WATCH["est"] = compile_estimate_s(inl)
+                    build = "fast-step build" if inl else "quick-compile build"
+                    print(f"ehas: compiling the simulator for this set of effects and controllers ({build}, "
+                          f"{_WATCH['name']}; first run only; about {_WATCH['est']:.0f} s at this machine's load)",
+                          file=sys.stderr, flush=True)
+            _WATCH["depth"] += 1
+
+        def on_end(self, ev):
+            _WATCH["depth"] = max(0, _WATCH["depth"] - 1)
+
+    def beat():
+        while True:
+            time.sleep(HEARTBEAT_S)
+            if _WATCH["depth"] > 0:
+                spent = time.monotonic() - _WATCH["start"]
+                if spent >= HEARTBEAT_S:
+                    print(f"ehas: still compiling the simulator ({_WATCH['name']}): {spent:.0f} s so far, "
+                          f"about {_WATCH['est']:.0f} s in all", file=sys.stderr, flush=True)
+
+    event.register("numba:compile", _Listener())
+    _WATCH["thread"] = threading.Thread(target=beat, name="ehas-compile-heartbeat", daemon=True)
+    _WATCH["thread"].start()
+
+
+def current_model(inline: bool = True):
+    """The model of every effect and controller law registered now (built-in and user-loaded).
+
+    Parameters
+    ----------
+    inline : bool
+        True (the environments' and the batched kernel's build): every model function is inlined into the
+        drivers, the fastest step and a long compile.  False (the :class:`~ehas_env.simulation.plant.Plant`'s
+        build: replay of logs, fits, single runs): each function is compiled once and called, several times
+        faster to compile for a slower step (``results/perf.md`` has both figures).
+
+    Returns
+    -------
+    module
+        The generated model module.
+    """
+    return build_model(inline=inline)

@@ -276,7 +276,9 @@ class Plant:
         self.effects = resolve_effects(effects)
         self.dt = float(dt)
         self.substeps = substeps
-        self._model = current_model()  # every registered effect, so every resolved effect is in it
+        # every registered effect, so every resolved effect is in it; the quick-to-compile build (no inlining):
+        # a plant replays, fits and runs single simulations, where the compile, not the step, is the wait
+        self._model = current_model(inline=False)
         self._P = self._param_vector()
         self._hist_len = K.history_length(TAU_MAX, self.dt)
 

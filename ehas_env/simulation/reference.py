@@ -51,7 +51,7 @@ class SineReference:
         """theta_ref and its first three derivatives (deg, deg/s^k), shape (4,) or (4, len(t))."""
         from ehas_env.physics.codegen import current_model
 
-        reference_point = current_model().reference_point
+        reference_point = current_model(inline=False).reference_point  # a few calls: the quick-compile build
 
         vec = self.kernel_vector()
         scalar = np.ndim(t) == 0

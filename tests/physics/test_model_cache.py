@@ -1,0 +1,76 @@
+"""The compiled model is keyed by its text: an edited effect file gives a new model, an unchanged one is reused.
+
+Counted, not timed: each case runs in a fresh process (numba's on-disk cache is what carries over between
+runs) and reports the generated model's module name and numba's own cache statistics of ``derivatives``
+(``cache_misses``: compiled here; ``cache_hits``: loaded from an earlier run's compile).
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+PROBE = textwrap.dedent("""
+    import json, sys
+    import numpy as np
+    from ehas_env.physics.effects import load_effects_path
+    from ehas_env.simulation.plant import Plant
+    load_effects_path([sys.argv[1]])
+    plant = Plant(disc_sets=3, effects={"cache_probe_spring": {"k": 1000.0}})
+    m = plant.model
+    s = plant.initial_state().copy()
+    s[0] = 0.1
+    ds = np.zeros(m.N_STATES)
+    m.derivatives(s, 0.0, plant.param_vector, ds)
+    st = m.derivatives.stats
+    print(json.dumps({"module": m.__name__, "misses": sum(st.cache_misses.values()),
+                      "hits": sum(st.cache_hits.values()), "alpha": ds[1]}))
+""")
+
+
+def _effect(rate_scale: str) -> str:
+    return textwrap.dedent(f'''
+        """A torsion spring centring the crank (the cache test's effect)."""
+        from ehas_env.physics.effects import Effect, Param
+
+
+        class CacheProbeSpring(Effect):
+            name = "cache_probe_spring"
+            title = "torsion spring on the crank"
+            params = (Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate", typical=(500.0, 5000.0)),)
+            main_param = "k"
+            explanation = "A spring pulls the crank back to 0 deg with a torque -k theta."
+            signature = "load residual in phase with position"
+
+            @staticmethod
+            def crank_torque(theta, k):
+                return -({rate_scale} * k * theta)
+    ''')
+
+
+def _run(tmp_path, folder) -> dict:
+    env = {**os.environ, "EHAS_CACHE_DIR": str(tmp_path / "models"), "EHAS_QUIET_COMPILE": "1"}
+    out = subprocess.run([sys.executable, "-c", PROBE, str(folder)], capture_output=True, text=True, env=env,
+                         check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_edited_effect_file_gives_a_new_model_and_an_unchanged_one_is_not_recompiled(tmp_path):
+    fx = tmp_path / "fx"
+    fx.mkdir()
+    (fx / "spring.py").write_text(_effect("1.0"))
+    first = _run(tmp_path, fx)
+    again = _run(tmp_path, fx)
+    assert first["misses"] >= 1 and first["hits"] == 0  # compiled in the first process
+    assert again["module"] == first["module"]  # the same text: the same generated model ...
+    assert again["misses"] == 0 and again["hits"] >= 1  # ... loaded from the cache, not compiled again
+    assert again["alpha"] == first["alpha"]
+
+    (fx / "spring.py").write_text(_effect("2.0"))  # the user edits the law: twice the torque
+    edited = _run(tmp_path, fx)
+    assert edited["module"] != first["module"]  # a new model text, hence a new compiled model
+    assert edited["misses"] >= 1 and edited["hits"] == 0
+    # no stale code: the edited law runs (the spring's share of the crank's acceleration doubles)
+    assert edited["alpha"] != first["alpha"]
