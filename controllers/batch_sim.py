@@ -40,6 +40,9 @@ from ehas_env.simulation.control_laws import N_GAINS, compiled_form
 from ehas_env.simulation.loops import METRICS, REF_SINE, REF_STEP
 from ehas_env.simulation.metrics import percent_errors
 
+#: from this many conditions on a Batch runs the inlined fast-step build (see Batch.__init__)
+FAST_STEP_MIN_CONDITIONS = 32
+
 N_METRICS = len(METRICS)
 DEFAULT_CYCLES = 5.0  # reference periods per run: one warm-up, three whole cycles measured (see steady_window)
 
@@ -131,9 +134,10 @@ class Batch:
         self.dt, self.nsub = p0.dt, p0.substeps
         if any(p.dt != self.dt or p.substeps != self.nsub for p in self.plants):
             raise ValueError("Batch: every plant must share dt and substeps")
-        # the benchmark's and tuners' hot loop: the inlined build (fast step, long compile), not the plants' quick one;
-        # both builds share the plants' parameter layout (one ModelSource)
-        self.model = current_model(inline=True)
+        # a benchmark grid is a hot loop: the inlined build (fast step, long compile); a handful of conditions (the
+        # demo's 7 rig tests, a tuner's check) runs in milliseconds on either, so there the compile is the wait and
+        # the plants' quick build serves.  Both builds share the plants' parameter layout and give the same numbers.
+        self.model = current_model(inline=len(self.conditions) >= FAST_STEP_MIN_CONDITIONS)
         if any(p.model.SLOTS != self.model.SLOTS for p in self.plants):
             raise ValueError("Batch: every plant must run on the same compiled model")
         self.hist_len = K.history_length(TAU_MAX, self.dt)

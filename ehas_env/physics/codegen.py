@@ -378,13 +378,17 @@ def _watch_compiles(module: str, inline: bool) -> None:
             _WATCH["depth"] = max(0, _WATCH["depth"] - 1)
 
     def beat():
+        said = 0  # heartbeats printed for the compile under way
         while True:
-            time.sleep(HEARTBEAT_S)
-            if _WATCH["depth"] > 0:
-                spent = time.monotonic() - _WATCH["start"]
-                if spent >= HEARTBEAT_S:
-                    print(f"ehas: still compiling the simulator ({_WATCH['name']}): {spent:.0f} s so far, "
-                          f"about {_WATCH['est']:.0f} s in all", file=sys.stderr, flush=True)
+            time.sleep(1.0)
+            if _WATCH["depth"] == 0:
+                said = 0
+                continue
+            spent = time.monotonic() - _WATCH["start"]
+            if spent >= (said + 1) * HEARTBEAT_S:
+                said = int(spent // HEARTBEAT_S)
+                print(f"ehas: still compiling the simulator ({_WATCH['name']}): {spent:.0f} s so far, "
+                      f"about {_WATCH['est']:.0f} s in all", file=sys.stderr, flush=True)
 
     event.register("numba:compile", _Listener())
     _WATCH["thread"] = threading.Thread(target=beat, name="ehas-compile-heartbeat", daemon=True)
@@ -407,4 +411,7 @@ def current_model(inline: bool = True):
     module
         The generated model module.
     """
+    forced = os.environ.get("EHAS_BUILD", "")  # "inline" / "quick": one build for everything (benchmarks of the builds)
+    if forced in ("inline", "quick"):
+        inline = forced == "inline"
     return build_model(inline=inline)

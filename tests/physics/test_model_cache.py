@@ -12,6 +12,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 PROBE = textwrap.dedent("""
     import json, sys
     import numpy as np
@@ -74,3 +76,20 @@ def test_edited_effect_file_gives_a_new_model_and_an_unchanged_one_is_not_recomp
     assert edited["misses"] >= 1 and edited["hits"] == 0
     # no stale code: the edited law runs (the spring's share of the crank's acceleration doubles)
     assert edited["alpha"] != first["alpha"]
+
+
+@pytest.mark.slow  # compiles the inlined build too (about a minute on a quiet core)
+def test_both_builds_give_the_same_numbers():
+    """The quick-compile and the inlined build run the same arithmetic: bit for bit the same run."""
+    import numpy as np
+
+    from ehas_env.physics.codegen import current_model
+    from ehas_env.simulation.plant import Plant, RigController
+
+    plant = Plant(disc_sets=5)
+    quick = plant.simulate_closed_loop(RigController.book(), amplitude_deg=20, freq_hz=2, cycles=3)
+    plant._model = current_model(inline=True)
+    fast = plant.simulate_closed_loop(RigController.book(), amplitude_deg=20, freq_hz=2, cycles=3)
+    assert plant.model is not Plant(disc_sets=5).model
+    np.testing.assert_array_equal(quick.theta_deg, fast.theta_deg)
+    np.testing.assert_array_equal(quick.current_mA, fast.current_mA)

@@ -1,0 +1,104 @@
+"""Time to the first number with a new effect, for each build of the compiled model (``results/compile.md``).
+
+Run as ``python -m ehas_env.cli.compile_bench [--out results/compile.md]``.  For each build
+(``EHAS_BUILD=quick``: functions compiled once and called; ``EHAS_BUILD=inline``: every function inlined into
+the drivers, the environments' build) and in a fresh model cache, it times as whole processes:
+
+1. ``ehas compare CAMP``: the library's model, first run (compile included) -- once per machine;
+2. ``ehas compare CAMP --effects-path FX --effects NAME`` with an effect file this cache has never seen
+   (library model cached): the user's first replay;
+3. the same command again (everything cached).
+
+Wall time and the processes' CPU time (user + system, the figure a quiet machine's wall time approaches) are
+reported with the load average, since the machine may be shared.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+EFFECT = '''"""A torsion spring centring the crank (compile benchmark)."""
+from ehas_env.physics.effects import Effect, Param
+
+
+class {cls}(Effect):
+    name = "{name}"
+    title = "torsion spring on the crank"
+    params = (Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate", typical=(500.0, 5000.0)),)
+    main_param = "k"
+    explanation = "A spring pulls the crank back to 0 deg with a torque -k theta."
+    signature = "load residual in phase with position"
+
+    @staticmethod
+    def crank_torque(theta, k):
+        return -(k * theta)
+'''
+
+
+def _timed(cmd, env) -> tuple[float, float]:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run(cmd, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m ehas_env.cli.compile_bench", description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="results/compile.md", help="markdown file to write (default results/compile.md)")
+    ap.add_argument("--builds", default="quick,inline", help="builds to time, comma-separated (quick, inline)")
+    args = ap.parse_args(argv)
+    builds = [b for b in args.builds.split(",") if b]
+    if not builds or any(b not in ("quick", "inline") for b in builds):
+        ap.error("--builds takes quick and/or inline")
+    ehas = [sys.executable, "-m", "ehas_env.cli.main"]
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="ehas-compile-bench-") as tmp:
+        tmp = Path(tmp)
+        camp = tmp / "camp"
+        env0 = {**os.environ, "EHAS_CACHE_DIR": str(tmp / "cache-campaign")}
+        print("compile_bench: writing a 5-run campaign (2 s runs) ...", file=sys.stderr, flush=True)
+        subprocess.run(ehas + ["simulate-campaign", "--duration", "2", "--seed", "1", "--out", str(camp)], env=env0,
+                       check=True, stdout=subprocess.DEVNULL)
+        for k, build in enumerate(builds):
+            env = {**os.environ, "EHAS_BUILD": build, "EHAS_CACHE_DIR": str(tmp / f"cache-{build}")}
+            fx = tmp / f"fx-{build}"
+            fx.mkdir()
+            (fx / "bench_spring.py").write_text(EFFECT.format(cls=f"BenchSpring{k}", name=f"bench_spring_{k}"))
+            steps = [("library model, first run (once per machine)", ehas + ["compare", str(camp)]),
+                     ("new user effect, first replay", ehas + ["compare", str(camp), "--effects-path", str(fx),
+                                                               "--effects", f"bench_spring_{k}"]),
+                     ("same command again (cached)", ehas + ["compare", str(camp), "--effects-path", str(fx),
+                                                            "--effects", f"bench_spring_{k}"])]
+            for what, cmd in steps:
+                print(f"compile_bench: {build} build: {what} ...", file=sys.stderr, flush=True)
+                load0 = os.getloadavg()[0]
+                wall, cpu = _timed(cmd, env)
+                rows.append((build, what, wall, cpu, load0, os.getloadavg()[0]))
+    text = ["# Compile time: the user's first number with a new effect", "",
+            "Regenerate with `python -m ehas_env.cli.compile_bench --out results/compile.md`.", "",
+            f"Measured {time.strftime('%Y-%m-%dT%H:%M:%S%z')} on {os.cpu_count()} cores. Each row is one `ehas "
+            "compare` process on a 5-run campaign (2 s runs) in a fresh model cache; CPU = user + system time of "
+            "the process, the figure a quiet machine's wall time approaches; load = 1-min load average before / "
+            "after (above the core count, other processes shared the machine).", "",
+            "| build | step | wall s | CPU s | load |", "|---|---|---:|---:|---|"]
+    for build, what, wall, cpu, l0, l1 in rows:
+        text.append(f"| {build} | {what} | {wall:.1f} | {cpu:.1f} | {l0:.1f} / {l1:.1f} |")
+    text += ["", "`quick` is the build every `Plant` runs (replay, fits, single runs, the campaign generator); "
+             "`inline` the one of the environments, the batched kernel and benchmark grids (see "
+             "`ehas_env.physics.codegen.current_model`). Both give the same numbers bit for bit "
+             "(tests/physics/test_model_cache.py)."]
+    Path(args.out).write_text("\n".join(text) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
