@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .batch_sim import Batch, grid
-from .linear_model import LinearPlant, operating_flow_lpm
+from ehas_env.simulation.linear_model import LinearPlant, operating_flow_lpm
 from .piff import GAIN_NAMES, GAIN_UNITS, GainSchedule, PIFF
 
 PRESSURE_FEEDBACK = ("none", "static", "dynamic")

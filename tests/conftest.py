@@ -10,12 +10,12 @@ import pytest
 # test modules in the layer folders import read_book_csv from here
 sys.path.insert(0, str(Path(__file__).parent))
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-BOOK = SHARED / "data" / "book"
+#: the book's tables, the tests' independent truth, kept in the repository (tests/data/book/README.md)
+BOOK = Path(__file__).resolve().parent / "data" / "book"
 
 
 def book_path(name: str) -> Path:
-    """Path of one of the book's tables in ../shared; the test FAILS (never skips) when it is missing.
+    """Path of one of the book's tables in tests/data/book; the test FAILS (never skips) when it is missing.
 
     The book's data is the tests' independent truth: a test that needs it and cannot
     read it has not passed, so it must not be reported as skipped.
@@ -23,12 +23,12 @@ def book_path(name: str) -> Path:
     path = BOOK / name
     if not path.is_file():
         pytest.fail(f"the book's reference data {path} is missing: tests that need it cannot pass without it "
-                    f"(expected the read-only tables in {BOOK})", pytrace=False)
+                    f"(the tests' copy of the book's tables, tests/data/book/README.md)", pytrace=False)
     return path
 
 
 def read_book_csv(name: str) -> list[dict[str, str]]:
-    """Rows of one of the book's tables in ../shared (independent truth for tests); fails if it is missing."""
+    """Rows of one of the book's tables in tests/data/book (independent truth for tests); fails if it is missing."""
     path = book_path(name)
     with path.open() as fh:
         lines = [ln for ln in fh if not ln.startswith("#")]

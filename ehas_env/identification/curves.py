@@ -155,13 +155,13 @@ def valve_tf(valve: str = "grey_box", supply_bar: float = 220.0, slots: dict | N
 def linear_plant(plant=None, valve: str | None = None):
     """State-space model i (mA) -> (theta deg, P_A - P_B bar) at mid-stroke, at rest.
 
-    The project's one linearisation (``ehas_controllers.linear_model.LinearPlant``,
+    The project's one linearisation (``ehas_env.simulation.linear_model.LinearPlant``,
     the compiled model differentiated numerically): every smooth effect of the
     plant is in it; Coulomb/Stribeck friction, backlash and a deadband have no
     small-signal term at rest and are left out (see ``ehas_env.physics.linearise``).
     ``valve`` swaps the plant's valve model.
     """
-    from ehas_controllers.linear_model import LinearPlant
+    from ehas_env.simulation.linear_model import LinearPlant
     from ehas_env.simulation.plant import Plant
 
     plant = plant if plant is not None else Plant()

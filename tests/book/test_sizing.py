@@ -1,4 +1,4 @@
-"""Chapter-1 sizing against the book's tables (read from shared/data/book as independent truth)."""
+"""Chapter-1 sizing against the book's tables (read from tests/data/book as independent truth)."""
 from __future__ import annotations
 
 import csv
@@ -16,7 +16,7 @@ from ehas_env.cli import main as cli
 from ehas_env.book import sizing
 from ehas_env.book.sizing import BAR, DEG, HORSEPOWER, LPM
 
-from conftest import book_path  # the book's tables in ../shared; a missing table fails the test, naming it
+from conftest import book_path  # the book's tables in tests/data/book; a missing table fails the test, naming it
 
 # The one cell no consistent calculation reproduces (see ehas_env/book/sizing.py): the book's
 # 22.65 LPM is A x 0.493 m/s, the piston speed rounded before multiplying; the same
@@ -316,7 +316,7 @@ def test_disc_sets_and_inertia_are_exclusive(capsys):
 
 
 @pytest.mark.parametrize("name", ["analytic_loads.csv", "analytic_flows.csv", "rig_tests.csv", "nas1638.csv"])
-def test_shipped_book_data_equals_shared_copy(name):
+def test_shipped_book_data_equals_the_tests_copy(name):
     assert book_tables.read_rows(name) == book_rows(name)
 
 

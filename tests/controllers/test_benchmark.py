@@ -1,6 +1,6 @@
 """The benchmark: its conditions, files, the Python-loop path for learned agents, the CLIs.
 
-Truth used: the book's rig tests in /work/shared (read independently of the
+Truth used: the book's rig tests in tests/data/book (read independently of the
 shipped copy), the effects' declared typical ranges, and the compiled closed loop
 for the Python path.
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import book_path, read_book_csv  # the book's tables in ../shared; missing ones fail the test
+from conftest import book_path, read_book_csv  # the book's tables in tests/data/book; missing ones fail the test
 from ehas_controllers.base import Controller, load_controller
 from ehas_controllers.batch_sim import Condition, grid
 from ehas_controllers.benchmark import (CSV_COLUMNS, book_conditions, demo_section, evaluate_controller,
@@ -115,7 +115,7 @@ def test_robustness_table_has_every_effect(tmp_path):
 
 def test_demo_section(tmp_path):
     """The demo's "beats the book on N of 7" is the count of rig tests where the tuned controller's
-    rms % error is below the book's measured % error (the book's table in ../shared), re-simulated
+    rms % error is below the book's measured % error (the book's table in tests/data/book), re-simulated
     here from the saved controller file."""
     md = demo_section(tmp_path)
     assert "rms_error_pct" in md

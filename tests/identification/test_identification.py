@@ -44,7 +44,7 @@ def test_noisy_chirp_of_a_known_valve_gives_K_wn_zeta_within_2_percent():
 
 
 def test_the_book_coefficients_give_the_book_parameters(tmp_path, capsys):
-    row = read_book_csv("valve_identification.csv")[0]  # independent truth in ../shared
+    row = read_book_csv("valve_identification.csv")[0]  # independent truth in tests/data/book
     num, den = [float(row["b0"])], [1.0, float(row["a1"]), float(row["a0"])]
     p = ID.second_order_parameters(num, den)
     assert (round(p["K"], 3), round(p["wn"], 1), round(p["zeta"], 3)) == (1.272, 107.0, 0.691)

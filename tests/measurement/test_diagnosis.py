@@ -193,7 +193,7 @@ def test_force_balance_reproduces_the_books_pure_inertia_loads():
 
     from ehas_env.measurement.book_rig_loads import balance_peak_loads, book_tests
 
-    book = read_book_csv("rig_tests.csv")  # independent truth: ../shared, not the package's copy
+    book = read_book_csv("rig_tests.csv")  # independent truth: tests/data/book, not the package's copy
     base = balance_peak_loads({})
     assert len(base) == len(book) == len(book_tests())
     for got, row in zip(base, book):

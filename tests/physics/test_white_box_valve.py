@@ -12,7 +12,8 @@ import pytest
 from ehas_env.physics import layout as K  # baseline indices: the same in every model
 from ehas_env.simulation.plant import Plant, RigController
 from twin import assert_rhs_matches_twin
-from ehas_env.physics.white_box_valve import WhiteBoxValve, comparison, slot_rates
+from ehas_env.identification.white_box_comparison import comparison
+from ehas_env.physics.white_box_valve import WhiteBoxValve, slot_rates
 
 IN3_PER_S_TO_LPM = 16.387064e-3 * 60.0  # 1 in^3 = 16.387064 cm^3
 
