@@ -32,7 +32,7 @@ HARMLESS = NUMERIC | {"char", "logical"}
 REFUSED = {"function": "a function handle", "function_handle": "a function handle", "object": "a MATLAB object",
            "opaque": "a MATLAB object (opaque class)", "struct": "a struct", "cell": "a cell array",
            "sparse": "a sparse matrix"}
-V73 = b"MATLAB 7.3 MAT-file"
+HDF5 = b"\x89HDF\r\n\x1a\n"  # the HDF5 format signature
 
 
 def _refuse(path: Path, var: str, cls: str):
@@ -44,8 +44,9 @@ def _refuse(path: Path, var: str, cls: str):
 def read(path: Path, keep, group=None) -> Table:
     """The columns ``keep`` chooses of a MAT file (see the module docstring)."""
     with open(path, "rb") as fh:
-        head = fh.read(128)
-    if head.startswith(V73) or head[:8] == b"\x89HDF\r\n\x1a\n":
+        head = fh.read(520)
+    # version 0x0200 in the 128-byte header, and the HDF5 signature after the 512-byte userblock (or a bare HDF5 file)
+    if head[124:128] in (b"\x00\x02IM", b"\x02\x00MI") or HDF5 in (head[:8], head[512:520]):
         return _read_v73(path, keep)
     return _read_v5(path, keep)
 
