@@ -29,20 +29,27 @@ def as_logged(runs):
     return out
 
 
+def column(v):
+    """A vector as MATLAB's column vector (n x 1); anything else as it is."""
+    v = np.asarray(v)
+    return v.reshape(-1, 1) if v.ndim == 1 else v
+
+
 def mat5(path: Path, cols: dict) -> None:
     import scipy.io
 
-    scipy.io.savemat(str(path), {c: np.asarray(v).reshape(-1, 1) for c, v in cols.items()}, format="5")
+    scipy.io.savemat(str(path), {c: column(v) for c, v in cols.items()}, format="5")
 
 
 def mat73(path: Path, cols: dict) -> None:
     import hdf5storage
     import mat73 as reader
 
-    hdf5storage.savemat(str(path), {c: np.asarray(v).reshape(-1, 1) for c, v in cols.items()}, format="7.3",
+    hdf5storage.savemat(str(path), {c: column(v) for c, v in cols.items()}, format="7.3",
                         oned_as="column")
     back = reader.loadmat(str(path))  # an independent reader sees what was meant
-    assert set(back) == set(cols) and all(np.array_equal(np.ravel(back[c]), cols[c]) for c in cols)
+    assert set(back) == set(cols) and all(np.array_equal(np.ravel(back[c]), np.ravel(cols[c]), equal_nan=True)
+                                          for c in cols)
 
 
 def tdms(path: Path, cols: dict, group: str = "Measurements", units: dict | None = None) -> None:
@@ -61,7 +68,11 @@ def hdf5(path: Path, cols: dict, units: dict | None = None) -> None:
     units = UNITS if units is None else units
     with h5py.File(path, "w") as f:
         for c, v in cols.items():
-            ds = f.create_dataset(c, data=np.asarray(v), compression="gzip")
+            v = np.asarray(v)
+            if v.dtype.kind == "U":  # text as h5py stores it
+                v = v.astype(object)
+            ds = f.create_dataset(c, data=v, compression="gzip", dtype=h5py.string_dtype() if v.dtype.kind == "O"
+                                  else v.dtype)
             if c in units:
                 ds.attrs["units"] = units[c]
 

@@ -316,7 +316,8 @@ def column_values(values, name: str, where: str, unit: str = "", *, samples: boo
         k = next((k for k, v in enumerate(arr) if v is not None
                   and (isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real))), None)
         if k is not None:
-            raise RunFileError(f"{what}, got {arr[k]!r} at sample {k}")
+            text = " text" if isinstance(arr[k], (str, bytes)) else ""
+            raise RunFileError(f"{what}, got{text} {arr[k]!r} at sample {k}")
         arr = np.array([np.nan if v is None else float(v) for v in arr])
     if arr.dtype.kind not in "iuf":
         raise RunFileError(f"{what}, got {KINDS.get(arr.dtype.kind, arr.dtype)}")

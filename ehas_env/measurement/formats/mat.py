@@ -41,6 +41,15 @@ def _refuse(path: Path, var: str, cls: str):
                        "column (save('run.mat', 't', 'current_mA', ...)); nothing else is read")
 
 
+def _numeric(path: Path, name: str, cls: str) -> None:
+    """A column of class char or logical is named and refused (scipy would load a logical as numbers)."""
+    if cls not in NUMERIC:
+        what = "text (a char array)" if cls == "char" else "true/false values (a logical array)"
+        unit = COLUMNS.get(name)
+        raise RunFileError(f"{path}, column '{name}': expected one number{' in ' + unit if unit else ''} per "
+                           f"sample, got {what}")
+
+
 def read(path: Path, keep, group=None) -> Table:
     """The columns ``keep`` chooses of a MAT file (see the module docstring)."""
     with open(path, "rb") as fh:
@@ -48,6 +57,8 @@ def read(path: Path, keep, group=None) -> Table:
     # version 0x0200 in the 128-byte header, and the HDF5 signature after the 512-byte userblock (or a bare HDF5 file)
     if head[124:128] in (b"\x00\x02IM", b"\x02\x00MI") or HDF5 in (head[:8], head[512:520]):
         return _read_v73(path, keep)
+    if not head.startswith(b"MATLAB 5.0 MAT-file") and head[126:128] not in (b"IM", b"MI"):
+        raise RunFileError(f"{path}: not a MAT file (no MATLAB 5.0 or 7.3 header); expected {LAYOUT}")
     return _read_v5(path, keep)
 
 
@@ -67,6 +78,7 @@ def _read_v5(path: Path, keep) -> Table:
     wanted = list(keep(names))
     for name, shape, cls in listing:
         if name in wanted:
+            _numeric(path, name, cls)
             check_size(path, name, shape)
     data = scipy.io.loadmat(str(path), variable_names=wanted, squeeze_me=False, struct_as_record=True,
                             chars_as_strings=False, mat_dtype=False) if wanted else {}
@@ -111,12 +123,7 @@ def _read_v73(path: Path, keep) -> Table:
         for name in wanted:
             ds = kinds[name]
             check_dataset(path, name, ds)
-            cls = kinds_cls[name]
-            if cls not in NUMERIC:
-                what = "text (a char array)" if cls == "char" else "true/false values (a logical array)"
-                unit = COLUMNS.get(name)
-                raise RunFileError(f"{path}, column '{name}': expected one number{' in ' + unit if unit else ''} per "
-                                   f"sample, got {what}")
+            _numeric(path, name, kinds_cls[name])
             if "MATLAB_empty" in ds.attrs and ds.attrs["MATLAB_empty"]:
                 cols[name] = []
                 continue

@@ -14,6 +14,7 @@ loaded); npTDMS parses the binary layout and runs nothing from the file.
 """
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +34,44 @@ def _waveform_time(channels) -> tuple[float, float] | None:
     return float(start), float(inc)
 
 
+class _Warnings(logging.Filter):
+    """npTDMS's warnings on a damaged file (it logs them and reads on): kept from the console, then refused."""
+
+    def __init__(self):
+        super().__init__()
+        self.messages: list[str] = []
+
+    def filter(self, record):
+        if record.levelno >= logging.WARNING:
+            self.messages.append(record.getMessage())
+        return False
+
+
 def read(path: Path, keep, group=None) -> Table:
     """The columns ``keep`` chooses of a TDMS file (see the module docstring)."""
+    with open(path, "rb") as fh:
+        if fh.read(4) != b"TDSm":
+            raise RunFileError(f"{path}: not a TDMS file (it does not start with a TDMS segment, 'TDSm'); "
+                               f"expected {LAYOUT}")
+    import nptdms  # noqa: F401  (its modules' loggers exist once it is imported)
+
+    catch = _Warnings()
+    loggers = [logging.getLogger(name) for name in list(logging.root.manager.loggerDict)
+               if name == "nptdms" or name.startswith("nptdms.")]
+    for log in loggers:
+        log.addFilter(catch)
+    try:
+        table = _read(path, keep, group)
+    finally:
+        for log in loggers:
+            log.removeFilter(catch)
+    if catch.messages:
+        raise RunFileError(f"{path}: not a readable TDMS file ({catch.messages[0]}: cut short or damaged); "
+                           f"expected {LAYOUT}")
+    return table
+
+
+def _read(path: Path, keep, group) -> Table:
     from nptdms import TdmsFile
 
     with TdmsFile.open(str(path)) as f:
