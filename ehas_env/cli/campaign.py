@@ -23,6 +23,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=number("--duration", "s", 0.2, 120, lo_open=True), default=DURATION,
                         help=f"seconds per run, (0.2, 120] (default {DURATION:g})")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing campaign folder")
+    from ehas_env.measurement.formats import formats
+
+    writable = [f.name.lower() for f in formats() if f.write is not None]
+    parser.add_argument("--format", choices=writable, default="csv",
+                        help="the runs' data files: " + ", ".join(writable) + " (default csv; "
+                             "docs/measurement-format.md)")
 
 
 def run(args) -> int:
@@ -40,7 +46,7 @@ def run(args) -> int:
     argv = " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("ehas") else None
     with outputs as tmp:
         _, truth = write_simulated_campaign(tmp, effects, seed=args.seed, perturb=args.perturb,
-                                            duration=args.duration, overwrite=True, model=model,
+                                            duration=args.duration, overwrite=True, model=model, fmt=args.format,
                                             command=f"ehas {argv}" if argv else None)
     folder = args.out
     print(f"wrote {folder}: {len(truth['plan'])} closed-loop runs + valve chirp, {args.duration:g} s each"

@@ -40,7 +40,6 @@ True
 """
 from __future__ import annotations
 
-import io
 import math
 import time
 from dataclasses import dataclass, field
@@ -178,32 +177,37 @@ def _fill_gaps(x: np.ndarray, name: str, source: str, max_gap: int) -> tuple[np.
 
 
 def read_columns(path, input_name: str = "current_mA", output_name: str = "flow_lpm") -> IdData:
-    """Read ``t``, the input and the output columns of a run CSV and :func:`prepare` them.
+    """Read ``t``, the input and the output columns of a run file and :func:`prepare` them.
 
-    The file is the measurement format (one header line, comma-separated,
-    empty cells for missing samples); other columns are ignored.
+    The file is a run data file of any format ehas reads (CSV, MATLAB ``.mat``,
+    NI ``.tdms``, HDF5, Parquet: :mod:`ehas_env.measurement.formats`, one reader
+    for all); other columns are ignored and no sidecar is needed.
+
+    Parameters
+    ----------
+    path : path
+        The run data file.
+    input_name, output_name : str
+        The columns of the input and the output.
+
+    Returns
+    -------
+    IdData
+        The validated record (gaps of at most :data:`MAX_GAP` samples filled).
     """
-    from ehas_env.output.files import read_text
+    from ehas_env.measurement.formats import RunFileError, read_table
 
     path = Path(path)
-    text = read_text(path, f"a run CSV file (a header line with t, {input_name}, {output_name}; "
-                           "docs/measurement-format.md)")
-    lines = text.splitlines()
-    header = lines[0].strip() if lines else ""
-    names = [h.strip() for h in header.split(",")]
-    for col in ("t", input_name, output_name):
-        if col not in names:
-            raise ValueError(f"{path}: no column '{col}' in the header; columns are {', '.join(names)}")
-    try:
-        data = np.genfromtxt(io.StringIO(text), delimiter=",", skip_header=1, usecols=[names.index(c) for c in
-                                                                           ("t", input_name, output_name)],
-                             dtype=float, invalid_raise=True, filling_values=np.nan)
-    except ValueError as exc:
-        raise ValueError(f"{path}: not a comma-separated table of numbers ({exc})") from None
-    data = np.atleast_2d(data)
-    if data.shape[1] != 3:
-        raise ValueError(f"{path}: expected numeric columns t, {input_name}, {output_name}")
-    return prepare(data[:, 0], data[:, 1], data[:, 2], input_name=input_name, output_name=output_name,
+    wanted = list(dict.fromkeys(("t", input_name, output_name)))
+
+    def keep(names):
+        for col in wanted:
+            if col not in names:
+                raise RunFileError(f"{path}: no column '{col}' in the file; columns are {', '.join(map(str, names))}")
+        return wanted
+
+    cols = read_table(path, keep).columns
+    return prepare(cols["t"], cols[input_name], cols[output_name], input_name=input_name, output_name=output_name,
                    source=str(path))
 
 

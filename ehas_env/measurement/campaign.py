@@ -1,9 +1,11 @@
 """Measurement campaigns: reading, validating and writing folders of runs.
 
-A campaign is a folder of runs, each a ``RUN.csv`` (one header line, one row
-per uniformly spaced sample) with a ``RUN.json`` sidecar saying what the run
-was; the format is the project's measurement contract (``docs/measurement-format.md``,
-README "Measurement files").  :func:`read_campaign` refuses anything that is
+A campaign is a folder of runs, each a data file with one column per signal and
+one row per uniformly spaced sample (``RUN.csv``, or a MATLAB ``.mat``, NI
+``.tdms``, HDF5 ``.h5`` or ``.parquet`` file: any format of
+:mod:`ehas_env.measurement.formats`, mixed freely) with a ``RUN.json`` sidecar
+saying what the run was; the format is the project's measurement contract
+(``docs/measurement-format.md``, README "Measurement files").  :func:`read_campaign` refuses anything that is
 not that format with a message naming the file, the line or key, and what is
 expected; short gaps (at most :data:`MAX_GAP` missing samples in a row) are
 filled by linear interpolation and counted.
@@ -12,7 +14,9 @@ Logs as they come: a UTF-8 byte-order mark, CRLF line ends and ``;`` or tab
 separators (with decimal commas under ``;``) are read; columns the format does
 not know (a logger's ``oil_temp_C``) are ignored and listed in
 :attr:`Campaign.warnings`; ``columns={"theta_deg": "Angle1"}`` (the command
-line's ``--columns theta_deg=Angle1``) maps a logger's names onto the format's;
+line's ``--columns theta_deg=Angle1``) maps a logger's names onto the format's
+(and ``group=NAME`` picks the group of a TDMS or HDF5 file that has several);
+units a file states (TDMS ``unit_string``, HDF5 ``units``) must be the format's;
 values whose size betrays another unit (theta in rad, pressures in Pa or psi,
 current in A or uA, time in ms, load in N) are refused with the likely cause, and
 so are values no rig produces (a crank beyond its stroke ends, a flow far beyond
@@ -40,7 +44,6 @@ from __future__ import annotations
 import errno
 import json
 import math
-import numbers
 import os
 import shutil
 import stat
@@ -50,24 +53,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ehas_env.ranges import FIELDS, MAX_SAMPLES
+from ehas_env.ranges import FIELDS
 from ehas_env.output.files import atomic_write_text
 from ehas_env.physics.rig import (AREA, BAR, CRANK_RADIUS, LPM, MAX_SETS, MIN_SETS, RATED_CURRENT, RATED_VALVE_DROP,
                                   THETA_STROKE_END, VALVE_K)
+from ehas_env.measurement import formats
+from ehas_env.measurement.formats import COLUMNS, MIN_SAMPLES, RunFileError
 from ehas_env.measurement.runfile import write_run as _write_run_files
 
-#: the format's columns and their units
-COLUMNS = {
-    "t": "s",
-    "current_mA": "mA",
-    "theta_deg": "deg",
-    "theta_ref_deg": "deg",
-    "flow_lpm": "LPM",
-    "p_a_bar": "bar",
-    "p_b_bar": "bar",
-    "p_s_bar": "bar",
-    "load_kN": "kN",
-}
 #: quantity (column name without its unit) -> column name, to name a wrong unit
 _QUANTITY = {name.rsplit("_", 1)[0] if "_" in name else name: name for name in COLUMNS}
 _QUANTITY["theta_ref"] = "theta_ref_deg"
@@ -84,17 +77,18 @@ DT_TOLERANCE = 0.01
 MIN_RATE_HZ = 100.0  # the replay's integrator needs at least 100 Hz sampling
 #: fastest sampling: the plant's shortest period (``FIELDS["dt"]``, 1 us) and the fastest controller rate
 MAX_RATE_HZ = FIELDS["rate_hz"].hi
-#: largest run file read, bytes: MAX_SAMPLES rows of nine columns of about 20 characters
-MAX_CSV_BYTES = 200 * MAX_SAMPLES
-MIN_SAMPLES = 20
 CONTROLLER_REQUIRED = ("Kp", "Ki", "Kv", "Ka", "rate_hz")
 CONTROLLER_OPTIONAL = ("Kj", "Kdp", "dp_hp")
 #: the logged reference may differ from the sidecar's by this fraction of the amplitude
 REF_TOLERANCE = 0.01
 
 
-class CampaignError(ValueError):
-    """A campaign, run file or sidecar that is not the measurement format."""
+#: the --columns key that names the group of a TDMS or HDF5 file to read (not a column)
+GROUP = "group"
+
+
+class CampaignError(RunFileError):
+    """A campaign, run file or sidecar that is not the measurement format (a ValueError)."""
 
 
 @dataclass
@@ -104,9 +98,9 @@ class Run:
     Attributes
     ----------
     name : str
-        File stem (``RUN`` of ``RUN.csv``).
-    csv_path : Path
-        The CSV it came from (None for runs built in memory).
+        File stem (``RUN`` of ``RUN.csv`` or ``RUN.mat``).
+    path : Path
+        The data file it came from (None for runs built in memory).
     meta : dict
         The validated sidecar: ``kind``, ``supply_bar`` and, for closed-loop
         runs, ``disc_sets``, ``reference`` (amplitude_deg, freq_hz, phase_rad,
@@ -126,7 +120,7 @@ class Run:
     """
 
     name: str
-    csv_path: Path | None
+    path: Path | None
     meta: dict
     t: np.ndarray
     dt: float
@@ -138,6 +132,11 @@ class Run:
     @property
     def kind(self) -> str:
         return self.meta["kind"]
+
+    @property
+    def csv_path(self) -> Path | None:
+        """The data file (the name from when runs were CSV only; any format now): :attr:`path`."""
+        return self.path
 
     @property
     def n(self) -> int:
@@ -196,6 +195,9 @@ class Campaign:
 def parse_column_map(text: str | None) -> dict[str, str]:
     """``"theta_deg=Angle1,current_mA=I_cmd"`` -> ``{"theta_deg": "Angle1", ...}`` (format name = logger name).
 
+    ``group=NAME`` is not a column: it names the group of a TDMS or HDF5 file
+    whose channels are the columns (files with several groups need it).
+
     Examples
     --------
     >>> parse_column_map("theta_deg=Angle 1, current_mA=I_cmd")
@@ -203,7 +205,7 @@ def parse_column_map(text: str | None) -> dict[str, str]:
     >>> parse_column_map("angle=theta_deg")
     Traceback (most recent call last):
     ...
-    ValueError: --columns: 'angle' is not a column of the measurement format; NEW must be one of t, current_mA, theta_deg, theta_ref_deg, flow_lpm, p_a_bar, p_b_bar, p_s_bar, load_kN
+    ValueError: --columns: 'angle' is not a column of the measurement format; NEW must be one of t, current_mA, theta_deg, theta_ref_deg, flow_lpm, p_a_bar, p_b_bar, p_s_bar, load_kN (or group, the group of a TDMS/HDF5 file)
     """
     from ehas_env.ranges import split_list
 
@@ -214,13 +216,13 @@ def parse_column_map(text: str | None) -> dict[str, str]:
         if not eq or not new or not old:
             raise ValueError(f"--columns: {item.strip()!r} is not NEW=OLD (the format's column name = the "
                              "logger's column name), e.g. --columns theta_deg=Angle1,current_mA=I_cmd")
-        if new not in COLUMNS:
+        if new not in COLUMNS and new != GROUP:
             raise ValueError(f"--columns: {new!r} is not a column of the measurement format; NEW must be one of "
-                             f"{', '.join(COLUMNS)}")
+                             f"{', '.join(COLUMNS)} (or {GROUP}, the group of a TDMS/HDF5 file)")
         if new in out:
             raise ValueError(f"--columns: {new!r} is mapped twice")
         out[new] = old
-    olds = list(out.values())
+    olds = [old for new, old in out.items() if new != GROUP]
     dup = next((o for o in olds if olds.count(o) > 1), None)
     if dup is not None:
         raise ValueError(f"--columns: the logger's column {dup!r} is mapped to two format columns")
@@ -237,12 +239,13 @@ def check_column_map(columns) -> dict[str, str]:
         raise CampaignError(f"columns must be a dict {{format column: logger column}}, got "
                             f"{type(columns).__name__}{hint}")
     for new, old in columns.items():
-        if new not in COLUMNS:
+        if new not in COLUMNS and new != GROUP:
             raise CampaignError(f"columns: {new!r} is not a column of the measurement format; the keys must be "
-                                f"among {', '.join(COLUMNS)}")
+                                f"among {', '.join(COLUMNS)} (or {GROUP!r}, the group of a TDMS/HDF5 file)")
         if not isinstance(old, str) or not old.strip():
-            raise CampaignError(f"columns: {new!r} maps to {old!r}; expected the logger's column name (text)")
-    olds = list(columns.values())
+            what = "the group's name" if new == GROUP else "the logger's column name"
+            raise CampaignError(f"columns: {new!r} maps to {old!r}; expected {what} (text)")
+    olds = [old for new, old in columns.items() if new != GROUP]
     dup = next((o for o in olds if olds.count(o) > 1), None)
     if dup is not None:
         raise CampaignError(f"columns: the logger's column {dup!r} is mapped to two format columns")
@@ -267,69 +270,107 @@ def _entry_problem(p: Path) -> str | None:
 
 
 def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
-    """Read and validate every ``RUN.csv`` + ``RUN.json`` pair of a folder.
+    """Read and validate every run of a campaign folder: data files with a ``RUN.json`` sidecar beside them.
 
-    ``columns`` maps format column names to a logger's (see
-    :func:`parse_column_map`).  Entries of the folder that are not runs (an
-    orphan ``RUN.json``, a dangling or looping symbolic link, a folder named
-    ``RUN.csv``, other files) are skipped; :attr:`Campaign.warnings` says which
-    and why.
+    A run's data file may be any registered format (:mod:`ehas_env.measurement.formats`:
+    CSV, MATLAB ``.mat`` v5 and v7.3, NI ``.tdms``, HDF5 ``.h5``/``.hdf5``,
+    ``.parquet``), and one campaign may mix them.  Entries of the folder that
+    are not runs (an orphan ``RUN.json``, a dangling or looping symbolic link, a
+    folder named ``RUN.csv``, other files) are skipped; :attr:`Campaign.warnings`
+    says which and why.
+
+    Parameters
+    ----------
+    path : str or Path
+        The campaign folder.
+    columns : dict, optional
+        Format column name -> the logger's column name (what
+        :func:`parse_column_map` makes of ``--columns``), applied to every run,
+        whatever its format; the key ``"group"`` names the group of a TDMS or
+        HDF5 file that has several.  Every mapping must rename a column of at
+        least one run.
+
+    Returns
+    -------
+    Campaign
+        The validated runs, sorted by name (columns in the format's names and
+        units, short gaps filled), what was skipped and the warnings.
 
     Raises
     ------
     FileNotFoundError
         The folder does not exist.
     CampaignError
-        The path is a file, no runs, an unreadable run, or any run that is not
-        the measurement format (the message names the file, line or key, and
-        what is expected).
+        The path is a file, no runs, two data files for one run, an unreadable
+        run, or any run that is not the measurement format (the message names
+        the file, line or sample, column or key, and what is expected).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from ehas_env.measurement.synthetic import simulate_campaign
+    >>> runs, _ = simulate_campaign(seed=1, duration=0.2, plan=((3, 20.0, 1.0),))
+    >>> folder = Path(tempfile.mkdtemp()) / "camp"
+    >>> _ = write_campaign(folder, runs[:1], fmt="tdms")
+    >>> _ = write_campaign(folder, runs[1:], fmt="mat", overwrite=True, keep=True)
+    >>> sorted(p.name for p in folder.iterdir())
+    ['cl_3sets_20deg_1hz.json', 'cl_3sets_20deg_1hz.tdms', 'valve_chirp.json', 'valve_chirp.mat']
+    >>> [(r.name, r.path.suffix, r.n) for r in read_campaign(folder).runs]
+    [('cl_3sets_20deg_1hz', '.tdms', 200), ('valve_chirp', '.mat', 200)]
     """
     if not isinstance(path, (str, os.PathLike)):
         raise CampaignError(f"the campaign must be a folder's path (a str or Path), got {type(path).__name__}")
     columns = check_column_map(columns)
     folder = Path(path)
+    suffixes = formats.data_suffixes()
+    layout = f"a folder of runs, each a data file ({formats.describe()}) with a RUN.json sidecar"
     if folder.exists() and not folder.is_dir():
-        hint = f" (it is a run file: give its folder, {folder.parent})" if folder.suffix.lower() in (".csv", ".json") else ""
-        raise CampaignError(f"{folder} is a file, not a folder; a campaign is a folder of RUN.csv + RUN.json pairs{hint}")
+        hint = (f" (it is a run file: give its folder, {folder.parent})"
+                if folder.suffix.lower() in (*suffixes, ".json") else "")
+        raise CampaignError(f"{folder} is a file, not a folder; a campaign is {layout}{hint}")
     if not folder.is_dir():
-        raise FileNotFoundError(f"campaign folder {folder} does not exist (expected a folder of RUN.csv + RUN.json pairs)")
+        raise FileNotFoundError(f"campaign folder {folder} does not exist (expected {layout})")
     try:
         entries = sorted(folder.iterdir())
     except PermissionError:
         raise CampaignError(f"{folder}: the folder cannot be listed (permission denied)") from None
     warnings: list[str] = []
     ignored: list[str] = []
-    csvs = []
+    data: dict[str, Path] = {}
     for p in entries:
-        suffix = p.suffix.lower()
-        if suffix == ".csv":
+        if p.suffix.lower() in suffixes:
             why = _entry_problem(p)
             if why is None:
-                csvs.append(p)
+                if p.stem in data:
+                    raise CampaignError(f"{folder}: run '{p.stem}' has two data files, {data[p.stem].name} and "
+                                        f"{p.name}; keep one data file per RUN.json")
+                data[p.stem] = p
                 continue
             warnings.append(f"skipped {p.name}: {why}")
             ignored.append(p.name)
-    stems = {p.stem for p in csvs}
+    companions = formats.companion_suffixes()
     for p in entries:
         suffix = p.suffix.lower()
-        if suffix == ".csv" or (suffix == ".json" and p.stem in stems):
+        if (suffix in suffixes and data.get(p.stem) == p) or (suffix == ".json" and p.stem in data):
             continue
+        if suffix in companions and p.stem in data:
+            continue  # a TDMS index beside its file
         ignored.append(p.name)
         if suffix == ".json":
-            warnings.append(f"skipped {p.name}: no {p.stem}.csv beside it (a sidecar without its run, or not a run file)")
+            warnings.append(f"skipped {p.name}: no {p.stem}.csv beside it, nor a {p.stem} data file of another format "
+                            f"({formats.describe()}): a sidecar without its run, or not a run file")
         else:
             why = _entry_problem(p) if p.is_symlink() else None
-            warnings.append(f"skipped {p.name}: {why or ('a folder' if p.is_dir() else 'not a run file (.csv + .json)')}")
-    if not csvs:
+            warnings.append(f"skipped {p.name}: {why or ('a folder' if p.is_dir() else f'not a run file ({formats.describe()} + .json)')}")
+    if not data:
         skipped = f" ({'; '.join(warnings)})" if warnings else ""
-        raise CampaignError(f"{folder}: no runs found; a campaign is a folder of RUN.csv files, each with a RUN.json "
-                            f"sidecar{skipped}")
-    runs = [read_run(p, columns=columns) for p in csvs]
+        raise CampaignError(f"{folder}: no runs found; a campaign is {layout}{skipped}")
+    runs = [read_run(p, columns=columns) for p in sorted(data.values())]
     for r in runs:
         if r.ignored_columns:
-            warnings.append(f"{r.name}.csv: ignored columns the format does not know: {', '.join(r.ignored_columns)}")
+            warnings.append(f"{r.path.name}: ignored columns the format does not know: {', '.join(r.ignored_columns)}")
     unused = [f"{new}={old}" for new, old in (columns or {}).items()
-              if not any(r.column_map.get(new) == old for r in runs)]
+              if new != GROUP and not any(r.column_map.get(new) == old for r in runs)]
     if unused:
         # a mapping that renames nothing is a typo: reading on would drop a column the user meant to give
         first = runs[0]  # its logger's column names: those read (under their file names) and those ignored
@@ -339,36 +380,78 @@ def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
     return Campaign(path=folder, runs=runs, ignored=sorted(ignored), warnings=warnings)
 
 
-def read_run(csv_path, columns: dict[str, str] | None = None) -> Run:
-    """Read and validate one run (its CSV and the JSON sidecar beside it)."""
-    csv_path = Path(csv_path)
+def read_run(path, columns: dict[str, str] | None = None) -> Run:
+    """Read and validate one run: its data file (any format of :mod:`ehas_env.measurement.formats`) and the
+    ``RUN.json`` sidecar beside it; ``columns`` as for :func:`read_campaign`."""
+    path = Path(path)
     columns = check_column_map(columns)
-    json_path = csv_path.with_suffix(".json")
+    try:
+        formats.format_for(path)
+    except RunFileError as exc:
+        raise CampaignError(str(exc)) from None
+    json_path = path.with_suffix(".json")
     if not json_path.is_file():
-        raise CampaignError(f"{csv_path}: sidecar {json_path.name} is missing; every RUN.csv needs a RUN.json saying "
-                            "what the run was (kind, supply_bar, disc_sets, reference, controller)")
+        raise CampaignError(f"{path}: sidecar {json_path.name} is missing; every run's data file needs a RUN.json "
+                            "saying what the run was (kind, supply_bar, disc_sets, reference, controller)")
     meta = read_sidecar(json_path)
-    names, data, ignored, used = _parse_csv(csv_path, columns or {})
-    run = validate_run(csv_path.stem, dict(zip(names, data.T)), meta, where=str(csv_path), line_offset=2,
-                       csv_path=csv_path)
+    cols, ignored, used, line_offset = read_data(path, columns)
+    run = validate_run(path.stem, cols, meta, where=str(path), line_offset=line_offset, path=path)
     run.ignored_columns = ignored
     run.column_map = used
     return run
 
 
-def _read_text(path: Path, what: str, max_bytes: int | None = None) -> str:
-    """The text of a run file through the shared checked reader (ehas_env.output.files), as a CampaignError."""
+def read_data(path, columns: dict[str, str] | None = None) -> tuple[dict, list[str], dict, int]:
+    """The format's columns of one run data file, renamed by ``columns`` and with the units it states checked.
+
+    Returns
+    -------
+    columns : dict of ndarray
+        Format column name -> 1-D float array (NaN: a missing sample).
+    ignored : list of str
+        The file's columns the format does not know.
+    used : dict
+        The entries of ``columns`` that renamed a column of this file.
+    line_offset : int
+        Sample k is on line k + line_offset of a text file (0: name samples).
+    """
+    path = Path(path)
+    rename = {new: old for new, old in (columns or {}).items() if new != GROUP}
+    back = {old: new for new, old in rename.items()}
+    found: dict = {}
+
+    def keep(raw):
+        raw = [str(c) for c in raw]
+        names = [back.get(c, c) for c in raw]
+        idx, ignored = known_columns(names, str(path), renamed={back[c] for c in raw if c in back})
+        found["ignored"] = [c or f"(unnamed column {names.index(c) + 1})" for c in ignored]
+        found["used"] = {new: old for new, old in rename.items() if old in raw}
+        return [raw[j] for j in idx]
+
+    try:
+        table = formats.read_table(path, keep, group=(columns or {}).get(GROUP))
+    except CampaignError:
+        raise
+    except RunFileError as exc:
+        raise CampaignError(str(exc)) from None
+    cols = {}
+    for raw, values in table.columns.items():
+        name = back.get(raw, raw)
+        stated = table.units.get(raw)
+        if stated is not None and formats.unit_of(stated) != COLUMNS[name]:
+            raise CampaignError(f"{path}, column '{raw}': the file gives its unit as {stated!r}; expected "
+                                f"{COLUMNS[name]} (the format's unit for '{name}'): convert the values, or fix the "
+                                "unit the logger writes")
+        cols[name] = values
+    return cols, found.get("ignored", []), found.get("used", {}), table.line_offset
+
+
+def _read_text(path: Path, what: str) -> str:
+    """The text of a sidecar through the shared checked reader (ehas_env.output.files), as a CampaignError."""
     from ehas_env.output.files import read_text
 
     try:
-        size = path.stat().st_size if max_bytes is not None else 0
-    except OSError:
-        size = 0  # read_text names what is wrong with the path
-    if max_bytes is not None and size > max_bytes:
-        raise CampaignError(f"{path}: {size:,} bytes, more than the {max_bytes:,} a {what} of a run may have "
-                            f"(at most {MAX_SAMPLES:,} samples): split the run")
-    try:
-        return read_text(path, f"a {what}", max_bytes=max_bytes)
+        return read_text(path, f"a {what}")
     except (ValueError, FileNotFoundError) as exc:
         raise CampaignError(str(exc)) from None
 
@@ -382,69 +465,6 @@ def read_sidecar(json_path) -> dict:
     except json.JSONDecodeError as exc:
         raise CampaignError(f"{json_path}: not valid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
     return meta
-
-
-#: separators a logger may use, in the order they are tried on the header line
-SEPARATORS = (",", ";", "\t")
-
-
-def _separator(header: str, csv_path: Path) -> str:
-    found = [s for s in SEPARATORS if s in header]
-    if not found:
-        return ","  # one column only: the required-column check names what is missing
-    if len(found) > 1:
-        names = {",": "','", ";": "';'", "\t": "tab"}
-        raise CampaignError(f"{csv_path}, line 1: the header mixes separators ({', '.join(names[s] for s in found)}); "
-                            "expected one separator throughout (',' preferred)")
-    return found[0]
-
-
-def _parse_csv(csv_path: Path, rename: dict[str, str] | None = None) -> tuple[list[str], np.ndarray, list[str], dict]:
-    """(format column names, data, ignored logger columns, the ``rename`` entries used) of a run file."""
-    text = _read_text(csv_path, "CSV file", MAX_CSV_BYTES)
-    lines = text.splitlines()  # \n, \r\n and \r line ends alike
-    while lines and not lines[-1].strip():
-        lines.pop()
-    if not lines:
-        raise CampaignError(f"{csv_path}: empty file; expected a header line (t,current_mA,...) and one row per sample")
-    if len(lines) == 1:
-        raise CampaignError(f"{csv_path}: a header line and no samples; expected one row per sample after it "
-                            f"(at least {MIN_SAMPLES})")
-    if len(lines) - 1 > MAX_SAMPLES:
-        raise CampaignError(f"{csv_path}: {len(lines) - 1:,} rows; a run holds at most {MAX_SAMPLES:,} samples: "
-                            "split the run")
-    sep = _separator(lines[0], csv_path)
-    decimal_comma = sep != "," and any("," in c for c in lines[1].split(sep)) if len(lines) > 1 else False
-    raw = [c.strip().strip('"') for c in lines[0].split(sep)]
-    rename = rename or {}
-    back = {old: new for new, old in rename.items()}
-    used = {new: old for new, old in rename.items() if old in raw}
-    names = [back.get(c, c) for c in raw]
-    keep, ignored = known_columns(names, str(csv_path), renamed={back[c] for c in raw if c in back})
-    ignored = [c or f"(unnamed column {names.index(c) + 1})" for c in ignored]
-    width = len(names)
-    data = np.empty((len(lines) - 1, len(keep)))
-    for k, line in enumerate(lines[1:]):
-        cells = line.split(sep)
-        if len(cells) != width:
-            raise CampaignError(f"{csv_path}, line {k + 2}: {len(cells)} cells, expected {width} (one per column of the header)")
-        for jj, j in enumerate(keep):
-            c = cells[j].strip().strip('"')
-            if decimal_comma:
-                c = c.replace(",", ".")
-            if not c or c.lower() == "nan":
-                data[k, jj] = np.nan
-                continue
-            try:
-                v = float(c)
-            except ValueError:
-                raise CampaignError(f"{csv_path}, line {k + 2}, column '{raw[j]}': {c!r} is not a number "
-                                    f"(expected {COLUMNS[names[j]]}, or an empty cell for a missing sample)") from None
-            if not math.isfinite(v):
-                raise CampaignError(f"{csv_path}, line {k + 2}, column '{raw[j]}': {c!r} is not finite "
-                                    "(leave the cell empty for a missing sample)")
-            data[k, jj] = v
-    return [names[j] for j in keep], data, ignored, used
 
 
 def known_columns(names, where: str, renamed=()) -> tuple[list[int], list[str]]:
@@ -580,11 +600,12 @@ def check_units(cols: dict, meta: dict, dt: float | None, where: str) -> None:
 
 
 def validate_run(name: str, columns: dict, meta, *, where: str | None = None, line_offset: int = 0,
-                 csv_path: Path | None = None) -> Run:
+                 path: Path | None = None) -> Run:
     """Validate one run's columns and sidecar; fill short gaps.
 
     ``line_offset`` converts a sample index into a file line number (2 for a CSV
-    with its header on line 1); 0 names samples instead of lines.
+    with its header on line 1); 0 names samples instead of lines.  ``path`` is
+    the data file the run was read from (None for a run built in memory).
     """
     where = where or name
     if not isinstance(columns, dict):
@@ -594,7 +615,7 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
     if bad is not None:
         raise CampaignError(f"{where}: column name {bad!r} is not text; the format's columns are: {', '.join(COLUMNS)}")
     check_column_names(list(columns), where)
-    meta = validate_meta(meta, where=(str(Path(where).with_suffix(".json")) if csv_path else f"{where} sidecar"))
+    meta = validate_meta(meta, where=(str(Path(where).with_suffix(".json")) if path else f"{where} sidecar"))
     kind = meta["kind"]
 
     def at(k: int) -> str:
@@ -649,38 +670,18 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
         cols[c] = np.interp(np.arange(v.size), good, v[good])
         interpolated[c] = int(miss.sum())
 
-    run = Run(name=name, csv_path=csv_path, meta=meta, t=t, dt=dt, columns=cols, interpolated=interpolated)
+    run = Run(name=name, path=path, meta=meta, t=t, dt=dt, columns=cols, interpolated=interpolated)
     if kind == "closed_loop":
         _check_reference(run, where, at)
     return run
 
 
-#: what numpy's dtype kinds hold, for refusals
-_KINDS = {"b": "true/false values", "c": "complex numbers", "U": "text", "S": "bytes", "O": "Python objects",
-          "M": "dates", "m": "time spans", "V": "records"}
-
-
 def _column_values(values, name: str, where: str) -> np.ndarray:
-    """A column given in memory as a 1-D float array (NaN or None: a missing sample), or CampaignError."""
-    unit = COLUMNS.get(name, "")
-    what = f"{where}, column '{name}': expected one number in {unit} per sample"
+    """A column as a 1-D float array (NaN or None: a missing sample), or CampaignError (the readers' one check)."""
     try:
-        arr = np.asarray(values)
-    except (TypeError, ValueError):  # ragged nested lists
-        raise CampaignError(f"{what}, got a ragged {type(values).__name__}") from None
-    if arr.ndim == 0 or sum(d > 1 for d in arr.shape) > 1:  # a column vector (n, 1) is one column
-        shape = f"the single value {values!r}" if arr.ndim == 0 else f"an array of shape {arr.shape}"
-        raise CampaignError(f"{what} (a 1-D sequence), got {shape}")
-    arr = arr.ravel()
-    if arr.dtype.kind == "O":  # None (a missing sample) among numbers is fine
-        k = next((k for k, v in enumerate(arr) if v is not None
-                  and (isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real))), None)
-        if k is not None:
-            raise CampaignError(f"{what}, got {arr[k]!r} at sample {k}")
-        return np.array([np.nan if v is None else float(v) for v in arr])
-    if arr.dtype.kind not in "iuf":
-        raise CampaignError(f"{what}, got {_KINDS.get(arr.dtype.kind, arr.dtype)}")
-    return np.asarray(arr, dtype=float)
+        return formats.column_values(values, name, where, COLUMNS.get(name, ""))
+    except RunFileError as exc:
+        raise CampaignError(str(exc)) from None
 
 
 def _longest_gap(miss: np.ndarray) -> tuple[int, int]:
@@ -808,14 +809,27 @@ def validate_meta(meta, where: str = "sidecar") -> dict:
 # --- writing ---------------------------------------------------------------------------------
 
 
-def write_run(stem, columns: dict, meta: dict) -> tuple[Path, Path]:
-    """Validate one run, then write ``stem.csv`` and ``stem.json`` atomically."""
+def write_run(stem, columns: dict, meta: dict, fmt: str = "csv") -> tuple[Path, Path]:
+    """Validate one run, then write its data file (``stem.csv`` or another format, see :func:`write_campaign`) and
+    ``stem.json`` atomically."""
     stem = Path(stem)
+    data_format = _writable(fmt)
     validate_run(stem.stem, columns, meta, where=str(stem))
-    return _write_run_files(stem, columns, meta)
+    return _write_run_files(stem, columns, meta, fmt=data_format.name)
 
 
-def write_campaign(folder, runs, extra_files: dict[str, str] | None = None, *, overwrite: bool = False) -> Path:
+def _writable(fmt: str):
+    try:
+        data_format = formats.by_name(fmt)
+    except RunFileError as exc:
+        raise CampaignError(str(exc)) from None
+    if data_format.write is None:
+        raise CampaignError(f"format {fmt!r}: ehas reads {data_format.name} files but does not write them")
+    return data_format
+
+
+def write_campaign(folder, runs, extra_files: dict[str, str] | None = None, *, overwrite: bool = False,
+                   fmt: str = "csv", keep: bool = False) -> Path:
     """Write a campaign folder: all runs validated first, then written at once.
 
     Parameters
@@ -828,6 +842,17 @@ def write_campaign(folder, runs, extra_files: dict[str, str] | None = None, *, o
         File name -> text (a README, a truth file) written beside the runs.
     overwrite : bool
         Replace an existing campaign folder.
+    fmt : str
+        The data files' format, by name or suffix: ``csv`` (default), ``mat``
+        (MATLAB v5), ``tdms``, ``hdf5``, ``parquet`` (:mod:`ehas_env.measurement.formats`).
+    keep : bool
+        With ``overwrite``, keep the folder's other files (add runs to a campaign,
+        e.g. in another format); a run of the same name is replaced.
+
+    Returns
+    -------
+    Path
+        ``folder``.
 
     The runs are written into a temporary folder beside ``folder`` which is then
     renamed into place, so a reader sees the whole campaign or none of it.
@@ -839,8 +864,10 @@ def write_campaign(folder, runs, extra_files: dict[str, str] | None = None, *, o
     names = [name for name, _, _ in runs]
     if len(set(names)) != len(names):
         raise CampaignError(f"write_campaign: run names repeat: {names}")
+    data_format = _writable(fmt)
+    suffix = data_format.suffixes[0]
     for name, cols, meta in runs:
-        validate_run(name, cols, meta, where=str(folder / f"{name}.csv"))
+        validate_run(name, cols, meta, where=str(folder / f"{name}{suffix}"))
     if folder.exists():
         if not folder.is_dir():
             raise CampaignError(f"{folder} exists and is not a folder")
@@ -852,8 +879,14 @@ def write_campaign(folder, runs, extra_files: dict[str, str] | None = None, *, o
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it private; a campaign is for sharing
+        if keep and folder.is_dir():
+            replaced = set(names)
+            data = set(formats.data_suffixes()) | set(formats.companion_suffixes()) | {".json"}
+            for f in folder.iterdir():
+                if f.is_file() and not (f.stem in replaced and f.suffix.lower() in data):
+                    shutil.copy2(f, tmp / f.name)
         for name, cols, meta in runs:
-            _write_run_files(tmp / name, cols, meta)
+            _write_run_files(tmp / name, cols, meta, fmt=data_format.name)
         for fname, text in (extra_files or {}).items():
             atomic_write_text(tmp / fname, text)
         for f in tmp.iterdir():

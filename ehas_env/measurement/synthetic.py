@@ -143,25 +143,32 @@ def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, dur
 
 
 def write_simulated_campaign(out, effects=None, *, seed: int = 0, perturb: bool = False, command: str | None = None,
-                             overwrite: bool = False, **kwargs):
-    """Simulate and write a campaign folder with ``truth.json`` and a README."""
-    from ehas_env.measurement.campaign import write_campaign
+                             overwrite: bool = False, fmt: str = "csv", **kwargs):
+    """Simulate and write a campaign folder with ``truth.json`` and a README.
 
+    ``fmt`` is the runs' data file format (``csv``, ``mat``, ``tdms``, ``hdf5``,
+    ``parquet``; :func:`~ehas_env.measurement.campaign.write_campaign`); the
+    other arguments are :func:`simulate_campaign`'s.
+    """
+    from ehas_env.measurement.campaign import write_campaign
+    from ehas_env.measurement.formats import by_name
+
+    suffix = by_name(fmt).suffixes[0]
     runs, truth = simulate_campaign(effects, seed=seed, perturb=perturb, **kwargs)
-    command = command or _command(truth)
+    command = command or _command(truth, fmt)
     truth["command"] = command
     readme = (
         "# Synthetic measurement campaign\n\n"
         f"Regenerate with:\n\n    {command}\n\n"
-        "Each `RUN.csv` + `RUN.json` pair is one run in the measurement format (docs/measurement-format.md).\n"
+        f"Each `RUN{suffix}` + `RUN.json` pair is one run in the measurement format (docs/measurement-format.md).\n"
         "`truth.json` records what was simulated (hidden effects, beta, K, seed); campaign readers\n"
         "ignore it, so `ehas diagnose` works blind.\n"
     )
     extra = {"truth.json": json.dumps(truth, indent=2) + "\n", "README.md": readme}
-    return write_campaign(out, runs, extra, overwrite=overwrite), truth
+    return write_campaign(out, runs, extra, overwrite=overwrite, fmt=fmt), truth
 
 
-def _command(truth) -> str:
+def _command(truth, fmt: str = "csv") -> str:
     eff = ",".join(f"{n}:" + ",".join(f"{k}={v:g}" for k, v in p.items()) for n, p in truth["effects"].items())
     parts = ["ehas simulate-campaign"]
     if eff:
@@ -169,6 +176,8 @@ def _command(truth) -> str:
     parts.append(f"--seed {truth['seed']}")
     if truth["perturb"]:
         parts.append("--perturb")
+    if fmt != "csv":
+        parts.append(f"--format {fmt}")
     return " ".join(parts) + " --out DIR"
 
 

@@ -21,6 +21,7 @@ import pytest
 from refusals import refused  # tests/ is on sys.path (conftest.py)
 
 import ehas_env.measurement.campaign as campaign
+import ehas_env.measurement.formats.csv as csv_format
 from ehas_env.measurement.synthetic import simulate_campaign
 from ehas_env.measurement.campaign import CampaignError, read_campaign, validate_run, write_campaign
 
@@ -124,13 +125,13 @@ def test_a_trailing_separator_is_an_unnamed_column_that_is_ignored(camp):
 
 
 def test_too_large_a_run_file_is_refused_before_it_is_read(camp, monkeypatch):
-    monkeypatch.setattr(campaign, "MAX_CSV_BYTES", 1000)
+    monkeypatch.setattr(csv_format, "MAX_CSV_BYTES", 1000)
     size = (camp / f"{CL}.csv").stat().st_size  # the first run read
     refused(lambda: read_campaign(camp), f"{CL}.csv", f"{size:,} bytes, more than the 1,000", "split the run")
 
 
 def test_too_many_rows_are_refused_before_they_are_parsed(camp, monkeypatch):
-    monkeypatch.setattr(campaign, "MAX_SAMPLES", 100)
+    monkeypatch.setattr(csv_format, "MAX_SAMPLES", 100)
     refused(lambda: read_campaign(camp), ".csv", "rows; a run holds at most 100 samples")
 
 
