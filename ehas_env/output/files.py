@@ -121,11 +121,33 @@ def _unreadable(path: Path, exc: OSError, what: str) -> Exception:
     return ValueError(f"{path}: cannot be read ({exc.strerror or exc}); expected {what}")
 
 
+class DuplicateKey(ValueError):
+    """A JSON object names one key twice (json keeps the last silently; ehas refuses)."""
+
+
+def _no_duplicates(pairs):
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise DuplicateKey(k)
+        out[k] = v
+    return out
+
+
+def loads_strict(text: str):
+    """``json.loads`` refusing a key named twice in one object (:class:`DuplicateKey`)."""
+    return json.loads(text, object_pairs_hook=_no_duplicates)
+
+
 def read_json(path, what: str, *, max_bytes: int | None = None):
-    """The parsed JSON of the file ``path`` (:func:`read_text`; invalid JSON is one line naming line and column)."""
+    """The parsed JSON of the file ``path`` (:func:`read_text`; invalid JSON or a key named twice in one object is one
+    line naming the file)."""
     text = read_text(path, what, max_bytes=max_bytes)
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_no_duplicates)
+    except DuplicateKey as exc:
+        raise ValueError(f"{path}: key {exc.args[0]!r} appears twice in one object; a key may appear once "
+                         f"(expected {what})") from None
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not valid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}; "
                          f"expected {what}") from None

@@ -244,8 +244,7 @@ class Plant:
         if model is not None:  # a model file is the plant (ehas_env.measurement.model_file)
             from ehas_env.measurement.model_file import as_model
 
-            model = as_model(model)
-            load_effects_path(list(model.effects_path) or None)
+            model = as_model(model)  # data: its user effects must be loaded already (effects_path=)
             rig = rig if rig is not None else model.rig
             if inertia is None:
                 inertia = float(disc_sets) * model.inertia_per_set
