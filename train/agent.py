@@ -433,8 +433,11 @@ def _register() -> None:
         from ehas_controllers import base
     except ImportError:  # pragma: no cover - the controllers package is part of the project
         return
-    base.register_loader(".zip", load_agent)
-    base.register_loader("/", load_agent)
+    def load(path):
+        return load_agent(path, allow_pickle=base.LOAD_OPTIONS.get("allow_pickle", False))
+
+    base.register_loader(".zip", load)
+    base.register_loader("/", load)
 
 
 _register()

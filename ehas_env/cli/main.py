@@ -357,10 +357,16 @@ def _main(argv, program: bool = False) -> int:
         print(f"{name}: warning: {_one_line(message)}", file=sys.stderr if file is None else file)
 
     shown, warnings.showwarning = warnings.showwarning, _show
+    from ehas_env.output import files as _outputs
+
+    _outputs.begin()  # the command's outputs are placed when it succeeds; a failure leaves none (--json too)
+    placed = False
     try:
         if program:
             _Stop.phase = "work"  # from here the first signal raises KeyboardInterrupt
         rc = int(module.run(args) or 0)
+        placed = True
+        _outputs.finish(True)
         if program:
             _Stop.phase = "done"  # the outputs are complete: a signal now ends the process at once (status 130)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers
@@ -400,6 +406,8 @@ def _main(argv, program: bool = False) -> int:
     except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, traceback on request
         return _unexpected(name, exc)
     finally:
+        if not placed:
+            _outputs.finish(False)
         if program and _Stop.phase == "work":
             _Stop.phase = "done"  # a failure: no signal raises past here (main() reports it as status 130)
         warnings.showwarning = shown
