@@ -168,7 +168,7 @@ def read_norm(path) -> ObsNorm:
     doc = read_json(path, f"the observation statistics of an agent (\"format\": \"{NORM_FORMAT}\")")
     if not isinstance(doc, dict) or doc.get("format") != NORM_FORMAT:
         _fail(path, f"not the observation statistics of an agent (expected \"format\": \"{NORM_FORMAT}\")")
-    if doc.get("version") != VERSION or isinstance(doc.get("version"), bool):
+    if type(doc.get("version")) is not int or doc.get("version") != VERSION:
         _fail(path, f"version = {doc.get('version')!r}; this ehas reads version {VERSION}")
     mean = _numbers(path, doc, "mean")
     var = _numbers(path, doc, "var", len(mean))
@@ -209,7 +209,7 @@ def read_safe(folder, algo: str):
     doc = read_json(pj, f"an agent policy description (\"format\": \"{POLICY_FORMAT}\")")
     if not isinstance(doc, dict) or doc.get("format") != POLICY_FORMAT:
         _fail(pj, f"not an agent policy description (expected \"format\": \"{POLICY_FORMAT}\")")
-    if doc.get("version") != VERSION or isinstance(doc.get("version"), bool):
+    if type(doc.get("version")) is not int or doc.get("version") != VERSION:
         _fail(pj, f"version = {doc.get('version')!r}; this ehas reads version {VERSION}")
     if doc.get("algo") != algo or doc.get("policy") != POLICIES.get(algo):
         _fail(pj, f"algo/policy = {doc.get('algo')!r}/{doc.get('policy')!r}; config.json says {algo!r} "

@@ -103,9 +103,10 @@ def run(args) -> int:
         check_file(args.write_effect, "--write-effect", overwrite=args.overwrite)
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
-    if holdout and len(set(holdout)) >= len(campaign.runs):
-        raise ValueError(f"--holdout {args.holdout}: holds out all {len(campaign.runs)} runs, leaving none to fit; "
-                         "hold out fewer (or none)")
+    closed = [r.name for r in campaign.runs if r.meta.get("kind") == "closed_loop"]
+    if holdout and closed and set(closed) <= set(holdout) and len(closed) < len(campaign.runs):
+        raise ValueError(f"--holdout {args.holdout}: holds out every closed-loop run ({', '.join(closed)}); the fit "
+                         "would see valve runs only and could not place effects on the load; hold out fewer")
     say = (lambda msg: None)
     if not args.quiet:
         from ehas_env.output.progress import status

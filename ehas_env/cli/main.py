@@ -227,6 +227,10 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("--model", default=None, metavar="FILE",
                            help="model file of the plant (rig, valve, effects; default: the book's rig; "
                                 "docs/model-file.md)")
+        if name in CONTROLLER_PATH_COMMANDS:
+            p.add_argument("--controller-path", action="append", metavar="FILE.py",
+                           help="your own Python controller file to load first, for a training config or an agent "
+                                "folder that names it (they never import code themselves); repeatable")
         if name in EFFECT_COMMANDS:
             p.add_argument("--effects-path", action="append", metavar="DIR",
                            help="folder (or .py file) of your own effect files to load first; repeatable "
@@ -236,6 +240,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: commands that build plants (or size one): they take --model FILE (docs/model-file.md)
 MODEL_COMMANDS = ("simulate", "bench", "tune", "compare", "diagnose", "simulate-campaign", "train", "curves", "size")
+
+#: commands that may meet a Python controller file named in a config or an agent folder: --controller-path
+CONTROLLER_PATH_COMMANDS = ("simulate", "bench", "train")
 
 #: commands that build plants: they take --effects-path
 EFFECT_COMMANDS = ("simulate", "bench", "tune", "compare", "diagnose", "simulate-campaign", "train", "effects", "perf",
@@ -343,6 +350,14 @@ def _main(argv, program: bool = False) -> int:
             load_effects_path(args.effects_path)
         except ValueError as exc:
             print(f"ehas {args.command}: error: --effects-path: {exc}", file=sys.stderr)
+            return 2
+    for path in getattr(args, "controller_path", None) or []:
+        from ehas_controllers.base import load_controller
+
+        try:
+            load_controller(path)
+        except (ValueError, OSError) as exc:
+            print(f"ehas {args.command}: error: --controller-path: {_one_line(exc)}", file=sys.stderr)
             return 2
     module = _load(args._module)
     if module is None:

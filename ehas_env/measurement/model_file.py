@@ -476,16 +476,21 @@ def _user_effects(user, where: str) -> dict:
 
 def _flat(obj, key: str, where: str) -> dict:
     """A block of plain values (texts, numbers, true/false, null; lists of them)."""
-    def plain(v):
+    def plain(v, depth=0):
         if isinstance(v, float):
             return math.isfinite(v)
-        return v is None or isinstance(v, (str, int, bool)) or (isinstance(v, list) and all(plain(x) for x in v))
+        if depth > 4:
+            return False
+        if isinstance(v, dict):
+            return all(isinstance(k, str) and plain(x, depth + 1) for k, x in v.items())
+        return v is None or isinstance(v, (str, int, bool)) or (isinstance(v, list) and all(plain(x, depth + 1)
+                                                                                             for x in v))
     if not isinstance(obj, dict):
         raise ValueError(f"{where}: {key} must be an object")
     for k, v in obj.items():
         if not plain(v):
-            raise ValueError(f"{where}: {key}.{k} must be a text, a finite number, true/false or a list of those, "
-                             f"got {v!r:.60}")
+            raise ValueError(f"{where}: {key}.{k} must be texts, finite numbers, true/false, null, or lists and "
+                             f"objects of those (at most 4 deep), got {v!r:.60}")
     return dict(obj)
 
 
