@@ -222,7 +222,7 @@ def message_lines(err: str) -> tuple[list[str], int]:
         if ": warning:" in ln and not last:
             warnings += 1
             continue
-        m = re.match(r"^ehas [\w -]+?: (.*)$", ln)
+        m = re.match(r"^ehas(?: [\w -]+?)?: (.*)$", ln)  # "ehas CMD: ..." or "ehas: compiling ..." status lines
         if m and not last and not re.match(r"(error|internal error|warning)\b", m.group(1)):
             continue  # a status line ("ehas perf: PPO training throughput ...")
         keep.append(ln)
@@ -2041,12 +2041,13 @@ def data_code_cases() -> list[Case]:
     train = ["train", "--algo", "ppo", "--config", "{tmp}/cfg.toml", "--total-steps", "10", "--no-progress",
              "--no-tensorboard", "--out", "{tmp}/o"]
     for what, text, culprit in (
-            ("[env] id = 'evilmod:Env'", "[env]\nid = 'evilmod:Env'\n", ("module",)),
-            ("[env] id = 'evil.evilmod:Env'", "[env]\nid = 'evil.evilmod:Env'\n", ("module",)),
-            ("[env] controller = a .py file", "[env]\nresidual = true\ncontroller = '{tmp}/evil/evilmod.py'\n",
+            ("[env] id = 'evilmod:Env'", "[train]\nalgo = 'ppo'\n[env]\nid = 'evilmod:Env'\n", ("module",)),
+            ("[env] id = 'evil.evilmod:Env'", "[train]\nalgo = 'ppo'\n[env]\nid = 'evil.evilmod:Env'\n", ("module",)),
+            ("[env] controller = a .py file", "[train]\nalgo = 'ppo'\n[env]\nresidual = true\ncontroller = '{tmp}/evil/evilmod.py'\n",
              ("--controller-path",)),
-            ("[env] model = a model naming a user effect", "[env]\nmodel = '{tmp}/m.json'\n", ("evil_effect",))):
-        cases.append(Case("data-code", f"train TOML {what}", train, "refuse", culprit, setup=toml(text)))
+            ("with --model naming a user effect", "[train]\nalgo = 'ppo'\n", ("evil_effect",))):
+        argv = train + (["--model", "{tmp}/m.json"] if "--model" in what else [])
+        cases.append(Case("data-code", f"train TOML {what}", argv, "refuse", culprit, setup=toml(text)))
     # run sidecars naming code
     def sidecar(tmp, fx):
         evil = _evil_folder(tmp)

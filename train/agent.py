@@ -1,20 +1,19 @@
 """A trained agent as a controller: load, act deterministically, evaluate.
 
-An agent folder (what ``ehas train`` writes) holds ``model.zip`` (the policy),
-``vecnormalize.pkl`` (observation statistics, when used) and ``config.json``
-(the resolved training configuration: environment, action hold and scale,
-residual base controller).  A folder without ``config.json``, or without
-``vecnormalize.pkl`` when ``config.json`` says ``"vecnormalize": true``, is
-refused naming the missing file.  A bare stable-baselines3 ``.zip`` loads too (no
-normalisation, the default environment settings).
+An agent folder (what ``ehas train`` writes) is data (docs/agents.md):
+``config.json`` (the resolved training configuration: environment, action hold
+and scale, residual base controller), ``policy.safetensors`` (the policy's
+weights), ``policy.json`` (its architecture, classes by name from fixed lists)
+and ``obs_norm.json`` (observation statistics, when trained with
+``vecnormalize = true``).  Loading it never unpickles (:mod:`.agent_format`).
+A missing or damaged file is refused naming it.
 
-Loading warns (:class:`PickleWarning`): stable-baselines3 zips and the
-normalisation statistics hold Python pickles, which can execute arbitrary code
-when loaded - load agents only from trusted sources.  An agent trained or saved
-on this machine is trusted without the warning: :func:`trust_agent` records the
-SHA-256 of its pickle files in a per-user list (``~/.cache/ehas/trusted_agents.json``,
-or the file ``EHAS_TRUSTED_AGENTS`` names), and a load whose files all match
-that list stays quiet; a changed or foreign file warns.
+Older folders (``model.zip``, ``vecnormalize.pkl``: Python pickles, which run
+any code they hold when loaded) and bare stable-baselines3 ``.zip`` files load
+only with ``allow_pickle=True`` (``--allow-pickle``), with the
+:class:`PickleWarning` unless their files are on the per-user list of agents
+trained here (:func:`trust_agent`); ``python -m ehas_train.agent_convert``
+converts them once.
 
 ``ehas bench`` finds agents through the controller registry of
 ``ehas_controllers.base``: importing this module registers agent folders and
