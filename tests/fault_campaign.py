@@ -2847,6 +2847,9 @@ def main(argv=None) -> int:
             with lock:
                 results[case.id] = r
                 done[0] += 1
+                if r.outcome in BUG_CLASSES or r.outcome == "setup_failed":  # say it at once, not only at the end
+                    print(f"[fault-campaign] {case.id} {r.outcome}: {r.command} | {r.last} | {r.notes}"[:600],
+                          file=sys.stderr, flush=True)
                 if done[0] % 25 == 0 or done[0] == len(cases):
                     tally: dict[str, int] = {}
                     for x in results.values():

@@ -389,6 +389,15 @@ def clean_stale(folder) -> list[Path]:
         if m and not _alive(int(m.group("pid"))):
             _rm(folder / name)
             removed.append(folder / name)
+            continue
+        if name.endswith(f".{LOCK}"):  # the claim of a run that is gone
+            try:
+                pid = int((folder / name).read_text().strip() or 0)
+            except (OSError, ValueError):
+                continue
+            if pid and not _alive(pid):
+                _rm(folder / name)
+                removed.append(folder / name)
     return removed
 
 
