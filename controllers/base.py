@@ -187,21 +187,15 @@ class CompiledController(Controller):
 def _load_py(path: Path) -> Controller:
     """A controller file in Python: its ``CONTROLLER`` object, or its one Controller subclass with defaults."""
     import hashlib
-    import importlib.util
     import sys
+
+    from ehas_env.plugin_import import import_file
 
     digest = hashlib.sha256(path.read_bytes()).hexdigest()[:12]
     name = f"ehas_user_controllers.{path.stem}_{digest}"
     module = sys.modules.get(name)
-    if module is None:
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        try:
-            spec.loader.exec_module(module)
-        except Exception as exc:  # a user's file: one line naming it
-            sys.modules.pop(name, None)
-            raise ValueError(f"controller file {path}: {type(exc).__name__}: {exc}") from None
+    if module is None:  # with a time limit; exits, hangs and errors become one line naming the file
+        module = import_file(path, name, "controller", setup="import ehas_controllers.base")
     ctrl = getattr(module, "CONTROLLER", None)
     if ctrl is None:
         classes = [c for c in vars(module).values() if isinstance(c, type) and issubclass(c, Controller)
@@ -212,8 +206,31 @@ def _load_py(path: Path) -> Controller:
         ctrl = classes[0]()
     if not isinstance(ctrl, Controller):
         raise ValueError(f"controller file {path}: CONTROLLER must be an ehas_controllers.base.Controller")
+    if isinstance(ctrl, CompiledController):  # every declared gain a finite number (a NaN default runs as NaN)
+        for g in ctrl.gain_names():
+            v = getattr(ctrl, g)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"controller file {path}: gain {g} = {v!r}; every gain must be a finite number")
+        if not isinstance(getattr(ctrl, "name", ""), str) or not str(getattr(ctrl, "name", "")).strip():
+            raise ValueError(f"controller file {path}: name must be a non-empty text")
     ctrl.source = str(path)
+    LOADED_FILES[str(path.resolve())] = ctrl
     return ctrl
+
+
+#: Python controller files loaded in this process (resolved path -> controller): the ones the user named on
+#: the command line.  A training config or an agent folder that names a ``.py`` file uses it only from here.
+LOADED_FILES: dict = {}
+
+
+def loaded_file(path, where: str) -> "Controller":
+    """The controller of the Python file ``path`` a config or agent folder names, if the user loaded it (command
+    line); otherwise a one-line ValueError: data never imports code."""
+    key = str(Path(path).resolve())
+    if key not in LOADED_FILES:
+        raise ValueError(f"{where} names the Python controller file {path}; a config or an agent folder never "
+                         f"imports code: give the file on the command line with --controller-path {path}")
+    return LOADED_FILES[key]
 
 
 def gains_field(data: dict, names) -> dict:
@@ -266,6 +283,10 @@ def register_type(name: str):
     return deco
 
 
+#: options of the loaders, set by the command line (``--allow-pickle``: a legacy pickled agent folder may load)
+LOAD_OPTIONS = {"allow_pickle": False}
+
+
 def register_loader(suffix: str, loader: Callable | str) -> None:
     """Load files ending in ``suffix`` (``"/"``: folders) with ``loader(path)`` or ``"module:function"``."""
     LOADERS[suffix.lower()] = loader
@@ -311,7 +332,23 @@ def _load_json(path: Path) -> Controller:
         raise ValueError(f"{where}: key 'kind' = {data['kind']!r}, but a {data['type']!r} controller is "
                          f"{getattr(ctrl, 'kind', None)!r}; remove the key or set it to {getattr(ctrl, 'kind', None)!r}")
     ctrl.source = str(path)
+    LOADED_FILES[str(path.resolve())] = ctrl
     return ctrl
+
+
+#: Python controller files loaded in this process (resolved path -> controller): the ones the user named on
+#: the command line.  A training config or an agent folder that names a ``.py`` file uses it only from here.
+LOADED_FILES: dict = {}
+
+
+def loaded_file(path, where: str) -> "Controller":
+    """The controller of the Python file ``path`` a config or agent folder names, if the user loaded it (command
+    line); otherwise a one-line ValueError: data never imports code."""
+    key = str(Path(path).resolve())
+    if key not in LOADED_FILES:
+        raise ValueError(f"{where} names the Python controller file {path}; a config or an agent folder never "
+                         f"imports code: give the file on the command line with --controller-path {path}")
+    return LOADED_FILES[key]
 
 
 def check_file_header(data, where: str) -> None:

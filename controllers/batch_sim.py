@@ -199,6 +199,10 @@ class Batch:
         out = np.zeros((m, int(self.n_steps.max()) if trace else 0, K.N_OUT))
         self.model.closed_loop_batch(self.S0, self.P, law, Gp, self.R, self.kinds, self.dt, self.nsub, self.hist_len,
                                      self.noise, self.n_steps, sensor, self.win, metrics, out)
+        from ehas_env.simulation.finite import check_metrics
+
+        check_metrics(metrics, self.conditions, "the controller" if laws is None else
+                      ", ".join(sorted({n for k, (n, _) in enumerate(_laws()) if k in set(law.tolist())})))
         for j in range(m):
             pct = percent_errors(metrics[j, 0], self.win[j, 1] - self.win[j, 0], metrics[j, 1], self.R[j, 0])
             metrics[j, 0], metrics[j, 1] = pct["rms_error_pct"], pct["peak_error_pct"]
@@ -227,6 +231,12 @@ class Batch:
             row["hit_stroke_end"] = bool(m[5] > 0.5)
             out.append(row)
         return out
+
+
+def _laws():
+    from ehas_env.simulation.control_laws import all_laws
+
+    return all_laws()
 
 
 def controller_gains(controller, conditions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -45,6 +45,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-book", action="store_true", help="leave the book's baseline gains out")
     parser.add_argument("--retune", action="store_true", help="with no files: re-run the tuners even if their files exist")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument("--allow-pickle", action="store_true",
+                        help="also load legacy pickled agent folders (model.zip, vecnormalize.pkl): unpickling runs "
+                             "any code the files hold, so only for agents you trained yourself or trust as a program "
+                             "(convert them once with python -m ehas_train.agent_convert)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace the benchmark files of an earlier run in --out (benchmark*, heatmap_*.png)")
     from ehas_env.simulation.executors import add_executor_arguments
@@ -82,6 +86,9 @@ def run(args) -> int:
 
     from ehas_env.output.outputs import OutputSet
 
+    from . import base
+
+    base.LOAD_OPTIONS["allow_pickle"] = bool(getattr(args, "allow_pickle", False))
     out = Path(args.out)
     plant_kw = plant_kwargs_from_model(args.model)
     # the output set, checked before any work: the benchmark's files in --out (other files there are left alone)

@@ -71,7 +71,8 @@ IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
 TRACEBACK_MARKS = ("Traceback (most recent call last)", "internal error")
 PIPE_MARKS = ("Traceback", "BrokenPipeError", "Exception ignored")
 BUG_CLASSES = ("traceback", "silent", "unclear", "refused_valid", "leftover", "lost", "mixed", "nondeterministic",
-               "timeout")
+               "timeout", "ran_code")
+MARKER = "MARKER"  # data that tries to run code writes this file into the case folder
 GOOD_CLASSES = ("refused", "ok", "skipped")
 TMP_MARK = re.compile(r"ehas-(tmp|old|done)")
 RECORD = ".ehas-output.json"  # ehas_env.output.outputs.RECORD: part of a folder output, not a temporary
@@ -186,6 +187,7 @@ def child_env() -> dict:
     env["MPLBACKEND"] = "Agg"
     env["PYTHONUNBUFFERED"] = "1"
     env.setdefault("OMP_NUM_THREADS", "1")
+    env["EHAS_PLUGIN_TIMEOUT"] = "10"  # the plug-in import limit (default 30 s): the hang cases end sooner
     return env
 
 
@@ -220,7 +222,7 @@ def message_lines(err: str) -> tuple[list[str], int]:
         if ": warning:" in ln and not last:
             warnings += 1
             continue
-        m = re.match(r"^ehas [\w -]+?: (.*)$", ln)
+        m = re.match(r"^ehas(?: [\w -]+?)?: (.*)$", ln)  # "ehas CMD: ..." or "ehas: compiling ..." status lines
         if m and not last and not re.match(r"(error|internal error|warning)\b", m.group(1)):
             continue  # a status line ("ehas perf: PPO training throughput ...")
         keep.append(ln)
@@ -317,7 +319,8 @@ def run_case(case: Case, scratch: Path, fx: Path) -> Result:
     except Exception as exc:  # noqa: BLE001 - a broken setup is the campaign's bug: say so, go on
         return Result(case, "setup_failed", "", 0.0, "", f"setup: {type(exc).__name__}: {exc}", cmd)
     runner = {"run": _run_plain, "pipe_sh": _run_pipe_sh, "pipe_closed": _run_pipe_closed,
-              "interrupt": _run_interrupt, "twice": _run_twice, "api": _run_api}[case.mode]
+              "interrupt": _run_interrupt, "twice": _run_twice, "api": _run_api,
+              "concurrent": _run_concurrent}[case.mode]
     try:
         res = runner(case, tmp, fx, cmd)
     finally:
@@ -343,7 +346,10 @@ def _run_plain(case: Case, tmp: Path, fx: Path, cmd: str) -> Result:
     _, nwarn = message_lines(err)
     if nwarn:
         notes.append(f"{nwarn} warning line(s) before the last line")
-    if status == "timeout":
+    if (tmp / MARKER).exists():
+        outcome = "ran_code"
+        notes.append("data ran code: the marker file was written")
+    elif status == "timeout":
         outcome = "timeout"
     elif has_traceback(err):
         outcome = "traceback"
@@ -578,6 +584,47 @@ def _run_twice(case: Case, tmp: Path, fx: Path, cmd: str) -> Result:
                   cmd + "  (twice)")
 
 
+def _run_concurrent(case: Case, tmp: Path, fx: Path, cmd: str) -> Result:
+    """The same command twice at the same moment: one writes the output, the other refuses in one line (or, when
+    it came second after the first finished, refuses as 'already exists'); never both status 0, never a mix."""
+    argv = [fill(a, tmp, fx) for a in case.argv]
+    t0 = time.monotonic()
+    procs = [subprocess.Popen(EHAS + argv, cwd=tmp, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, errors="replace", stdin=subprocess.DEVNULL) for _ in range(2)]
+    outs = []
+    for pr in procs:
+        try:
+            o, e = pr.communicate(timeout=TIMEOUT)
+            outs.append((pr.returncode, o, e))
+        except subprocess.TimeoutExpired:
+            pr.kill()
+            o, e = pr.communicate()
+            outs.append(("timeout", o, e))
+    secs = time.monotonic() - t0
+    notes = []
+    if any(st == "timeout" for st, _, _ in outs):
+        return Result(case, "timeout", "timeout", secs, "", "", cmd + "  (two at once)")
+    if any(has_traceback(e) for _, _, e in outs):
+        return Result(case, "traceback", 1, secs, "", "", cmd + "  (two at once)")
+    ok = [o for o in outs if o[0] == 0]
+    refused = [o for o in outs if o[0] != 0]
+    staging = staging_leftovers(tmp)
+    if len(ok) == 2:
+        return Result(case, "lost", 0, secs, "", "both runs wrote the same output (one replaced the other)",
+                      cmd + "  (two at once)")
+    if staging:
+        return Result(case, "mixed", 1, secs, "", "temporaries left: " + ", ".join(staging[:4]), cmd + "  (two at once)")
+    if len(ok) != 1:
+        return Result(case, "unclear", refused[0][0], secs, last_line(refused[0][2]), "neither run wrote its output",
+                      cmd + "  (two at once)")
+    st, _, err = refused[0]
+    clear, why = refusal_quality(err, case.culprit)
+    if not clear:
+        notes.append(why)
+    return Result(case, "ok" if clear else "unclear", 0, secs, last_line(err), "; ".join(notes),
+                  cmd + "  (two at once)")
+
+
 VOLATILE = re.compile(r"(time|elapsed|created|date|utc|wall|seconds|_s$|duration_s|per_s|host|pid|python|"
                       r"version|cpu|rss|throughput)", re.I)
 
@@ -703,10 +750,10 @@ def make_fixtures(fx: Path, jobs: int) -> None:
         (fx, ["simulate", *SIM, "--out", str(fx / "sim/run")]),
         (fx, ["model", "new", str(fx / "model.json")]),
     ]
-    if not (agent / "model.zip").is_file():
+    if not (agent / "policy.safetensors").is_file():
         jobs_list.append((fx, ["train", *[fill(a, fx, fx) for a in TRAIN_FAST], "--out", str(fx / "agent_ppo")]))
     _run_fixture_jobs(jobs_list, jobs)
-    if (agent / "model.zip").is_file():
+    if (agent / "policy.safetensors").is_file():
         shutil.copytree(agent, fx / "agent_ppo")
     later = [(fx, ["tune", "--method", "relay", "--out", str(fx / "ctrl/relay.json"), "--no-progress"])]
     for name, argv in EARLIER.items():
@@ -1764,7 +1811,7 @@ def effect_cases() -> list[Case]:
         ("not UTF-8", {"spring__py": ok.encode("utf-16")}, "effects", "refuse", ("spring.py",)),
         ("params not a tuple", {"spring__py": ok.replace('params = (Param(', 'params = Param(').replace(
             'typical=(500.0, 5000.0)),)', 'typical=(500.0, 5000.0))')}, "effects", "refuse", ("params", "fc_spring")),
-        ("an empty .py file", {"spring__py": ""}, "effects", "accept", ()),
+        ("an empty .py file (defines no effect)", {"spring__py": ""}, "effects", "refuse", ("spring.py",)),
         ("a broken _private.py (skipped)", {"_private__py": "def oops(:\n"}, "effects", "accept", ()),
         ("a broken .txt beside (skipped)", {"notes__txt": "def oops(:\n"}, "effects", "accept", ()),
         ("a valid effect, listed", {"spring__py": ok}, "effects", "accept", ()),
@@ -1834,34 +1881,64 @@ def agent_cases() -> list[Case]:
             (a / name).write_bytes((a / name).read_bytes()[:n])
         return fn
 
+    def jedit(name, change):
+        def fn(a):
+            d = json.loads((a / name).read_text())
+            change(d)
+            (a / name).write_text(json.dumps(d))
+        return fn
+
+    def legacy_pickles(a):
+        for name in ("policy.json", "policy.safetensors", "obs_norm.json"):
+            (a / name).unlink()
+        (a / "vecnormalize.pkl").write_bytes(marker_pickle(a.parent / "MARKER"))
+        (a / "model.zip").write_bytes(marker_zip(a.parent / "MARKER"))
+
     rows = [
-        ("model.zip removed", lambda a: (a / "model.zip").unlink(), ("model.zip",)),
-        ("model.zip truncated", trunc("model.zip", 1000), ("model.zip",)),
-        ("model.zip binary garbage", lambda a: (a / "model.zip").write_bytes(GARBAGE), ("model.zip",)),
-        ("model.zip empty", lambda a: (a / "model.zip").write_bytes(b""), ("model.zip",)),
-        ("model.zip a folder", lambda a: ((a / "model.zip").unlink(), (a / "model.zip").mkdir()), ("model.zip",)),
+        ("policy.safetensors removed", lambda a: (a / "policy.safetensors").unlink(), ("policy.safetensors",)),
+        ("policy.safetensors truncated", trunc("policy.safetensors", 1000), ("policy.safetensors",)),
+        ("policy.safetensors binary garbage", lambda a: (a / "policy.safetensors").write_bytes(GARBAGE),
+         ("policy.safetensors",)),
+        ("policy.safetensors empty", lambda a: (a / "policy.safetensors").write_bytes(b""), ("policy.safetensors",)),
+        ("policy.safetensors a folder", lambda a: ((a / "policy.safetensors").unlink(),
+                                                   (a / "policy.safetensors").mkdir()), ("policy.safetensors",)),
+        ("policy.json removed (no pickles beside)", lambda a: (a / "policy.json").unlink(), ("agent",)),
+        ("policy.json garbage", lambda a: (a / "policy.json").write_bytes(GARBAGE), ("policy.json",)),
+        ("policy.json activation os.system", jedit("policy.json", lambda d: d["kwargs"].update(
+            activation_fn="os.system")), ("activation_fn",)),
+        ("policy.json net_arch [10**9]", jedit("policy.json", lambda d: d["kwargs"].update(net_arch=[10**9])),
+         ("net_arch",)),
+        ("policy.json version 1.0", jedit("policy.json", lambda d: d.update(version=1.0)), ("version",)),
+        ("policy.json a key twice", lambda a: (a / "policy.json").write_text(
+            (a / "policy.json").read_text().replace('"version": 1,', '"version": 1, "version": 1,', 1)), ("version",)),
+        ("policy.json algo sac (config ppo)", jedit("policy.json", lambda d: d.update(algo="sac")), ("algo",)),
         ("config.json removed", lambda a: (a / "config.json").unlink(), ("config.json",)),
         ("config.json garbage", lambda a: (a / "config.json").write_bytes(GARBAGE), ("config.json",)),
         ("config.json truncated", trunc("config.json", 50), ("config.json",)),
         ("config.json a list", lambda a: (a / "config.json").write_text("[]"), ("config.json",)),
         ("config.json algo dqn", cfg(lambda d: d.update(algo="dqn")), ("dqn", "algo")),
-        ("config.json algo sac (model is ppo)", cfg(lambda d: d.update(algo="sac")), ("algo", "model.zip")),
+        ("config.json algo sac (policy is ppo)", cfg(lambda d: d.update(algo="sac")), ("algo", "policy.json")),
         ("config.json without algo", cfg(lambda d: d.pop("algo")), ("algo",)),
         ("config.json action_scale_mA 50", cfg(lambda d: d.update(action_scale_mA=50.0)), ("action_scale_mA",)),
         ("config.json action_repeat 0", cfg(lambda d: d.update(action_repeat=0)), ("action_repeat",)),
         ("config.json env_kwargs cycles nan", cfg(lambda d: d["env_kwargs"].update(cycles=float("nan"))),
          ("cycles",)),
-        ("vecnormalize.pkl removed", lambda a: (a / "vecnormalize.pkl").unlink(), ("vecnormalize.pkl",)),
-        ("vecnormalize.pkl garbage", lambda a: (a / "vecnormalize.pkl").write_bytes(GARBAGE),
-         ("vecnormalize.pkl",)),
-        ("vecnormalize.pkl truncated", trunc("vecnormalize.pkl", 40), ("vecnormalize.pkl",)),
+        ("obs_norm.json removed", lambda a: (a / "obs_norm.json").unlink(), ("obs_norm.json",)),
+        ("obs_norm.json garbage", lambda a: (a / "obs_norm.json").write_bytes(GARBAGE), ("obs_norm.json",)),
+        ("obs_norm.json truncated", trunc("obs_norm.json", 40), ("obs_norm.json",)),
+        ("obs_norm.json var negative", jedit("obs_norm.json", lambda d: d.update(var=[-1.0] * len(d["var"]))),
+         ("var",)),
+        ("obs_norm.json mean as strings", jedit("obs_norm.json", lambda d: d.update(mean=[str(v) for v in d["mean"]])),
+         ("mean",)),
         ("an empty folder", lambda a: [p.unlink() for p in a.iterdir() if p.is_file()], ("agent",)),
+        ("a pickled (legacy) agent that runs code", legacy_pickles, ("--allow-pickle",)),
     ]
     cases = []
     # every damage through simulate --controller (4 s); the model.zip / config.json damages through bench too
     # (bench runs the 63 conditions when it accepts an agent: 20-80 s)
-    on_bench = {"model.zip removed", "model.zip truncated", "model.zip binary garbage", "config.json garbage",
-                "config.json truncated", "config.json algo dqn", "an empty folder"}
+    on_bench = {"policy.safetensors removed", "policy.safetensors truncated", "policy.safetensors binary garbage",
+                "config.json garbage", "config.json truncated", "config.json algo dqn", "an empty folder",
+                "a pickled (legacy) agent that runs code"}
     for what, fn, culprit in rows:
         if what in on_bench:
             bench = ["bench", "{tmp}/agent", *BENCH_FAST, "--out", "{tmp}/o"]
@@ -1876,6 +1953,215 @@ def agent_cases() -> list[Case]:
                       ["simulate", *SIM, "--controller", "{tmp}/agent", "--out", "{tmp}/o/run"], "either",
                       ("metrics.json",), setup=agent(lambda a: (a / "metrics.json").write_bytes(GARBAGE))))
     return cases
+
+
+# -- data that tries to run code, plug-ins that misbehave, two runs at once (issue 22) -----------------------------
+EVIL = "open(__import__('os').path.join({tmp!r}, 'MARKER'), 'w').write('ran')\n"
+
+
+def marker_pickle(marker: Path) -> bytes:
+    """A pickle that writes ``marker`` when loaded (what a hostile agent file does)."""
+    import pickle
+
+    class Payload:
+        def __reduce__(self):
+            return (Path.write_text, (Path(marker), "ran"))
+
+    return pickle.dumps(Payload())
+
+
+def marker_zip(marker: Path) -> bytes:
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        z.writestr("data", json.dumps({"policy_class": {":serialized:": marker_pickle(marker).hex()}}))
+        z.writestr("pytorch_variables.pth", marker_pickle(marker))
+    return buf.getvalue()
+
+
+def _evil_folder(tmp: Path) -> Path:
+    d = tmp / "evil"
+    d.mkdir(exist_ok=True)
+    wtext(d / "evil_effect.py", EVIL.format(tmp=str(tmp)))
+    wtext(d / "evilmod.py", EVIL.format(tmp=str(tmp)))
+    return d
+
+
+def data_code_cases() -> list[Case]:
+    """A model file, a run sidecar, a training TOML that each try to run code (write MARKER); no marker may appear."""
+    def model(kind):
+        def setup(tmp, fx):
+            evil = _evil_folder(tmp)
+            d = json.loads((fx / "model.json").read_text())
+            d["effects_path"] = {"abs": [str(evil)], "rel": ["../" + tmp.name + "/evil"],
+                                 "py": [str(evil / "evil_effect.py")], "named": [str(evil)]}[kind]
+            if kind == "named":
+                d["effects"] = {"evil_effect": {}}
+                d["user_effects"] = {"evil_effect": {"file": "evil_effect.py", "sha256": hashlib.sha256(
+                    (evil / "evil_effect.py").read_bytes()).hexdigest()}}
+            wtext(tmp / "m.json", json.dumps(d))
+            if "camp" in kind:
+                with_camp(tmp, fx)
+        return setup
+
+    cmds = {
+        "model show": ["model", "show", "{tmp}/m.json"],
+        "model diff": ["model", "diff", "{tmp}/m.json", "{fx}/model.json"],
+        "model new --from": ["model", "new", "{tmp}/new.json", "--from", "{tmp}/m.json"],
+        "simulate --model": ["simulate", *SIM, "--model", "{tmp}/m.json", "--out", "{tmp}/o/run"],
+        "size --model": ["size", "--model", "{tmp}/m.json"],
+        "curves --model": ["curves", "--model", "{tmp}/m.json", "--out", "{tmp}/o"],
+        "simulate-campaign --model": ["simulate-campaign", "--duration", "0.21", "--model", "{tmp}/m.json",
+                                      "--out", "{tmp}/o"],
+        "compare --model": ["compare", "{tmp}/camp", "--model", "{tmp}/m.json"],
+    }
+    cases = []
+    for kind in ("abs", "rel", "py", "named"):
+        for what, argv in cmds.items():
+            if kind in ("rel", "py") and what not in ("model show", "simulate --model"):
+                continue
+            def setup(tmp, fx, kind=kind, argv=argv):
+                model(kind)(tmp, fx)
+                if needs_camp(argv):
+                    with_camp(tmp, fx)
+            if kind == "named":
+                cases.append(Case("data-code", f"model file naming an unloaded user effect: {what}", argv, "refuse",
+                                  ("evil_effect",), setup=setup))
+            else:
+                cases.append(Case("data-code", f"model file effects_path ({kind}) to code: {what}", argv, "either",
+                                  ("m.json",), setup=setup))
+    # a training TOML
+    def toml(text):
+        def setup(tmp, fx):
+            _evil_folder(tmp)
+            model("named")(tmp, fx)
+            wtext(tmp / "cfg.toml", text.format(tmp=str(tmp)))
+        return setup
+    train = ["train", "--algo", "ppo", "--config", "{tmp}/cfg.toml", "--total-steps", "10", "--no-progress",
+             "--no-tensorboard", "--out", "{tmp}/o"]
+    for what, text, culprit in (
+            ("[env] id = 'evilmod:Env'", "[train]\nalgo = 'ppo'\n[env]\nid = 'evilmod:Env'\n", ("module",)),
+            ("[env] id = 'evil.evilmod:Env'", "[train]\nalgo = 'ppo'\n[env]\nid = 'evil.evilmod:Env'\n", ("module",)),
+            ("[env] controller = a .py file", "[train]\nalgo = 'ppo'\n[env]\nresidual = true\ncontroller = '{tmp}/evil/evilmod.py'\n",
+             ("--controller-path",)),
+            ("with --model naming a user effect", "[train]\nalgo = 'ppo'\n", ("evil_effect",))):
+        argv = train + (["--model", "{tmp}/m.json"] if "--model" in what else [])
+        cases.append(Case("data-code", f"train TOML {what}", argv, "refuse", culprit, setup=toml(text)))
+    # run sidecars naming code
+    def sidecar(tmp, fx):
+        evil = _evil_folder(tmp)
+        with_camp(tmp, fx)
+        for side in (tmp / "camp").glob("*.json"):
+            if side.name == "truth.json":
+                continue
+            d = json.loads(side.read_text())
+            d["effects_path"] = [str(evil)]
+            d["controller"] = {"type": "evil", "file": str(evil / "evilmod.py")}
+            side.write_text(json.dumps(d))
+    for what, argv in (("compare", ["compare", "{tmp}/camp"]),
+                       ("diagnose", ["diagnose", "{tmp}/camp", "--no-propose", "--no-stack", "--candidates",
+                                     "coulomb_friction"])):
+        cases.append(Case("data-code", f"run sidecars naming code: {what}", argv, "either", ("json", "effects_path",
+                                                                                             "controller"),
+                          setup=sidecar))
+    return cases
+
+
+def plugin_cases() -> list[Case]:
+    """Plug-in files (code by contract) that misbehave: one line naming the file, never a hang or a silent exit."""
+    from effect_files import spring_effect as eff
+
+    ok = eff()
+    ctrl_ok = CONTROLLER_PY
+
+    def files(**named):
+        def setup(tmp, fx):
+            for name, content in named.items():
+                wtext(tmp / "plug" / name.replace("__", "."), content)
+        return setup
+    sim_eff = ["simulate", *SIM, "--effects-path", "{tmp}/plug", "--effects", "fc_spring", "--out", "{tmp}/o/run"]
+    sim_ctl = ["simulate", *SIM, "--controller", "{tmp}/plug/ctl.py", "--out", "{tmp}/o/run"]
+    rows = [
+        ("effect: sys.exit(0) at import", {"spring__py": "import sys\nsys.exit(0)\n"}, sim_eff, ("spring.py",)),
+        ("effect: os._exit(0) at import", {"spring__py": "import os\nos._exit(0)\n"}, sim_eff, ("spring.py",)),
+        ("effect: KeyboardInterrupt at import", {"spring__py": "raise KeyboardInterrupt\n"}, sim_eff,
+         ("spring.py",)),
+        ("effect: endless loop at import", {"spring__py": "while True:\n    pass\n"}, sim_eff, ("spring.py",)),
+        ("effect: endless loop in the term the load-time check calls", {"spring__py": ok.replace(
+            "return -(k * theta)", "while True:\n            pass")}, sim_eff, ("spring.py",)),
+        ("effect: name ''", {"spring__py": ok.replace('name = "fc_spring"', 'name = ""')}, sim_eff,
+         ("spring.py",)),
+        ("effect: parameter named theta", {"spring__py": ok.replace('Param("k"', 'Param("theta"').replace(
+            'main_param = "k"', 'main_param = "theta"').replace("(theta, k)", "(theta)").replace(
+            "k * theta", "theta")}, sim_eff, ("theta",)),
+        ("effect: smooth = 'yes'", {"spring__py": ok.replace('    main_param = "k"', '    main_param = "k"\n'
+                                                            '    smooth = "yes"')}, sim_eff, ("smooth",)),
+        ("effect: log_scale = 1", {"spring__py": ok.replace("typical=(500.0, 5000.0))", "typical=(500.0, 5000.0), "
+                                                            "log_scale=1)")}, sim_eff, ("log_scale",)),
+        ("effect: bounds +-1e308, value 1e300 (NaN at run time)", {"spring__py": ok.replace(
+            "(0.0, 1.0e6)", "(-1.0e308, 1.0e308)").replace("typical=(500.0, 5000.0)", "typical=None")},
+         sim_eff[:-4] + ["--effects", "fc_spring:k=1e300", "--out", "{tmp}/o/run"], ("NaN",)),
+        ("controller: sys.exit(0) at import", {"ctl__py": "import sys\nsys.exit(0)\n"}, sim_ctl, ("ctl.py",)),
+        ("controller: os._exit(0) at import", {"ctl__py": "import os\nos._exit(0)\n"}, sim_ctl, ("ctl.py",)),
+        ("controller: endless loop at import", {"ctl__py": "while True:\n    pass\n"}, sim_ctl, ("ctl.py",)),
+        ("controller: law with a wrong signature", {"ctl__py": ctrl_ok.replace(
+            "def law(gains, mem, t, dt, theta, r, rd, rdd, rddd, p_load, p_s, u_max)", "def law(gains, mem, t)")},
+         sim_ctl, ("law",)),
+        ("controller: law returns NaN", {"ctl__py": ctrl_ok.replace("return min(max(u, -u_max), u_max)",
+                                                                    "return float('nan')")}, sim_ctl, ("law",)),
+        ("controller: law returns NaN after 0.5 s", {"ctl__py": ctrl_ok.replace(
+            "return min(max(u, -u_max), u_max)", "return min(max(u, -u_max), u_max) if t < 0.5 else float('nan')")},
+         sim_ctl, ("NaN", "user_pd_ff")),
+        ("controller: NaN default gain", {"ctl__py": ctrl_ok.replace("Kp: float = 1.5", "Kp: float = float('nan')")},
+         sim_ctl, ("Kp",)),
+        ("controller: endless loop in the law", {"ctl__py": ctrl_ok.replace(
+            "e = r - theta", "while True:\n            pass")}, sim_ctl, ("ctl.py",)),
+    ]
+    cases = [Case("plugin", what, argv, "refuse", culprit, setup=files(**named))
+             for what, named, argv, culprit in rows]
+    cases.append(Case("plugin", "controller: a valid PD + feed-forward file", sim_ctl, "accept", (),
+                      setup=files(ctl__py=ctrl_ok)))
+    cases.append(Case("plugin", "effect: a valid file", sim_eff, "accept", (), setup=files(spring__py=ok)))
+    return cases
+
+
+def concurrent_cases() -> list[Case]:
+    """Two identical commands started together: one writes, the other refuses in one line."""
+    rows = [
+        ("simulate --out", ["simulate", *SIM, "--out", "{tmp}/o/run"]),
+        ("simulate --out (folder exists)", ["simulate", *SIM, "--out", "{tmp}/afolder/run"]),
+        ("model new FILE", ["model", "new", "{tmp}/m.json"]),
+        ("excite --out", ["excite", "chirp", "--duration", "1", "--out", "{tmp}/o/chirp"]),
+        ("simulate-campaign --out", ["simulate-campaign", "--duration", "0.21", "--out", "{tmp}/c"]),
+        ("identify --json", ["identify", "{fx}/excite/chirp.csv", "--json", "{tmp}/id.json"]),
+    ]
+    return [Case("concurrent", what, argv, "either", ("another ehas run", "created by another run",
+                                                      "already exists"), mode="concurrent") for what, argv in rows]
+
+
+CONTROLLER_PY = """from dataclasses import dataclass
+
+from ehas_controllers.base import CompiledController
+
+
+@dataclass
+class PDFF(CompiledController):
+    type_name = "user_pd_ff"
+    name = "PD+FF (user)"
+    Kp: float = 1.5          # mA/deg
+    Kd: float = 0.01         # mA/(deg/s)
+    Kv: float = 1.0 / 56.25  # mA/(deg/s), velocity feed-forward
+
+    @staticmethod
+    def law(gains, mem, t, dt, theta, r, rd, rdd, rddd, p_load, p_s, u_max):
+        e = r - theta
+        de = (e - mem[0]) / dt if mem[1] > 0.0 else 0.0
+        mem[0] = e
+        mem[1] = 1.0
+        u = gains[0] * e + gains[1] * de + gains[2] * rd
+        return min(max(u, -u_max), u_max)
+"""
 
 
 # -- pipes -------------------------------------------------------------------------------------------------
@@ -2335,7 +2621,7 @@ FAMILIES = {
     "controller-json": controller_cases, "model-json": model_cases, "campaign": campaign_cases,
     "train-toml": train_cases, "effect-file": effect_cases, "agent-folder": agent_cases, "pipe": pipe_cases,
     "lost": lost_cases, "interrupt": interrupt_cases, "determinism": determinism_cases, "api": api_cases,
-    "misc": misc_cases,
+    "misc": misc_cases, "data-code": data_code_cases, "plugin": plugin_cases, "concurrent": concurrent_cases,
 }
 
 
@@ -2356,7 +2642,7 @@ def all_cases(only: set | None) -> list[Case]:
 # the report
 # ======================================================================================================
 CLASS_ORDER = ["refused", "ok", "skipped", "traceback", "silent", "unclear", "refused_valid", "leftover", "lost",
-               "mixed", "nondeterministic", "timeout", "setup_failed"]
+               "mixed", "nondeterministic", "timeout", "ran_code", "setup_failed"]
 
 
 def write_report(folder: Path, results: list[Result], argv_used: str, started: _dt.datetime, elapsed: float,
@@ -2561,6 +2847,9 @@ def main(argv=None) -> int:
             with lock:
                 results[case.id] = r
                 done[0] += 1
+                if r.outcome in BUG_CLASSES or r.outcome == "setup_failed":  # say it at once, not only at the end
+                    print(f"[fault-campaign] {case.id} {r.outcome}: {r.command} | {r.last} | {r.notes}"[:600],
+                          file=sys.stderr, flush=True)
                 if done[0] % 25 == 0 or done[0] == len(cases):
                     tally: dict[str, int] = {}
                     for x in results.values():

@@ -1,20 +1,19 @@
 """A trained agent as a controller: load, act deterministically, evaluate.
 
-An agent folder (what ``ehas train`` writes) holds ``model.zip`` (the policy),
-``vecnormalize.pkl`` (observation statistics, when used) and ``config.json``
-(the resolved training configuration: environment, action hold and scale,
-residual base controller).  A folder without ``config.json``, or without
-``vecnormalize.pkl`` when ``config.json`` says ``"vecnormalize": true``, is
-refused naming the missing file.  A bare stable-baselines3 ``.zip`` loads too (no
-normalisation, the default environment settings).
+An agent folder (what ``ehas train`` writes) is data (docs/agents.md):
+``config.json`` (the resolved training configuration: environment, action hold
+and scale, residual base controller), ``policy.safetensors`` (the policy's
+weights), ``policy.json`` (its architecture, classes by name from fixed lists)
+and ``obs_norm.json`` (observation statistics, when trained with
+``vecnormalize = true``).  Loading it never unpickles (:mod:`.agent_format`).
+A missing or damaged file is refused naming it.
 
-Loading warns (:class:`PickleWarning`): stable-baselines3 zips and the
-normalisation statistics hold Python pickles, which can execute arbitrary code
-when loaded - load agents only from trusted sources.  An agent trained or saved
-on this machine is trusted without the warning: :func:`trust_agent` records the
-SHA-256 of its pickle files in a per-user list (``~/.cache/ehas/trusted_agents.json``,
-or the file ``EHAS_TRUSTED_AGENTS`` names), and a load whose files all match
-that list stays quiet; a changed or foreign file warns.
+Older folders (``model.zip``, ``vecnormalize.pkl``: Python pickles, which run
+any code they hold when loaded) and bare stable-baselines3 ``.zip`` files load
+only with ``allow_pickle=True`` (``--allow-pickle``), with the
+:class:`PickleWarning` unless their files are on the per-user list of agents
+trained here (:func:`trust_agent`); ``python -m ehas_train.agent_convert``
+converts them once.
 
 ``ehas bench`` finds agents through the controller registry of
 ``ehas_controllers.base``: importing this module registers agent folders and
@@ -23,7 +22,6 @@ that list stays quiet; a changed or foreign file warns.
 from __future__ import annotations
 
 import copy
-import io
 import json
 import pickle
 import warnings
@@ -33,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from . import envs as E
+from . import agent_format as AF
 from .config import algo_class, config_from_resolved, parse_config
 
 PICKLE_WARNING = ("agent files ({what}) are Python pickles, which can execute arbitrary code when loaded: "
@@ -76,24 +75,19 @@ class LearnedController:
         self._observer = None
 
     @classmethod
-    def load(cls, path, warn: bool = True) -> "LearnedController":
+    def load(cls, path, warn: bool = True, allow_pickle: bool = False) -> "LearnedController":
         """See :func:`load_agent`."""
-        return load_agent(path, warn=warn)
+        return load_agent(path, warn=warn, allow_pickle=allow_pickle)
 
     def save(self, path) -> Path:
-        """Write the agent folder (``model.zip``, ``vecnormalize.pkl``, ``config.json``) to ``path``."""
-        from ehas_env.output.files import atomic_write_bytes, atomic_write_text
+        """Write the agent folder (``config.json``, ``policy.json``, ``policy.safetensors``, ``obs_norm.json``)."""
+        from ehas_env.output.files import atomic_write_text
 
         path = Path(path)
         path.mkdir(parents=True, exist_ok=True)
-        buf = io.BytesIO()
-        self.model.save(buf)
-        atomic_write_bytes(path / "model.zip", buf.getvalue())
-        if self.obs_stats is not None:
-            atomic_write_bytes(path / "vecnormalize.pkl", pickle.dumps(self.obs_stats))
+        AF.write_safe(path, self.model, self.obs_stats)
         resolved = {**self.cfg.to_dict(), "controller_resolved": self.controller_desc}
         atomic_write_text(path / "config.json", json.dumps(resolved, indent=2, default=str))
-        trust_agent(path)
         return path
 
     @property
@@ -234,35 +228,73 @@ def _is_schedule(desc) -> bool:
     return bool(desc and isinstance(desc.get("data"), dict) and "entries" in desc["data"])
 
 
-def load_agent(path, warn: bool = True) -> LearnedController:
-    """Load an agent folder (or a bare stable-baselines3 ``.zip``).
+def load_agent(path, warn: bool = True, allow_pickle: bool = False) -> LearnedController:
+    """Load an agent folder: its weights and statistics are data (nothing is unpickled).
 
     Parameters
     ----------
     path : path
-        Agent folder written by ``ehas train``, or a ``.zip``.
+        Agent folder (``config.json``, ``policy.json``, ``policy.safetensors`` and, when trained with
+        ``vecnormalize = true``, ``obs_norm.json``; docs/agents.md).  With ``allow_pickle`` also an
+        older folder (``model.zip``, ``vecnormalize.pkl``) or a bare stable-baselines3 ``.zip``.
     warn : bool
-        Emit the :class:`PickleWarning` (the trainer turns it off for the agent
-        it has just written itself).
+        With ``allow_pickle``: emit the :class:`PickleWarning` for files not on the trust list.
+    allow_pickle : bool
+        Load a legacy pickled agent (``--allow-pickle``): unpickling runs whatever code the file
+        holds, so only for agents you trained yourself or trust as you trust a program.
+
+    Returns
+    -------
+    LearnedController
+        The agent as a controller.
 
     Raises
     ------
     ValueError
-        A folder without ``config.json``, or without ``vecnormalize.pkl`` when its config says
-        ``vecnormalize = true``; a damaged file (named).  These are checked before any pickle is loaded.
-
-    Warns
-    -----
-    PickleWarning
-        Agent files are pickles that can execute code: trusted sources only.
+        A folder without ``config.json`` or its weights, a legacy pickled agent without
+        ``allow_pickle``, a damaged file (named, in one line).
     """
     path = Path(path)
+    folder = path if path.is_dir() else path.parent
+    safe = path.is_dir() and (folder / AF.POLICY_JSON).exists()
+    if not safe:
+        legacy = (path / "model.zip") if path.is_dir() else path
+        if path.is_dir() and not legacy.is_file():
+            raise FileNotFoundError(f"no agent at {path}: expected a folder holding config.json, policy.json and "
+                                    "policy.safetensors (docs/agents.md)")
+        if not path.exists():
+            raise FileNotFoundError(f"no agent at {path}: expected an agent folder (config.json, policy.json, "
+                                    "policy.safetensors)")
+        if not allow_pickle:
+            raise ValueError(f"agent {path}: a pickled stable-baselines3 agent ({legacy.name}"
+                             f"{', vecnormalize.pkl' if (folder / 'vecnormalize.pkl').exists() else ''}); "
+                             "unpickling can run any code, so ehas does not load it; convert it once with "
+                             f"`python -m ehas_train.agent_convert {path}` if you trust it, or pass "
+                             "--allow-pickle (allow_pickle=True)")
+        return _load_pickled(path, warn)
+    cfg_path = folder / "config.json"
+    if not cfg_path.exists():
+        raise ValueError(f"agent folder {folder}: config.json is missing; an agent folder written by ehas train "
+                         "holds config.json (its training configuration), policy.json, policy.safetensors and, "
+                         "when trained with vecnormalize = true, obs_norm.json")
+    saved = read_agent_config(cfg_path)
+    controller_desc = saved.pop("controller_resolved", None)
+    cfg = config_from_resolved(saved, source=str(cfg_path))
+    norm_path = folder / AF.NORM_JSON
+    if cfg.vecnormalize and not norm_path.is_file():
+        raise ValueError(f"agent folder {folder}: obs_norm.json is missing; config.json says the agent was "
+                         "trained with vecnormalize = true, so its policy needs those observation statistics")
+    policy = AF.read_safe(folder, cfg.algo)
+    obs_stats = AF.read_norm(norm_path) if norm_path.is_file() else None
+    return LearnedController(policy, cfg, controller_desc, obs_stats, name=folder.name, path=str(path))
+
+
+def _load_pickled(path: Path, warn: bool) -> LearnedController:
+    """A legacy agent (``model.zip``, ``vecnormalize.pkl``): unpickles, behind ``allow_pickle`` only."""
     if path.is_dir():
         folder, model_path = path, path / "model.zip"
     else:
         folder, model_path = path.parent, path
-    if not model_path.is_file():
-        raise FileNotFoundError(f"no agent at {path}: expected a folder holding model.zip, or a .zip file")
     cfg_path = folder / "config.json"
     norm_path = folder / "vecnormalize.pkl"
     in_folder = path.is_dir()
@@ -284,7 +316,7 @@ def load_agent(path, warn: bool = True) -> LearnedController:
     pickles = [p for p in (model_path, norm_path) if p.exists() and (in_folder or p == model_path)]
     if warn and not _trusted(pickles):
         what = ", ".join(p.name for p in pickles)
-        warnings.warn(PICKLE_WARNING.format(what=what), PickleWarning, stacklevel=2)
+        warnings.warn(PICKLE_WARNING.format(what=what), PickleWarning, stacklevel=3)
     try:
         model = algo_class(cfg.algo).load(model_path, device="cpu")
     except (OSError, EOFError, KeyError, ValueError, RuntimeError, pickle.UnpicklingError, zipfile.BadZipFile) as exc:
@@ -400,8 +432,11 @@ def _register() -> None:
         from ehas_controllers import base
     except ImportError:  # pragma: no cover - the controllers package is part of the project
         return
-    base.register_loader(".zip", load_agent)
-    base.register_loader("/", load_agent)
+    def load(path):
+        return load_agent(path, allow_pickle=base.LOAD_OPTIONS.get("allow_pickle", False))
+
+    base.register_loader(".zip", load)
+    base.register_loader("/", load)
 
 
 _register()

@@ -349,6 +349,10 @@ def parse_config(raw: dict, source: str = "<dict>") -> TrainConfig:
     env_id = env.get("id", "ehas/Tracking-v0")
     if not isinstance(env_id, str) or not env_id:
         raise ValueError(f"{source}: [env] id must be a gymnasium id string, got {env_id!r}")
+    if ":" in env_id:  # gymnasium imports the module before the ':' - a config is data and never imports code
+        raise ValueError(f"{source}: [env] id = {env_id!r} names a module to import ('module:Env'); a training "
+                         "config never imports code: register the environment in your own script and give its "
+                         "plain id (e.g. ehas/Tracking-v0)")
     residual = env.get("residual", False)
     if not isinstance(residual, bool):
         raise ValueError(f"{source}: [env] residual must be true or false, got {residual!r}")

@@ -80,10 +80,10 @@ def resolve_controller_spec(spec: str, results_dir: str | Path = "results/contro
     """
     if spec == "book":
         return {"source": "book", "data": None}
-    if str(spec).endswith(".py"):  # a controller file in Python (ehas_controllers.base.CompiledController)
-        from ehas_controllers.base import load_controller
+    if str(spec).endswith(".py"):  # a controller file in Python, loaded by the user (--controller-path)
+        from ehas_controllers.base import loaded_file
 
-        ctrl = load_controller(spec)
+        ctrl = loaded_file(spec, "[env] controller")
         return {"source": str(Path(spec).resolve()), "data": ctrl.to_dict(), "file": str(Path(spec).resolve())}
     if spec == "tuned":
         path = tuned_controller_path(results_dir)
@@ -110,10 +110,10 @@ def classical_controller(desc: dict | None):
         from ehas_controllers.piff import PIFF
 
         return PIFF.book()
-    from ehas_controllers.base import controller_from_dict, load_controller
+    from ehas_controllers.base import controller_from_dict, loaded_file
 
     if desc.get("file"):
-        load_controller(desc["file"])  # a Python controller file registers its law and type
+        loaded_file(desc["file"], "the agent's base controller")  # its law and type, loaded by the user
     return controller_from_dict(desc["data"])
 
 

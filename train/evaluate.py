@@ -220,8 +220,10 @@ def run(agent_paths, out_dir, *, classical=None, cycles: float = DEFAULT_CYCLES,
     blocks, summaries, timings = [], {}, {}
     bases_done = set()
     agents = []
+    from ehas_controllers.base import LOAD_OPTIONS
+
     for p in agent_paths:
-        agent = load_agent(p)
+        agent = load_agent(p, allow_pickle=LOAD_OPTIONS["allow_pickle"])
         agents.append(agent)
         t0 = time.perf_counter()
         rows = evaluate_agent(agent, grid, cycles=cycles, progress=progress)
@@ -285,7 +287,9 @@ def write_agent_readme(path, summary_row: dict, base_row: dict | None, eval_comm
 
     path = Path(path)
     metrics = read_json(path / "metrics.json", METRICS_FILE) if (path / "metrics.json").exists() else {}
-    agent = load_agent(path, warn=False)
+    from ehas_controllers.base import LOAD_OPTIONS
+
+    agent = load_agent(path, warn=False, allow_pickle=LOAD_OPTIONS["allow_pickle"])
     cfg = agent.cfg
     cmd = metrics.get("command") or f"ehas train --algo {cfg.algo}{' --residual' if cfg.residual else ''} --config {cfg.source} --out {path}"
     tt = metrics.get("train_time_s")
@@ -319,13 +323,13 @@ def write_agent_readme(path, summary_row: dict, base_row: dict | None, eval_comm
               "library effect at its typical value)"
               + (f"; worse by more than {vs.get('tolerance_points', 0.05):g} points on **{n['worse_count']}** of 63 "
                  f"conditions (largest excess {n['max_excess_points']:+.3f} points)" if n else "") + "."]
-    L += ["", "## Files", "", "- `model.zip`: the policy (stable-baselines3 zip);",
-          "- `vecnormalize.pkl`: observation normalisation statistics;" if (path / "vecnormalize.pkl").exists() else "",
+    L += ["", "## Files", "",
+          "- `policy.safetensors`: the policy's weights; `policy.json`: its architecture (data only, docs/agents.md);",
+          "- `obs_norm.json`: observation normalisation statistics;" if (path / "obs_norm.json").exists() else "",
           "- `config.json`: the resolved training configuration (environment, action hold and scale, base controller);",
           "- `metrics.json`: steps, training time, final evaluation; `learning_curve.csv` / `.png`: training episodes.", "",
-          "**Security:** `model.zip` and `vecnormalize.pkl` contain Python pickles, which can execute arbitrary code "
-          "when loaded. Load agents only from trusted sources (`load_agent` warns).", "",
-          "```python", "from ehas_train.agent import load_agent", f"agent = load_agent('{path}')  # warns: pickles",
+          "Loading the agent reads only data (safetensors and JSON): nothing is unpickled.", "",
+          "```python", "from ehas_train.agent import load_agent", f"agent = load_agent('{path}')",
           "from ehas_env.simulation.plant import Plant",
           "run = Plant(disc_sets=7).simulate_closed_loop(agent.for_plant(7), amplitude_deg=30, freq_hz=3, cycles=5)",
           "print(run.tracking_errors())", "```", "",
@@ -343,8 +347,8 @@ def write_agents_index(agent_paths, agents, summaries, command: str, results_dir
     for folder, items in folders.items():
         L = ["# Shipped learned controllers", "",
              "Each folder holds a trained stable-baselines3 agent (small files) and a README with the exact command "
-             "that retrains it and its measured training time on this 2-core machine. Loading an agent unpickles "
-             "Python objects: load only agents from trusted sources.", "",
+             "that retrains it and its measured training time on this 2-core machine. Loading an agent reads only data "
+             "(safetensors and JSON, docs/agents.md): nothing is unpickled.", "",
              f"Figures: `{command}` -> `{results_dir}/learned_benchmark.md` (63 conditions through "
              "`ehas/Tracking-v0`, rms_error_pct = 100 RMS(theta_ref - theta)/amplitude over whole cycles after the "
              "first).", "",
@@ -431,8 +435,13 @@ def main(argv=None) -> int:
     parser.add_argument("--cycles", type=float, default=DEFAULT_CYCLES, help="reference periods per run")
     parser.add_argument("--curves", default="results/learning_curves", help="folder for the learning-curve copies")
     parser.add_argument("--readme", action="store_true", help="(re)write each agent folder's README.md")
+    parser.add_argument("--allow-pickle", action="store_true",
+                        help="also load legacy pickled agent folders (model.zip, vecnormalize.pkl): unpickling runs "
+                             "any code the files hold; only for agents you trust as a program")
     args = parser.parse_args(argv)
-    from ehas_controllers.base import load_controller
+    from ehas_controllers.base import LOAD_OPTIONS, load_controller
+
+    LOAD_OPTIONS["allow_pickle"] = args.allow_pickle
 
     command = "python -m ehas_train.evaluate " + " ".join(sys.argv[1:] if argv is None else argv)
     classical = [load_controller(p) for p in args.classical]

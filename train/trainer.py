@@ -2,8 +2,10 @@
 
 Output folder (``out``)::
 
-    model.zip             the trained policy (stable-baselines3 zip)
-    vecnormalize.pkl      observation-normalisation statistics (when vecnormalize = true)
+    policy.safetensors    the trained policy's weights, policy.json its architecture (data only, docs/agents.md)
+    obs_norm.json         observation-normalisation statistics (when vecnormalize = true)
+    model.zip             the training state for --resume (stable-baselines3 zip: a pickle, never loaded as agent)
+    vecnormalize.pkl      the normalisation's state for --resume (a pickle, likewise)
     config.json           the resolved configuration (incl. the residual's base controller)
     metrics.json          steps, training time, returns, final deterministic evaluation
     learning_curve.csv    one row per finished training episode
@@ -571,6 +573,17 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
         _save_bytes(out / "model.zip", model.save)
         if vn is not None:
             _save_bytes(out / "vecnormalize.pkl", lambda b: b.write(_pickle(vn)))
+    # the agent as data (policy.safetensors, policy.json, obs_norm.json: docs/agents.md); model.zip and
+    # vecnormalize.pkl, written by this run itself, stay for --resume only (load_agent never reads them)
+    from .agent_format import write_safe
+
+    if selected is not None:
+        from .agent import _load_pickled
+
+        own = _load_pickled(out, warn=False)
+        write_safe(out, own.model, own.obs_stats)
+    else:
+        write_safe(out, model, vn)
     atomic_write_text(out / "learning_curve.csv", _curve_csv(curve_rows))
     plot_learning_curve(curve_rows, out / "learning_curve.png", title=_title(cfg))
     venv.close()

@@ -96,9 +96,17 @@ def run(args) -> int:
         we = Path(args.write_effect)
         if we.suffix != ".py" or not we.stem.isidentifier():
             raise ValueError(f"--write-effect {we}: give DIR/NAME.py with NAME a Python identifier (it names the effect)")
+        from ehas_env.physics.effects import REGISTRY
+
+        if we.stem in REGISTRY:  # the written file would register a second effect of that name and fail to load
+            raise ValueError(f"--write-effect {we}: '{we.stem}' is already an effect's name; choose a new NAME")
         check_file(args.write_effect, "--write-effect", overwrite=args.overwrite)
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
+    closed = [r.name for r in campaign.runs if r.meta.get("kind") == "closed_loop"]
+    if holdout and closed and set(closed) <= set(holdout) and len(closed) < len(campaign.runs):
+        raise ValueError(f"--holdout {args.holdout}: holds out every closed-loop run ({', '.join(closed)}); the fit "
+                         "would see valve runs only and could not place effects on the load; hold out fewer")
     say = (lambda msg: None)
     if not args.quiet:
         from ehas_env.output.progress import status

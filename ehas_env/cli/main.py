@@ -227,6 +227,10 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("--model", default=None, metavar="FILE",
                            help="model file of the plant (rig, valve, effects; default: the book's rig; "
                                 "docs/model-file.md)")
+        if name in CONTROLLER_PATH_COMMANDS:
+            p.add_argument("--controller-path", action="append", metavar="FILE.py",
+                           help="your own Python controller file to load first, for a training config or an agent "
+                                "folder that names it (they never import code themselves); repeatable")
         if name in EFFECT_COMMANDS:
             p.add_argument("--effects-path", action="append", metavar="DIR",
                            help="folder (or .py file) of your own effect files to load first; repeatable "
@@ -236,6 +240,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: commands that build plants (or size one): they take --model FILE (docs/model-file.md)
 MODEL_COMMANDS = ("simulate", "bench", "tune", "compare", "diagnose", "simulate-campaign", "train", "curves", "size")
+
+#: commands that may meet a Python controller file named in a config or an agent folder: --controller-path
+CONTROLLER_PATH_COMMANDS = ("simulate", "bench", "train")
 
 #: commands that build plants: they take --effects-path
 EFFECT_COMMANDS = ("simulate", "bench", "tune", "compare", "diagnose", "simulate-campaign", "train", "effects", "perf",
@@ -344,6 +351,14 @@ def _main(argv, program: bool = False) -> int:
         except ValueError as exc:
             print(f"ehas {args.command}: error: --effects-path: {exc}", file=sys.stderr)
             return 2
+    for path in getattr(args, "controller_path", None) or []:
+        from ehas_controllers.base import load_controller
+
+        try:
+            load_controller(path)
+        except (ValueError, OSError) as exc:
+            print(f"ehas {args.command}: error: --controller-path: {_one_line(exc)}", file=sys.stderr)
+            return 2
     module = _load(args._module)
     if module is None:
         parser.error(f"command '{args.command}' is not available in this installation")
@@ -357,10 +372,16 @@ def _main(argv, program: bool = False) -> int:
         print(f"{name}: warning: {_one_line(message)}", file=sys.stderr if file is None else file)
 
     shown, warnings.showwarning = warnings.showwarning, _show
+    from ehas_env.output import files as _outputs
+
+    _outputs.begin()  # the command's outputs are placed when it succeeds; a failure leaves none (--json too)
+    placed = False
     try:
         if program:
             _Stop.phase = "work"  # from here the first signal raises KeyboardInterrupt
         rc = int(module.run(args) or 0)
+        placed = True
+        _outputs.finish(True)
         if program:
             _Stop.phase = "done"  # the outputs are complete: a signal now ends the process at once (status 130)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers
@@ -400,6 +421,8 @@ def _main(argv, program: bool = False) -> int:
     except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, traceback on request
         return _unexpected(name, exc)
     finally:
+        if not placed:
+            _outputs.finish(False)
         if program and _Stop.phase == "work":
             _Stop.phase = "done"  # a failure: no signal raises past here (main() reports it as status 130)
         warnings.showwarning = shown

@@ -44,12 +44,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="rated valve flow at the rated drop and current, LPM (sets K = flow / rated current)")
     new.add_argument("--valve", choices=("grey_box", "white_box"), default=None, help="valve model")
     new.add_argument("--effects", default=None, help="effects of the plant, e.g. coulomb_friction:Fc=300 ('' for none)")
-    new.add_argument("--effects-path", dest="model_effects_path", action="append", default=None, metavar="DIR",
-                     help="user effect folder or .py file the model needs (recorded in the file); repeatable")
+    for p in (show, new):
+        p.add_argument("--effects-path", action="append", default=None, metavar="DIR",
+                       help="folder (or .py file) of your own effect files the model needs (loaded first; the file "
+                            "records their names and SHA-256, never the code or the folder); repeatable")
     new.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
     diff = sub.add_parser("diff", help="the fields in which two model files differ (exit status 1 when they do)")
     diff.add_argument("a", metavar="A")
     diff.add_argument("b", metavar="B")
+    diff.add_argument("--effects-path", action="append", default=None, metavar="DIR",
+                      help="folder (or .py file) of your own effect files the models need; repeatable")
 
 
 def _flow_range():
@@ -94,7 +98,6 @@ def run(args) -> int:
     check_file(args.file, "FILE", overwrite=args.overwrite)
     base = mf.load_model(args.base) if args.base is not None else mf.PlantModel()
     doc = base.to_dict()
-    doc["effects_path"] = list(base.effects_path)  # absolute; written relative to FILE's folder
     for f in mf.FIELDS:
         v = getattr(args, f.key)
         if v is not None:
@@ -111,13 +114,11 @@ def run(args) -> int:
         doc["name"] = Path(args.file).stem
     if args.description is not None:
         doc["description"] = args.description
-    if args.model_effects_path:
-        doc["effects_path"] = [str(Path(p).resolve()) for p in args.model_effects_path]
-    if args.effects is not None:
-        from ehas_env.physics.effects import load_effects_path, parse_spec
+    if args.effects is not None:  # user effects were loaded from --effects-path before the command ran
+        from ehas_env.physics.effects import parse_spec
 
-        load_effects_path(args.model_effects_path)
         doc["effects"] = parse_spec(args.effects) if args.effects else {}
+    doc["user_effects"] = mf.user_effects_of(doc["effects"])
     doc["calibration"] = {} if not args.base else doc.get("calibration", {})
     argv = sys.argv[1:]
     command = "ehas " + " ".join(shlex.quote(a) for a in argv) if argv[:2] == ["model", "new"] else None

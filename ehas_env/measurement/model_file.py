@@ -16,12 +16,20 @@ Version 2 (written by this ehas)::
                "bulk_modulus_Pa": 1e9},
      "valve": {"model": "grey_box", "K_lpm_per_mA": 1.2723, "wn_rad_s": 107, "zeta": 0.691,
                "rated_drop_bar": 70, "rated_current_mA": 20},
-     "effects": {"coulomb_friction": {"Fc": 412.0}}, "effects_path": ["my_effects"],
+     "effects": {"coulomb_friction": {"Fc": 412.0}, "torsion_spring": {"k": 30.0}},
+     "user_effects": {"torsion_spring": {"file": "torsion_spring.py", "sha256": "9f2c..."}},
      "units": {"coulomb_friction.Fc": "N"},
      "calibration": {"campaign": "...", "fit_percent_before": 83.4, "fit_percent_after": 98.1},
      "provenance": {"created_utc": "...", "ehas_version": "0.1.0", "command": "..."}}
 
-Every key may be left out (its default is the book's value).  Version 1 files
+Every key may be left out (its default is the book's value).  A model file is
+data: reading it never imports code.  ``user_effects`` *names* the user effect
+files its effects need (file name and SHA-256 of the file's text); their code
+loads only from a folder the user gives (``--effects-path DIR``,
+``effects_path=``) or lists in a trust list (``EHAS_TRUSTED_EFFECTS`` or
+``~/.config/ehas/trusted_effects.json``), and otherwise reading the file stops
+with one line naming the missing effect file.  An ``effects_path`` key of older
+files is read and ignored (never imported).  Version 1 files
 (``"baseline": {"beta_Pa", "K_lpm_per_mA"}``, written by earlier
 ``ehas compare --save-model``) are still read: the book's rig with that bulk
 modulus and valve gain.
@@ -115,8 +123,8 @@ FIELDS: tuple[Field, ...] = (
 )
 FIELD_BY_PATH = {f.path: f for f in FIELDS}
 FIELD_BY_KEY = {f.key: f for f in FIELDS}
-TOP_KEYS = ("format", "version", "kind", "name", "description", "rig", "valve", "effects", "effects_path", "units",
-            "calibration", "provenance")
+TOP_KEYS = ("format", "version", "kind", "name", "description", "rig", "valve", "effects", "user_effects",
+            "effects_path", "units", "calibration", "provenance")
 
 
 @dataclass(frozen=True)
@@ -138,8 +146,9 @@ class PlantModel:
         Overrides of :class:`~ehas_env.physics.white_box_valve.WhiteBoxValve` (SI).
     effects : dict
         Effects switched on, ``{name: {param: value}}`` in the effects' units.
-    effects_path : tuple of str
-        User effect files or folders (absolute), loaded before the effects resolve.
+    user_effects : dict
+        ``{name: {"file": file name, "sha256": hex}}`` of the user effects among ``effects`` (the
+        code is never loaded from the model file; see the module docstring).
     calibration, provenance : dict
         How the numbers were obtained, and by which command / ehas version.
     description : str
@@ -154,7 +163,7 @@ class PlantModel:
     valve: str = "grey_box"
     white_box: dict = field(default_factory=dict)
     effects: dict = field(default_factory=dict)
-    effects_path: tuple = ()
+    user_effects: dict = field(default_factory=dict)
     calibration: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     description: str = ""
@@ -284,8 +293,9 @@ class PlantModel:
                 f"{n}(" + ", ".join(f"{k}={v:g}" for k, v in ps.items()) + ")" for n, ps in self.effects.items()))
         else:
             lines.append("effects: none")
-        if self.effects_path:
-            lines.append("effects_path: " + ", ".join(self.effects_path))
+        if self.user_effects:
+            lines.append("user effects: " + ", ".join(f"{n} ({u['file']}, sha256 {u['sha256'][:12]})"
+                                                       for n, u in self.user_effects.items()))
         if self.calibration:
             lines.append("calibration: " + json.dumps(self.calibration, sort_keys=True))
         if self.provenance:
@@ -312,7 +322,7 @@ def model_doc(m: PlantModel) -> dict:
     if m.description:
         doc["description"] = m.description
     doc.update({"rig": rig, "valve": valve, "effects": {n: dict(p) for n, p in m.effects.items()},
-                "effects_path": [_rel(p, m.path) for p in m.effects_path], "units": units,
+                "user_effects": {**m.user_effects, **user_effects_of(m.effects)}, "units": units,
                 "calibration": dict(m.calibration), "provenance": dict(m.provenance)})
     return doc
 
@@ -322,26 +332,39 @@ def _clean(v: float) -> float | int:
     return int(v) if v.is_integer() and abs(v) < 1e15 else v
 
 
-def _rel(p: str, model_path: str | None) -> str:
-    """An effects path relative to the model file's folder when it lies inside it."""
-    if model_path:
-        try:
-            return str(Path(p).resolve().relative_to(Path(model_path).resolve().parent))
-        except ValueError:
-            pass
-    return str(p)
+def user_effects_of(effects) -> dict:
+    """``{name: {"file", "sha256"}}`` of the loaded user effects among ``effects`` (the library's own are left out)."""
+    from ehas_env.physics.effects.loading import effect_source
+
+    out = {}
+    for n in effects:
+        src = effect_source(n)
+        if src is not None:
+            out[n] = {"file": Path(src[0]).name, "sha256": src[1]}
+    return out
 
 
 # -- reading ------------------------------------------------------------------------------------
 def load_model(path) -> PlantModel:
-    """The :class:`PlantModel` of a model file (version 1 or 2).
+    """The :class:`PlantModel` of a model file (version 1 or 2); reading it never imports code.
+
+    Parameters
+    ----------
+    path : str or path
+        The model JSON file (docs/model-file.md).  User effects it names in ``user_effects``
+        must already be loaded (``--effects-path DIR``, ``effects_path=``, ``EHAS_EFFECTS_PATH``)
+        with the recorded SHA-256, or lie in a folder of the user's trust list.
+
+    Returns
+    -------
+    PlantModel
+        The validated model (SI inside, see :class:`PlantModel`).
 
     Raises
     ------
-    FileNotFoundError
-        No such file.
     ValueError
-        Not a model file, or a field out of range: one line naming the file and the field.
+        Not a model file, a key named twice, a field out of range or of the wrong type, a user
+        effect not loaded or loaded from a different file: one line naming the file and the field.
     """
     path = Path(path)
     if str(path) in ("", "."):
@@ -370,9 +393,9 @@ def parse_model(doc, where: str) -> PlantModel:
         raise ValueError(f"{where}: not an ehas model file (expected a JSON object with \"format\": \"{FORMAT}\"; "
                          "docs/model-file.md)")
     version = doc.get("version")
-    if version == 1:
+    if type(version) is int and version == 1:  # 1.0 and true are not versions
         return _parse_v1(doc, where)
-    if version != VERSION:
+    if type(version) is not int or version != VERSION:
         raise ValueError(f"{where}: key 'version' = {version!r}; this ehas reads model-file versions 1 and {VERSION}")
     _no_unknown(doc, TOP_KEYS, where, "")
     kind = doc.get("kind", KIND)
@@ -402,24 +425,20 @@ def parse_model(doc, where: str) -> PlantModel:
                          "the actuator loses all leverage")
     ips = values.pop("inertia_per_set")
     rig = RigParams(**values)
-    base = Path(where).resolve().parent if where[:1] != "<" else Path.cwd()
-    paths = doc.get("effects_path", [])
-    if isinstance(paths, str):
-        paths = [paths]
-    if not isinstance(paths, list) or not all(isinstance(p, str) and p for p in paths):
-        raise ValueError(f"{where}: effects_path must be a list of folders or .py files (relative to the model file)")
-    effects_path = []
-    for p in paths:
-        full = Path(p) if Path(p).is_absolute() else base / p
-        if not full.exists():
-            raise ValueError(f"{where}: effects_path {p!r} does not exist (looked for {full})")
-        effects_path.append(str(full.resolve()))
-    effects = _effects(doc.get("effects", {}), effects_path, where)
-    for key in ("calibration", "provenance", "units"):
-        if not isinstance(doc.get(key, {}), dict):
-            raise ValueError(f"{where}: {key} must be an object")
+    paths = doc.get("effects_path", [])  # older files: read, never imported (model files are data)
+    if not isinstance(paths, list) or not all(isinstance(p, str) for p in paths):
+        raise ValueError(f"{where}: effects_path must be a list of texts (older files; it is not used: name user "
+                         "effects in user_effects and give their folder with --effects-path)")
+    user = _user_effects(doc.get("user_effects", {}), where)
+    effects = _effects(doc.get("effects", {}), user, where, legacy=paths)
+    extra = sorted(set(user) - set(effects))
+    if extra:
+        raise ValueError(f"{where}: user_effects.{extra[0]} names an effect that effects does not switch on")
+    for key in ("provenance", "units"):
+        _flat(doc.get(key, {}), key, where)
+    calibration = _calibration(doc.get("calibration", {}), where)
     return PlantModel(name=name, rig=rig, inertia_per_set=ips, valve=valve, white_box=white_box, effects=effects,
-                      effects_path=tuple(effects_path), calibration=dict(doc.get("calibration", {})),
+                      user_effects=user, calibration=calibration,
                       provenance=dict(doc.get("provenance", {})), description=description,
                       path=None if where[:1] == "<" else where)
 
@@ -430,23 +449,94 @@ def _parse_v1(doc, where: str) -> PlantModel:
         raise ValueError(f"{where}: baseline must be an object with beta_Pa and K_lpm_per_mA")
     beta = _num(base, "beta_Pa", BULK_MODULUS, BETA_BOUNDS, f"{where}: baseline")
     K = _num(base, "K_lpm_per_mA", VALVE_K, K_BOUNDS, f"{where}: baseline")
-    effects = _effects(doc.get("effects", {}), [], where)
-    cal = doc.get("calibration", {})
+    effects = _effects(doc.get("effects", {}), {}, where)
+    cal = _calibration(doc.get("calibration", {}), where)
     return PlantModel(name=Path(where).stem if where[:1] != "<" else "book rig (v1)", rig=RigParams(beta=beta, K=K),
                       effects=effects, calibration=dict(cal) if isinstance(cal, dict) else {},
                       provenance={"read_from": "model-file version 1"}, path=None if where[:1] == "<" else where)
 
 
-def _effects(eff, effects_path, where: str) -> dict:
-    from ehas_env.physics.effects import load_effects_path, resolve_effects
+_HEX = frozenset("0123456789abcdef")
+
+
+def _user_effects(user, where: str) -> dict:
+    """The ``user_effects`` block: ``{name: {"file": "name.py", "sha256": 64 hex digits}}``."""
+    if not isinstance(user, dict):
+        raise ValueError(f"{where}: user_effects must map effect names to {{\"file\": ..., \"sha256\": ...}}")
+    out = {}
+    for n, rec in user.items():
+        if not (isinstance(rec, dict) and set(rec) == {"file", "sha256"} and isinstance(rec["file"], str)
+                and rec["file"].endswith(".py") and "/" not in rec["file"] and "\\" not in rec["file"]
+                and isinstance(rec["sha256"], str) and len(rec["sha256"]) == 64 and set(rec["sha256"]) <= _HEX):
+            raise ValueError(f"{where}: user_effects.{n} must be {{\"file\": \"NAME.py\" (a file name, no folder), "
+                             "\"sha256\": 64 lower-case hex digits}} (docs/model-file.md)")
+        out[n] = dict(rec)
+    return out
+
+
+def _flat(obj, key: str, where: str) -> dict:
+    """A block of plain values (texts, numbers, true/false, null; lists of them)."""
+    def plain(v, depth=0):
+        if isinstance(v, float):
+            return math.isfinite(v)
+        if depth > 4:
+            return False
+        if isinstance(v, dict):
+            return all(isinstance(k, str) and plain(x, depth + 1) for k, x in v.items())
+        return v is None or isinstance(v, (str, int, bool)) or (isinstance(v, list) and all(plain(x, depth + 1)
+                                                                                             for x in v))
+    if not isinstance(obj, dict):
+        raise ValueError(f"{where}: {key} must be an object")
+    for k, v in obj.items():
+        if not plain(v):
+            raise ValueError(f"{where}: {key}.{k} must be texts, finite numbers, true/false, null, or lists and "
+                             f"objects of those (at most 4 deep), got {v!r:.60}")
+    return dict(obj)
+
+
+#: the calibration block's known keys and what they hold (others must be plain values)
+_CAL_NUMBERS = ("fit_percent_before", "fit_percent_after")
+_CAL_TEXTS = ("campaign", "command")
+
+
+def _calibration(cal, where: str) -> dict:
+    cal = _flat(cal, "calibration", where)
+    for k in _CAL_NUMBERS:
+        if k in cal:
+            v = cal[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1e6 <= v <= 100:
+                raise ValueError(f"{where}: calibration.{k} must be a number <= 100 (a fit %), got {v!r}")
+    for k in _CAL_TEXTS:
+        if k in cal and not isinstance(cal[k], str):
+            raise ValueError(f"{where}: calibration.{k} must be a text, got {cal[k]!r:.60}")
+    return cal
+
+
+def _effects(eff, user: dict, where: str, legacy=()) -> dict:
+    from ehas_env.physics.effects import REGISTRY, resolve_effects
+    from ehas_env.physics.effects.loading import effect_source, load_trusted
 
     if not isinstance(eff, dict) or not all(isinstance(v, dict) for v in eff.values()):
         raise ValueError(f"{where}: effects must map effect names to {{parameter: value}} objects")
-    if effects_path:
-        try:
-            load_effects_path(effects_path)
-        except ValueError as exc:
-            raise ValueError(f"{where}: effects_path: {exc}") from None
+    for n in eff:
+        rec = user.get(n)
+        if n not in REGISTRY and rec is not None:
+            load_trusted(rec["sha256"])  # only a file of the user's trust list with exactly this text
+        if n not in REGISTRY:
+            if not isinstance(n, str) or n not in user and not legacy:
+                break  # an unknown name: resolve_effects says so, with the list of effects
+            what = f" (file {rec['file']}, sha256 {rec['sha256'][:12]}...)" if rec else ""
+            old = f"; the file's effects_path {legacy} is not loaded: a model file never runs code" if legacy else ""
+            raise ValueError(f"{where}: effect '{n}' is a user effect{what} that is not loaded; give the folder "
+                             f"holding its file with --effects-path DIR (effects_path= in Python) or list that "
+                             f"folder in your trust list (docs/model-file.md){old}")
+        src = effect_source(n)
+        if rec is not None and src is None:
+            raise ValueError(f"{where}: user_effects names '{n}', but the loaded '{n}' is the library's own effect")
+        if rec is not None and src[1] != rec["sha256"]:
+            raise ValueError(f"{where}: effect '{n}': the loaded file {src[0]} (sha256 {src[1][:12]}...) is not "
+                             f"the file the model was saved with (sha256 {rec['sha256'][:12]}...); give the folder "
+                             "of that file with --effects-path")
     try:
         return resolve_effects(eff)
     except ValueError as exc:
@@ -564,8 +654,10 @@ def diff_models(a: PlantModel, b: PlantModel) -> list[str]:
             for k in sorted(set(pa) | set(pb)):
                 if pa.get(k) != pb.get(k):
                     out.append(f"effects.{n}.{k}: {pa.get(k)} -> {pb.get(k)}")
-    if tuple(a.effects_path) != tuple(b.effects_path):
-        out.append(f"effects_path: {list(a.effects_path)} -> {list(b.effects_path)}")
+    for n in sorted(set(a.user_effects) | set(b.user_effects)):
+        ua, ub = a.user_effects.get(n), b.user_effects.get(n)
+        if ua != ub:
+            out.append(f"user_effects.{n}: {(ua or {}).get('sha256', 'none')[:12]} -> {(ub or {}).get('sha256', 'none')[:12]}")
     for key in ("calibration", "provenance"):
         if getattr(a, key) != getattr(b, key):
             out.append(f"{key}: differs")

@@ -47,6 +47,7 @@ ValueError: ...x.json: not a UTF-8 text file (byte 0x80 at offset 8); expected a
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 import stat
@@ -121,11 +122,33 @@ def _unreadable(path: Path, exc: OSError, what: str) -> Exception:
     return ValueError(f"{path}: cannot be read ({exc.strerror or exc}); expected {what}")
 
 
+class DuplicateKey(ValueError):
+    """A JSON object names one key twice (json keeps the last silently; ehas refuses)."""
+
+
+def _no_duplicates(pairs):
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise DuplicateKey(k)
+        out[k] = v
+    return out
+
+
+def loads_strict(text: str):
+    """``json.loads`` refusing a key named twice in one object (:class:`DuplicateKey`)."""
+    return json.loads(text, object_pairs_hook=_no_duplicates)
+
+
 def read_json(path, what: str, *, max_bytes: int | None = None):
-    """The parsed JSON of the file ``path`` (:func:`read_text`; invalid JSON is one line naming line and column)."""
+    """The parsed JSON of the file ``path`` (:func:`read_text`; invalid JSON or a key named twice in one object is one
+    line naming the file)."""
     text = read_text(path, what, max_bytes=max_bytes)
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_no_duplicates)
+    except DuplicateKey as exc:
+        raise ValueError(f"{path}: key {exc.args[0]!r} appears twice in one object; a key may appear once "
+                         f"(expected {what})") from None
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not valid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}; "
                          f"expected {what}") from None
@@ -162,7 +185,11 @@ def atomic_write_bytes(path, data: bytes) -> Path:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        claim = CLAIMED.get(os.path.abspath(path))
+        if claim is not None and PENDING is not None:
+            PENDING.append((tmp, path, claim))  # a command's output: placed when the command succeeds
+            return path
+        place(tmp, path, overwrite=True if claim is None else claim[1], option=None if claim is None else claim[0])
     except BaseException as exc:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
@@ -171,6 +198,85 @@ def atomic_write_bytes(path, data: bytes) -> Path:
             raise type(exc)(exc.errno, exc.strerror or str(exc), str(path)) from None
         raise
     return path
+
+
+#: outputs a command checked before its work (``outputs.check_file``): absolute path -> (option, overwrite)
+CLAIMED: dict[str, tuple] = {}
+#: while a command runs (``begin``): written claimed outputs waiting for its success, (temporary, path, claim)
+PENDING: list | None = None
+
+
+class OutputExists(ValueError):
+    """An output created meanwhile by another run (exclusive creation refused); one line naming it."""
+
+
+def place(tmp, path, *, overwrite: bool, option: str | None = None) -> None:
+    """Move the finished temporary ``tmp`` to ``path``: replacing it with ``overwrite``, else only if ``path``
+    does not exist at that instant (a hard link is exclusive: two runs cannot both create ``path``)."""
+    if overwrite:
+        os.replace(tmp, path)
+        return
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        os.unlink(tmp)
+        label = f"{option} {path}" if option else str(path)
+        raise OutputExists(f"{label} was created by another run meanwhile; nothing was replaced "
+                           "(pass --overwrite to replace it)") from None
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EXDEV, errno.EMLINK):
+            raise
+        if os.path.lexists(path):  # a file system without hard links: checked, then renamed
+            os.unlink(tmp)
+            raise OutputExists(f"{path} was created by another run meanwhile; nothing was replaced") from None
+        os.replace(tmp, path)
+        return
+    os.unlink(tmp)
+
+
+_DEPTH = [0]
+
+
+def begin() -> None:
+    """Start a command's transaction: claimed outputs written from now wait for :func:`finish` (a command run
+    inside another, as ``ehas demo`` runs some, joins the outer one)."""
+    global PENDING
+    _DEPTH[0] += 1
+    if _DEPTH[0] == 1:
+        PENDING = []
+
+
+def finish(ok: bool) -> None:
+    """End the transaction: place the waiting outputs (``ok``) or remove them (a failed command leaves none)."""
+    global PENDING
+    _DEPTH[0] = max(0, _DEPTH[0] - 1)
+    if _DEPTH[0]:
+        return
+    pending, PENDING = PENDING or [], None
+    try:
+        if ok:
+            for k, (tmp, path, claim) in enumerate(pending):
+                try:
+                    place(tmp, path, overwrite=claim[1], option=claim[0])
+                except BaseException:
+                    for t, _, _ in pending[k + 1:]:
+                        _unlink_quiet(t)
+                    raise
+        else:
+            for tmp, _, _ in pending:
+                _unlink_quiet(tmp)
+    finally:
+        CLAIMED.clear()
+        from ehas_env.output.outputs import unlock_all
+
+        unlock_all()
+
+
+def _unlink_quiet(p) -> None:
+    try:
+        os.unlink(p)
+    except OSError:
+        pass
 
 
 def atomic_write_text(path, text: str) -> Path:

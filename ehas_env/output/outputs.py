@@ -260,7 +260,82 @@ def check_file(path, option: str | None = None, *, overwrite: bool = False, suff
     check_parent(path, option)
     if (path.exists() or path.is_symlink()) and not overwrite:
         raise OutputError(f"{_label(option, path)} already exists; pass --overwrite to replace it")
+    lock(path, option)
+    # written later through files.atomic_write_*: exclusively (without overwrite) and, inside a command, only
+    # when the command succeeds (files.begin / files.finish)
+    from ehas_env.output import files
+
+    files.CLAIMED[os.path.abspath(path)] = (option, overwrite)
     return path
+
+
+# -- one writer per output -------------------------------------------------------------------------------
+LOCK = "ehas-lock"
+_HELD: dict[str, int] = {}
+
+
+def _lock_path(path: Path) -> Path:
+    path = Path(os.path.abspath(path))
+    return path.parent / f".{path.name}.{LOCK}"
+
+
+def lock(path, option: str | None = None, lock_file: Path | None = None) -> Path:
+    """Claim the output ``path`` for this process: a second run writing the same output refuses in one line.
+
+    The claim is a file ``.NAME.ehas-lock`` beside the output, created exclusively (``O_EXCL``) and holding
+    the pid; a claim of a process that is gone is taken over.  Released by :func:`unlock` (an
+    :class:`OutputSet` at its end, every claim at the process's exit).
+    """
+    lk = lock_file or _lock_path(path)
+    key = str(lk)
+    if _HELD.get(key) == os.getpid():
+        return lk
+    for _ in range(3):
+        try:
+            fd = os.open(lk, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            try:
+                pid = int(lk.read_text().strip() or 0)
+            except (OSError, ValueError):
+                pid = 0
+            if pid and pid != os.getpid() and _alive(pid):
+                raise OutputError(f"{_label(option, Path(path))}: another ehas run (pid {pid}) is writing this "
+                                  f"output now; wait for it to finish (or remove {lk} if no ehas runs)") from None
+            try:
+                lk.unlink()  # a finished or killed run's claim
+            except FileNotFoundError:
+                pass
+            continue
+        except OSError:
+            return lk  # the folder is checked elsewhere (check_parent); no claim file where none can be made
+        with os.fdopen(fd, "w") as fh:
+            fh.write(f"{os.getpid()}\n")
+        _HELD[key] = os.getpid()
+        return lk
+    raise OutputError(f"{_label(option, Path(path))}: cannot claim this output ({lk} keeps reappearing)")
+
+
+def unlock(lk) -> None:
+    """Release a claim of :func:`lock` held by this process."""
+    key = str(lk)
+    if _HELD.get(key) == os.getpid():
+        del _HELD[key]
+        try:
+            if Path(key).read_text().strip() == str(os.getpid()):
+                os.unlink(key)
+        except OSError:
+            pass
+
+
+def unlock_all() -> None:
+    """Release every claim of this process (at the end of a command and at exit)."""
+    for key in [k for k, pid in _HELD.items() if pid == os.getpid()]:
+        unlock(key)
+
+
+import atexit  # noqa: E402
+
+atexit.register(unlock_all)
 
 
 # -- stale leftovers -------------------------------------------------------------------------------------
@@ -314,6 +389,15 @@ def clean_stale(folder) -> list[Path]:
         if m and not _alive(int(m.group("pid"))):
             _rm(folder / name)
             removed.append(folder / name)
+            continue
+        if name.endswith(f".{LOCK}"):  # the claim of a run that is gone
+            try:
+                pid = int((folder / name).read_text().strip() or 0)
+            except (OSError, ValueError):
+                continue
+            if pid and not _alive(pid):
+                _rm(folder / name)
+                removed.append(folder / name)
     return removed
 
 
@@ -380,11 +464,18 @@ class OutputSet:
         self.last = tuple(last)
         self.tmp: Path | None = None
         self._created_folder = False
+        self._lock = None
         if check:
             self.check()
 
     # checks
     def check(self) -> None:
+        self._check()
+        # one writer per output set: a second run started meanwhile refuses here, before any work
+        self._lock = lock(self.shown, self.option, _lock_path(self.path) if self.members is None else
+                          Path(os.path.abspath(self.path)) / f".members-{_tag(self.members)}.{LOCK}")
+
+    def _check(self) -> None:
         if self.members is None:
             check_folder(self.path, self.option, overwrite=self.overwrite)
             clean_stale(self.path.absolute().parent)
@@ -451,6 +542,8 @@ class OutputSet:
 
     def abort(self) -> None:
         """Remove the temporary folder (the previous output stays as it was)."""
+        if self._lock is not None:
+            unlock(self._lock)
         if self.tmp is not None:
             _rm(self.tmp)
         if self._created_folder:
@@ -463,6 +556,8 @@ class OutputSet:
         """Swap the temporary folder in (see the class docstring); a Ctrl-C or SIGTERM waits until it is done."""
         with _signals_held():
             self._commit()
+        if self._lock is not None:
+            unlock(self._lock)
 
     def _commit(self) -> None:
         tmp, pid = self.tmp, os.getpid()
@@ -470,6 +565,8 @@ class OutputSet:
             write_record(tmp)
             final = self.path.absolute()
             old = final.parent / f".{final.name}.{OLD}.{pid}"
+            if not self.overwrite and final.is_dir() and any(final.iterdir()):
+                raise _created_meanwhile(self.option, self.shown)
             if final.exists():
                 os.replace(final, old)
             os.replace(tmp, final)
@@ -481,6 +578,8 @@ class OutputSet:
             return
         folder = self.path.absolute()
         tag = _tag(self.members)
+        if not self.overwrite and _matches(folder, self.members):
+            raise _created_meanwhile(self.option, _matches(folder, self.members)[0])
         old = folder / f".members-{tag}.{OLD}.{pid}"
         _rm(old)
         old.mkdir()
@@ -513,6 +612,13 @@ class OutputSet:
             name = str(self.path)
         e = OSError(err.errno or errno.EIO, err.strerror or str(err), str(name))
         return e
+
+
+def _created_meanwhile(option, path) -> ValueError:
+    from ehas_env.output.files import OutputExists
+
+    return OutputExists(f"{_label(option, Path(path))} was created by another run meanwhile; nothing was replaced "
+                        "(pass --overwrite to replace it)")
 
 
 @contextlib.contextmanager

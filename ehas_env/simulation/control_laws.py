@@ -30,7 +30,41 @@ def register_law(name: str, fn) -> None:
     """Register ``fn`` as the compiled law ``name`` (re-registering the same name replaces it)."""
     if not callable(fn):
         raise ValueError(f"control law '{name}' must be a function")
+    check_law(name, fn)
     _LAWS[name] = fn
+
+
+#: a compiled law's arguments, in order (controllers/piff.py's pi_ff_law is the example)
+LAW_ARGS = ("gains", "mem", "t", "dt", "theta", "r", "rd", "rdd", "rddd", "p_load", "p_s", "u_max")
+
+
+def check_law(name: str, fn) -> None:
+    """A law's signature (12 plain arguments, :data:`LAW_ARGS`) and one call, as plain Python, with realistic
+    values returning one finite number: a wrong law fails here in one line, not deep inside numba."""
+    import inspect
+    import math
+    import numbers
+
+    import numpy as np
+
+    who = f"control law '{name}' ({getattr(fn, '__qualname__', fn)})"
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        raise ValueError(f"{who}: not a Python function") from None
+    ps = list(sig.parameters.values())
+    if len(ps) != len(LAW_ARGS) or any(p.kind not in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in ps):
+        raise ValueError(f"{who}: takes ({', '.join(sig.parameters)}); a law takes exactly {len(LAW_ARGS)} plain "
+                         f"arguments ({', '.join(LAW_ARGS)})")
+    gains = np.zeros(N_GAINS)
+    gains[:3] = (0.3, 0.1, 0.05)
+    try:
+        out = fn(gains, np.zeros(N_MEM), 0.1, 1e-3, 1.0, 2.0, 10.0, 0.0, 0.0, 5.0, 220.0, 20.0)
+    except Exception as exc:  # a user's law: one line naming it
+        raise ValueError(f"{who}: a call with realistic values raised {type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:200]}") from None
+    if isinstance(out, bool) or not isinstance(out, (numbers.Real, np.floating)) or not math.isfinite(float(out)):
+        raise ValueError(f"{who}: returned {out!r:.60} for realistic values; a law returns one finite current, mA")
 
 
 def _builtins() -> None:

@@ -30,6 +30,7 @@ from ehas_env.physics.codegen import current_model
 from ehas_env.physics.effects import REGISTRY, get_effect, resolve_effects
 from ehas_env.physics.effects.base import effect_slots, mark_effects_on
 from ehas_env.ranges import MAX_SAMPLES, check_field, check_number, check_run_length, check_samples
+from ehas_env.simulation.finite import check_run
 from ehas_env.simulation.control_laws import N_GAINS, compiled_form, law_id
 from ehas_env.simulation.metrics import tracking_errors
 from ehas_env.simulation.reference import SineReference
@@ -244,8 +245,7 @@ class Plant:
         if model is not None:  # a model file is the plant (ehas_env.measurement.model_file)
             from ehas_env.measurement.model_file import as_model
 
-            model = as_model(model)
-            load_effects_path(list(model.effects_path) or None)
+            model = as_model(model)  # data: its user effects must be loaded already (effects_path=)
             rig = rig if rig is not None else model.rig
             if inertia is None:
                 inertia = float(disc_sets) * model.inertia_per_set
@@ -404,6 +404,8 @@ class Plant:
             self._python_loop(controller, ref, s, hist, noise, out)
             ctrl_meta = {"name": type(controller).__name__, "repr": repr(controller), "rate_hz": 1.0 / self.dt}
         t = np.arange(n) * self.dt
+        check_run(out, self.dt, K.O_CURRENT, ctrl_meta.get("name") or ctrl_meta.get("type") or "controller",
+                  self.effects)  # NaN or inf: one line naming who and when (ehas_env.simulation.finite)
         theta_ref = np.atleast_1d(np.asarray(ref(t)[0], dtype=float))
         return self._result(out, kind="closed_loop", theta_ref=theta_ref, rng=rng,
                             extra_meta={"reference": ref.to_dict(),

@@ -69,7 +69,19 @@ def test_version_1_files_still_read(tmp_path):
     ({"valve": {"white_box": {"Kt": -1}}}, "valve.white_box.Kt"),
     ({"valve": {"rated_current_mA": 0}}, "valve.rated_current_mA"),
     ({"effects": {"magic": {}}}, "effects"),
-    ({"effects_path": ["nowhere"]}, "effects_path 'nowhere' does not exist"),
+    ({"effects_path": "nowhere"}, "effects_path must be a list of texts"),
+    ({"user_effects": {"spring": {"file": "s.py"}}}, "user_effects.spring must be"),
+    ({"user_effects": {"spring": {"file": "../s.py", "sha256": "0" * 64}}}, "user_effects.spring must be"),
+    ({"effects": {"spring": {}}, "user_effects": {"spring": {"file": "s.py", "sha256": "0" * 64}}},
+     "effect 'spring' is a user effect (file s.py"),
+    ({"user_effects": {"coulomb_friction": {"file": "c.py", "sha256": "0" * 64}}},
+     "user_effects.coulomb_friction names an effect that effects does not switch on"),
+    ({"version": 2.0}, "'version' = 2.0"),
+    ({"version": True}, "'version' = True"),
+    ({"effects": {"coulomb_friction": {"Fc": "300"}}}, "parameter 'Fc' must be a number"),
+    ({"calibration": {"fit_percent_after": "98"}}, "calibration.fit_percent_after must be a number"),
+    ({"calibration": {"nested": float("nan")}}, "calibration.nested must be"),
+    ({"provenance": {"x": float("inf")}}, "provenance.x must be"),
     ({"kind": "pump"}, "kind = 'pump'"),
     ({"version": 3}, "'version' = 3"),
     ({"extra": 1}, "extra is not a model-file field"),
@@ -90,10 +102,11 @@ def test_every_field_is_checked_with_one_line_naming_file_and_field(change, word
     assert len(err) == 1 and words in err[0] and "bad.json" in err[0]
 
 
-def test_effects_path_is_recorded_relative_and_loaded(tmp_path):
+def test_a_model_file_names_its_user_effects_and_never_loads_their_code(tmp_path):
     folder = tmp_path / "rig"
     (folder / "my_effects").mkdir(parents=True)
-    (folder / "my_effects" / "torsion_spring_mf.py").write_text(
+    spring = folder / "my_effects" / "torsion_spring_mf.py"
+    spring.write_text(
         "from ehas_env.physics.effects import Effect, Param\n\n\n"
         "class TorsionSpringMF(Effect):\n"
         "    name = 'torsion_spring_mf'\n"
@@ -105,15 +118,30 @@ def test_effects_path_is_recorded_relative_and_loaded(tmp_path):
         "    @staticmethod\n"
         "    def crank_torque(theta, k):\n"
         "        return -(k * theta)\n")
+    import hashlib
+
+    digest = hashlib.sha256(spring.read_bytes()).hexdigest()
     doc = model_doc(PlantModel())
-    doc["effects_path"] = ["my_effects"]
+    doc["effects_path"] = ["my_effects"]  # an older file's folder: read, never imported
     doc["effects"] = {"torsion_spring_mf": {"k": 25.0}}
     f = folder / "m.json"
     f.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="effect 'torsion_spring_mf' is a user effect that is not loaded; give the "
+                                         "folder holding its file with --effects-path"):
+        load_model(f)
+    from ehas_env.physics.effects import load_effects_path
+
+    load_effects_path(folder / "my_effects")  # what --effects-path DIR does
     m = load_model(f)
     assert m.effects == {"torsion_spring_mf": {"k": 25.0}}
-    assert m.effects_path == (str((folder / "my_effects").resolve()),)
-    assert model_doc(m)["effects_path"] == ["my_effects"]  # relative to the file, as written
+    out = model_doc(m)
+    assert "effects_path" not in out
+    assert out["user_effects"] == {"torsion_spring_mf": {"file": "torsion_spring_mf.py", "sha256": digest}}
+    # a model saved with a different file text refuses the loaded one, naming both hashes
+    out["user_effects"]["torsion_spring_mf"]["sha256"] = "f" * 64
+    f.write_text(json.dumps(out))
+    with pytest.raises(ValueError, match=f"sha256 {digest[:12]}.*is not the file the model was saved with"):
+        load_model(f)
 
 
 def test_save_model_keeps_the_base_rig_and_records_provenance(tmp_path):
@@ -177,7 +205,7 @@ def test_bench_names_duplicate_controllers_by_content():
     assert names[2] == "book (Kp 1.5)" and "same as" in names[1]
 
 
-def test_agent_trained_here_loads_without_the_pickle_warning(tmp_path, monkeypatch):
+def test_a_pickled_agent_loads_only_behind_allow_pickle(tmp_path, monkeypatch):
     import warnings
 
     pytest.importorskip("stable_baselines3")
@@ -193,15 +221,17 @@ def test_agent_trained_here_loads_without_the_pickle_warning(tmp_path, monkeypat
     import ehas_env  # noqa: F401
     PPO("MlpPolicy", gymnasium.make("ehas/Tracking-v0"), n_steps=64, batch_size=32, device="cpu").save(folder / "model.zip")
     zipped = folder / "model.zip"  # a bare zip (a folder without config.json is refused)
-    with pytest.warns(PickleWarning):
+    with pytest.raises(ValueError, match="unpickling can run any code.*--allow-pickle"):
         load_agent(zipped)
+    with pytest.warns(PickleWarning):
+        load_agent(zipped, allow_pickle=True)
     trust_agent(zipped)
     with warnings.catch_warnings():
         warnings.simplefilter("error", PickleWarning)
-        load_agent(zipped)  # trusted: quiet
+        load_agent(zipped, allow_pickle=True)  # trusted: quiet
     zipped.write_bytes(zipped.read_bytes() + b"\0")  # changed: warns again
     with pytest.warns(PickleWarning):
-        load_agent(zipped)
+        load_agent(zipped, allow_pickle=True)
 
 
 def test_parse_model_from_a_dict_and_errors_name_the_source():

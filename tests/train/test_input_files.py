@@ -28,8 +28,8 @@ def agent(tmp_path):
 
 
 @pytest.mark.parametrize("missing, words", [
-    ("config.json", ["config.json is missing", "holds model.zip, config.json"]),
-    ("vecnormalize.pkl", ["vecnormalize.pkl is missing", "trained with vecnormalize = true"]),
+    ("config.json", ["config.json is missing", "holds config.json (its training configuration), policy.json"]),
+    ("obs_norm.json", ["obs_norm.json is missing", "trained with vecnormalize = true"]),
 ])
 def test_agent_folder_missing_a_file_is_refused_before_unpickling(agent, missing, words):
     (agent / missing).unlink()
@@ -39,11 +39,11 @@ def test_agent_folder_missing_a_file_is_refused_before_unpickling(agent, missing
 
 
 def test_agent_folder_missing_a_file_through_the_cli(agent, tmp_path, capsys):
-    (agent / "vecnormalize.pkl").unlink()
+    (agent / "obs_norm.json").unlink()
     rc = main(["simulate", "--cycles", "3", "--controller", str(agent), "--out", str(tmp_path / "o" / "run")])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1, err
-    assert err[0].startswith(f"ehas simulate: error: agent folder {agent}: vecnormalize.pkl is missing"), err
+    assert err[0].startswith(f"ehas simulate: error: agent folder {agent}: obs_norm.json is missing"), err
     assert not (tmp_path / "o").exists()
 
 
@@ -51,7 +51,7 @@ def test_agent_trained_without_normalisation_needs_no_statistics(agent):
     cfg = json.loads((agent / "config.json").read_text())
     cfg["vecnormalize"] = False
     (agent / "config.json").write_text(json.dumps(cfg))
-    (agent / "vecnormalize.pkl").unlink()
+    (agent / "obs_norm.json").unlink()
     assert load_agent(agent, warn=False).obs_stats is None
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -191,8 +192,8 @@ def test_short_training_beats_random_and_still_policies(trained, smoke_cfg):
     assert learned > random and learned > still
     assert learned > 0.2 * still  # at least 5x less squared error than not moving
     assert metrics["num_timesteps"] == smoke_cfg.total_steps
-    for name in ("model.zip", "vecnormalize.pkl", "config.json", "metrics.json", "learning_curve.csv",
-                 "learning_curve.png"):
+    for name in ("policy.safetensors", "policy.json", "obs_norm.json", "config.json", "metrics.json",
+                 "learning_curve.csv", "learning_curve.png"):
         assert (out / name).exists(), name
     saved = json.loads((out / "config.json").read_text())
     assert saved["algo"] == "ppo" and saved["env_kwargs"]["disc_sets"] == 1
@@ -227,11 +228,21 @@ def test_agent_in_the_plant_closed_loop_matches_the_environment(trained):
     assert run1.tracking_errors()["rms_error_pct"] == pytest.approx(env_row["rms_error_pct"], rel=0.05)
 
 
-def test_loading_warns_about_pickles(trained):
+def test_loading_reads_data_only_and_acts_as_the_training_pickle(trained):
+    """The agent loads from safetensors + JSON; it acts bit for bit as the stable-baselines3 zip the training
+    wrote (loaded here behind allow_pickle, this test's own file)."""
     out, _ = trained
-    with pytest.warns(PickleWarning, match="can execute arbitrary code.*trusted sources"):
-        load_agent(out)
-    with pytest.raises(FileNotFoundError, match="expected a folder holding model.zip"):
+    import pickle
+    from unittest import mock
+
+    with mock.patch.object(pickle, "load", side_effect=AssertionError("unpickled")), \
+            mock.patch.object(pickle, "loads", side_effect=AssertionError("unpickled")):
+        agent = load_agent(out)
+    legacy = load_agent(out / "model.zip", allow_pickle=True, warn=False)
+    legacy.obs_stats = __import__("ehas_train.agent_format", fromlist=["read_norm"]).read_norm(out / "obs_norm.json")
+    obs = np.random.default_rng(3).normal(size=(256, agent.model.observation_space.shape[0])).astype(np.float32)
+    np.testing.assert_array_equal(agent.predict(obs), legacy.predict(obs))
+    with pytest.raises(FileNotFoundError, match="no agent at"):
         load_agent(out / "nothing_here")
 
 
@@ -239,7 +250,8 @@ def test_bench_registry_loads_agent_folders(trained):
     from ehas_controllers.base import load_controller
 
     out, _ = trained
-    with pytest.warns(UserWarning, match="pickles"):  # loading through the benchmark's registry warns too
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # data only: nothing to warn about
         ctrl = load_controller(out)
     assert ctrl.kind == "learned"
 
@@ -286,8 +298,13 @@ def test_interrupted_training_resumes_from_its_last_checkpoint(tmp_path, smoke_c
     ("config.json", '{"format": "ehas-model", "algo": "ppo"}', "format = 'ehas-model'; expected 'ehas-agent-config'"),
     ("config.json", '{"format": "ehas-agent-config", "version": 9, "algo": "ppo"}', "version = 9; this ehas reads"),
     ("config.json", '{"n_envs": 4}', "config.json: no 'algo' key"),
-    ("model.zip", "not a zip", "model.zip: not a PPO model saved by stable-baselines3"),
-    ("vecnormalize.pkl", "garbage", "vecnormalize.pkl: not the observation statistics of a training"),
+    ("policy.safetensors", "not tensors", "policy.safetensors: not a safetensors file of policy weights"),
+    ("obs_norm.json", "garbage", "obs_norm.json: not valid JSON"),
+    ("obs_norm.json", '{"format": "ehas-obs-norm", "version": 1, "mean": [0], "var": [1], "count": 1, '
+     '"clip_obs": 10, "epsilon": 1e-8, "gamma": 0.9, "gamma": 0.9}', "key 'gamma' appears twice"),
+    ("policy.json", '{"format": "ehas-agent-policy", "version": 1, "algo": "ppo", "policy": "ActorCriticPolicy", '
+     '"observation_space": {}, "action_space": {}}', "observation_space must be an object"),
+    ("policy.json", '{"format": "ehas-agent-policy", "version": 1.0}', "version = 1.0"),
 ])
 def test_a_damaged_agent_folder_is_refused_naming_the_file(trained, tmp_path, capsys, file, content, message):
     import shutil

@@ -123,10 +123,17 @@ class Param:
             return f"si must be a positive number (the factor from {self.unit} to SI), got {self.si!r}"
         if not isinstance(self.doc, str):
             return f"doc must be a string, got {self.doc!r}"
+        if not isinstance(self.log_scale, bool):
+            return f"log_scale must be True or False, got {self.log_scale!r}"
+        if self.name in QUANTITIES or self.name in _AT_RATES:
+            return (f"name {self.name!r} is a model quantity a term can take ({QUANTITIES.get(self.name, self.name)}); "
+                    "a parameter needs a name of its own")
         return None
 
     def check(self, effect: str, value) -> float:
         try:
+            if isinstance(value, (str, bytes, bool)):  # a file's "300" or true is not a number: say so
+                raise TypeError
             v = float(value)
         except (TypeError, ValueError):
             raise ValueError(f"effect '{effect}': parameter '{self.name}' must be a number in {self.unit}, got {value!r}") from None
@@ -249,6 +256,14 @@ class Effect:
                              f"({', '.join(own) or 'it has none'})")
         if not cls.main_param and own:
             cls.main_param = own[0]  # documented default: the first parameter
+        for flag in ("smooth",):
+            if not isinstance(getattr(cls, flag), bool):
+                raise ValueError(f"{who}: {flag} must be True or False, got {getattr(cls, flag)!r}")
+        if isinstance(cls.chain_order, bool) or not isinstance(cls.chain_order, int):
+            raise ValueError(f"{who}: chain_order must be an integer, got {cls.chain_order!r}")
+        for text in ("explanation", "signature", "title"):
+            if hasattr(cls, text) and not isinstance(getattr(cls, text), str):
+                raise ValueError(f"{who}: {text} must be a text, got {type(getattr(cls, text)).__name__}")
         if cls.kind not in ("physical", "recalibration"):
             raise ValueError(f"{who}: kind must be 'physical' or 'recalibration', got {cls.kind!r}")
         try:

@@ -11,13 +11,15 @@ Importing a file registers its effects; the next model built includes them.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
 import sys
 from pathlib import Path
 
 ENV_VAR = "EHAS_EFFECTS_PATH"
+TRUST_ENV = "EHAS_TRUSTED_EFFECTS"
 _LOADED: dict[str, str] = {}
+#: user effect name -> (file, SHA-256 of its text)
+SOURCES: dict[str, tuple[str, str]] = {}
 
 
 def _files(path: Path) -> list[Path]:
@@ -31,23 +33,76 @@ def _files(path: Path) -> list[Path]:
 
 
 def load_effect_file(path) -> None:
-    """Import one effect file (its Effect subclasses register themselves); a file is loaded once."""
+    """Import one effect file (its Effect subclasses register themselves); a file is loaded once.
+
+    The import runs with a time limit and fails in one line naming the file
+    (:func:`ehas_env.plugin_import.import_file`); each effect it registers remembers
+    the file and the SHA-256 of its text (:data:`SOURCES`), which a saved model file records.
+    """
+    from ehas_env.plugin_import import import_file
+    from ehas_env.physics.effects.base import REGISTRY
+
     path = Path(path).resolve()
-    text = path.read_bytes()
-    key = str(path)
-    digest = hashlib.sha256(text).hexdigest()[:12]
-    if _LOADED.get(key) == digest:
-        return
-    name = f"ehas_user_effects.{path.stem}_{digest}"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
     try:
-        spec.loader.exec_module(module)
-    except Exception as exc:  # a user's file: one line naming it, whatever went wrong inside
+        text = path.read_bytes()
+    except OSError as exc:
+        raise ValueError(f"effect file {path}: cannot be read ({exc.strerror or exc})") from None
+    key = str(path)
+    digest = hashlib.sha256(text).hexdigest()
+    if _LOADED.get(key) == digest[:12]:
+        return
+    name = f"ehas_user_effects.{path.stem}_{digest[:12]}"
+    import_file(path, name, "effect", setup="import ehas_env.physics.effects")
+    mine = [cls for cls in list(REGISTRY.values()) if cls.__module__ == name]
+    if not mine:
         sys.modules.pop(name, None)
-        raise ValueError(f"effect file {path}: {type(exc).__name__}: {exc}") from None
-    _LOADED[key] = digest
+        raise ValueError(f"effect file {path}: defines no effect (a subclass of Effect with a name = '...' of "
+                         "letters, digits and _; docs/effects-and-controllers.md)")
+    for cls in mine:
+        SOURCES[cls.name] = (str(path), digest)
+    _LOADED[key] = digest[:12]
+
+
+def effect_source(name: str):
+    """``(file, sha256 of its text)`` of a user effect loaded from a file; None for the library's own."""
+    return SOURCES.get(name)
+
+
+def trusted_folders() -> list[Path]:
+    """Folders of the user's trust list (``EHAS_TRUSTED_EFFECTS`` or ``~/.config/ehas/trusted_effects.json``).
+
+    The file is a JSON object ``{"format": "ehas-trusted-effects", "version": 1, "folders": ["/abs/dir", ...]}``
+    the user writes; a model file's user effect loads from one of these folders only when a file there has
+    exactly the SHA-256 the model file records.
+    """
+    import json
+
+    f = Path(os.environ.get(TRUST_ENV) or Path.home() / ".config" / "ehas" / "trusted_effects.json")
+    if not f.is_file():
+        return []
+    try:
+        doc = json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"trust list {f}: not readable JSON ({exc})") from None
+    if not (isinstance(doc, dict) and doc.get("format") == "ehas-trusted-effects" and doc.get("version") == 1
+            and isinstance(doc.get("folders"), list) and all(isinstance(p, str) and Path(p).is_absolute()
+                                                             for p in doc["folders"])):
+        raise ValueError(f'trust list {f}: expected {{"format": "ehas-trusted-effects", "version": 1, "folders": '
+                         '["/absolute/folder", ...]}} (docs/model-file.md)')
+    return [Path(p) for p in doc["folders"]]
+
+
+def load_trusted(sha256: str) -> bool:
+    """Load the effect file of the trust list whose text has this SHA-256; False when none has."""
+    for folder in trusted_folders():
+        for f in (_files(folder) if folder.is_dir() else []):
+            try:
+                if hashlib.sha256(f.read_bytes()).hexdigest() == sha256:
+                    load_effect_file(f)
+                    return True
+            except OSError:
+                continue
+    return False
 
 
 def load_effects_path(paths) -> None:
