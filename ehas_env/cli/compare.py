@@ -166,8 +166,8 @@ def held_out_text(model, campaign, table) -> str:
 def fit_intervals(rep, fitted) -> list[dict]:
     """95 % confidence intervals of every number ``fitted`` (a calibration Fit) fitted, as JSON-ready rows
     {effect, param, value, low, high, unit} (``effect`` "baseline" for beta and K; see
-    :func:`ehas_env.measurement.diagnosis.confidence`)."""
-    from ehas_env.measurement.diagnosis import _unit, _value_of, confidence
+    :func:`ehas_env.measurement.fitting.confidence`)."""
+    from ehas_env.measurement.fitting import _unit, _value_of, confidence
 
     ci = confidence(rep, fitted) if fitted.free else {}
     rows = []

@@ -224,7 +224,7 @@ def _stack_text(res) -> str:
 
 
 def _model_text(res) -> str:
-    from ehas_env.measurement.diagnosis import _unit, _value_of
+    from ehas_env.measurement.fitting import _unit, _value_of
 
     lines = ["final model, fitted values with 95 % confidence intervals (cluster-robust, on the fit data)"]
     for fp in res.fit_train.free:

@@ -281,7 +281,7 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
         if spec["name"] == "crank_spring" and p:
             rec["spring_k"] = round(spring_rate(p), 1)
             rec["spring_k_ci95"] = spring_rate_ci(p)
-            from ehas_env.measurement.diagnosis import TERM, confidence
+            from ehas_env.measurement.fitting import TERM, confidence
 
             key = "proposal_crank_torque.c_th"
             if key in res.proposal.terms:
@@ -346,7 +346,7 @@ def run_ci(cases=None, seed0: int = SEED + 900) -> list[dict]:
     for j, (n, vals) in enumerate(cases or CI_CASES):
         camp, truth = memory_campaign({n: vals}, seed0 + j, duration=3.0)
         res = diagnose_open(camp, propose=False)
-        from ehas_env.measurement.diagnosis import confidence
+        from ehas_env.measurement.fitting import confidence
 
         variants = {f"block{b:g}s_lags{l}": confidence(res.train, res.fit_train, block_s=b, lags=l)
                     for b, l in CI_VARIANTS} if res.fit_train.free else {}

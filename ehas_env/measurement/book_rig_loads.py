@@ -100,7 +100,7 @@ def fit_effect(name: str, measured: np.ndarray, rows) -> tuple[dict, float, np.n
     """
     from scipy.optimize import least_squares
 
-    from ehas_env.measurement.diagnosis import own_params, scan_values, start_value
+    from ehas_env.measurement.fitting import own_params, scan_values, start_value
     from ehas_env.physics.effects import get_effect
 
     free = own_params(name)
