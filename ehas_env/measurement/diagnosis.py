@@ -49,6 +49,7 @@ import numpy as np
 
 from ehas_env.measurement import proposal as P
 from ehas_env.measurement.campaign import Campaign
+from ehas_env.measurement.keeping import agree, run_groups
 from ehas_env.measurement.fitting import (
     MIN_GAIN, MIN_SCORE, PENALTY_PER_PARAM, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _unit, _value_of,
     confidence, fit, own_params, recal_params, reopens_baseline, start_value)
@@ -492,6 +493,30 @@ def sanity(f: Fit, effect: str) -> str | None:
     return None
 
 
+def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
+    """Why ``effect`` (fitted in ``f``) stands in for something else, or None when it is real: its parameters
+    refitted on two separate groups of the fitted runs (:func:`ehas_env.measurement.keeping.run_groups`), with
+    beta and K, do not agree within their 95 % intervals (:func:`ehas_env.measurement.keeping.agree`).
+    With fewer than two closed-loop runs fitted there is nothing to compare: None."""
+    groups = run_groups([c.run.name for c in rep.cases], [c.run.kind for c in rep.cases])
+    if groups is None:
+        return None
+    free = own_params(effect) + recal_params(f.model.effects)
+    start = {(fp.effect, fp.name): _value_of(f.model, fp) for fp in free}
+    ests: dict[str, list] = {}
+    for g in groups:
+        sub = Replayer(Campaign(rep.campaign.path, [rep.cases[i].run for i in g]), substeps=rep.substeps,
+                       model=rep.model)
+        gf = fit(sub, free, start, f.model, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
+        ci = confidence(sub, gf)
+        rep.n_evals += sub.n_evals
+        for fp in free:
+            if fp.effect == effect:
+                ests.setdefault(fp.name, []).append((_value_of(gf.model, fp), ci[(fp.effect, fp.name)]))
+    ok, why = agree(ests)
+    return None if ok else why
+
+
 def _widen(rep: Replayer, f: Fit, effect: str) -> Fit:
     """Refit with the ranges of ``effect``'s parameters that the fit ran into widened 4x toward their bounds."""
     free, changed = [], False
@@ -696,7 +721,12 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             if why is None and val is not None and cur_val is not None and val > cur_val * (1.0 - VAL_GAIN):
                 why = (f"does not lower the residual of the validation data enough ({cur_val:.3g} -> {val:.3g} "
                        "noise variances)")
-            step = Step(effect, why is None, note + (why or "sane, and lowers the residual of the fit and validation data"),
+            if why is None:
+                why = stands_in(rep, f, effect)
+                if why is not None:
+                    note += "stands in for something else: "
+            step = Step(effect, why is None, note + (why or "sane, lowers the residual of the fit and validation data, "
+                                                     "and fits the same on separate groups of runs"),
                         f, f.cost, val, fval)
             steps.append(step)
             say(f"  {effect}: {'kept' if step.kept else 'not kept'} ({step.reason})")

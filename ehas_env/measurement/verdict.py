@@ -33,6 +33,9 @@ Examples
 >>> floor = repeat_floor(y, 1e-3, 1.0, 1.0)
 >>> 0.8 < floor / 0.1**2 < 1.2  # the sine repeats: its floor is the noise
 True
+>>> b = split_block(y, 10 * np.sin(2 * np.pi * t), 0.1, 1e-3, freq_hz=1.0, start_s=1.0)
+>>> 0.8 < b.x < 1.2  # the true model leaves nothing but what does not repeat
+True
 """
 from __future__ import annotations
 
@@ -50,7 +53,6 @@ UNEXPLAINED_X = 3.0
 BLOCK_UNEXPLAINED_X = 8.0
 MIN_CYCLES = 2  # steady cycles a run needs to have its own floor
 SETTLE_CYCLES = 1.0  # cycles after the ramp left out (the transient from rest)
-PHASE_BINS_MAX = 400  # the cycle-locked mean is resolved on at most this many phase points per cycle
 
 #: the former verdict, on the residual in sensor-noise variances (kept as the floor of non-periodic runs'
 #: meaning): explained below VERDICT_X overall, VERDICT_RUN_X in one run (docs/measurement-format.md)
@@ -86,7 +88,7 @@ def cycles(y: np.ndarray, dt: float, freq_hz: float, start_s: float) -> np.ndarr
     if n_cyc < MIN_CYCLES:
         return None
     per = period / dt
-    nb = int(min(round(per), PHASE_BINS_MAX))
+    nb = int(round(per))  # one point per sample: white noise keeps its variance where the period is whole
     t = start_s + (np.arange(n_cyc)[:, None] + np.arange(nb)[None, :] / nb) * period
     return np.interp(t.ravel(), np.arange(y.size) * dt, y).reshape(n_cyc, nb)
 

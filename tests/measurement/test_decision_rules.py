@@ -1,0 +1,108 @@
+"""The diagnosis' decision rules, each on a case built to break it (issue 20).
+
+* the verdict (ehas_env.measurement.verdict): residual against what does not repeat from cycle to cycle.
+  A rig with disturbances that do not repeat (several times the sensor noise) is explained by the true model
+  (the former verdict, on the sensor noise, called it unexplained); a small structured difference (a
+  simulator's numerics) raises no alarm; a structured residual of a missing effect does, whatever the noise.
+* keeping (ehas_env.measurement.keeping): estimates from separate groups of runs must agree within their
+  95 % intervals; one that drifts with the runs it is given stands in for something else.
+
+Small synthetic arrays only: no model is compiled.  Truth is analytic (a sine, white noise of known level).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ehas_env.measurement.keeping import agree, run_groups
+from ehas_env.measurement.verdict import (
+    VERDICT_X, Block, cycles, grade, overall_x, repeat_floor, split_block)
+
+DT = 1e-3
+F = 2.0
+T = np.arange(0.0, 6.0, DT)
+TRUE = 20.0 * np.sin(2 * np.pi * F * T)  # the rig's repeatable response, deg
+NOISE = 0.01  # sensor noise, deg
+START = 1.5  # steady cycles from here
+
+
+def _measured(rng, disturbance=0.0):
+    # a disturbance that does not repeat: a slow random wander (band-limited, not cycle-locked)
+    d = np.convolve(rng.standard_normal(T.size), np.ones(50) / np.sqrt(50), mode="same") * disturbance
+    return TRUE + d + NOISE * rng.standard_normal(T.size)
+
+
+def _block(measured, model):
+    return split_block(measured, model, NOISE, DT, run="r", signal="theta_deg", freq_hz=F, start_s=START)
+
+
+def test_floor_is_the_noise_of_a_repeating_signal():
+    rng = np.random.default_rng(1)
+    y = _measured(rng)
+    assert repeat_floor(y / NOISE, DT, F, START) == pytest.approx(1.0, rel=0.15)
+    assert cycles(y, DT, F, T[-1] - 0.6) is None  # one cycle: no floor of its own
+
+
+def test_true_model_on_a_disturbed_rig_is_explained():
+    """A verdict tied to the sensor noise cries wolf on a rig with disturbances: this one does not."""
+    rng = np.random.default_rng(2)
+    y = _measured(rng, disturbance=0.03)  # disturbances ~3x the sensor noise, not cycle-locked
+    b = _block(y, TRUE)
+    assert b.residual > 5 * VERDICT_X  # the former verdict (sensor-noise variances) would say "unexplained"
+    g = grade([b])
+    assert g["verdict"] == "explained", g
+    assert g["residual_x_noise"] == pytest.approx(1.0, abs=0.3)
+
+
+def test_small_structural_difference_raises_no_alarm():
+    """Another simulator of the same rig: a 0.5 % gain and 0.1 ms timing difference."""
+    rng = np.random.default_rng(3)
+    y = _measured(rng)
+    other = 20.0 * 1.0003 * np.sin(2 * np.pi * F * (T - 1e-5))
+    assert grade([_block(y, other)])["verdict"] == "explained"
+
+
+def test_missing_effect_is_unexplained_whatever_the_noise():
+    """A cycle-locked residual several times what does not repeat (a 3 % gain error, a harmonic)."""
+    rng = np.random.default_rng(4)
+    y = _measured(rng, disturbance=0.02)
+    wrong = TRUE * 0.97 + 0.3 * np.sin(2 * np.pi * 3 * F * T)
+    g = grade([_block(y, wrong)])
+    assert g["verdict"] == "unexplained", g
+    assert g["structured_db"] > 10.0
+
+
+def test_graded_middle_and_worst_block():
+    mid = [Block("a", "theta_deg", 3.0, 1.0, 100, True)]
+    assert grade(mid)["verdict"] == "small structured residual"
+    # one run and signal far off is enough, even when the mean over many others is small
+    many = [Block(f"r{i}", "p_a_bar", 1.0, 1.0, 100, True) for i in range(20)]
+    assert grade(many + [Block("bad", "flow_lpm", 12.0, 1.0, 100, False)])["verdict"] == "unexplained"
+    assert grade(many + [Block("bad", "flow_lpm", 12.0, 1.0, 100, False)])["worst"]["run"] == "bad"
+    assert overall_x(many) == pytest.approx(1.0)
+
+
+def test_non_periodic_run_is_judged_on_the_sensor_noise():
+    rng = np.random.default_rng(5)
+    y = NOISE * rng.standard_normal(3000)
+    b = split_block(y + 1.0, np.ones(3000), NOISE, DT, freq_hz=None, skip=100)
+    assert not b.periodic and b.floor == 1.0 and b.n == 2900
+    assert b.x == pytest.approx(1.0, rel=0.1)
+
+
+def test_keeping_needs_agreement_across_groups():
+    # a real effect: the same viscous friction on both groups, within the intervals
+    assert agree({"b": [(4029.0, (3900.0, 4150.0)), (3980.0, (3850.0, 4120.0))]})[0]
+    # a stand-in: its number follows the runs it is given (intervals tight, values apart)
+    ok, why = agree({"b": [(4000.0, (3950.0, 4050.0)), (1500.0, (1450.0, 1550.0))]})
+    assert not ok and "do not agree" in why
+    # wide intervals that overlap agree (nothing to tell them apart) ...
+    assert agree({"Fc": [(100.0, (0.0, 200.0)), (150.0, (50.0, 250.0))]})[0]
+    # ... but not a nan interval
+    assert not agree({"Fc": [(100.0, (float("nan"), 200.0)), (150.0, (50.0, 250.0))]})[0]
+
+
+def test_run_groups_split_closed_loop_runs_and_keep_windows_together():
+    g = run_groups(["s1", "s2", "s3", "s4", "chirp@0.4s", "chirp@1.2s"], ["closed_loop"] * 4 + ["valve_open_loop"] * 2)
+    assert g == [[0, 2, 4, 5], [1, 3]]
+    assert run_groups(["s1", "chirp"], ["closed_loop", "valve_open_loop"]) is None
