@@ -31,8 +31,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None, help="folder for report.md and the plots (default: print only)")
     parser.add_argument("--save-model", default=None, metavar="FILE",
                         help="write the (calibrated) model as a model file for --model FILE")
+    parser.add_argument("--json", default=None, metavar="FILE",
+                        help="write the comparison as JSON: residual_x_noise (the diagnosis' definition), fit %% per "
+                             "signal and per run before and after, fitted values with 95 %% intervals "
+                             "(docs/measurement-format.md)")
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace an earlier --out folder / --save-model file")
+                        help="replace an earlier --out folder / --save-model / --json file")
     parser.add_argument("--columns", default=None, metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
@@ -58,6 +62,9 @@ def run(args) -> int:
         check_file(args.save_model, "--save-model", overwrite=args.overwrite)
     if args.out:
         check_not_input(args.out, "--out", [args.campaign])
+    if getattr(args, "json", None):
+        check_not_input(args.json, "--json", [args.campaign])
+        check_file(args.json, "--json", overwrite=args.overwrite)
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     base_model = None
     if getattr(args, "model", None):  # a saved model: the baseline, validated on this campaign (docs/model-file.md)
@@ -128,8 +135,62 @@ def run(args) -> int:
                                   after_label=label_after, after_model=after_model, fitted=args.fit, ci=ci,
                                   **({"title": f"Model vs measurement: {base_model.label}"} if base_model else {}))
         print(f"report: {Path(args.out) / report.name}")
+    if getattr(args, "json", None):
+        import json
+
+        from ehas_env.output.files import atomic_write_text
+
+        doc = comparison_doc(rep, sims, tables, label_after, ci, campaign.path, command,
+                             time.perf_counter() - t0)
+        atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
+        print(f"json: {args.json}")
     print(f"elapsed {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path, command: str,
+                   elapsed_s: float) -> dict:
+    """The JSON of ``ehas compare --json`` (docs/measurement-format.md).
+
+    Parameters
+    ----------
+    rep : Replayer
+        The campaign replayed.
+    sims, tables : dict
+        Simulated runs and :class:`~ehas_env.measurement.replay.FitTable` per model label (first: the baseline).
+    label_after : str or None
+        The label of the model with the effects.
+    ci : list of dict or None
+        Fitted values with 95 % intervals (:func:`fit_intervals`).
+    campaign_path, command, elapsed_s
+        Provenance.
+
+    Returns
+    -------
+    dict
+        ``before`` and ``after`` (each: ``residual_x_noise`` and ``verdict`` as the diagnosis defines them,
+        ``residual_x_sensor_noise``, ``fit_percent`` overall, ``per_signal``, ``per_run``), ``residual_x_noise``
+        (after), ``fitted`` (value, ci95 [low, high], unit per parameter), ``command``, ``elapsed_s``.
+    """
+    from ehas_env.measurement.replay import COST_SIGNALS
+    from ehas_env.measurement.verdict import blocks_of, grade
+
+    def side(label):
+        t = tables[label]
+        g = grade(blocks_of(rep, sims[label], COST_SIGNALS))
+        return {"model": label, "residual_x_noise": g["residual_x_noise"], "verdict": g["verdict"],
+                "worst": g["worst"], "residual_x_sensor_noise": round(rep.log_cost(sims[label]), 3),
+                "fit_percent": round(t.overall, 2),
+                "per_signal": {k: round(v, 2) for k, v in t.per_signal.items()},
+                "per_run": {r: {k: round(v, 2) for k, v in d.items()} for r, d in t.per_run.items()}}
+
+    before = side(next(iter(tables)))
+    after = side(label_after) if label_after else before
+    return {"campaign": str(campaign_path), "command": command, "elapsed_s": round(elapsed_s, 1),
+            "residual_x_noise": after["residual_x_noise"], "verdict": after["verdict"],
+            "before": before, "after": after,
+            "fitted": [{"effect": r["effect"], "param": r["param"], "value": r["value"],
+                        "ci95": [r["low"], r["high"]], "unit": r["unit"]} for r in (ci or [])]}
 
 
 def _argv() -> list[str]:

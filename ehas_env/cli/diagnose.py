@@ -143,8 +143,9 @@ def run(args) -> int:
     if res.unexplained is not None:
         print(res.unexplained["text"])
     else:
-        print(f"the final model explains the campaign down to the noise: residual {res.cost_all:.2f}x the noise "
-              f"variance (clean campaigns stay below {res.unexplained_threshold:g}x)")
+        print(f"the final model explains the campaign: residual {res.residual_x_noise:.2f}x what does not repeat from "
+              f"cycle to cycle (sensor noise, disturbances; explained up to {res.grade['thresholds']['explained']:g}x), "
+              f"{res.cost_all:.2f}x the sensor-noise variance")
     written = None
     if res.proposal is not None:
         p = res.proposal
@@ -160,15 +161,13 @@ def run(args) -> int:
             written = write_effect(args.write_effect, p, origin=str(campaign.path))
             name = Path(args.write_effect).stem
             print(f"effect file: {args.write_effect}")
-            print(f"next: ehas compare {shlex.quote(str(campaign.path))} --effects-path "
-                  f"{shlex.quote(str(Path(args.write_effect).parent))} --effects "
-                  f"{','.join(list(res.model.effects) + [name])} --fit --out DIR")
+            print("next: " + next_command(args, campaign.path, list(res.model.effects) + [name],
+                                          extra_path=Path(args.write_effect).parent))
     elif args.write_effect:
         print("no effect file written: " + ("the campaign is explained" if res.unexplained is None else
                                             "no term of the dictionary lowers the residual"))
     if res.model.effects and written is None:
-        print(f"next: ehas compare {shlex.quote(str(campaign.path))} --effects {','.join(res.model.effects)} "
-              "--fit --out DIR --save-model model.json")
+        print("next: " + next_command(args, campaign.path, list(res.model.effects)) + " --save-model model.json")
     elapsed = time.perf_counter() - t0
     print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
 
@@ -176,11 +175,7 @@ def run(args) -> int:
     if args.json:
         from ehas_env.output.files import atomic_write_text
 
-        doc = res.to_json()
-        doc["campaign"] = str(campaign.path)
-        doc["elapsed_s"] = round(elapsed, 1)
-        if written is not None:
-            doc["unexplained"]["proposal"]["effect_file"] = str(args.write_effect)
+        doc = diagnosis_doc(res, campaign.path, elapsed, effect_file=args.write_effect if written else None)
         atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
         print(f"json: {args.json}")
     if outputs is not None:
@@ -200,7 +195,7 @@ def run(args) -> int:
                      _model_text(res), "", _validation_text(res), "```", "",
                      "## 7. Verdict and what is left", "", f"**{res.verdict}**", "",
                      res.unexplained["text"] if res.unexplained else
-                     f"Residual {res.cost_all:.2f}x the noise variance: explained down to the noise.", "",
+                     f"Residual {res.residual_x_noise:.2f}x what does not repeat from cycle to cycle: explained.", "",
                      "```", follows_text(res.follows, "final model"), "```", ""]
             if res.proposal is not None:
                 extra += ["## 8. The missing term, proposed", "", "```", res.proposal.equation(), "```", "",
@@ -212,6 +207,49 @@ def run(args) -> int:
                 fh.write("\n".join(extra) + "\n")
         print(f"report: {Path(args.out) / path.name}")
     return 0
+
+
+def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dict:
+    """The one JSON shape of a diagnosis (``ehas diagnose --json`` and ``ehas demo``; docs/measurement-format.md).
+
+    Parameters
+    ----------
+    res : OpenDiagnosis
+        The result of :func:`ehas_env.measurement.diagnosis.diagnose_open`.
+    campaign_path : str or Path
+        The campaign diagnosed.
+    elapsed_s : float
+        Wall time of the diagnosis, compile included, s.
+    effect_file : str, optional
+        The effect file written for the proposal (``--write-effect``).
+
+    Returns
+    -------
+    dict
+    """
+    doc = res.to_json()
+    doc["campaign"] = str(campaign_path)
+    doc["elapsed_s"] = round(elapsed_s, 1)
+    if effect_file is not None and doc.get("unexplained") and doc["unexplained"].get("proposal"):
+        doc["unexplained"]["proposal"]["effect_file"] = str(effect_file)
+    return doc
+
+
+def next_command(args, campaign_path, effects: list[str], extra_path=None) -> str:
+    """The ``ehas compare`` command that adds ``effects`` to the campaign, runnable as printed: it keeps every
+    ``--effects-path`` given, the written effect file's folder, ``--model`` and ``--columns``."""
+    q = shlex.quote
+    parts = ["ehas compare", q(str(campaign_path))]
+    paths = [str(p) for p in (getattr(args, "effects_path", None) or [])]
+    if extra_path is not None and str(extra_path) not in paths:
+        paths.append(str(extra_path))
+    parts += [f"--effects-path {q(p)}" for p in paths]
+    if getattr(args, "model", None):
+        parts.append(f"--model {q(str(args.model))}")
+    if getattr(args, "columns", None):
+        parts.append(f"--columns {q(args.columns)}")
+    parts += [f"--effects {q(','.join(effects))}", "--fit", "--out compare", "--json compare.json"]
+    return " ".join(parts)
 
 
 def _stack_text(res) -> str:
@@ -286,10 +324,9 @@ def demo_section(outdir: Path) -> str:
     from ehas_env.measurement.campaign import read_campaign
     from ehas_env.measurement.synthetic import write_simulated_campaign
     from ehas_env.cli.compare import write_report
-    from ehas_env.measurement.diagnosis import diagnose
+    from ehas_env.measurement.diagnosis import diagnose_open
     from ehas_env.output.files import atomic_write_text
     from ehas_env.measurement.model_file import save_model
-    from ehas_env.measurement.replay import Replayer
 
     outdir = Path(outdir)
     t0 = time.perf_counter()
@@ -299,12 +336,14 @@ def demo_section(outdir: Path) -> str:
     _, truth = write_simulated_campaign(camp_dir, DEMO_HIDDEN, seed=DEMO_SEED, perturb=True, command=command,
                                         overwrite=True)
     campaign = read_campaign(camp_dir)
-    rep = Replayer(campaign)
-    d = diagnose(campaign, replayer=rep)
+    t1 = time.perf_counter()
+    res = diagnose_open(campaign, stack=False, propose=False)
+    d, rep = res.first, res.train
     diag_dir = outdir / "diagnosis"
-    diag_cmd = f"ehas diagnose {camp_dir} --json {diag_dir / 'diagnosis.json'} --out {diag_dir}"
+    diag_cmd = f"ehas diagnose {camp_dir} --no-stack --no-propose --json {diag_dir / 'diagnosis.json'} --out {diag_dir}"
     diag_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(diag_dir / "diagnosis.json", json.dumps(d.to_json(), indent=2) + "\n")
+    atomic_write_text(diag_dir / "diagnosis.json",
+                      json.dumps(diagnosis_doc(res, camp_dir, time.perf_counter() - t1), indent=2) + "\n")
     tables = {"baseline": d.baseline.table, "baseline, beta/K recal.": d.null.table}
     sims = {"baseline": d.baseline.sims, "baseline, beta/K recal.": d.null.sims}
     label = model = None

@@ -648,14 +648,49 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
        fitted on their windows (:func:`windowed`); the validation data are the held-out runs and the
        fitted closed-loop runs beyond their windows.
     2. Rounds of :func:`diagnose`: the best candidate that beats noise is kept when it is physically sane
-       (:func:`sanity`, after widening a range it ran into) and lowers the validation residual by at
-       least :data:`VAL_GAIN` (or, without validation data, on its fit alone); otherwise the next one is
-       judged.  With ``stack`` the kept model is the base of the next round; stacking stops when no
-       candidate passes.
-    3. The verdict on all data (:data:`VERDICT_X`), what the remaining residual follows
-       (:func:`~ehas_env.measurement.residuals.follows`), confidence intervals
-       (:func:`confidence`), and, when unexplained, the missing term proposed
-       (:func:`ehas_env.measurement.proposal.propose`).
+       (:func:`sanity`, after widening a range it ran into), lowers the validation residual by at least
+       :data:`VAL_GAIN` (or, without validation data, on its fit alone) and fits the same on two separate
+       groups of runs (:func:`stands_in`); otherwise the next one is judged.  With ``stack`` the kept model
+       is the base of the next round; stacking stops when no candidate passes.
+    3. The graded verdict on all data (:func:`ehas_env.measurement.verdict.grade`: the residual against what
+       does not repeat from cycle to cycle), what the remaining residual follows
+       (:func:`~ehas_env.measurement.residuals.follows`), confidence intervals (:func:`confidence`), and,
+       when not explained, the missing term proposed (:func:`ehas_env.measurement.proposal.propose`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The measurements (:func:`ehas_env.measurement.campaign.read_campaign`).
+    candidates : list of str, optional
+        Effects to try (default: the library's, :func:`library_effects`).
+    base_effects : dict, optional
+        Effects the model has from the start, {name: {param: value}} (refitted with every candidate).
+    holdout : list of str, optional
+        Names of runs kept out of the fit (default :func:`default_holdout`; ``[]``: none).
+    stack : bool
+        Keep stacking effects while one passes (False: one round).
+    propose : bool
+        Propose the missing term when the verdict is not ``explained``.
+    window_s : float
+        Seconds of each closed-loop run fitted (:func:`fit_window_samples`).
+    progress : bool
+        Show progress bars.
+    log : callable, optional
+        Called with one line of progress text per step.
+    model : PlantModel or str, optional
+        A model file's rig to diagnose on (docs/model-file.md; default the book's rig).
+
+    Returns
+    -------
+    OpenDiagnosis
+        The rounds, every step judged (kept or not, and why), the final model with confidence intervals,
+        its simulation of every run, ``verdict``, ``residual_x_noise`` and ``grade``, ``unexplained`` (the
+        remaining residual, where and what it follows, the proposal; None when explained), ``elapsed_s``.
+
+    Raises
+    ------
+    ValueError
+        A ``holdout`` name that is no run of the campaign, or every run held out.
     """
     import time as _time
 
