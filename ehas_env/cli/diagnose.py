@@ -147,7 +147,22 @@ def run(args) -> int:
               f"cycle to cycle (sensor noise, disturbances; explained up to {res.grade['thresholds']['explained']:g}x), "
               f"{res.cost_all:.2f}x the sensor-noise variance")
     written = None
-    if res.proposal is not None:
+    hyp = res.hypothesis
+    if hyp is not None:
+        h = res.hypothesis_json()
+        print()
+        print(f"structural hypothesis kept: {h['effect']} ({h['words']})")
+        if args.write_effect:
+            from ehas_env.measurement.hypothesis_file import write_hypothesis
+
+            written = write_hypothesis(args.write_effect, hyp, res.model.effects[hyp], origin=str(campaign.path),
+                                       ci={k: tuple(v) for k, v in h["ci95"].items()}, words=h["words"],
+                                       before=h.get("residual_x_noise_before"), after=res.residual_x_noise)
+            name = Path(args.write_effect).stem
+            print(f"effect file: {args.write_effect}")
+            print("next: " + next_command(args, campaign.path, [n for n in res.model.effects if n != hyp] + [name],
+                                          extra_path=Path(args.write_effect).parent))
+    elif res.proposal is not None:
         p = res.proposal
         print()
         print("proposed missing term:")
@@ -166,7 +181,7 @@ def run(args) -> int:
     elif args.write_effect:
         print("no effect file written: " + ("the campaign is explained" if res.unexplained is None else
                                             "no term of the dictionary lowers the residual"))
-    if res.model.effects and written is None:
+    if res.model.effects and written is None and hyp is None:
         print("next: " + next_command(args, campaign.path, list(res.model.effects)) + " --save-model model.json")
     elapsed = time.perf_counter() - t0
     print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
@@ -229,9 +244,13 @@ def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dic
     """
     doc = res.to_json()
     doc["campaign"] = str(campaign_path)
-    doc["elapsed_s"] = round(elapsed_s, 1)
-    if effect_file is not None and doc.get("unexplained") and doc["unexplained"].get("proposal"):
+    if effect_file is not None and doc.get("hypothesis"):
+        doc["hypothesis"]["effect_file"] = str(effect_file)
+        doc["effect_file"] = str(effect_file)
+    elif effect_file is not None and doc.get("unexplained") and doc["unexplained"].get("proposal"):
         doc["unexplained"]["proposal"]["effect_file"] = str(effect_file)
+        doc["effect_file"] = str(effect_file)
+    doc["elapsed_s"] = round(elapsed_s, 1)
     return doc
 
 

@@ -135,7 +135,7 @@ def analyse(progress: bool = True) -> dict:
     measured = np.array([r.load_test_kN for r in rows])
     analytic = np.array([r.load_analytic_kN for r in rows])
     base = balance_peak_loads({}, rows)
-    names = sorted(REGISTRY)
+    names = sorted(n for n, c in REGISTRY.items() if c.kind != "hypothesis")
     it = names
     if progress:
         from tqdm import tqdm

@@ -116,7 +116,16 @@ def library_effects() -> list[str]:
 
     Effects a user loaded (``--effects-path``, entry points) are candidates only when named.
     """
-    return sorted(n for n, c in REGISTRY.items() if c.__module__.startswith("ehas_env.physics.effects."))
+    return sorted(n for n, c in REGISTRY.items()
+                  if c.__module__.startswith("ehas_env.physics.effects.") and c.kind != "hypothesis")
+
+
+def hypothesis_effects() -> list[str]:
+    """The structural hypotheses of the library (``kind = "hypothesis"``: a baseline constant opened, such as
+    chamber B's area, the return pressure, the valve's gain per direction), tried by :func:`diagnose_open`
+    when the library's effects leave a campaign unexplained."""
+    return sorted(n for n, c in REGISTRY.items()
+                  if c.__module__.startswith("ehas_env.physics.effects.") and c.kind == "hypothesis")
 
 
 def effects_from_paths(paths) -> list[str]:
@@ -493,6 +502,30 @@ def sanity(f: Fit, effect: str) -> str | None:
     return None
 
 
+def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cur_val, hyp: str, steps: list,
+                    say) -> tuple:
+    """A structural hypothesis ``hyp`` was kept: each physical effect kept before it is refitted away; when the
+    model without it does as well on the validation data (within :data:`VAL_GAIN`), it stood in for ``hyp``
+    and goes (its step says so).  Returns the model kept (Fit, its simulation of every run, validation cost)."""
+    sims = full.simulate(current.model)
+    for step in [s for s in steps if s.kept and get_effect(s.effect).kind == "physical"]:
+        if step.effect not in current.model.effects:
+            continue
+        effects = {n: dict(p) for n, p in current.model.effects.items() if n != step.effect}
+        fixed = ModelSpec(effects=effects, beta=current.model.beta, K=current.model.K, terms=dict(current.model.terms))
+        free = [fp for n in effects for fp in own_params(n)] + recal_params(effects)
+        g = fit(rep, free, {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}, fixed)
+        gs = full.simulate(g.model)
+        val = _parts_cost(full, gs, parts)
+        if val is not None and cur_val is not None and val <= cur_val * (1.0 + VAL_GAIN):
+            step.kept = False
+            step.reason = (f"stands in for {hyp} ({get_effect(hyp).title}): without it the validation residual is "
+                           f"{val:.3g} noise variances, with it {cur_val:.3g}")
+            say(f"  {step.effect}: dropped ({step.reason})")
+            current, sims, cur_val = g, gs, val
+    return current, sims, cur_val
+
+
 def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
     """Why ``effect`` (fitted in ``f``) stands in for something else, or None when it is real: its parameters
     refitted on two separate groups of the fitted runs (:func:`ehas_env.measurement.keeping.run_groups`), with
@@ -595,6 +628,25 @@ class OpenDiagnosis:
         return self.grade["residual_x_noise"]
 
     @property
+    def hypothesis(self) -> str | None:
+        """The structural hypothesis in the final model, if one was kept."""
+        return next((n for n in self.model.effects if get_effect(n).kind == "hypothesis"), None)
+
+    def hypothesis_json(self) -> dict | None:
+        """The kept hypothesis: effect, values, 95 % intervals, in words (None when none was kept)."""
+        h = self.hypothesis
+        if h is None:
+            return None
+        cls = get_effect(h)
+        vals = self.model.effects[h]
+        return {"effect": h, "title": cls.title, "words": cls.in_words(vals),
+                "params": {k: _round(v) for k, v in vals.items()},
+                "units": {p.name: p.unit for p in cls.params},
+                "ci95": {n: [_round(lo), _round(hi)] for (e, n), (lo, hi) in self.ci.items() if e == h},
+                "residual_x_noise_before": self.validation.get("residual_x_noise_before_hypotheses"),
+                "residual_x_noise_after": self.residual_x_noise}
+
+    @property
     def kept(self) -> list[str]:
         return [s.effect for s in self.steps if s.kept]
 
@@ -617,6 +669,7 @@ class OpenDiagnosis:
                          "fit_percent_validation": None if s.fit_val is None else round(s.fit_val, 2)}
                         for s in self.steps]
         doc["validation"] = self.validation
+        doc["hypothesis"] = self.hypothesis_json()
         doc["follows"] = self.follows
         doc["unexplained"] = self.unexplained
         return doc
@@ -640,7 +693,7 @@ def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
 
 
 def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | None = None, holdout=None,
-                  stack: bool = True, propose: bool = True, window_s: float = FIT_WINDOW_S,
+                  stack: bool = True, propose: bool = True, hypotheses: bool = True, window_s: float = FIT_WINDOW_S,
                   progress: bool = False, log=None, model=None) -> OpenDiagnosis:
     """The open-world diagnosis: the best model of the library, then whether it explains the campaign.
 
@@ -671,6 +724,9 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         Keep stacking effects while one passes (False: one round).
     propose : bool
         Propose the missing term when the verdict is not ``explained``.
+    hypotheses : bool
+        Try the structural hypotheses (:func:`hypothesis_effects`) when the library's effects leave the
+        campaign not explained.
     window_s : float
         Seconds of each closed-loop run fitted (:func:`fit_window_samples`).
     progress : bool
@@ -720,8 +776,15 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     current = None  # Fit on the training data of the model kept so far
     cur_val = None
     cur_sims = None
+    # the library's effects first; then, while the campaign is not explained, the structural hypotheses
+    hyps = [h for h in hypothesis_effects() if h not in base and (candidates is None or h not in candidates)]
+    pool = candidates
+    structural = False
+    before_hyp = None
     while len(rounds) < MAX_ROUNDS:
-        d = diagnose(train_c, base_effects=base, candidates=candidates, progress=progress, replayer=rep)
+        if pool is not None and not [n for n in pool if n not in base]:
+            break  # every hypothesis is in the model
+        d = diagnose(train_c, base_effects=base, candidates=pool, progress=progress, replayer=rep)
         rounds.append(d)
         if current is None:
             current = d.null
@@ -760,6 +823,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                 why = stands_in(rep, f, effect)
                 if why is not None:
                     note += "stands in for something else: "
+            if get_effect(effect).kind == "hypothesis":
+                note = get_effect(effect).in_words(f.model.effects[effect]) + "; " + note
             step = Step(effect, why is None, note + (why or "sane, lowers the residual of the fit and validation data, "
                                                      "and fits the same on separate groups of runs"),
                         f, f.cost, val, fval)
@@ -768,13 +833,21 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             if why is None:
                 kept = (e, f, sims, val)
                 break
-        if kept is None:
+        if kept is not None:
+            e, f, sims, val = kept
+            current, cur_sims, cur_val = f, sims, val
+            base = {k: dict(v) for k, v in f.model.effects.items()}
+            if structural:
+                current, cur_sims, cur_val = _drop_stand_ins(rep, full, parts, current, cur_val, e.effect, steps, say)
+                base = {k: dict(v) for k, v in current.model.effects.items()}
+        if kept is not None and stack:
+            continue
+        if structural or not hypotheses or not hyps or \
+                grade(blocks_of(full, cur_sims, COST_SIGNALS))["verdict"] == "explained":
             break
-        e, f, sims, val = kept
-        current, cur_sims, cur_val = f, sims, val
-        base = {k: dict(v) for k, v in f.model.effects.items()}
-        if not stack:
-            break
+        say("the library leaves the campaign unexplained: trying the structural hypotheses")
+        before_hyp = grade(blocks_of(full, cur_sims, COST_SIGNALS))["residual_x_noise"]
+        structural, pool = True, hyps
     # the final model on all data
     final = current
     sims_all = cur_sims
@@ -793,6 +866,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         return full.fit_table([s if i in idx else None for i, s in enumerate(sims)]) if idx else None
 
     validation = {"holdout": held, "fit_window_s": window_s,
+                  "residual_x_noise_before_hypotheses": before_hyp,
                   "fit_runs": [r.name for r in train_runs],
                   "residual_x_noise_validation": None if cur_val is None else round(cur_val, 3)}
     tb, tf = table_on(baseline_all, held_idx), table_on(sims_all, held_idx)
