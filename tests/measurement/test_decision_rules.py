@@ -106,3 +106,40 @@ def test_run_groups_split_closed_loop_runs_and_keep_windows_together():
     g = run_groups(["s1", "s2", "s3", "s4", "chirp@0.4s", "chirp@1.2s"], ["closed_loop"] * 4 + ["valve_open_loop"] * 2)
     assert g == [[0, 2, 4, 5], [1, 3]]
     assert run_groups(["s1", "chirp"], ["closed_loop", "valve_open_loop"]) is None
+
+
+def test_a_kept_hypothesis_is_written_as_a_physical_user_effect():
+    """The effect file of a kept structural hypothesis: physical names and units, the fitted value as default,
+    an ordinary (physical) effect under the file's name, the same physics as the library's hypothesis."""
+    from ehas_env.measurement.hypothesis_file import hypothesis_source
+    from ehas_env.physics.effects import REGISTRY, get_effect
+
+    text = hypothesis_source("hyp_rod_area", {"d_area": 0.3}, "rig_rod_side", ci={"d_area": (0.29, 0.31)},
+                             words=get_effect("hyp_rod_area").in_words({"d_area": 0.3}), before=40.0, after=1.1)
+    assert "Chamber B's piston area is 0.70 of chamber A's." in text
+    try:
+        exec(compile(text, "rig_rod_side.py", "exec"), {})
+        cls = REGISTRY["rig_rod_side"]
+        assert cls.kind == "physical"
+        p = cls.param("d_area")
+        assert (p.default, p.unit, p.bounds, p.typical) == (0.3, "-", (-0.6, 0.7), (0.15, 0.6))
+        hyp = get_effect("hyp_rod_area")
+        # the same physics: force (1 - A_B/A_A) A P_B, chamber B's volume rate A_B x'
+        assert cls.piston_force(pb=50e5, area=7.5e-4, d_area=0.3) == hyp.piston_force(pb=50e5, area=7.5e-4, d_area=0.3)
+        assert cls.chamber_flows(v=0.1, area=7.5e-4, d_area=0.3) == (0.0, -0.3 * 7.5e-4 * 0.1)
+    finally:
+        REGISTRY.pop("rig_rod_side", None)
+
+
+def test_return_pressure_hypothesis_lowers_the_draining_flow():
+    """Sign rule: a back pressure never adds outflow (the draining land sees P - p_t < P)."""
+    from ehas_env.physics.effects import get_effect
+
+    h = get_effect("hyp_return_pressure")
+    half = 35e5
+    # qc > 0: B drains; its outflow (negative q_b) gets smaller in magnitude -> a positive correction
+    dqa, dqb = h.chamber_flows(qc=1e-4, pa=100e5, pb=40e5, rated_drop=2 * half, p_t=10e5)
+    assert dqa == 0.0 and dqb > 0.0
+    # qc < 0: A drains; q_a = qc sqrt(pa/half) < 0 shrinks -> a positive correction
+    dqa, dqb = h.chamber_flows(qc=-1e-4, pa=40e5, pb=100e5, rated_drop=2 * half, p_t=10e5)
+    assert dqb == 0.0 and dqa > 0.0
