@@ -7,11 +7,16 @@ with evidence in words, and stacks: the best effect is kept when it is
 physically sane and lowers the residual of validation data (runs held out of
 the fit, ``--holdout``, and the fitted runs beyond their fit windows), then the
 next is sought on top of it, until no candidate passes (``--no-stack``: one
-round).  The verdict says whether the final model explains the campaign down to
-the noise (calibrated on clean campaigns) or leaves it *unexplained*; then it
-shows what the remaining residual follows and proposes the missing term
-(``--write-effect DIR/NAME.py`` writes it as an effect file for
-``ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit``).
+round), the same effect refitted on two separate groups of runs must agree
+within its 95 % intervals.  When the library leaves the campaign not explained,
+the structural hypotheses (``hyp_*``: chamber B's area, the return pressure, the
+valve's gain per direction) are tried the same way.  The verdict is graded from
+the data (the residual against what does not repeat from cycle to cycle:
+*explained*, *small structured residual*, *unexplained*); then it shows what the
+remaining residual follows and, when not explained, proposes the missing term
+(``--write-effect DIR/NAME.py`` writes the kept hypothesis, else the proposed
+term, as an effect file for ``ehas compare CAMPAIGN --effects-path DIR
+--effects NAME --fit --json FILE``).
 ``--json`` writes the JSON of docs/measurement-format.md; ``--out`` a report.md
 with plots.  ``--with NAME[,NAME...]`` starts from a model that already has
 those effects.  Candidates are the library's effects and the effects of the
@@ -52,6 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--write-effect", default=None, metavar="DIR/NAME.py",
                         help="when the campaign is unexplained, write the proposed term as an effect file NAME")
     parser.add_argument("--no-propose", action="store_true", help="do not look for a missing term")
+    parser.add_argument("--no-hypotheses", action="store_true",
+                        help="do not try the structural hypotheses (hyp_*: chamber B's area, return pressure, valve "
+                             "gain per direction) when the library leaves the campaign not explained")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier --out folder / --json file / --write-effect file")
@@ -120,7 +128,8 @@ def run(args) -> int:
               f"{', '.join(c for c in candidates if c not in library_effects())}")
     print()
     res = diagnose_open(campaign, candidates=candidates, base_effects=base, holdout=holdout,
-                        stack=not args.no_stack, propose=not args.no_propose, window_s=window,
+                        stack=not args.no_stack, propose=not args.no_propose,
+                        hypotheses=not getattr(args, "no_hypotheses", False), window_s=window,
                         progress=not args.quiet, log=say, model=model)
     first = res.first
     print(where_it_fails(res.full, res.baseline_all, "baseline" + (" + " + " + ".join(base) if base else "")))

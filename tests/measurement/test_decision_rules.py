@@ -96,6 +96,10 @@ def test_keeping_needs_agreement_across_groups():
     # a stand-in: its number follows the runs it is given (intervals tight, values apart)
     ok, why = agree({"b": [(4000.0, (3950.0, 4050.0)), (1500.0, (1450.0, 1550.0))]})
     assert not ok and "do not agree" in why
+    # intervals that hold only the noise are widened to the model-error floor: 2 % apart is the same number ...
+    assert agree({"d_area": [(0.2955, (0.2954, 0.2956)), (0.2999, (0.2998, 0.3))]})[0]
+    # ... a factor 1.5 apart is not
+    assert not agree({"d_area": [(0.2, (0.1999, 0.2001)), (0.3, (0.2999, 0.3001))]})[0]
     # wide intervals that overlap agree (nothing to tell them apart) ...
     assert agree({"Fc": [(100.0, (0.0, 200.0)), (150.0, (50.0, 250.0))]})[0]
     # ... but not a nan interval
