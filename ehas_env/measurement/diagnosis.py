@@ -840,6 +840,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             if structural:
                 current, cur_sims, cur_val = _drop_stand_ins(rep, full, parts, current, cur_val, e.effect, steps, say)
                 base = {k: dict(v) for k, v in current.model.effects.items()}
+                # on top of a structural change, the library's effects may now be seen: try them again too
+                pool = list(candidates or library_effects()) + hyps
         if kept is not None and stack:
             continue
         if structural or not hypotheses or not hyps or \

@@ -6,9 +6,11 @@ quantisation, disturbances, a knock in a joint) is the floor no model can go
 below.  So each closed-loop sine run's steady cycles (after the ramp and one
 settling cycle) are laid over each other, and the measured signal's own
 *non-repeatable* energy (its scatter around its cycle-locked mean) is that
-run and signal's floor.  A run that is not periodic (a valve chirp driven by
-its logged current, a run with fewer than :data:`MIN_CYCLES` steady cycles)
-has the sensor-noise level as its floor.
+run and signal's floor.  What the model's own (noise-free) response does not repeat
+(a transient still settling, a slow drift of a mean pressure) is deterministic
+and is taken off that floor, which is never below the sensor noise.  A run that
+is not periodic (a valve chirp driven by its logged current, a run with fewer
+than :data:`MIN_CYCLES` steady cycles) has the sensor-noise level as its floor.
 
 The model's residual energy on the same samples, divided by the floor, is the
 ``residual_x_noise`` of the diagnosis: 1 means "nothing left but what does
@@ -159,8 +161,13 @@ def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: f
         ce = cycles(e, dt, freq_hz, start_s)
         floor = repeat_floor(measured / noise, dt, freq_hz, start_s)
         if ce is not None and floor is not None:
+            # what the model itself does not repeat (a transient still settling, a slow drift of the mean
+            # pressure) is deterministic: a model that has it too reproduces it, so it is no floor.  What is
+            # left is at least the sensor noise.
+            own = repeat_floor(simulated / noise, dt, freq_hz, start_s) or 0.0
+            floor = max(floor - own, 1.0)
             # the residual on the same phase grid as the floor (the interpolation smooths both alike)
-            return Block(run, signal, float(np.mean(ce**2)), max(floor, 1e-12), ce.size, True)
+            return Block(run, signal, float(np.mean(ce**2)), floor, ce.size, True)
     e = e[skip:]
     return Block(run, signal, float(np.mean(e**2)), 1.0, e.size, False)
 

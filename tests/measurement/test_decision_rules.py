@@ -72,6 +72,18 @@ def test_missing_effect_is_unexplained_whatever_the_noise():
     assert g["structured_db"] > 10.0
 
 
+def test_a_deterministic_transient_is_no_floor():
+    """A slow settling both rig and model have is not what does not repeat: a model that lacks it is caught."""
+    rng = np.random.default_rng(6)
+    settle = 0.5 * np.exp(-T / 1.5)  # a mean pressure settling over seconds, deg-equivalent
+    y = TRUE + settle + NOISE * rng.standard_normal(T.size)
+    assert repeat_floor(y / NOISE, DT, F, START) > 20  # the measured scatter around the cycle mean is the drift
+    g = grade([_block(y, TRUE + settle)])
+    assert g["verdict"] == "explained" and g["residual_x_noise"] == pytest.approx(1.0, abs=0.3)
+    # a model without it is not called explained (the drift's mean is cycle-locked residual)
+    assert grade([_block(y, TRUE)])["verdict"] != "explained"
+
+
 def test_graded_middle_and_worst_block():
     mid = [Block("a", "theta_deg", 3.0, 1.0, 100, True)]
     assert grade(mid)["verdict"] == "small structured residual"
