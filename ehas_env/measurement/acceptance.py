@@ -270,7 +270,8 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
         p = (u or {}).get("proposal")
         rec = {"effect": spec["name"], "hidden": spec["effects"][spec["name"]], "seed": spec["seed"],
                "beta": truth["beta"], "K": truth["K"], "verdict": res.verdict,
-               "residual_x_noise": round(res.cost_all, 3), "kept": list(res.model.effects),
+               "residual_x_noise": res.residual_x_noise, "residual_x_sensor_noise": round(res.cost_all, 3),
+               "kept": list(res.model.effects), "hypothesis": res.hypothesis_json(),
                "follows": (u or {}).get("follows", list(doc["follows"]["follows"]))[:3],
                "proposal": p and p["equation"], "where": p and p["where"],
                "terms": p and [{k: t[k] for k in ("place", "form", "value", "unit", "ci95")} for t in p["terms"]],
@@ -332,8 +333,8 @@ def run_clean(seeds=range(20), position_only: bool = False, duration: float = 3.
         camp, _ = memory_campaign({}, CLEAN_SEED + s, duration=duration, position_only=position_only)
         res = diagnose_open(camp, propose=False)
         out.append({"seed": CLEAN_SEED + s, "position_only": position_only, "duration_s": duration,
-                    "verdict": res.verdict, "residual_x_noise": round(res.cost_all, 3),
-                    "worst_run_x_noise": round(max(res.run_costs.values()), 3), "kept": res.kept})
+                    "verdict": res.verdict, "residual_x_noise": res.residual_x_noise,
+                    "residual_x_sensor_noise": round(res.cost_all, 3), "worst_run_x_noise": round(max(res.run_costs.values()), 3), "kept": res.kept})
     return out
 
 
