@@ -334,7 +334,8 @@ def run_clean(seeds=range(20), position_only: bool = False, duration: float = 3.
         res = diagnose_open(camp, propose=False)
         out.append({"seed": CLEAN_SEED + s, "position_only": position_only, "duration_s": duration,
                     "verdict": res.verdict, "residual_x_noise": res.residual_x_noise,
-                    "residual_x_sensor_noise": round(res.cost_all, 3), "worst_run_x_noise": round(max(res.run_costs.values()), 3), "kept": res.kept})
+                    "residual_x_sensor_noise": round(res.cost_all, 3),
+                    "worst_run_x_noise": round(max(res.run_costs.values()), 3), "kept": res.kept})
     return out
 
 
