@@ -6,9 +6,7 @@ quantisation, disturbances, a knock in a joint) is the floor no model can go
 below.  So each closed-loop sine run's steady cycles (after the ramp and one
 settling cycle) are laid over each other, and the measured signal's own
 *non-repeatable* energy (its scatter around its cycle-locked mean) is that
-run and signal's floor.  What the model's own (noise-free) response does not repeat
-(a transient still settling, a slow drift of a mean pressure) is deterministic
-and is taken off that floor, which is never below the sensor noise.  A run that
+run and signal's floor.  The floor is never below the sensor noise.  A run that
 is not periodic (a valve chirp driven by its logged current, a run with fewer
 than :data:`MIN_CYCLES` steady cycles) has the sensor-noise level as its floor.
 
@@ -161,11 +159,10 @@ def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: f
         ce = cycles(e, dt, freq_hz, start_s)
         floor = repeat_floor(measured / noise, dt, freq_hz, start_s)
         if ce is not None and floor is not None:
-            # what the model itself does not repeat (a transient still settling, a slow drift of the mean
-            # pressure) is deterministic: a model that has it too reproduces it, so it is no floor.  What is
-            # left is at least the sensor noise.
-            own = repeat_floor(simulated / noise, dt, freq_hz, start_s) or 0.0
-            floor = max(floor - own, 1.0)
+            # never below the sensor noise.  (What the model's own response does not repeat is not taken off:
+            # a limit cycle both rig and model have, at phases that drift apart, would then count as
+            # structured; a transient both have leaves x below 1, which is explained all the same.)
+            floor = max(floor, 1.0)
             # the residual on the same phase grid as the floor (the interpolation smooths both alike)
             return Block(run, signal, float(np.mean(ce**2)), floor, ce.size, True)
     e = e[skip:]
