@@ -170,17 +170,21 @@ def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: f
 
 
 def overall_x(blocks: list[Block]) -> float:
-    """Residual in floors over every block: geometric mean weighted by samples (as the fit's cost).
+    """Residual in floors over every block: geometric mean weighted by samples (as the fit's cost), each block
+    counted at least 1 (a run whose floor is far above its residual, a rig ringing in a limit cycle, must not
+    hide another's structured residual).
 
     Examples
     --------
     >>> overall_x([Block("a", "s", 2.0, 1.0, 10, False), Block("b", "s", 8.0, 1.0, 10, False)])
     4.0
+    >>> overall_x([Block("a", "s", 0.01, 1.0, 10, False), Block("b", "s", 4.0, 1.0, 10, False)])
+    2.0
     """
     n = sum(b.n for b in blocks)
     if n == 0:
         return 1.0
-    return float(math.exp(sum(b.n * math.log(max(b.x, 1e-300)) for b in blocks) / n))
+    return float(math.exp(sum(b.n * math.log(max(b.x, 1.0)) for b in blocks) / n))
 
 
 def grade(blocks: list[Block]) -> dict:
