@@ -340,7 +340,9 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
     figs = []
     if worst_run is not None:
         case = rep.cases[worst_run]
-        p = plots.overlay(out / "overlay_before.png", case, {l: sims[l][worst_run] for l in [base_label]})
+        shown_signals = _worst_signals(case, sims[ref_label][worst_run])
+        p = plots.overlay(out / "overlay_before.png", case, {l: sims[l][worst_run] for l in [base_label]},
+                          signals=shown_signals)
         figs.append(p)
         lines += [f"![overlay before]({p.name})", "",
                   f"*{case.run.name}, the run the baseline fits worst: measured (grey) and the baseline model "
@@ -395,7 +397,8 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
         lines += [f"![fit before and after]({p.name})", ""]
         if worst_run is not None:
             case = rep.cases[worst_run]
-            p = plots.overlay(out / "overlay_after.png", case, {l: sims[l][worst_run] for l in shown})
+            p = plots.overlay(out / "overlay_after.png", case, {l: sims[l][worst_run] for l in shown},
+                              signals=_worst_signals(case, sims[shown[-1]][worst_run]))
             lines += [f"![overlay after]({p.name})", "",
                       f"*{case.run.name}: measured (grey), baseline (red, dashed) and the model with the added "
                       "effects (blue); residuals in the signal's units below each; right: the same zoom window, "
@@ -429,6 +432,14 @@ def _params_text(effect: str, params: dict) -> str:
 
     cls = get_effect(effect)
     return ", ".join(f"{k} = {v:.3g} {cls.param(k).unit}" for k, v in params.items())
+
+
+def _worst_signals(case, sim, k: int = 4) -> list[str]:
+    """The run's signals worst first (residual in noise units), at most ``k``: the figures show where the model
+    fails most, whatever signal that is."""
+    have = [s for s in case.signals if s in case.measured]
+    return sorted(have, key=lambda s: float(((case.measured[s] - sim[s]) ** 2).mean()) / case.noise[s] ** 2,
+                  reverse=True)[:k]
 
 
 def _worst_run(rep, sims):
