@@ -57,6 +57,8 @@ def typical_effects() -> dict[str, dict[str, float]]:
 
     out = {}
     for name, eff in sorted(REGISTRY.items()):
+        if eff.kind == "hypothesis":  # the diagnosis' structural hypotheses are not rig effects to be robust to
+            continue
         out[name] = {p.name: 0.5 * (p.typical[0] + p.typical[1]) if p.typical else p.default for p in eff.params}
     return out
 

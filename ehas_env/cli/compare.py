@@ -31,8 +31,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None, help="folder for report.md and the plots (default: print only)")
     parser.add_argument("--save-model", default=None, metavar="FILE",
                         help="write the (calibrated) model as a model file for --model FILE")
+    parser.add_argument("--json", default=None, metavar="FILE",
+                        help="write the comparison as JSON: residual_x_noise (the diagnosis' definition), fit %% per "
+                             "signal and per run before and after, fitted values with 95 %% intervals "
+                             "(docs/measurement-format.md)")
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace an earlier --out folder / --save-model file")
+                        help="replace an earlier --out folder / --save-model / --json file")
     parser.add_argument("--columns", default=None, metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
@@ -58,6 +62,9 @@ def run(args) -> int:
         check_file(args.save_model, "--save-model", overwrite=args.overwrite)
     if args.out:
         check_not_input(args.out, "--out", [args.campaign])
+    if getattr(args, "json", None):
+        check_not_input(args.json, "--json", [args.campaign])
+        check_file(args.json, "--json", overwrite=args.overwrite)
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     base_model = None
     if getattr(args, "model", None):  # a saved model: the baseline, validated on this campaign (docs/model-file.md)
@@ -128,8 +135,62 @@ def run(args) -> int:
                                   after_label=label_after, after_model=after_model, fitted=args.fit, ci=ci,
                                   **({"title": f"Model vs measurement: {base_model.label}"} if base_model else {}))
         print(f"report: {Path(args.out) / report.name}")
+    if getattr(args, "json", None):
+        import json
+
+        from ehas_env.output.files import atomic_write_text
+
+        doc = comparison_doc(rep, sims, tables, label_after, ci, campaign.path, command,
+                             time.perf_counter() - t0)
+        atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
+        print(f"json: {args.json}")
     print(f"elapsed {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path, command: str,
+                   elapsed_s: float) -> dict:
+    """The JSON of ``ehas compare --json`` (docs/measurement-format.md).
+
+    Parameters
+    ----------
+    rep : Replayer
+        The campaign replayed.
+    sims, tables : dict
+        Simulated runs and :class:`~ehas_env.measurement.replay.FitTable` per model label (first: the baseline).
+    label_after : str or None
+        The label of the model with the effects.
+    ci : list of dict or None
+        Fitted values with 95 % intervals (:func:`fit_intervals`).
+    campaign_path, command, elapsed_s
+        Provenance.
+
+    Returns
+    -------
+    dict
+        ``before`` and ``after`` (each: ``residual_x_noise`` and ``verdict`` as the diagnosis defines them,
+        ``residual_x_sensor_noise``, ``fit_percent`` overall, ``per_signal``, ``per_run``), ``residual_x_noise``
+        (after), ``fitted`` (value, ci95 [low, high], unit per parameter), ``command``, ``elapsed_s``.
+    """
+    from ehas_env.measurement.replay import COST_SIGNALS
+    from ehas_env.measurement.verdict import blocks_of, grade
+
+    def side(label):
+        t = tables[label]
+        g = grade(blocks_of(rep, sims[label], COST_SIGNALS))
+        return {"model": label, "residual_x_noise": g["residual_x_noise"], "verdict": g["verdict"],
+                "worst": g["worst"], "residual_x_sensor_noise": round(rep.log_cost(sims[label]), 3),
+                "fit_percent": round(t.overall, 2),
+                "per_signal": {k: round(v, 2) for k, v in t.per_signal.items()},
+                "per_run": {r: {k: round(v, 2) for k, v in d.items()} for r, d in t.per_run.items()}}
+
+    before = side(next(iter(tables)))
+    after = side(label_after) if label_after else before
+    return {"campaign": str(campaign_path), "command": command, "elapsed_s": round(elapsed_s, 1),
+            "residual_x_noise": after["residual_x_noise"], "verdict": after["verdict"],
+            "before": before, "after": after,
+            "fitted": [{"effect": r["effect"], "param": r["param"], "value": r["value"],
+                        "ci95": [r["low"], r["high"]], "unit": r["unit"]} for r in (ci or [])]}
 
 
 def _argv() -> list[str]:
@@ -166,8 +227,8 @@ def held_out_text(model, campaign, table) -> str:
 def fit_intervals(rep, fitted) -> list[dict]:
     """95 % confidence intervals of every number ``fitted`` (a calibration Fit) fitted, as JSON-ready rows
     {effect, param, value, low, high, unit} (``effect`` "baseline" for beta and K; see
-    :func:`ehas_env.measurement.diagnosis.confidence`)."""
-    from ehas_env.measurement.diagnosis import _unit, _value_of, confidence
+    :func:`ehas_env.measurement.fitting.confidence`)."""
+    from ehas_env.measurement.fitting import _unit, _value_of, confidence
 
     ci = confidence(rep, fitted) if fitted.free else {}
     rows = []
@@ -279,7 +340,9 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
     figs = []
     if worst_run is not None:
         case = rep.cases[worst_run]
-        p = plots.overlay(out / "overlay_before.png", case, {l: sims[l][worst_run] for l in [base_label]})
+        shown_signals = _worst_signals(case, sims[ref_label][worst_run])
+        p = plots.overlay(out / "overlay_before.png", case, {l: sims[l][worst_run] for l in [base_label]},
+                          signals=shown_signals)
         figs.append(p)
         lines += [f"![overlay before]({p.name})", "",
                   f"*{case.run.name}, the run the baseline fits worst: measured (grey) and the baseline model "
@@ -334,7 +397,8 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
         lines += [f"![fit before and after]({p.name})", ""]
         if worst_run is not None:
             case = rep.cases[worst_run]
-            p = plots.overlay(out / "overlay_after.png", case, {l: sims[l][worst_run] for l in shown})
+            p = plots.overlay(out / "overlay_after.png", case, {l: sims[l][worst_run] for l in shown},
+                              signals=_worst_signals(case, sims[shown[-1]][worst_run]))
             lines += [f"![overlay after]({p.name})", "",
                       f"*{case.run.name}: measured (grey), baseline (red, dashed) and the model with the added "
                       "effects (blue); residuals in the signal's units below each; right: the same zoom window, "
@@ -368,6 +432,14 @@ def _params_text(effect: str, params: dict) -> str:
 
     cls = get_effect(effect)
     return ", ".join(f"{k} = {v:.3g} {cls.param(k).unit}" for k, v in params.items())
+
+
+def _worst_signals(case, sim, k: int = 4) -> list[str]:
+    """The run's signals worst first (residual in noise units), at most ``k``: the figures show where the model
+    fails most, whatever signal that is."""
+    have = [s for s in case.signals if s in case.measured]
+    return sorted(have, key=lambda s: float(((case.measured[s] - sim[s]) ** 2).mean()) / case.noise[s] ** 2,
+                  reverse=True)[:k]
 
 
 def _worst_run(rep, sims):

@@ -7,11 +7,16 @@ with evidence in words, and stacks: the best effect is kept when it is
 physically sane and lowers the residual of validation data (runs held out of
 the fit, ``--holdout``, and the fitted runs beyond their fit windows), then the
 next is sought on top of it, until no candidate passes (``--no-stack``: one
-round).  The verdict says whether the final model explains the campaign down to
-the noise (calibrated on clean campaigns) or leaves it *unexplained*; then it
-shows what the remaining residual follows and proposes the missing term
-(``--write-effect DIR/NAME.py`` writes it as an effect file for
-``ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit``).
+round), the same effect refitted on two separate groups of runs must agree
+within its 95 % intervals.  When the library leaves the campaign not explained,
+the structural hypotheses (``hyp_*``: chamber B's area, the return pressure, the
+valve's gain per direction) are tried the same way.  The verdict is graded from
+the data (the residual against what does not repeat from cycle to cycle:
+*explained*, *small structured residual*, *unexplained*); then it shows what the
+remaining residual follows and, when not explained, proposes the missing term
+(``--write-effect DIR/NAME.py`` writes the kept hypothesis, else the proposed
+term, as an effect file for ``ehas compare CAMPAIGN --effects-path DIR
+--effects NAME --fit --json FILE``).
 ``--json`` writes the JSON of docs/measurement-format.md; ``--out`` a report.md
 with plots.  ``--with NAME[,NAME...]`` starts from a model that already has
 those effects.  Candidates are the library's effects and the effects of the
@@ -52,6 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--write-effect", default=None, metavar="DIR/NAME.py",
                         help="when the campaign is unexplained, write the proposed term as an effect file NAME")
     parser.add_argument("--no-propose", action="store_true", help="do not look for a missing term")
+    parser.add_argument("--no-hypotheses", action="store_true",
+                        help="do not try the structural hypotheses (hyp_*: chamber B's area, return pressure, valve "
+                             "gain per direction) when the library leaves the campaign not explained")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier --out folder / --json file / --write-effect file")
@@ -128,7 +136,8 @@ def run(args) -> int:
               f"{', '.join(c for c in candidates if c not in library_effects())}")
     print()
     res = diagnose_open(campaign, candidates=candidates, base_effects=base, holdout=holdout,
-                        stack=not args.no_stack, propose=not args.no_propose, window_s=window,
+                        stack=not args.no_stack, propose=not args.no_propose,
+                        hypotheses=not getattr(args, "no_hypotheses", False), window_s=window,
                         progress=not args.quiet, log=say, model=model)
     first = res.first
     print(where_it_fails(res.full, res.baseline_all, "baseline" + (" + " + " + ".join(base) if base else "")))
@@ -151,10 +160,26 @@ def run(args) -> int:
     if res.unexplained is not None:
         print(res.unexplained["text"])
     else:
-        print(f"the final model explains the campaign down to the noise: residual {res.cost_all:.2f}x the noise "
-              f"variance (clean campaigns stay below {res.unexplained_threshold:g}x)")
+        print(f"the final model explains the campaign: residual {res.residual_x_noise:.2f}x what does not repeat from "
+              f"cycle to cycle (sensor noise, disturbances; explained up to {res.grade['thresholds']['explained']:g}x), "
+              f"{res.cost_all:.2f}x the sensor-noise variance")
     written = None
-    if res.proposal is not None:
+    hyp = res.hypothesis
+    if hyp is not None:
+        h = res.hypothesis_json()
+        print()
+        print(f"structural hypothesis kept: {h['effect']} ({h['words']})")
+        if args.write_effect:
+            from ehas_env.measurement.hypothesis_file import write_hypothesis
+
+            written = write_hypothesis(args.write_effect, hyp, res.model.effects[hyp], origin=str(campaign.path),
+                                       ci={k: tuple(v) for k, v in h["ci95"].items()}, words=h["words"],
+                                       before=h.get("residual_x_noise_before"), after=res.residual_x_noise)
+            name = Path(args.write_effect).stem
+            print(f"effect file: {args.write_effect}")
+            print("next: " + next_command(args, campaign.path, [n for n in res.model.effects if n != hyp] + [name],
+                                          extra_path=Path(args.write_effect).parent))
+    elif res.proposal is not None:
         p = res.proposal
         print()
         print("proposed missing term:")
@@ -168,15 +193,13 @@ def run(args) -> int:
             written = write_effect(args.write_effect, p, origin=str(campaign.path))
             name = Path(args.write_effect).stem
             print(f"effect file: {args.write_effect}")
-            print(f"next: ehas compare {shlex.quote(str(campaign.path))} --effects-path "
-                  f"{shlex.quote(str(Path(args.write_effect).parent))} --effects "
-                  f"{','.join(list(res.model.effects) + [name])} --fit --out DIR")
+            print("next: " + next_command(args, campaign.path, list(res.model.effects) + [name],
+                                          extra_path=Path(args.write_effect).parent))
     elif args.write_effect:
         print("no effect file written: " + ("the campaign is explained" if res.unexplained is None else
                                             "no term of the dictionary lowers the residual"))
-    if res.model.effects and written is None:
-        print(f"next: ehas compare {shlex.quote(str(campaign.path))} --effects {','.join(res.model.effects)} "
-              "--fit --out DIR --save-model model.json")
+    if res.model.effects and written is None and hyp is None:
+        print("next: " + next_command(args, campaign.path, list(res.model.effects)) + " --save-model model.json")
     elapsed = time.perf_counter() - t0
     print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
 
@@ -184,11 +207,7 @@ def run(args) -> int:
     if args.json:
         from ehas_env.output.files import atomic_write_text
 
-        doc = res.to_json()
-        doc["campaign"] = str(campaign.path)
-        doc["elapsed_s"] = round(elapsed, 1)
-        if written is not None:
-            doc["unexplained"]["proposal"]["effect_file"] = str(args.write_effect)
+        doc = diagnosis_doc(res, campaign.path, elapsed, effect_file=args.write_effect if written else None)
         atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
         print(f"json: {args.json}")
     if outputs is not None:
@@ -208,7 +227,7 @@ def run(args) -> int:
                      _model_text(res), "", _validation_text(res), "```", "",
                      "## 7. Verdict and what is left", "", f"**{res.verdict}**", "",
                      res.unexplained["text"] if res.unexplained else
-                     f"Residual {res.cost_all:.2f}x the noise variance: explained down to the noise.", "",
+                     f"Residual {res.residual_x_noise:.2f}x what does not repeat from cycle to cycle: explained.", "",
                      "```", follows_text(res.follows, "final model"), "```", ""]
             if res.proposal is not None:
                 extra += ["## 8. The missing term, proposed", "", "```", res.proposal.equation(), "```", "",
@@ -222,6 +241,53 @@ def run(args) -> int:
     return 0
 
 
+def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dict:
+    """The one JSON shape of a diagnosis (``ehas diagnose --json`` and ``ehas demo``; docs/measurement-format.md).
+
+    Parameters
+    ----------
+    res : OpenDiagnosis
+        The result of :func:`ehas_env.measurement.diagnosis.diagnose_open`.
+    campaign_path : str or Path
+        The campaign diagnosed.
+    elapsed_s : float
+        Wall time of the diagnosis, compile included, s.
+    effect_file : str, optional
+        The effect file written for the proposal (``--write-effect``).
+
+    Returns
+    -------
+    dict
+    """
+    doc = res.to_json()
+    doc["campaign"] = str(campaign_path)
+    if effect_file is not None and doc.get("hypothesis"):
+        doc["hypothesis"]["effect_file"] = str(effect_file)
+        doc["effect_file"] = str(effect_file)
+    elif effect_file is not None and doc.get("unexplained") and doc["unexplained"].get("proposal"):
+        doc["unexplained"]["proposal"]["effect_file"] = str(effect_file)
+        doc["effect_file"] = str(effect_file)
+    doc["elapsed_s"] = round(elapsed_s, 1)
+    return doc
+
+
+def next_command(args, campaign_path, effects: list[str], extra_path=None) -> str:
+    """The ``ehas compare`` command that adds ``effects`` to the campaign, runnable as printed: it keeps every
+    ``--effects-path`` given, the written effect file's folder, ``--model`` and ``--columns``."""
+    q = shlex.quote
+    parts = ["ehas compare", q(str(campaign_path))]
+    paths = [str(p) for p in (getattr(args, "effects_path", None) or [])]
+    if extra_path is not None and str(extra_path) not in paths:
+        paths.append(str(extra_path))
+    parts += [f"--effects-path {q(p)}" for p in paths]
+    if getattr(args, "model", None):
+        parts.append(f"--model {q(str(args.model))}")
+    if getattr(args, "columns", None):
+        parts.append(f"--columns {q(args.columns)}")
+    parts += [f"--effects {q(','.join(effects))}", "--fit", "--out compare", "--json compare.json"]
+    return " ".join(parts)
+
+
 def _stack_text(res) -> str:
     lines = ["stacking (an effect is kept when it is physically sane and lowers the residual of the validation data)"]
     if not res.steps:
@@ -232,7 +298,7 @@ def _stack_text(res) -> str:
 
 
 def _model_text(res) -> str:
-    from ehas_env.measurement.diagnosis import _unit, _value_of
+    from ehas_env.measurement.fitting import _unit, _value_of
 
     lines = ["final model, fitted values with 95 % confidence intervals (cluster-robust, on the fit data)"]
     for fp in res.fit_train.free:
@@ -294,10 +360,9 @@ def demo_section(outdir: Path) -> str:
     from ehas_env.measurement.campaign import read_campaign
     from ehas_env.measurement.synthetic import write_simulated_campaign
     from ehas_env.cli.compare import write_report
-    from ehas_env.measurement.diagnosis import diagnose
+    from ehas_env.measurement.diagnosis import diagnose_open
     from ehas_env.output.files import atomic_write_text
     from ehas_env.measurement.model_file import save_model
-    from ehas_env.measurement.replay import Replayer
 
     outdir = Path(outdir)
     t0 = time.perf_counter()
@@ -307,12 +372,14 @@ def demo_section(outdir: Path) -> str:
     _, truth = write_simulated_campaign(camp_dir, DEMO_HIDDEN, seed=DEMO_SEED, perturb=True, command=command,
                                         overwrite=True)
     campaign = read_campaign(camp_dir)
-    rep = Replayer(campaign)
-    d = diagnose(campaign, replayer=rep)
+    t1 = time.perf_counter()
+    res = diagnose_open(campaign, stack=False, propose=False)
+    d, rep = res.first, res.train
     diag_dir = outdir / "diagnosis"
-    diag_cmd = f"ehas diagnose {camp_dir} --json {diag_dir / 'diagnosis.json'} --out {diag_dir}"
+    diag_cmd = f"ehas diagnose {camp_dir} --no-stack --no-propose --json {diag_dir / 'diagnosis.json'} --out {diag_dir}"
     diag_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(diag_dir / "diagnosis.json", json.dumps(d.to_json(), indent=2) + "\n")
+    atomic_write_text(diag_dir / "diagnosis.json",
+                      json.dumps(diagnosis_doc(res, camp_dir, time.perf_counter() - t1), indent=2) + "\n")
     tables = {"baseline": d.baseline.table, "baseline, beta/K recal.": d.null.table}
     sims = {"baseline": d.baseline.sims, "baseline, beta/K recal.": d.null.sims}
     label = model = None

@@ -270,7 +270,8 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
         p = (u or {}).get("proposal")
         rec = {"effect": spec["name"], "hidden": spec["effects"][spec["name"]], "seed": spec["seed"],
                "beta": truth["beta"], "K": truth["K"], "verdict": res.verdict,
-               "residual_x_noise": round(res.cost_all, 3), "kept": list(res.model.effects),
+               "residual_x_noise": res.residual_x_noise, "residual_x_sensor_noise": round(res.cost_all, 3),
+               "kept": list(res.model.effects), "hypothesis": res.hypothesis_json(),
                "follows": (u or {}).get("follows", list(doc["follows"]["follows"]))[:3],
                "proposal": p and p["equation"], "where": p and p["where"],
                "terms": p and [{k: t[k] for k in ("place", "form", "value", "unit", "ci95")} for t in p["terms"]],
@@ -281,7 +282,7 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
         if spec["name"] == "crank_spring" and p:
             rec["spring_k"] = round(spring_rate(p), 1)
             rec["spring_k_ci95"] = spring_rate_ci(p)
-            from ehas_env.measurement.diagnosis import TERM, confidence
+            from ehas_env.measurement.fitting import TERM, confidence
 
             key = "proposal_crank_torque.c_th"
             if key in res.proposal.terms:
@@ -332,7 +333,8 @@ def run_clean(seeds=range(20), position_only: bool = False, duration: float = 3.
         camp, _ = memory_campaign({}, CLEAN_SEED + s, duration=duration, position_only=position_only)
         res = diagnose_open(camp, propose=False)
         out.append({"seed": CLEAN_SEED + s, "position_only": position_only, "duration_s": duration,
-                    "verdict": res.verdict, "residual_x_noise": round(res.cost_all, 3),
+                    "verdict": res.verdict, "residual_x_noise": res.residual_x_noise,
+                    "residual_x_sensor_noise": round(res.cost_all, 3),
                     "worst_run_x_noise": round(max(res.run_costs.values()), 3), "kept": res.kept})
     return out
 
@@ -346,7 +348,7 @@ def run_ci(cases=None, seed0: int = SEED + 900) -> list[dict]:
     for j, (n, vals) in enumerate(cases or CI_CASES):
         camp, truth = memory_campaign({n: vals}, seed0 + j, duration=3.0)
         res = diagnose_open(camp, propose=False)
-        from ehas_env.measurement.diagnosis import confidence
+        from ehas_env.measurement.fitting import confidence
 
         variants = {f"block{b:g}s_lags{l}": confidence(res.train, res.fit_train, block_s=b, lags=l)
                     for b, l in CI_VARIANTS} if res.fit_train.free else {}

@@ -100,7 +100,7 @@ def fit_effect(name: str, measured: np.ndarray, rows) -> tuple[dict, float, np.n
     """
     from scipy.optimize import least_squares
 
-    from ehas_env.measurement.diagnosis import own_params, scan_values, start_value
+    from ehas_env.measurement.fitting import own_params, scan_values, start_value
     from ehas_env.physics.effects import get_effect
 
     free = own_params(name)
@@ -135,7 +135,7 @@ def analyse(progress: bool = True) -> dict:
     measured = np.array([r.load_test_kN for r in rows])
     analytic = np.array([r.load_analytic_kN for r in rows])
     base = balance_peak_loads({}, rows)
-    names = sorted(REGISTRY)
+    names = sorted(n for n, c in REGISTRY.items() if c.kind != "hypothesis")
     it = names
     if progress:
         from tqdm import tqdm

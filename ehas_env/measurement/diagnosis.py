@@ -46,265 +46,21 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
+from ehas_env.measurement import proposal as P
 from ehas_env.measurement.campaign import Campaign
+from ehas_env.measurement.keeping import agree, run_groups
+from ehas_env.measurement.fitting import (
+    MIN_GAIN, MIN_SCORE, PENALTY_PER_PARAM, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _unit, _value_of,
+    confidence, fit, own_params, recal_params, reopens_baseline, start_value)
+from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
+from ehas_env.measurement.residuals import evidence_text, follows as follows_of
+from ehas_env.measurement.verdict import blocks_of, grade
 from ehas_env.physics.effects import REGISTRY, get_effect
-from ehas_env.measurement.replay import FitTable, ModelSpec, Replayer
 from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
 
-#: recalibration ranges of the baseline's uncertain numbers (relative to nominal).
-#: beta: the reference model's 1e9 Pa is an estimate (oil, air, hoses); K: the
-#: book's identified gain (fit 95.4 %).  Outside these the bulk_modulus and
-#: valve_dynamics effects take over.
-BETA_RANGE = (0.93, 1.07)
-K_RANGE = (0.97, 1.03)
-PENALTY_PER_PARAM = 0.2  # dB per fitted effect parameter
-MIN_SCORE = 0.3  # dB: a candidate must remove at least 7 % of the null model's residual energy ...
-MIN_GAIN = 0.05  # ... and at least this many noise variances per sample, to beat noise
-SCAN_POINTS = 7
-IRLS_ROUNDS = 2  # reweighting rounds of the least-squares fit of the log cost
-SKIP_MARGIN = 0.002  # a scan must beat the null model by this fraction to be fitted further
-SCREEN_NFEV = 8  # least-squares steps per parameter when screening a candidate
-MAX_NFEV = 15  # ... when refining one (each step also costs one replay per parameter)
 REFINE_TOP = 3  # at most this many candidates are refined with beta, K (and the base effects) ...
 REFINE_WITHIN_DB = 3.0  # ... those screened within this many dB of the best
-#: FreeParam.effect of a proposed term's coefficient (ehas_env.measurement.proposal_terms)
-TERM = "proposal"
-
-
-@dataclass(frozen=True)
-class FreeParam:
-    """One fitted number, mapped to u in [0, 1] over its fit range (log where it spans decades)."""
-
-    effect: str | None  # None: the baseline's beta / K
-    name: str
-    lo: float
-    hi: float
-    log: bool
-    step: float = 2e-3  # finite-difference step in u
-
-    def value(self, u: float) -> float:
-        u = min(max(float(u), 0.0), 1.0)
-        if self.log:
-            v = math.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo)))
-        else:
-            v = self.lo + u * (self.hi - self.lo)
-        return float(min(max(v, self.lo), self.hi))  # rounding must not leave the bounds
-
-    def u(self, value: float) -> float:
-        v = min(max(float(value), self.lo), self.hi)
-        if self.log:
-            return (math.log(v) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
-        return (v - self.lo) / (self.hi - self.lo)
-
-
-def reopens_baseline(effect: str) -> bool:
-    """Whether ``effect`` re-opens the baseline's numbers over their full ranges (its ``kind`` is
-    ``"recalibration"``: bulk_modulus for beta, valve_dynamics for the valve's K, wn, zeta)."""
-    return get_effect(effect).kind == "recalibration"
-
-
-def fit_range(effect: str, pname: str) -> FreeParam:
-    """The range a parameter is fitted over: its typical range widened 4x (1.6x for the strongly acting
-    recalibrations), inside its bounds."""
-    p = get_effect(effect).param(pname)
-    blo, bhi = p.bounds
-    tlo, thi = p.typical or p.bounds
-    if blo < 0.0:  # signed (null bias): symmetric
-        m = min(4.0 * max(abs(tlo), abs(thi)), bhi, -blo)
-        return FreeParam(effect, pname, -m, m, False, _step(effect, pname))
-    lo = max(blo, tlo / 4.0) if tlo > 0 else blo
-    hi = min(bhi, thi * 4.0)
-    if reopens_baseline(effect) or (effect, pname) == ("supply_droop", "p0"):
-        # recalibrations and the precharge act strongly (the loop's stability hangs on beta and wn):
-        # a narrower range, scanned finely enough to land in the valley
-        lo, hi = max(blo, tlo / 1.6), min(bhi, thi * 1.6)
-    log = lo > 0 and hi / lo >= 8.0
-    return FreeParam(effect, pname, lo, hi, log, _step(effect, pname))
-
-
-#: numbers the model resolves in stairs, in integrator sub-steps: the delay is a whole number of sub-steps
-STAIRCASE = {("transport_delay", "tau"): 1.0}
-
-
-def _step(effect: str, pname: str) -> float:
-    # the delay acts at the integrator's sub-step resolution (0.1 ms): a staircase
-    # cost, so its derivative needs a step spanning several stairs
-    return 0.03 if (effect, pname) == ("transport_delay", "tau") else 2e-3
-
-
-def baseline_params() -> list[FreeParam]:
-    return [FreeParam(None, "beta", BULK_MODULUS * BETA_RANGE[0], BULK_MODULUS * BETA_RANGE[1], False),
-            FreeParam(None, "K", VALVE_K * K_RANGE[0], VALVE_K * K_RANGE[1], False)]
-
-
-def start_value(fp: FreeParam) -> float:
-    """Middle of the typical range (geometric on log scale), the fit's start."""
-    if fp.effect is None:
-        return BULK_MODULUS if fp.name == "beta" else VALVE_K
-    p = get_effect(fp.effect).param(fp.name)
-    tlo, thi = p.typical or (fp.lo, fp.hi)
-    if fp.lo < 0:
-        return 0.5 * (tlo + thi)
-    return math.sqrt(tlo * thi) if fp.log and tlo > 0 else 0.5 * (tlo + thi)
-
-
-@dataclass
-class Fit:
-    """A fitted model."""
-
-    model: ModelSpec
-    cost: float
-    free: list[FreeParam]
-    sims: list
-    table: FitTable
-    nfev: int = 0
-
-
-def model_from(free: list[FreeParam], values: dict, fixed: ModelSpec | None = None) -> ModelSpec:
-    """``fixed`` (effects, beta, K) with the free values {(effect, name): value} set."""
-    fixed = fixed or ModelSpec()
-    effects = {n: dict(p) for n, p in fixed.effects.items()}
-    terms = dict(fixed.terms)
-    beta, K = fixed.beta, fixed.K
-    for fp in free:
-        v = values[(fp.effect, fp.name)]
-        if fp.effect is None:
-            if fp.name == "beta":
-                beta = v
-            else:
-                K = v
-        elif fp.effect == TERM:
-            terms[fp.name] = v
-        else:
-            effects.setdefault(fp.effect, {})[fp.name] = v
-    st = effects.get("stribeck_friction")
-    if st and "Fs" in st and "Fc" in st and st["Fs"] < st["Fc"]:
-        # Stribeck friction keeps its definition (breakaway at or above sliding, Fs >= Fc; the effect
-        # refuses less): where the fit wanders below, the breakaway sits at the sliding level
-        effects["stribeck_friction"] = {**st, "Fs": st["Fc"]}
-    return ModelSpec(effects=effects, beta=beta, K=K, terms=terms)
-
-
-def scan_values(fp: FreeParam) -> list[float]:
-    """Values of a parameter tried before fitting: log- or linearly spaced over its fit range;
-    a signed parameter (null bias) gets both signs of log-spaced magnitudes."""
-    if fp.effect == TERM:  # a proposed term's coefficient: both signs, magnitudes over three decades
-        mags = np.geomspace(1e-3 * fp.hi, fp.hi, 5)
-        return sorted([float(-m) for m in mags] + [float(m) for m in mags])
-    if fp.lo < 0.0:
-        p = get_effect(fp.effect).param(fp.name)
-        small = max(min(abs(x) for x in p.typical) / 4.0, 1e-3 * fp.hi) if p.typical else 1e-3 * fp.hi
-        mags = np.geomspace(small, fp.hi, (SCAN_POINTS + 3) // 2)
-        return sorted([float(-m) for m in mags] + [float(m) for m in mags])
-    if fp.log:
-        return [float(v) for v in np.geomspace(fp.lo, fp.hi, SCAN_POINTS)]
-    return [float(v) for v in np.linspace(fp.lo, fp.hi, SCAN_POINTS)]
-
-
-def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | None = None, *,
-        scan: FreeParam | None = None, max_nfev: int = MAX_NFEV, tol: float = 1e-4,
-        null_cost: float | None = None) -> Fit:
-    """Fit the ``free`` parameters from ``start``: a scan of ``scan`` first, then bounded least squares.
-
-    Works in u in [0, 1] per parameter; the Jacobian is a forward difference whose
-    perturbed models are simulated together (:meth:`Replayer.simulate_many`).
-    With ``null_cost``, a candidate whose scan never beats it is not fitted further
-    (it explains nothing anywhere in its range; its best scan point is returned).
-    """
-    u0 = np.array([fp.u(start[(fp.effect, fp.name)]) for fp in free])
-    evals0 = rep.n_evals
-    memo: dict[bytes, tuple] = {}
-
-    def model_u(u):
-        return model_from(free, {(fp.effect, fp.name): fp.value(x) for fp, x in zip(free, u)}, fixed)
-
-    def blocks(U):
-        todo = [u for u in U if u.tobytes() not in memo]
-        if todo:
-            for u, sims in zip(todo, rep.simulate_many([model_u(u) for u in todo])):
-                memo[u.tobytes()] = (rep.cost_blocks(sims), sims)
-        return [memo[u.tobytes()][0] for u in U]
-
-    def cost(u) -> float:
-        """Geometric mean over (run, signal) blocks (see :meth:`Replayer.log_cost`)."""
-        b = blocks([np.asarray(u, dtype=float)])[0]
-        n = sum(x.size for x in b)
-        return float(np.exp(sum(x.size * np.log(max(float(np.dot(x, x)) / x.size, 1e-300)) for x in b) / n))
-
-    def result(u) -> Fit:
-        cost(u)
-        sims = memo[u.tobytes()][1]
-        return Fit(model=model_u(u), cost=cost(u), free=free, sims=sims, table=rep.fit_table(sims),
-                   nfev=rep.n_evals - evals0)
-
-    if scan is not None:
-        k = free.index(scan)
-        grid = []
-        for value in scan_values(scan):
-            u = u0.copy()
-            u[k] = scan.u(value)
-            grid.append(u)
-        blocks(grid)
-        costs = [cost(u) for u in grid]
-        best = int(np.argmin(costs))
-        if null_cost is not None and costs[best] >= null_cost * (1.0 - SKIP_MARGIN):
-            return result(grid[best])
-        # zoom: a finer scan between the best point's neighbours
-        left = grid[max(best - 1, 0)][k]
-        right = grid[min(best + 1, len(grid) - 1)][k]
-        fine = []
-        for x in np.linspace(left, right, 6)[1:-1]:
-            u = grid[best].copy()
-            u[k] = x
-            fine.append(u)
-        blocks(fine)
-        u0 = min(grid + fine, key=cost)
-    # iteratively reweighted least squares for the log cost: each block weighted by its
-    # residual level at the round's start point (the log cost's gradient there)
-    u_ref = np.clip(u0, 0.0, 1.0)
-    for _ in range(IRLS_ROUNDS):
-        w = [1.0 / np.sqrt(max(float(np.dot(x, x)) / x.size, 1e-12)) for x in blocks([u_ref])[0]]
-
-        def fun(u, w=w):
-            return np.concatenate([wi * x for wi, x in zip(w, blocks([np.asarray(u, dtype=float)])[0])])
-
-        def jac(u, w=w):
-            u = np.asarray(u, dtype=float)
-            f0 = fun(u)
-            U, H = [], []
-            for i, fp in enumerate(free):
-                h = fp.step if u[i] + fp.step <= 1.0 else -fp.step
-                du = u.copy()
-                du[i] += h
-                U.append(du)
-                H.append(h)
-            blocks(U)
-            return np.column_stack([(fun(du) - f0) / h for du, h in zip(U, H)])
-
-        res = least_squares(fun, u_ref, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
-                            max_nfev=max(max_nfev // IRLS_ROUNDS, 3), xtol=tol, ftol=tol, gtol=1e-8)
-        u_new = np.asarray(res.x, dtype=float)
-        if cost(u_new) >= cost(u_ref):
-            break
-        u_ref = u_new
-    return result(u_ref)
-
-
-def own_params(effect: str) -> list[FreeParam]:
-    return [fit_range(effect, p.name) for p in get_effect(effect).params]
-
-
-def recal_params(effects) -> list[FreeParam]:
-    """beta and K, unless an effect in ``effects`` (bulk_modulus, valve_dynamics) sets them itself."""
-    taken = set()
-    if "bulk_modulus" in effects:
-        taken.add("beta")
-    if "valve_dynamics" in effects:
-        taken.add("K")
-    return [fp for fp in baseline_params() if fp.name not in taken]
-
 
 @dataclass
 class Entry:
@@ -360,7 +116,16 @@ def library_effects() -> list[str]:
 
     Effects a user loaded (``--effects-path``, entry points) are candidates only when named.
     """
-    return sorted(n for n, c in REGISTRY.items() if c.__module__.startswith("ehas_env.physics.effects."))
+    return sorted(n for n, c in REGISTRY.items()
+                  if c.__module__.startswith("ehas_env.physics.effects.") and c.kind != "hypothesis")
+
+
+def hypothesis_effects() -> list[str]:
+    """The structural hypotheses of the library (``kind = "hypothesis"``: a baseline constant opened, such as
+    chamber B's area, the return pressure, the valve's gain per direction), tried by :func:`diagnose_open`
+    when the library's effects leave a campaign unexplained."""
+    return sorted(n for n, c in REGISTRY.items()
+                  if c.__module__.startswith("ehas_env.physics.effects.") and c.kind == "hypothesis")
 
 
 def effects_from_paths(paths) -> list[str]:
@@ -543,8 +308,6 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
     progress : bool
         Show a progress bar.
     """
-    from ehas_env.measurement.residuals import evidence_text
-
     t0 = time.perf_counter()
     rep = replayer or Replayer(campaign)
     base_effects = with_defaults(base_effects)
@@ -647,8 +410,6 @@ def calibrate(campaign_or_replayer, effects: dict, *, scan: bool = True) -> tupl
 #: runs and signals, all data), stays below VERDICT_X and no run's below VERDICT_RUN_X.  Calibrated on clean
 #: synthetic campaigns (beta +-5 %, K +-1 %, noise and quantization; 20 with every signal, 20 position-only):
 #: their largest values were 1.29 and 1.71 (docs/measurement-format.md states the false-alarm rate)
-VERDICT_X = 1.5
-VERDICT_RUN_X = 2.5
 FIT_WINDOW_S = 3.0  # fit on this much of each closed-loop run (at least the ramp and 2 steady cycles)
 VALVE_SEGMENTS = 4  # a long valve run is fitted on this many windows spread over it ...
 WARMUP_S = 0.15  # ... each simulated from this much earlier (left out of the cost)
@@ -722,108 +483,6 @@ def default_holdout(campaign: Campaign) -> list[str]:
     return [cl[i].name for i in order[:k]]
 
 
-CI_BLOCK_S = 0.25  # clusters of the confidence intervals: stretches of this length of each run ...
-CI_LAGS = 0  # ... whose covariance with this many following clusters of the same run is counted too
-
-
-def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float | None = None,
-               lags: int | None = None) -> dict:
-    """Confidence intervals of every fitted number of ``f``: {(effect, name): (low, high)}.
-
-    The covariance is the cluster-robust ("sandwich") estimate of the weighted least-squares fit,
-    H^-1 (sum_c g_c g_c^T) H^-1 with H = J^T J and g_c the gradient of cluster c, the clusters being
-    ``block_s`` stretches of each run (all its signals together): it holds when the residual is
-    coloured and correlated across signals, and when part of it is model error rather than noise.
-    Intervals use Student's t with (clusters - parameters) degrees of freedom; log-scaled
-    parameters get multiplicative intervals.
-    """
-    from scipy.stats import t as student
-
-    from ehas_env.measurement.replay import COST_SIGNALS
-
-    block_s = CI_BLOCK_S if block_s is None else block_s
-    lags = CI_LAGS if lags is None else lags
-    free = f.free
-    if not free:
-        return {}
-    u = np.array([fp.u(_value_of(f.model, fp)) for fp in free])
-
-    def model_u(uu):
-        return model_from(free, {(fp.effect, fp.name): fp.value(x) for fp, x in zip(free, uu)}, f.model)
-
-    U = [u]
-    H_ = []
-    for i, fp in enumerate(free):
-        h = fp.step if u[i] + fp.step <= 1.0 else -fp.step
-        du = u.copy()
-        du[i] += h
-        U.append(du)
-        H_.append(h)
-    sims_all = rep.simulate_many([model_u(x) for x in U])
-    b0 = rep.cost_blocks(sims_all[0])
-    w = [1.0 / math.sqrt(max(float(np.dot(x, x)) / x.size, 1e-12)) for x in b0]
-    r0 = np.concatenate([wi * x for wi, x in zip(w, b0)])
-    Jm = np.column_stack([(np.concatenate([wi * x for wi, x in zip(w, rep.cost_blocks(s))]) - r0) / h
-                          for s, h in zip(sims_all[1:], H_)])
-    clusters = []
-    offset = 0
-    for case, sim in zip(rep.cases, sims_all[0]):
-        if sim is None:
-            continue
-        nblk = int(math.ceil(case.run.n * case.run.dt / block_s)) + 1 + lags  # empty slots: no cross-run lags
-        idx = np.arange(case.skip, case.run.n)
-        cid = offset + (idx * case.run.dt / block_s).astype(int)
-        for s in case.signals:
-            if s in COST_SIGNALS:
-                clusters.append(cid)
-        offset += nblk
-    cl = np.concatenate(clusters)
-    G = len(np.unique(cl))
-    p = len(free)
-    H = Jm.T @ Jm
-    Hi = np.linalg.pinv(H)
-    g = np.zeros((offset, p))
-    np.add.at(g, cl, Jm * r0[:, None])
-    meat = g.T @ g
-    # residuals correlated beyond one cluster (a slow limit cycle, model error that follows the sine):
-    # Bartlett-weighted covariances of each cluster with the next ``lags`` ones (Newey-West over clusters);
-    # clusters of different runs are separated by the empty slot at the end of each run's range
-    for lag in range(1, lags + 1):
-        w_l = 1.0 - lag / (lags + 1.0)
-        c = g[:-lag].T @ g[lag:]
-        meat += w_l * (c + c.T)
-    cov = Hi @ meat @ Hi * (G / max(G - p, 1))
-    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    tq = float(student.ppf(0.5 + level / 2.0, max(G - p, 1)))
-    out = {}
-    for fp, ui, si in zip(free, u, sd):
-        v = fp.value(ui)
-        if fp.log:
-            L = math.log(fp.hi) - math.log(fp.lo)
-            lo, hi = v * math.exp(-tq * si * L), v * math.exp(tq * si * L)
-        else:
-            d = tq * si * (fp.hi - fp.lo)
-            lo, hi = v - d, v + d
-        if (fp.effect, fp.name) in STAIRCASE:
-            # the model resolves this number only to a stair (the delay to the integrator's sub-step): values
-            # within one stair of the fit simulate alike, so the data cannot place the truth closer than that
-            res = STAIRCASE[(fp.effect, fp.name)] * min((c.dt for c in rep.cases), default=1e-3) / rep.substeps
-            lo, hi = min(lo, v - res), max(hi, v + res)
-        if fp.effect not in (None, TERM):
-            blo, bhi = get_effect(fp.effect).param(fp.name).bounds
-            lo, hi = max(lo, blo), min(hi, bhi)
-        out[(fp.effect, fp.name)] = (float(lo), float(hi))
-    return out
-
-
-def _value_of(model: ModelSpec, fp: FreeParam) -> float:
-    if fp.effect is None:
-        return model.beta if fp.name == "beta" else model.K
-    if fp.effect == TERM:
-        return model.terms[fp.name]
-    return model.effects[fp.effect][fp.name]
-
-
 def sanity(f: Fit, effect: str) -> str | None:
     """Why the fitted ``effect`` is not physically sane (None when it is): a parameter pinned at a bound of
     its range, a Stribeck breakaway force not above the sliding force."""
@@ -841,6 +500,54 @@ def sanity(f: Fit, effect: str) -> str | None:
         return (f"breakaway force Fs = {vals['Fs']:.4g} N is not above the sliding force Fc = {vals['Fc']:.4g} N: "
                 "Coulomb friction says the same with fewer parameters")
     return None
+
+
+def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cur_val, hyp: str, steps: list,
+                    say) -> tuple:
+    """A structural hypothesis ``hyp`` was kept: each physical effect kept before it is refitted away; when the
+    model without it does as well on the validation data (within :data:`VAL_GAIN`), it stood in for ``hyp``
+    and goes (its step says so).  Returns the model kept (Fit, its simulation of every run, validation cost)."""
+    sims = full.simulate(current.model)
+    for step in [s for s in steps if s.kept and get_effect(s.effect).kind == "physical"]:
+        if step.effect not in current.model.effects:
+            continue
+        effects = {n: dict(p) for n, p in current.model.effects.items() if n != step.effect}
+        fixed = ModelSpec(effects=effects, beta=current.model.beta, K=current.model.K, terms=dict(current.model.terms))
+        free = [fp for n in effects for fp in own_params(n)] + recal_params(effects)
+        g = fit(rep, free, {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}, fixed)
+        gs = full.simulate(g.model)
+        val = _parts_cost(full, gs, parts)
+        if val is not None and cur_val is not None and val <= cur_val * (1.0 + VAL_GAIN):
+            step.kept = False
+            step.reason = (f"stands in for {hyp} ({get_effect(hyp).title}): without it the validation residual is "
+                           f"{val:.3g} noise variances, with it {cur_val:.3g}")
+            say(f"  {step.effect}: dropped ({step.reason})")
+            current, sims, cur_val = g, gs, val
+    return current, sims, cur_val
+
+
+def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
+    """Why ``effect`` (fitted in ``f``) stands in for something else, or None when it is real: its parameters
+    refitted on two separate groups of the fitted runs (:func:`ehas_env.measurement.keeping.run_groups`), with
+    beta and K, do not agree within their 95 % intervals (:func:`ehas_env.measurement.keeping.agree`).
+    With fewer than two closed-loop runs fitted there is nothing to compare: None."""
+    groups = run_groups([c.run.name for c in rep.cases], [c.run.kind for c in rep.cases])
+    if groups is None:
+        return None
+    free = own_params(effect) + recal_params(f.model.effects)
+    start = {(fp.effect, fp.name): _value_of(f.model, fp) for fp in free}
+    ests: dict[str, list] = {}
+    for g in groups:
+        sub = Replayer(Campaign(rep.campaign.path, [rep.cases[i].run for i in g]), substeps=rep.substeps,
+                       model=rep.model)
+        gf = fit(sub, free, start, f.model, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
+        ci = confidence(sub, gf)
+        rep.n_evals += sub.n_evals
+        for fp in free:
+            if fp.effect == effect:
+                ests.setdefault(fp.name, []).append((_value_of(gf.model, fp), ci[(fp.effect, fp.name)]))
+    ok, why = agree(ests)
+    return None if ok else why
 
 
 def _widen(rep: Replayer, f: Fit, effect: str) -> Fit:
@@ -902,16 +609,42 @@ class OpenDiagnosis:
     ci: dict
     proposal: object = None
     validation: dict = field(default_factory=dict)
+    grade: dict = field(default_factory=dict)
     elapsed_s: float = 0.0
     n_evals: int = 0
 
     @property
     def verdict(self) -> str:
-        return "unexplained" if self.unexplained is not None else "explained"
+        """``explained``, ``small structured residual`` or ``unexplained`` (:func:`ehas_env.measurement.verdict.grade`)."""
+        return self.grade["verdict"]
 
     @property
     def unexplained_threshold(self) -> float:
-        return VERDICT_X
+        return self.grade["thresholds"]["unexplained"]
+
+    @property
+    def residual_x_noise(self) -> float:
+        """The residual against what does not repeat (:mod:`ehas_env.measurement.verdict`)."""
+        return self.grade["residual_x_noise"]
+
+    @property
+    def hypothesis(self) -> str | None:
+        """The structural hypothesis in the final model, if one was kept."""
+        return next((n for n in self.model.effects if get_effect(n).kind == "hypothesis"), None)
+
+    def hypothesis_json(self) -> dict | None:
+        """The kept hypothesis: effect, values, 95 % intervals, in words (None when none was kept)."""
+        h = self.hypothesis
+        if h is None:
+            return None
+        cls = get_effect(h)
+        vals = self.model.effects[h]
+        return {"effect": h, "title": cls.title, "words": cls.in_words(vals),
+                "params": {k: _round(v) for k, v in vals.items()},
+                "units": {p.name: p.unit for p in cls.params},
+                "ci95": {n: [_round(lo), _round(hi)] for (e, n), (lo, hi) in self.ci.items() if e == h},
+                "residual_x_noise_before": self.validation.get("residual_x_noise_before_hypotheses"),
+                "residual_x_noise_after": self.residual_x_noise}
 
     @property
     def kept(self) -> list[str]:
@@ -920,7 +653,9 @@ class OpenDiagnosis:
     def to_json(self) -> dict:
         doc = self.first.to_json()
         doc["verdict"] = self.verdict
-        doc["residual_x_noise"] = round(self.cost_all, 3)
+        doc["residual_x_noise"] = self.residual_x_noise
+        doc["residual_x_sensor_noise"] = round(self.cost_all, 3)
+        doc["grade"] = self.grade
         doc["model"] = {"effects": {n: {k: _round(v) for k, v in p.items()} for n, p in self.model.effects.items()},
                         "beta": _round(self.model.beta), "K": _round(self.model.K),
                         "ci95": [{"effect": e or "baseline", "param": n, "value": _round(_value_of(self.model, fp)),
@@ -934,25 +669,15 @@ class OpenDiagnosis:
                          "fit_percent_validation": None if s.fit_val is None else round(s.fit_val, 2)}
                         for s in self.steps]
         doc["validation"] = self.validation
+        doc["hypothesis"] = self.hypothesis_json()
         doc["follows"] = self.follows
         doc["unexplained"] = self.unexplained
         return doc
 
 
-def _unit(effect, name) -> str:
-    if effect is None:
-        return "Pa" if name == "beta" else "LPM/mA"
-    if effect == TERM:
-        from ehas_env.measurement.proposal_terms import term_param
-
-        return term_param(name).unit
-    return get_effect(effect).param(name).unit
-
 
 def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
     """Geometric-mean residual (noise variances) over the samples ``parts`` = {case index: first sample}."""
-    from ehas_env.measurement.replay import COST_SIGNALS
-
     blocks = []
     for i, k0 in parts.items():
         case, sim = rep.cases[i], sims[i]
@@ -968,7 +693,7 @@ def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
 
 
 def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | None = None, holdout=None,
-                  stack: bool = True, propose: bool = True, window_s: float = FIT_WINDOW_S,
+                  stack: bool = True, propose: bool = True, hypotheses: bool = True, window_s: float = FIT_WINDOW_S,
                   progress: bool = False, log=None, model=None) -> OpenDiagnosis:
     """The open-world diagnosis: the best model of the library, then whether it explains the campaign.
 
@@ -976,18 +701,54 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
        fitted on their windows (:func:`windowed`); the validation data are the held-out runs and the
        fitted closed-loop runs beyond their windows.
     2. Rounds of :func:`diagnose`: the best candidate that beats noise is kept when it is physically sane
-       (:func:`sanity`, after widening a range it ran into) and lowers the validation residual by at
-       least :data:`VAL_GAIN` (or, without validation data, on its fit alone); otherwise the next one is
-       judged.  With ``stack`` the kept model is the base of the next round; stacking stops when no
-       candidate passes.
-    3. The verdict on all data (:data:`VERDICT_X`), what the remaining residual follows
-       (:func:`~ehas_env.measurement.residuals.follows`), confidence intervals
-       (:func:`confidence`), and, when unexplained, the missing term proposed
-       (:func:`ehas_env.measurement.proposal.propose`).
+       (:func:`sanity`, after widening a range it ran into), lowers the validation residual by at least
+       :data:`VAL_GAIN` (or, without validation data, on its fit alone) and fits the same on two separate
+       groups of runs (:func:`stands_in`); otherwise the next one is judged.  With ``stack`` the kept model
+       is the base of the next round; stacking stops when no candidate passes.
+    3. The graded verdict on all data (:func:`ehas_env.measurement.verdict.grade`: the residual against what
+       does not repeat from cycle to cycle), what the remaining residual follows
+       (:func:`~ehas_env.measurement.residuals.follows`), confidence intervals (:func:`confidence`), and,
+       when not explained, the missing term proposed (:func:`ehas_env.measurement.proposal.propose`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The measurements (:func:`ehas_env.measurement.campaign.read_campaign`).
+    candidates : list of str, optional
+        Effects to try (default: the library's, :func:`library_effects`).
+    base_effects : dict, optional
+        Effects the model has from the start, {name: {param: value}} (refitted with every candidate).
+    holdout : list of str, optional
+        Names of runs kept out of the fit (default :func:`default_holdout`; ``[]``: none).
+    stack : bool
+        Keep stacking effects while one passes (False: one round).
+    propose : bool
+        Propose the missing term when the verdict is not ``explained``.
+    hypotheses : bool
+        Try the structural hypotheses (:func:`hypothesis_effects`) when the library's effects leave the
+        campaign not explained.
+    window_s : float
+        Seconds of each closed-loop run fitted (:func:`fit_window_samples`).
+    progress : bool
+        Show progress bars.
+    log : callable, optional
+        Called with one line of progress text per step.
+    model : PlantModel or str, optional
+        A model file's rig to diagnose on (docs/model-file.md; default the book's rig).
+
+    Returns
+    -------
+    OpenDiagnosis
+        The rounds, every step judged (kept or not, and why), the final model with confidence intervals,
+        its simulation of every run, ``verdict``, ``residual_x_noise`` and ``grade``, ``unexplained`` (the
+        remaining residual, where and what it follows, the proposal; None when explained), ``elapsed_s``.
+
+    Raises
+    ------
+    ValueError
+        A ``holdout`` name that is no run of the campaign, or every run held out.
     """
     import time as _time
-
-    from ehas_env.measurement.residuals import follows as follows_of
 
     t0 = _time.perf_counter()
     say = log or (lambda msg: None)
@@ -1015,8 +776,15 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     current = None  # Fit on the training data of the model kept so far
     cur_val = None
     cur_sims = None
+    # the library's effects first; then, while the campaign is not explained, the structural hypotheses
+    hyps = [h for h in hypothesis_effects() if h not in base and (candidates is None or h not in candidates)]
+    pool = candidates
+    structural = False
+    before_hyp = None
     while len(rounds) < MAX_ROUNDS:
-        d = diagnose(train_c, base_effects=base, candidates=candidates, progress=progress, replayer=rep)
+        if pool is not None and not [n for n in pool if n not in base]:
+            break  # every hypothesis is in the model
+        d = diagnose(train_c, base_effects=base, candidates=pool, progress=progress, replayer=rep)
         rounds.append(d)
         if current is None:
             current = d.null
@@ -1051,20 +819,37 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             if why is None and val is not None and cur_val is not None and val > cur_val * (1.0 - VAL_GAIN):
                 why = (f"does not lower the residual of the validation data enough ({cur_val:.3g} -> {val:.3g} "
                        "noise variances)")
-            step = Step(effect, why is None, note + (why or "sane, and lowers the residual of the fit and validation data"),
+            if why is None:
+                why = stands_in(rep, f, effect)
+                if why is not None:
+                    note += "stands in for something else: "
+            if get_effect(effect).kind == "hypothesis":
+                note = get_effect(effect).in_words(f.model.effects[effect]) + "; " + note
+            step = Step(effect, why is None, note + (why or "sane, lowers the residual of the fit and validation data, "
+                                                     "and fits the same on separate groups of runs"),
                         f, f.cost, val, fval)
             steps.append(step)
             say(f"  {effect}: {'kept' if step.kept else 'not kept'} ({step.reason})")
             if why is None:
                 kept = (e, f, sims, val)
                 break
-        if kept is None:
+        if kept is not None:
+            e, f, sims, val = kept
+            current, cur_sims, cur_val = f, sims, val
+            base = {k: dict(v) for k, v in f.model.effects.items()}
+            if structural:
+                current, cur_sims, cur_val = _drop_stand_ins(rep, full, parts, current, cur_val, e.effect, steps, say)
+                base = {k: dict(v) for k, v in current.model.effects.items()}
+                # on top of a structural change, the library's effects may now be seen: try them again too
+                pool = list(candidates or library_effects()) + hyps
+        if kept is not None and stack:
+            continue
+        if structural or not hypotheses or not hyps or \
+                grade(blocks_of(full, cur_sims, COST_SIGNALS))["verdict"] == "explained":
             break
-        e, f, sims, val = kept
-        current, cur_sims, cur_val = f, sims, val
-        base = {k: dict(v) for k, v in f.model.effects.items()}
-        if not stack:
-            break
+        say("the library leaves the campaign unexplained: trying the structural hypotheses")
+        before_hyp = grade(blocks_of(full, cur_sims, COST_SIGNALS))["residual_x_noise"]
+        structural, pool = True, hyps
     # the final model on all data
     final = current
     sims_all = cur_sims
@@ -1083,6 +868,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         return full.fit_table([s if i in idx else None for i, s in enumerate(sims)]) if idx else None
 
     validation = {"holdout": held, "fit_window_s": window_s,
+                  "residual_x_noise_before_hypotheses": before_hyp,
                   "fit_runs": [r.name for r in train_runs],
                   "residual_x_noise_validation": None if cur_val is None else round(cur_val, 3)}
     tb, tf = table_on(baseline_all, held_idx), table_on(sims_all, held_idx)
@@ -1094,28 +880,26 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     result = OpenDiagnosis(first=rounds[0], rounds=rounds, steps=steps, model=final.model, fit_train=final,
                            sims_all=sims_all, baseline_all=baseline_all, full=full, train=rep, holdout=held,
                            cost_all=cost_all, run_costs=run_costs, unexplained=None, follows=fol, ci=ci,
-                           validation=validation)
-    if cost_all > VERDICT_X or worst_run[1] > VERDICT_RUN_X:
+                           validation=validation, grade=grade(blocks_of(full, sims_all, COST_SIGNALS)))
+    if result.verdict != "explained":
         where = sorted(((k, v["x_noise"]) for k, v in fol["signals"].items()), key=lambda kv: kv[1], reverse=True)
-        unexplained = {"residual_x_noise": round(cost_all, 3),
-                       "threshold": VERDICT_X, "run_threshold": VERDICT_RUN_X,
-                       "worst_run": {"run": worst_run[0], "residual_x_noise": round(worst_run[1], 3)},
+        g = result.grade
+        unexplained = {"residual_x_noise": g["residual_x_noise"], "structured_db": g["structured_db"],
+                       "threshold": g["thresholds"]["unexplained"], "worst": g["worst"],
+                       "worst_run": {"run": worst_run[0], "residual_x_sensor_noise": round(worst_run[1], 3)},
                        "where": [{"signal": k, "rms_x_noise": v} for k, v in where],
                        "follows": list(fol["follows"]),
                        "follows_shares": fol["follows"],
                        "proposal": None,
                        "text": ""}
         if propose:
-            from ehas_env.measurement import proposal as P
-
             say("proposing the missing term")
             prop = P.propose(rep, final, confidence=confidence)
             if prop is not None:
                 ps = full.simulate(prop.fit.model)
-                after = full.log_cost(ps)
                 val_after = _parts_cost(full, ps, parts)
-                prop.validation = {"residual_x_noise_all_before": round(cost_all, 3),
-                                   "residual_x_noise_all_after": round(after, 3),
+                prop.validation = {"residual_x_noise_all_before": g["residual_x_noise"],
+                                   "residual_x_noise_all_after": grade(blocks_of(full, ps, COST_SIGNALS))["residual_x_noise"],
                                    "fit_percent_all_before": round(full.fit_table(sims_all).overall, 2),
                                    "fit_percent_all_after": round(full.fit_table(ps).overall, 2),
                                    "residual_x_noise_validation_before": None if cur_val is None else round(cur_val, 3),
@@ -1135,11 +919,16 @@ def unexplained_text(res: OpenDiagnosis, u: dict) -> str:
     what = "the baseline" + "".join(f" + {n}" for n in res.model.effects)
     where = ", ".join(f"{w['signal']} {w['rms_x_noise']:.1f}x" for w in u["where"][:3])
     fol = ", ".join(f"{n} ({100 * s:.0f} %)" for n, s in list(u["follows_shares"].items())[:3]) or "no listed quantity"
-    text = (f"unexplained: no effect of the library explains this campaign. The best model found ({what}) leaves "
-            f"residuals at {u['residual_x_noise']:.2f}x the noise variance (geometric mean over runs and signals; "
-            f"clean campaigns stay below {VERDICT_X:g}x), worst run {u['worst_run']['run']} at "
-            f"{u['worst_run']['residual_x_noise']:.2f}x; residual RMS in noise units: {where}. "
-            f"What is left follows {fol}.")
+    w = u["worst"] or {}
+    head = ("unexplained: no effect of the library explains this campaign" if res.verdict == "unexplained" else
+            "small structured residual: the library's model leaves a repeatable residual above what does not repeat, "
+            "but not enough to call the campaign unexplained")
+    text = (f"{head}. The best model found ({what}) leaves residuals at {u['residual_x_noise']:.2f}x what does not "
+            f"repeat from cycle to cycle (sensor noise, disturbances; geometric mean over runs and signals; "
+            f"explained up to {res.grade['thresholds']['explained']:g}x, unexplained above {u['threshold']:g}x"
+            + (f"; structured part {u['structured_db']:+.1f} dB against it" if u["structured_db"] is not None else "")
+            + f"), worst {w.get('signal', '')} in run {w.get('run', '')} at {w.get('residual_x_noise', 0.0):.2f}x; "
+            f"residual RMS in sensor-noise units: {where}. What is left follows {fol}.")
     p = u.get("proposal")
     if p:
         text += (f" Proposed missing term at {', '.join(p['where'])}: {p['equation']}; residual "

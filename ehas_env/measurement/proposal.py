@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ehas_env.measurement import fitting as D
 from ehas_env.measurement.proposal_terms import TERM_CLASSES, term_param
 from ehas_env.measurement.replay import ModelSpec, Replayer
 from ehas_env.physics.rig import BAR, LPM, RigParams
@@ -282,7 +283,6 @@ def propose(rep: Replayer, base, *, confidence=None) -> Proposal | None:
     ``confidence(rep, fit)`` (optional) returns confidence intervals {(effect, name): (lo, hi)}.
     Returns None when no form lowers the residual.
     """
-    from ehas_env.measurement import diagnosis as D
 
     keys = list(FORMS)
     ranges = {k: coefficient_range(k, rep, base.sims) for k in keys}

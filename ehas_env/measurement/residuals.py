@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehas_env.measurement.replay import COST_SIGNALS, UNITS, Replayer
+from ehas_env.measurement.verdict import VERDICT_X
 
 LAGS_MS = (2, 5, 10)
 WHITE_LAGS = 50
@@ -226,8 +227,6 @@ def evidence_text(rep: Replayer, null, entry) -> str:
     if entry is None:
         worst = max(before.values(), key=lambda s: s.ratio)
         what = "baseline" + "".join(f" + {n}" for n in null.model.effects)
-        from ehas_env.measurement.diagnosis import VERDICT_X
-
         if null.cost > VERDICT_X:
             return (f"no effect of the library explains the residual: the recalibrated {what} (beta = "
                     f"{null.model.beta:.3g} Pa, K = {null.model.K:.4g} LPM/mA) leaves residuals at {null.cost:.2f}x "

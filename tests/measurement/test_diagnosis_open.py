@@ -79,8 +79,9 @@ def test_out_of_library_effects_are_unexplained(name, tmp_path):
         print(f"\n{name} {r['hidden']}: {r['verdict']} x{r['residual_x_noise']:.2f}, follows {r['follows']}, "
               f"kept {r['kept']}, proposal {r['proposal']}, after {r['residual_x_noise_after']}")
     for r in recs:
-        assert r["verdict"] == "unexplained", r
-        assert r["residual_x_noise"] > 1.5 and r["follows"], r
+        if r["hypothesis"] is None:  # the library alone: not explained, and what is left is named
+            assert r["verdict"] != "explained", r
+            assert r["residual_x_noise"] > 1.5 and r["follows"], r
         if name == "crank_spring":
             assert r["follows"][0] == "theta", r
             assert r["spring_k"] == pytest.approx(r["hidden"]["k"], rel=0.3), r

@@ -28,7 +28,7 @@ def define(name="decl_spring", params=(K,), main_param="k", body=None, **attrs):
 
 def test_the_library_passes_its_own_rules():
     library = [c for c in REGISTRY.values() if c.__module__.startswith("ehas_env.physics.effects.")]
-    assert len(library) == 13
+    assert len(library) == 16  # 13 effects and 3 structural hypotheses of the diagnosis
     for cls in library:
         cls._check_declaration()
         cls._check_terms()

@@ -47,6 +47,8 @@ _AT_RATES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "i"
 PLACE_QUANTITIES = {place: frozenset(_AT_RATES) for place in PLACES}
 PLACE_QUANTITIES["valve_current"] = frozenset({"i"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
+#: what an effect is (Effect.kind)
+KINDS = ("physical", "recalibration", "hypothesis")
 #: how many numbers a term returns at each place (state_rates: one per state, a number for one state)
 RETURNS = {"chamber_flows": 2}
 #: the only outside names a term's body may use: the compiled model copies the body alone into a module
@@ -162,7 +164,9 @@ class Effect:
     explanation: ClassVar[str] = ""
     signature: ClassVar[str] = ""
     #: "physical" effects are candidates for diagnosis; "recalibration" effects
-    #: (bulk modulus, valve dynamics) re-fit baseline numbers.
+    #: (bulk modulus, valve dynamics) re-fit baseline numbers; "hypothesis" effects open a structural
+    #: constant of the baseline (an area, the return pressure, a gain per direction): the diagnosis tries
+    #: them when the library's effects leave the campaign unexplained.
     kind: ClassVar[str] = "physical"
     #: fixed values the terms read (Param objects; not fitted, not set by users)
     constants: ClassVar[tuple[Param, ...]] = ()
@@ -264,8 +268,8 @@ class Effect:
         for text in ("explanation", "signature", "title"):
             if hasattr(cls, text) and not isinstance(getattr(cls, text), str):
                 raise ValueError(f"{who}: {text} must be a text, got {type(getattr(cls, text)).__name__}")
-        if cls.kind not in ("physical", "recalibration"):
-            raise ValueError(f"{who}: kind must be 'physical' or 'recalibration', got {cls.kind!r}")
+        if cls.kind not in KINDS:
+            raise ValueError(f"{who}: kind must be one of {', '.join(repr(k) for k in KINDS)}, got {cls.kind!r}")
         try:
             cls.validate({p.name: p.default for p in cls.params})
         except ValueError as exc:

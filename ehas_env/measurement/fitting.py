@@ -1,0 +1,417 @@
+"""Fitting a model's numbers to a campaign: free parameters, the bounded least-squares fit, confidence intervals.
+
+The core the diagnosis (:mod:`ehas_env.measurement.diagnosis`), the proposal of
+a missing term (:mod:`ehas_env.measurement.proposal`) and ``ehas compare --fit``
+share.  Each fitted number is mapped to u in [0, 1] over its fit range
+(:class:`FreeParam`); the cost is the geometric mean over runs and signals of
+the noise-normalised mean squared residual (:meth:`Replayer.log_cost`),
+minimised by iteratively reweighted least squares (:func:`fit`); the
+forward-difference Jacobian of both the fit and the confidence intervals is
+:meth:`Objective.jacobian`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ehas_env.measurement.replay import FitTable, ModelSpec, Replayer
+from ehas_env.measurement.proposal_terms import term_param
+from ehas_env.physics.effects import get_effect
+from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
+
+#: recalibration ranges of the baseline's uncertain numbers (relative to nominal).
+#: beta: the reference model's 1e9 Pa is an estimate (oil, air, hoses); K: the
+#: book's identified gain (fit 95.4 %).  Outside these the bulk_modulus and
+#: valve_dynamics effects take over.
+BETA_RANGE = (0.93, 1.07)
+K_RANGE = (0.97, 1.03)
+PENALTY_PER_PARAM = 0.2  # dB per fitted effect parameter
+MIN_SCORE = 0.3  # dB: a candidate must remove at least 7 % of the null model's residual energy ...
+MIN_GAIN = 0.05  # ... and at least this many noise variances per sample, to beat noise
+SCAN_POINTS = 7
+IRLS_ROUNDS = 2  # reweighting rounds of the least-squares fit of the log cost
+SKIP_MARGIN = 0.002  # a scan must beat the null model by this fraction to be fitted further
+SCREEN_NFEV = 8  # least-squares steps per parameter when screening a candidate
+MAX_NFEV = 15  # ... when refining one (each step also costs one replay per parameter)
+
+#: FreeParam.effect of a proposed term's coefficient (ehas_env.measurement.proposal_terms)
+TERM = "proposal"
+
+
+@dataclass(frozen=True)
+class FreeParam:
+    """One fitted number, mapped to u in [0, 1] over its fit range (log where it spans decades)."""
+
+    effect: str | None  # None: the baseline's beta / K
+    name: str
+    lo: float
+    hi: float
+    log: bool
+    step: float = 2e-3  # finite-difference step in u
+
+    def value(self, u: float) -> float:
+        u = min(max(float(u), 0.0), 1.0)
+        if self.log:
+            v = math.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo)))
+        else:
+            v = self.lo + u * (self.hi - self.lo)
+        return float(min(max(v, self.lo), self.hi))  # rounding must not leave the bounds
+
+    def u(self, value: float) -> float:
+        v = min(max(float(value), self.lo), self.hi)
+        if self.log:
+            return (math.log(v) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
+        return (v - self.lo) / (self.hi - self.lo)
+
+
+def reopens_baseline(effect: str) -> bool:
+    """Whether ``effect`` re-opens the baseline's numbers over their full ranges (its ``kind`` is
+    ``"recalibration"``: bulk_modulus for beta, valve_dynamics for the valve's K, wn, zeta)."""
+    return get_effect(effect).kind == "recalibration"
+
+
+def fit_range(effect: str, pname: str) -> FreeParam:
+    """The range a parameter is fitted over: its typical range widened 4x (1.6x for the strongly acting
+    recalibrations), inside its bounds."""
+    p = get_effect(effect).param(pname)
+    blo, bhi = p.bounds
+    tlo, thi = p.typical or p.bounds
+    if blo < 0.0:  # signed (null bias): symmetric
+        m = min(4.0 * max(abs(tlo), abs(thi)), bhi, -blo)
+        return FreeParam(effect, pname, -m, m, False, _step(effect, pname))
+    lo = max(blo, tlo / 4.0) if tlo > 0 else blo
+    hi = min(bhi, thi * 4.0)
+    if reopens_baseline(effect) or (effect, pname) == ("supply_droop", "p0"):
+        # recalibrations and the precharge act strongly (the loop's stability hangs on beta and wn):
+        # a narrower range, scanned finely enough to land in the valley
+        lo, hi = max(blo, tlo / 1.6), min(bhi, thi * 1.6)
+    log = lo > 0 and hi / lo >= 8.0
+    return FreeParam(effect, pname, lo, hi, log, _step(effect, pname))
+
+
+#: numbers the model resolves in stairs, in integrator sub-steps: the delay is a whole number of sub-steps
+STAIRCASE = {("transport_delay", "tau"): 1.0}
+
+
+def _step(effect: str, pname: str) -> float:
+    # the delay acts at the integrator's sub-step resolution (0.1 ms): a staircase
+    # cost, so its derivative needs a step spanning several stairs
+    return 0.03 if (effect, pname) == ("transport_delay", "tau") else 2e-3
+
+
+def baseline_params() -> list[FreeParam]:
+    return [FreeParam(None, "beta", BULK_MODULUS * BETA_RANGE[0], BULK_MODULUS * BETA_RANGE[1], False),
+            FreeParam(None, "K", VALVE_K * K_RANGE[0], VALVE_K * K_RANGE[1], False)]
+
+
+def start_value(fp: FreeParam) -> float:
+    """Middle of the typical range (geometric on log scale), the fit's start."""
+    if fp.effect is None:
+        return BULK_MODULUS if fp.name == "beta" else VALVE_K
+    p = get_effect(fp.effect).param(fp.name)
+    tlo, thi = p.typical or (fp.lo, fp.hi)
+    if fp.lo < 0:
+        return 0.5 * (tlo + thi)
+    return math.sqrt(tlo * thi) if fp.log and tlo > 0 else 0.5 * (tlo + thi)
+
+
+@dataclass
+class Fit:
+    """A fitted model."""
+
+    model: ModelSpec
+    cost: float
+    free: list[FreeParam]
+    sims: list
+    table: FitTable
+    nfev: int = 0
+
+
+class Objective:
+    """The fit's residuals as a function of u (the free parameters mapped to [0, 1]), memoised.
+
+    One place for the models a fit simulates: a set of u is replayed together
+    (:meth:`Replayer.simulate_many`), and the forward-difference Jacobian used by
+    :func:`fit` and :func:`confidence` is :meth:`jacobian`.
+
+    Parameters
+    ----------
+    rep : Replayer
+        The campaign replayed.
+    free : list of FreeParam
+        The fitted numbers.
+    fixed : ModelSpec, optional
+        Everything else of the model.
+    """
+
+    def __init__(self, rep: Replayer, free: list[FreeParam], fixed: ModelSpec | None = None):
+        self.rep, self.free, self.fixed = rep, free, fixed
+        self.memo: dict[bytes, tuple] = {}
+
+    def model(self, u) -> ModelSpec:
+        """The model at ``u``."""
+        return model_from(self.free, {(fp.effect, fp.name): fp.value(x) for fp, x in zip(self.free, u)}, self.fixed)
+
+    def blocks(self, U) -> list:
+        """Noise-normalised residual blocks (:meth:`Replayer.cost_blocks`) at every u of ``U``."""
+        U = [np.asarray(u, dtype=float) for u in U]
+        todo = [u for u in U if u.tobytes() not in self.memo]
+        if todo:
+            for u, sims in zip(todo, self.rep.simulate_many([self.model(u) for u in todo])):
+                self.memo[u.tobytes()] = (self.rep.cost_blocks(sims), sims)
+        return [self.memo[u.tobytes()][0] for u in U]
+
+    def sims(self, u) -> list:
+        """The simulated runs at ``u``."""
+        self.blocks([u])
+        return self.memo[np.asarray(u, dtype=float).tobytes()][1]
+
+    def cost(self, u) -> float:
+        """Geometric mean over (run, signal) blocks (see :meth:`Replayer.log_cost`)."""
+        b = self.blocks([u])[0]
+        n = sum(x.size for x in b)
+        return float(np.exp(sum(x.size * np.log(max(float(np.dot(x, x)) / x.size, 1e-300)) for x in b) / n))
+
+    def weights(self, u) -> list[float]:
+        """Each block's weight at ``u``: 1 / its RMS (the log cost's gradient there)."""
+        return [1.0 / math.sqrt(max(float(np.dot(x, x)) / x.size, 1e-12)) for x in self.blocks([u])[0]]
+
+    def weighted(self, u, w) -> np.ndarray:
+        """The residual vector at ``u``, block k weighted by ``w[k]``."""
+        return np.concatenate([wi * x for wi, x in zip(w, self.blocks([u])[0])])
+
+    def jacobian(self, u, w) -> np.ndarray:
+        """Forward-difference Jacobian of :meth:`weighted` at ``u`` (steps toward the inside of [0, 1])."""
+        u = np.asarray(u, dtype=float)
+        f0 = self.weighted(u, w)
+        U, H = [], []
+        for i, fp in enumerate(self.free):
+            h = fp.step if u[i] + fp.step <= 1.0 else -fp.step
+            du = u.copy()
+            du[i] += h
+            U.append(du)
+            H.append(h)
+        self.blocks(U)
+        return np.column_stack([(self.weighted(du, w) - f0) / h for du, h in zip(U, H)])
+
+
+def model_from(free: list[FreeParam], values: dict, fixed: ModelSpec | None = None) -> ModelSpec:
+    """``fixed`` (effects, beta, K) with the free values {(effect, name): value} set."""
+    fixed = fixed or ModelSpec()
+    effects = {n: dict(p) for n, p in fixed.effects.items()}
+    terms = dict(fixed.terms)
+    beta, K = fixed.beta, fixed.K
+    for fp in free:
+        v = values[(fp.effect, fp.name)]
+        if fp.effect is None:
+            if fp.name == "beta":
+                beta = v
+            else:
+                K = v
+        elif fp.effect == TERM:
+            terms[fp.name] = v
+        else:
+            effects.setdefault(fp.effect, {})[fp.name] = v
+    st = effects.get("stribeck_friction")
+    if st and "Fs" in st and "Fc" in st and st["Fs"] < st["Fc"]:
+        # Stribeck friction keeps its definition (breakaway at or above sliding, Fs >= Fc; the effect
+        # refuses less): where the fit wanders below, the breakaway sits at the sliding level
+        effects["stribeck_friction"] = {**st, "Fs": st["Fc"]}
+    return ModelSpec(effects=effects, beta=beta, K=K, terms=terms)
+
+
+def scan_values(fp: FreeParam) -> list[float]:
+    """Values of a parameter tried before fitting: log- or linearly spaced over its fit range;
+    a signed parameter (null bias) gets both signs of log-spaced magnitudes."""
+    if fp.effect == TERM:  # a proposed term's coefficient: both signs, magnitudes over three decades
+        mags = np.geomspace(1e-3 * fp.hi, fp.hi, 5)
+        return sorted([float(-m) for m in mags] + [float(m) for m in mags])
+    if fp.lo < 0.0:
+        p = get_effect(fp.effect).param(fp.name)
+        small = max(min(abs(x) for x in p.typical) / 4.0, 1e-3 * fp.hi) if p.typical else 1e-3 * fp.hi
+        mags = np.geomspace(small, fp.hi, (SCAN_POINTS + 3) // 2)
+        return sorted([float(-m) for m in mags] + [float(m) for m in mags])
+    if fp.log:
+        return [float(v) for v in np.geomspace(fp.lo, fp.hi, SCAN_POINTS)]
+    return [float(v) for v in np.linspace(fp.lo, fp.hi, SCAN_POINTS)]
+
+
+def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | None = None, *,
+        scan: FreeParam | None = None, max_nfev: int = MAX_NFEV, tol: float = 1e-4,
+        null_cost: float | None = None) -> Fit:
+    """Fit the ``free`` parameters from ``start``: a scan of ``scan`` first, then bounded least squares.
+
+    Works in u in [0, 1] per parameter; the Jacobian is a forward difference whose
+    perturbed models are simulated together (:meth:`Replayer.simulate_many`).
+    With ``null_cost``, a candidate whose scan never beats it is not fitted further
+    (it explains nothing anywhere in its range; its best scan point is returned).
+    """
+    u0 = np.array([fp.u(start[(fp.effect, fp.name)]) for fp in free])
+    evals0 = rep.n_evals
+    obj = Objective(rep, free, fixed)
+    blocks, cost = obj.blocks, obj.cost
+
+    def result(u) -> Fit:
+        u = np.asarray(u, dtype=float)
+        sims = obj.sims(u)
+        return Fit(model=obj.model(u), cost=cost(u), free=free, sims=sims, table=rep.fit_table(sims),
+                   nfev=rep.n_evals - evals0)
+
+    if scan is not None:
+        k = free.index(scan)
+        grid = []
+        for value in scan_values(scan):
+            u = u0.copy()
+            u[k] = scan.u(value)
+            grid.append(u)
+        blocks(grid)
+        costs = [cost(u) for u in grid]
+        best = int(np.argmin(costs))
+        if null_cost is not None and costs[best] >= null_cost * (1.0 - SKIP_MARGIN):
+            return result(grid[best])
+        # zoom: a finer scan between the best point's neighbours
+        left = grid[max(best - 1, 0)][k]
+        right = grid[min(best + 1, len(grid) - 1)][k]
+        fine = []
+        for x in np.linspace(left, right, 6)[1:-1]:
+            u = grid[best].copy()
+            u[k] = x
+            fine.append(u)
+        blocks(fine)
+        u0 = min(grid + fine, key=cost)
+    # iteratively reweighted least squares for the log cost: each block weighted by its
+    # residual level at the round's start point (the log cost's gradient there)
+    u_ref = np.clip(u0, 0.0, 1.0)
+    for _ in range(IRLS_ROUNDS):
+        w = obj.weights(u_ref)
+
+        def fun(u, w=w):
+            return obj.weighted(u, w)
+
+        def jac(u, w=w):
+            return obj.jacobian(u, w)
+
+        res = least_squares(fun, u_ref, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
+                            max_nfev=max(max_nfev // IRLS_ROUNDS, 3), xtol=tol, ftol=tol, gtol=1e-8)
+        u_new = np.asarray(res.x, dtype=float)
+        if cost(u_new) >= cost(u_ref):
+            break
+        u_ref = u_new
+    return result(u_ref)
+
+
+def own_params(effect: str) -> list[FreeParam]:
+    return [fit_range(effect, p.name) for p in get_effect(effect).params]
+
+
+def recal_params(effects) -> list[FreeParam]:
+    """beta and K, unless an effect in ``effects`` (bulk_modulus, valve_dynamics) sets them itself."""
+    taken = set()
+    if "bulk_modulus" in effects:
+        taken.add("beta")
+    if "valve_dynamics" in effects:
+        taken.add("K")
+    return [fp for fp in baseline_params() if fp.name not in taken]
+
+
+
+CI_BLOCK_S = 0.25  # clusters of the confidence intervals: stretches of this length of each run ...
+CI_LAGS = 0  # ... whose covariance with this many following clusters of the same run is counted too
+
+
+def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float | None = None,
+               lags: int | None = None) -> dict:
+    """Confidence intervals of every fitted number of ``f``: {(effect, name): (low, high)}.
+
+    The covariance is the cluster-robust ("sandwich") estimate of the weighted least-squares fit,
+    H^-1 (sum_c g_c g_c^T) H^-1 with H = J^T J and g_c the gradient of cluster c, the clusters being
+    ``block_s`` stretches of each run (all its signals together): it holds when the residual is
+    coloured and correlated across signals, and when part of it is model error rather than noise.
+    Intervals use Student's t with (clusters - parameters) degrees of freedom; log-scaled
+    parameters get multiplicative intervals.
+    """
+    from scipy.stats import t as student
+
+    from ehas_env.measurement.replay import COST_SIGNALS
+
+    block_s = CI_BLOCK_S if block_s is None else block_s
+    lags = CI_LAGS if lags is None else lags
+    free = f.free
+    if not free:
+        return {}
+    u = np.array([fp.u(_value_of(f.model, fp)) for fp in free])
+
+    obj = Objective(rep, free, f.model)
+    w = obj.weights(u)
+    r0 = obj.weighted(u, w)
+    Jm = obj.jacobian(u, w)
+    sims0 = obj.sims(u)
+    clusters = []
+    offset = 0
+    for case, sim in zip(rep.cases, sims0):
+        if sim is None:
+            continue
+        nblk = int(math.ceil(case.run.n * case.run.dt / block_s)) + 1 + lags  # empty slots: no cross-run lags
+        idx = np.arange(case.skip, case.run.n)
+        cid = offset + (idx * case.run.dt / block_s).astype(int)
+        for s in case.signals:
+            if s in COST_SIGNALS:
+                clusters.append(cid)
+        offset += nblk
+    cl = np.concatenate(clusters)
+    G = len(np.unique(cl))
+    p = len(free)
+    H = Jm.T @ Jm
+    Hi = np.linalg.pinv(H)
+    g = np.zeros((offset, p))
+    np.add.at(g, cl, Jm * r0[:, None])
+    meat = g.T @ g
+    # residuals correlated beyond one cluster (a slow limit cycle, model error that follows the sine):
+    # Bartlett-weighted covariances of each cluster with the next ``lags`` ones (Newey-West over clusters);
+    # clusters of different runs are separated by the empty slot at the end of each run's range
+    for lag in range(1, lags + 1):
+        w_l = 1.0 - lag / (lags + 1.0)
+        c = g[:-lag].T @ g[lag:]
+        meat += w_l * (c + c.T)
+    cov = Hi @ meat @ Hi * (G / max(G - p, 1))
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    tq = float(student.ppf(0.5 + level / 2.0, max(G - p, 1)))
+    out = {}
+    for fp, ui, si in zip(free, u, sd):
+        v = fp.value(ui)
+        if fp.log:
+            L = math.log(fp.hi) - math.log(fp.lo)
+            lo, hi = v * math.exp(-tq * si * L), v * math.exp(tq * si * L)
+        else:
+            d = tq * si * (fp.hi - fp.lo)
+            lo, hi = v - d, v + d
+        if (fp.effect, fp.name) in STAIRCASE:
+            # the model resolves this number only to a stair (the delay to the integrator's sub-step): values
+            # within one stair of the fit simulate alike, so the data cannot place the truth closer than that
+            res = STAIRCASE[(fp.effect, fp.name)] * min((c.dt for c in rep.cases), default=1e-3) / rep.substeps
+            lo, hi = min(lo, v - res), max(hi, v + res)
+        if fp.effect not in (None, TERM):
+            blo, bhi = get_effect(fp.effect).param(fp.name).bounds
+            lo, hi = max(lo, blo), min(hi, bhi)
+        out[(fp.effect, fp.name)] = (float(lo), float(hi))
+    return out
+
+
+def _value_of(model: ModelSpec, fp: FreeParam) -> float:
+    if fp.effect is None:
+        return model.beta if fp.name == "beta" else model.K
+    if fp.effect == TERM:
+        return model.terms[fp.name]
+    return model.effects[fp.effect][fp.name]
+
+
+
+def _unit(effect, name) -> str:
+    if effect is None:
+        return "Pa" if name == "beta" else "LPM/mA"
+    if effect == TERM:
+        return term_param(name).unit
+    return get_effect(effect).param(name).unit
