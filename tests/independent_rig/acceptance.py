@@ -208,13 +208,9 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
 
 
 def _fit_lines(text: str) -> dict:
-    """``signal  before  after`` rows of compare's fit % table (when compare has no --json)."""
-    out = {}
-    for line in text.splitlines():
-        m = re.match(r"^(\w+)\s+(-?[\d.]+)\s+(-?[\d.]+)\s*$", line.strip())
-        if m:
-            out[m.group(1)] = [float(m.group(2)), float(m.group(3))]
-    return out
+    """compare's ``overall fit: A % -> B %`` line (when compare has no --json): fit % before and after."""
+    m = re.search(r"overall fit: (-?[\d.]+) % -> (-?[\d.]+) %", text)
+    return {"overall_fit_percent": [float(m.group(1)), float(m.group(2))]} if m else {}
 
 
 def library_found(truth: dict, kept_params: dict) -> dict:

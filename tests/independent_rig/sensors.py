@@ -25,7 +25,14 @@ from .rig import Rig
 
 
 def _quantize(x, step: float):
+    """x rounded to a multiple of step (a converter); step 0 (0 bits): unchanged."""
+    if step <= 0.0:
+        return np.asarray(x, float)
     return step * np.floor(np.asarray(x, float) / step + 0.5)
+
+
+def _step(span: float, bits: int) -> float:
+    return span / 2 ** bits if bits else 0.0
 
 
 @dataclass(frozen=True)
@@ -41,9 +48,9 @@ class Chain:
     flow_noise_lpm : float
         Std of the flow meter's noise, LPM.
     adc_bits : int
-        ADC resolution, bits.
+        ADC resolution, bits (0: none).
     dac_bits : int
-        Current-output resolution over +-20 mA, bits.
+        Current-output resolution over +-20 mA, bits (0: none).
     """
 
     lvdt_noise_m: float = 9.0e-6
@@ -52,24 +59,30 @@ class Chain:
     adc_bits: int = 16
     dac_bits: int = 12
 
+    @classmethod
+    def ideal(cls) -> "Chain":
+        """No noise, no converters."""
+        return cls(0.0, 0.0, 0.0, 0, 0)
+
     def to_dict(self) -> dict:
         return asdict(self)
 
     def angle(self, theta_deg: float, rig: Rig, rng: np.random.Generator) -> float:
         """The logged (and controller's) crank angle: noisy, quantized LVDT position, then asin(x/r), deg."""
-        x = rig.radius * math.sin(math.radians(theta_deg)) + rng.normal(0.0, self.lvdt_noise_m)
-        step = 2.0 * rig.half_stroke / 2 ** self.adc_bits
-        x = float(_quantize(x, step))
+        x = rig.radius * math.sin(math.radians(theta_deg))
+        if self.lvdt_noise_m:
+            x += rng.normal(0.0, self.lvdt_noise_m)
+        x = float(_quantize(x, _step(2.0 * rig.half_stroke, self.adc_bits)))
         return math.degrees(math.asin(max(-1.0, min(1.0, x / rig.radius))))
 
     def dac(self, current_mA: float) -> float:
         """The controller's command after the DAC, mA."""
-        return float(_quantize(current_mA, 40.0 / 2 ** self.dac_bits))
+        return float(_quantize(current_mA, _step(40.0, self.dac_bits)))
 
     def pressure(self, p_bar: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         y = np.asarray(p_bar, float) + rng.normal(0.0, self.pressure_noise_bar, np.shape(p_bar))
-        return _quantize(y, 400.0 / 2 ** self.adc_bits)
+        return _quantize(y, _step(400.0, self.adc_bits))
 
     def flow(self, q_lpm: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         y = np.asarray(q_lpm, float) + rng.normal(0.0, self.flow_noise_lpm, np.shape(q_lpm))
-        return _quantize(y, 80.0 / 2 ** self.adc_bits)
+        return _quantize(y, _step(80.0, self.adc_bits))
