@@ -40,8 +40,10 @@ from .effects import ALL, LIBRARY
 from .judge import effect_file_items, judge, kept_effects, named_items, proposal
 
 ROOT = Path(__file__).resolve().parents[2]
-#: first guesses of each step's time (s) for the estimate printed up front; replaced by measured means
-GUESS = {"generate": 4.0, "diagnose": 120.0, "compare": 60.0}
+#: first guesses of a case's time (s) per group, 3 s runs (x5 for 30 s runs), for the estimate printed up front;
+#: replaced by the measured means of finished cases.  ool/pairs: the compare compiles a model with the effect file;
+#: timing: each diagnosis compiles from an empty cache.
+GUESS = {"clean": 20.0, "library": 40.0, "ool": 200.0, "pairs": 250.0, "timing": 250.0}
 THRESHOLDS = {"residual_after_x_noise": 2.0, "residual_after_share": 0.80, "spurious_share": 0.05,
               "main_param_rel": 0.30, "median_elapsed_s": 60.0, "ratio_30s_3s": 2.0}
 
@@ -307,6 +309,15 @@ def readme(recs: list[dict], summ: dict, caps: dict, command: str) -> str:
          "(diagnosed with `--model`).  `results.json` holds every number; `diag/ID.json` each diagnosis, "
          "`effects/` each effect file `--write-effect` wrote.", "",
          f"ehas options found: {', '.join(f'{k} {v}' for k, v in caps.items())}.", ""]
+    full = all_cases(False)
+    have = {r["id"] for r in recs}
+    missing = {}
+    for c in full:
+        if c["id"] not in have:
+            missing[c["group"]] = missing.get(c["group"], 0) + 1
+    L += [f"Cases here: {len(have)}; of the full set ({len(full)} cases) not yet run: "
+          + (", ".join(f"{g} {n}" for g, n in missing.items()) or "none")
+          + ".  Figures below are over the cases here only.", ""]
     L += ["## Summary against the acceptance thresholds", ""]
     o = summ.get("ool")
     if o:
@@ -374,18 +385,13 @@ def readme(recs: list[dict], summ: dict, caps: dict, command: str) -> str:
 
 
 def estimate(todo: list[dict], done: list[dict]) -> float:
-    mean = dict(GUESS)
-    for key, step in (("generate", "generate_s"), ("diagnose", "diagnose_wall_s"), ("compare", "compare_wall_s")):
-        xs = [r["steps"][step] for r in done if step in r.get("steps", {}) and r["duration"] == 3.0]
-        if xs:
-            mean[key] = sum(xs) / len(xs)
+    """Seconds the cases ``todo`` will take: the mean time of finished cases of the same group and run length,
+    else :data:`GUESS` (measured on a loaded 2-core machine)."""
     total = 0.0
     for c in todo:
-        f = c["duration"] / 3.0
-        total += mean["generate"] * f + mean["diagnose"] * (1.0 if f == 1 else 0.6 * f) + (
-            mean["compare"] if c["group"] in ("ool", "pairs") else 0.0)
-        if c["group"] == "timing":
-            total += 90.0  # the cold compile
+        same = [r["steps"]["total_s"] for r in done if r.get("group") == c["group"]
+                and r.get("duration") == c["duration"] and "total_s" in r.get("steps", {})]
+        total += sum(same) / len(same) if same else GUESS[c["group"]] * (1.0 if c["duration"] <= 3.0 else 5.0)
     return total
 
 
@@ -418,8 +424,8 @@ def main(argv=None) -> int:
         todo = todo[:a.limit]
     est = estimate(todo, done)
     print(f"[acceptance] {len(cases)} cases selected, {len(cases) - len(todo)} done already, {len(todo)} to run; "
-          f"estimated {est / 60:.0f} min at about {GUESS['diagnose']:.0f} s per diagnosis "
-          f"(measured means replace the guesses once cases are done); options: {caps}", flush=True)
+          f"estimated {est / 60:.0f} min (per case: {', '.join(f'{g} {v:.0f} s' for g, v in GUESS.items())} "
+          f"for 3 s runs, until measured); options: {caps}", flush=True)
     t_start = time.time()
     try:
         for n, c in enumerate(todo, 1):
