@@ -423,7 +423,8 @@ def main(argv=None) -> int:
     if a.limit:
         todo = todo[:a.limit]
     est = estimate(todo, done)
-    print(f"[acceptance] {len(cases)} cases selected, {len(cases) - len(todo)} done already, {len(todo)} to run; "
+    print(f"[acceptance] {len(cases)} cases selected, {sum(1 for c in cases if c['id'] in done_files)} done already, "
+          f"{len(todo)} to run; "
           f"estimated {est / 60:.0f} min (per case: {', '.join(f'{g} {v:.0f} s' for g, v in GUESS.items())} "
           f"for 3 s runs, until measured); options: {caps}", flush=True)
     t_start = time.time()
@@ -443,7 +444,9 @@ def main(argv=None) -> int:
             done.append(rec)
     except KeyboardInterrupt:
         print("[acceptance] interrupted: finished cases are kept; rerun the same command to resume", flush=True)
-    order = {c["id"]: i for i, c in enumerate(all_cases(False, a.timing_repeats) + all_cases(True, 1))}
+    order = {}
+    for c in all_cases(False, a.timing_repeats) + all_cases(True, 1):
+        order.setdefault(c["id"], len(order))
     recs = sorted({r["id"]: r for r in (json.loads(p.read_text()) for p in (out / "cases").glob("*.json"))}.values(),
                   key=lambda r: order.get(r["id"], 1e9))
     summ = summarise(recs)
