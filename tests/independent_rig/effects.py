@@ -100,7 +100,7 @@ OUT_OF_LIBRARY = {e.name: e for e in (
                "the outflow land discharges to p_t instead of 0: Q_out = q_c sqrt((P_out - p_t) / (dp_n / 2))",
                accept=("leakage/flow",), bench=True),
     EffectSpec("entrained_air", "fluid property",
-               (P("eps", "%", 1e-2, (0.5, 2.0), "free air volume fraction at 1 bar"),),
+               (P("eps", "%", 1e-2, (3.0, 10.0), "free air volume fraction at 1 bar"),),
                "Merritt §2.3 (effective bulk modulus with entrained air); Jelali & Kroll §3.3",
                "pressure-dependent bulk modulus: 1/beta_e = (1 - a)/beta + a/(1.4 p), air fraction "
                "a = eps (1 bar / p)^(1/1.4) / (1 + eps (1 bar / p)^(1/1.4)), per chamber",
