@@ -107,8 +107,9 @@ OUT_OF_LIBRARY = {e.name: e for e in (
                accept=("fluid property", "compliance"),
                why="a softer oil column is a compliance of the hydraulic spring"),
     EffectSpec("load_compliance", "compliance",
-               (P("k", "N/mm", 1e3, (8000.0, 2500.0), "stiffness of the load path between piston and crank "
-                                                     "(rod, eye, mounting)"),),
+               (P("k", "N/mm", 1e3, (80000.0, 25000.0), "stiffness of the load path between piston and crank "
+                                                       "(rod, eye, mounting); below about 15000 N/mm the series "
+                                                       "resonance with 7 sets destabilises the book's controller"),),
                "Merritt §6.5 (structural compliance between actuator and load); Jelali & Kroll §3.5",
                "the piston (5 kg) and the crank are two bodies joined by a spring k with damping "
                "c = 0.2 x 2 sqrt(k m): the LVDT reads the piston",
@@ -133,7 +134,8 @@ OUT_OF_LIBRARY = {e.name: e for e in (
                "the valve's no-load flow settles to K i (1 + g sign(i))",
                accept=("valve",), bench=True),
     EffectSpec("valve_underlap", "valve",
-               (P("u0", "LPM", 1e-3 / 60, (0.6, 1.8), "underlap of each land, as no-load flow at the rated drop"),),
+               (P("u0", "LPM", 1e-3 / 60, (0.3, 0.7), "underlap of each land, as no-load flow at the rated drop "
+                                                   "(from about 1 LPM the book's controller limit-cycles with 7 sets)"),),
                "Merritt §5.4 (underlapped four-way valve); Jelali & Kroll §3.2 (leakage around null)",
                "each land opens by u0 at null: P->A max(u0 + q_c, 0), A->T max(u0 - q_c, 0), same for B; "
                "every land by the square root of its drop",
