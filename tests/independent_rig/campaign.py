@@ -1,0 +1,178 @@
+"""A campaign of the independent rig, written in the measurement format (docs/measurement-format.md).
+
+A campaign is the one a test engineer runs (the plan of ``ehas simulate-campaign``,
+read from ehas_env/measurement/synthetic.py, not imported): four closed-loop
+sine runs over disc sets, amplitudes and frequencies, and a valve chirp
+(0.5 -> 30 Hz log sweep, 8 mA, on the 70 bar flow bench).  Each run is
+``RUN.csv`` + ``RUN.json``; ``truth.json`` (which campaign readers skip: a
+``.json`` without its ``.csv``) records what was simulated.
+
+Run as a script to write one::
+
+    python -m tests.independent_rig.campaign OUT --effects return_pressure:p_t=10 --seed 3 [--rig rig_b]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .effects import ALL, to_si
+from .rig import Rig, book_rig, read_rig
+from .sensors import Chain
+from .simulate import DT, chirp, closed_loop, valve_bench
+
+PLAN = ((3, 20.0, 1.0), (5, 30.0, 2.0), (1, 35.0, 3.0), (7, 10.0, 3.0))  # (disc sets, amplitude deg, Hz)
+DURATION = 3.0  # s per run
+CHIRP = (0.5, 30.0, 8.0)  # Hz, Hz, mA
+BENCH_SUPPLY_BAR = 70.0  # the valve's rated test (docs/rig.md)
+#: rig geometries beside the book's, as model files (docs/model-file.md)
+RIGS_DIR = Path(__file__).parent / "rigs"
+#: beta and K as a real rig differs from its nominal numbers: +-5 % and +-1 % (the package's own
+#: recalibration ranges are +-7 % and +-3 %)
+BETA_SPREAD, K_SPREAD = 0.05, 0.01
+COLUMNS = ("t", "current_mA", "theta_deg", "theta_ref_deg", "flow_lpm", "p_a_bar", "p_b_bar", "p_s_bar", "load_kN")
+
+
+def rig_named(name: str) -> tuple:
+    """(Rig, model file path or None) for ``book`` or a file stem of :data:`RIGS_DIR`."""
+    if name in ("book", "", None):
+        return book_rig(), None
+    path = RIGS_DIR / f"{name}.json"
+    return read_rig(path), path
+
+
+def run_name(sets: int, amp: float, freq: float) -> str:
+    s = "1set" if sets == 1 else f"{sets}sets"
+    return f"cl_{s}_{amp:g}deg_{freq:g}hz".replace(".", "p")
+
+
+def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", duration: float = DURATION,
+             plan=PLAN, perturb: bool = True, valve: bool = True, chain: Chain | None = None, progress=None):
+    """Simulate a campaign in memory.
+
+    Parameters
+    ----------
+    effects : dict
+        Hidden effects ``{name: {param: value in its unit}}`` (:mod:`.effects`).
+    seed : int
+        Seeds the noise and the perturbation of beta and K.
+    rig : str
+        ``book`` or a model file stem in ``rigs/``.
+    duration : float
+        Seconds per run.
+    plan : sequence of (disc_sets, amplitude_deg, freq_hz)
+        The closed-loop runs.
+    perturb : bool
+        Draw beta within +-5 % and K within +-1 % of the rig's numbers.
+    valve : bool
+        Add the valve chirp.
+    chain : Chain, optional
+        Measurement chain.
+    progress : callable, optional
+        ``progress(text)`` after each run.
+
+    Returns
+    -------
+    runs : list of (name, columns, sidecar)
+    truth : dict
+    """
+    base, path = rig_named(rig)
+    chain = chain or Chain()
+    rng = np.random.default_rng(seed)
+    fb = 1.0 + (rng.uniform(-BETA_SPREAD, BETA_SPREAD) if perturb else 0.0)
+    fk = 1.0 + (rng.uniform(-K_SPREAD, K_SPREAD) if perturb else 0.0)
+    actual: Rig = base.with_(beta=base.beta * fb, K=base.K * fk)
+    eff_si = to_si(effects or {})
+    runs = []
+    for sets, amp, freq in plan:
+        t0 = time.time()
+        # the controller's gains are the nominal rig's (the engineer tuned on the model file), not the actual's
+        cols, _, meta = closed_loop(actual, int(sets), float(amp), float(freq), duration, eff_si, chain, rng,
+                                    gains=base.controller_gains())
+        meta["notes"] = f"independent generator (tests/independent_rig), seed {seed}"
+        runs.append((run_name(sets, amp, freq), cols, meta))
+        if progress:
+            progress(f"{runs[-1][0]} {time.time() - t0:.1f} s")
+    if valve:
+        n = int(round(duration / DT))
+        cmd = np.array([chain.dac(c) for c in chirp(n, *CHIRP)])
+        cols, meta = valve_bench(actual, cmd, BENCH_SUPPLY_BAR, eff_si, chain, rng)
+        meta["notes"] = f"valve chirp {CHIRP[0]:g}-{CHIRP[1]:g} Hz, {CHIRP[2]:g} mA, flow bench (seed {seed})"
+        runs.append(("valve_chirp", cols, meta))
+    truth = {"generator": "tests/independent_rig", "effects": effects or {},
+             "kinds": {n: ALL[n].kind for n in (effects or {})},
+             "rig": rig, "model_file": str(path.name) if path else None,
+             "beta_Pa": actual.beta, "K_lpm_per_mA": actual.K / (1e-3 / 60), "seed": seed, "perturb": perturb,
+             "duration_s": duration, "plan": [list(p) for p in plan], "chain": chain.to_dict()}
+    # the gains the runs were given, for the controller's carry-over check
+    truth["controller"] = base.controller_gains()
+    return runs, truth
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.9g}"
+
+
+def write(out, runs, truth, *, overwrite: bool = False) -> Path:
+    """Write the campaign folder (whole or nothing: a temporary folder renamed at the end)."""
+    out = Path(out)
+    if out.exists():
+        if not overwrite:
+            raise FileExistsError(f"{out} exists")
+        import shutil
+        shutil.rmtree(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    tmp.chmod(0o777 & ~umask)  # mkdtemp makes it private; a campaign folder gets the mode any folder gets
+    for name, cols, meta in runs:
+        names = [c for c in COLUMNS if c in cols]
+        data = np.column_stack([np.asarray(cols[c], float) for c in names])
+        lines = [",".join(names)] + [",".join(_fmt(v) for v in row) for row in data]
+        (tmp / f"{name}.csv").write_text("\n".join(lines) + "\n")
+        (tmp / f"{name}.json").write_text(json.dumps({"format": "ehas-run", "version": 1, **meta}, indent=1) + "\n")
+    (tmp / "truth.json").write_text(json.dumps(truth, indent=1) + "\n")
+    os.replace(tmp, out)
+    return out
+
+
+def parse_effects(text: str) -> dict:
+    """``name:p=v,q=w;other`` or ``name`` (its mild magnitude) -> {name: {p: v}}."""
+    out = {}
+    for part in filter(None, (text or "").split(";")):
+        name, _, rest = part.partition(":")
+        name = name.strip()
+        if name not in ALL:
+            raise SystemExit(f"unknown effect {name!r}; known: {', '.join(ALL)}")
+        out[name] = ({k: float(v) for k, v in (kv.split("=") for kv in rest.split(","))} if rest
+                     else ALL[name].values(0))
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="write a campaign of the independent rig")
+    ap.add_argument("out")
+    ap.add_argument("--effects", default="", help="name:p=v,...;name2 (';' between effects)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--rig", default="book", help="book or a stem of tests/independent_rig/rigs")
+    ap.add_argument("--duration", type=float, default=DURATION)
+    ap.add_argument("--no-perturb", action="store_true")
+    ap.add_argument("--overwrite", action="store_true")
+    a = ap.parse_args(argv)
+    runs, truth = simulate(parse_effects(a.effects), seed=a.seed, rig=a.rig, duration=a.duration,
+                           perturb=not a.no_perturb, progress=lambda s: print("  " + s, flush=True))
+    truth["command"] = "python -m tests.independent_rig.campaign " + " ".join(sys.argv[1:] if argv is None else argv)
+    print(f"wrote {write(a.out, runs, truth, overwrite=a.overwrite)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

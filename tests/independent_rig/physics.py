@@ -1,0 +1,242 @@
+"""The rig's equations, written from docs/reference-model.md, plus the switchable effects of :mod:`.effects`.
+
+State vector (SI), always all ten components (an effect that is off leaves its
+states at rest):
+
+====  ========  ============================================================
+ 0    theta     crank angle, rad (0 at mid-stroke)
+ 1    omega     crank rate, rad/s
+ 2    qc        valve no-load flow at the rated drop, m^3/s
+ 3    qcd       its rate, m^3/s^2
+ 4    pa        chamber A pressure, Pa
+ 5    pb        chamber B pressure, Pa
+ 6    iv        valve coil current, mA (``current_lag`` only)
+ 7    xp        piston position, m (``load_compliance`` only)
+ 8    vp        piston velocity, m/s (``load_compliance`` only)
+ 9    z         LuGre bristle deflection, m (``lugre_friction`` only)
+====  ========  ============================================================
+
+The driver (:mod:`.simulate`) holds the amplifier's command constant over each
+piece of a control period and integrates these rates with an adaptive
+Runge-Kutta method; the end stops (spool, stroke, pressures within [0, Ps]) are
+applied between pieces, as the reference model applies them between its steps.
+"""
+from __future__ import annotations
+
+import math
+
+from .rig import BAR, LPM, Rig
+
+N = 10
+V_TANH = 1.0e-3  # m/s: smoothing of the friction sign (docs/reference-model.md, v_s)
+P_ATM = 1.0e5  # Pa
+KAPPA_AIR = 1.4  # polytropic exponent of the entrained air (adiabatic at these rates)
+PISTON_MASS = 5.0  # kg: piston and rod when the load path is compliant (assumed, as the library's piston_mass default)
+COMPLIANCE_DAMPING = 0.2  # damping ratio of the compliant load path (assumed)
+LUGRE = {"ratio": 1.6, "vs": 5.0e-3, "sigma0": 1.0e6, "sigma1": 1.0e3, "sigma2": 300.0}  # assumed (Canudas 1995)
+UNBALANCE_PHASE = math.pi / 3.0  # rad: the discs' centre of mass 60 deg from the bottom at mid-stroke
+LINE_LOSS_REF_FLOW = 20.0 * LPM  # flow at which supply_line_loss's dp is given
+
+
+def _root(z: float) -> float:
+    """sign(z) sqrt(|z|)."""
+    return math.sqrt(z) if z >= 0.0 else -math.sqrt(-z)
+
+
+class RigModel:
+    """Right-hand side of the rig with ``effects`` (SI values, :func:`.effects.to_si`).
+
+    Parameters
+    ----------
+    rig : Rig
+        Geometry and hydraulics.
+    disc_sets : int
+        Number of disc sets, 1-7.
+    effects : dict
+        ``{name: {param: SI value}}``.
+    """
+
+    def __init__(self, rig: Rig, disc_sets: int, effects: dict | None = None):
+        self.rig = rig
+        self.inertia = rig.inertia_per_set * disc_sets
+        e = dict(effects or {})
+        self.e = e
+        self.alpha = e.get("single_rod", {}).get("alpha", 1.0)
+        self.a_a = rig.area
+        self.a_b = rig.area * self.alpha
+        self.p_t = e.get("return_pressure", {}).get("p_t", 0.0)
+        self.eps = e.get("entrained_air", {}).get("eps", 0.0)
+        self.k_c = e.get("load_compliance", {}).get("k", 0.0)
+        self.c_c = 2.0 * COMPLIANCE_DAMPING * math.sqrt(self.k_c * PISTON_MASS) if self.k_c else 0.0
+        self.unbalance = e.get("crank_unbalance", {}).get("G", 0.0)
+        self.lugre_fc = e.get("lugre_friction", {}).get("Fc", 0.0)
+        self.dir_gain = e.get("valve_direction_gain", {}).get("g", 0.0)
+        self.u0 = e.get("valve_underlap", {}).get("u0", 0.0)
+        dp = e.get("supply_line_loss", {}).get("dp", 0.0)
+        self.k_line = dp / LINE_LOSS_REF_FLOW ** 2  # Pa / (m^3/s)^2
+        self.x0 = e.get("lvdt_offset", {}).get("x0", 0.0)
+        self.lvdt_n = e.get("lvdt_nonlinearity", {}).get("n", 0.0)
+        self.t_lag = e.get("current_lag", {}).get("T", 0.0)
+        self.phi0 = e.get("crank_offset", {}).get("phi0", 0.0)
+        self.drag = e.get("disc_drag", {}).get("c", 0.0)
+        q100 = e.get("turbulent_leakage", {}).get("q100", 0.0)
+        self.c_turb = q100 / math.sqrt(100.0 * BAR)
+        self.fc = e.get("coulomb_friction", {}).get("Fc", 0.0)
+        self.b = e.get("viscous_friction", {}).get("b", 0.0)
+        self.tau = e.get("transport_delay", {}).get("tau", 0.0)
+        self.i_bias = e.get("valve_null_bias", {}).get("i_bias", 0.0)
+        self.c_leak = e.get("internal_leakage", {}).get("C_leak", 0.0)
+
+    # -- pieces ---------------------------------------------------------
+    def crank_x(self, theta: float) -> float:
+        """Rod-joint position along the piston axis for crank angle theta, m (0 at mid-stroke)."""
+        r = self.rig.radius
+        return r * (math.sin(theta + self.phi0) - math.sin(self.phi0))
+
+    def piston(self, y) -> tuple:
+        """(x, v) of the piston, m and m/s."""
+        if self.k_c:
+            return y[7], y[8]
+        r = self.rig.radius
+        return self.crank_x(y[0]), r * math.cos(y[0] + self.phi0) * y[1]
+
+    def lvdt_angle_deg(self, y) -> float:
+        """The angle the LVDT shows, asin(x_read / r), deg (before noise and ADC)."""
+        x, _ = self.piston(y)
+        h = self.rig.half_stroke
+        xr = x + self.x0 + self.lvdt_n * h * (x / h) ** 3
+        return math.degrees(math.asin(max(-1.0, min(1.0, xr / self.rig.radius))))
+
+    def valve_input(self, i_cmd: float) -> float:
+        """Amplifier clip, then the null bias: the current that drives the valve (before a coil lag), mA."""
+        i = max(-self.rig.i_max, min(self.rig.i_max, i_cmd))
+        return i + self.i_bias
+
+    def beta(self, p: float) -> float:
+        """Effective bulk modulus at pressure p, Pa."""
+        beta = self.rig.beta
+        if not self.eps:
+            return beta
+        p = max(p, P_ATM)
+        va = self.eps * (P_ATM / p) ** (1.0 / KAPPA_AIR)
+        a = va / (1.0 + va)
+        return 1.0 / ((1.0 - a) / beta + a / (KAPPA_AIR * p))
+
+    def supply_at_valve(self, qc: float, p_in: float) -> float:
+        """Supply pressure at the valve, Pa: Ps less the line loss k Q_s^2, Q_s through the inflow land."""
+        ps = self.rig.supply
+        if not self.k_line:
+            return ps
+        half = 0.5 * self.rig.rated_drop
+        # Q_s^2 = qc^2 (ps_v - p_in) / half and ps_v = ps - k Q_s^2: solved for ps_v - p_in
+        s = (ps - p_in) / (1.0 + self.k_line * qc * qc / half)
+        return p_in + s
+
+    def land_flows(self, qc: float, pa: float, pb: float) -> tuple:
+        """(Q into A, Q into B), m^3/s: four metering lands, each by the root of its own drop."""
+        half = 0.5 * self.rig.rated_drop
+        u0, pt = self.u0, self.p_t
+        p_in = pa if qc >= 0.0 else pb
+        ps = self.supply_at_valve(qc, p_in)
+        a_pa = max(u0 + qc, 0.0)  # supply -> A land opening (as no-load flow)
+        a_at = max(u0 - qc, 0.0)  # A -> tank
+        a_pb = a_at  # supply -> B opens with negative q_c
+        a_bt = a_pa  # B -> tank opens with positive q_c
+        qa = a_pa * _root((ps - pa) / half) - a_at * _root((pa - pt) / half)
+        qb = a_pb * _root((ps - pb) / half) - a_bt * _root((pb - pt) / half)
+        return qa, qb
+
+    # -- the right-hand side -------------------------------------------
+    def rates(self, y, i_cmd: float) -> list:
+        """dy/dt at state y with the amplifier's command i_cmd (mA)."""
+        rig = self.rig
+        theta, omega, qc, qcd, pa, pb, iv, xp, vp, z = y
+        dy = [0.0] * N
+        # command path -> valve
+        i_in = self.valve_input(i_cmd)
+        if self.t_lag:
+            dy[6] = (i_in - iv) / self.t_lag
+            i_v = iv
+        else:
+            i_v = i_in
+        sgn = 1.0 if i_v > 0.0 else (-1.0 if i_v < 0.0 else 0.0)
+        target = rig.K * i_v * (1.0 + self.dir_gain * sgn)
+        dy[2] = qcd
+        dy[3] = rig.wn * rig.wn * (target - qc) - 2.0 * rig.zeta * rig.wn * qcd
+        q_stop = rig.K * rig.i_max
+        if (qc >= q_stop and qcd >= 0.0) or (qc <= -q_stop and qcd <= 0.0):
+            dy[2] = 0.0
+            dy[3] = min(dy[3], 0.0) if qc > 0 else max(dy[3], 0.0)
+        # chambers
+        x, v = self.piston(y)
+        qa, qb = self.land_flows(qc, pa, pb)
+        dp = pa - pb
+        q_leak = self.c_leak * dp + self.c_turb * _root(dp)
+        h, vd = rig.half_stroke, rig.dead_volume
+        va = self.a_a * (h + x) + vd
+        vb = self.a_b * (h - x) + vd
+        dy[4] = self.beta(pa) / va * (qa - self.a_a * v - q_leak)
+        dy[5] = self.beta(pb) / vb * (qb + self.a_b * v + q_leak)
+        # forces on the piston (+x toward chamber B)
+        f = self.a_a * pa - self.a_b * pb
+        if self.fc:
+            f -= self.fc * math.tanh(v / V_TANH)
+        if self.b:
+            f -= self.b * v
+        if self.lugre_fc:
+            fs = LUGRE["ratio"] * self.lugre_fc
+            g = self.lugre_fc + (fs - self.lugre_fc) * math.exp(-(v / LUGRE["vs"]) ** 2)
+            zd = v - LUGRE["sigma0"] * abs(v) * z / g
+            dy[9] = zd
+            f -= LUGRE["sigma0"] * z + LUGRE["sigma1"] * zd + LUGRE["sigma2"] * v
+        # torque on the crank
+        torque = 0.0
+        if self.unbalance:
+            torque -= self.unbalance * math.sin(theta + UNBALANCE_PHASE)
+        if self.drag:
+            torque -= self.drag * omega * abs(omega)
+        lever = rig.radius * math.cos(theta + self.phi0)
+        dy[0] = omega
+        if self.k_c:
+            xc = self.crank_x(theta)
+            f_rod = self.k_c * (xp - xc) + self.c_c * (vp - lever * omega)
+            dy[7] = vp
+            dy[8] = (f - f_rod) / PISTON_MASS
+            dy[1] = (f_rod * lever + torque) / self.inertia
+        else:
+            dy[1] = (f * lever + torque) / self.inertia
+        return dy
+
+    def initial_state(self) -> list:
+        """At rest at mid-stroke, both chambers at Ps/2 (docs/reference-model.md §4)."""
+        y = [0.0] * N
+        y[4] = y[5] = 0.5 * self.rig.supply
+        return y
+
+    def apply_stops(self, y) -> bool:
+        """Spool end stops, pressures within [0, Ps], stroke ends; in place. True when a stroke end was touched."""
+        rig = self.rig
+        q_stop = rig.K * rig.i_max
+        if abs(y[2]) > q_stop:
+            y[2] = math.copysign(q_stop, y[2])
+            if y[3] * y[2] > 0.0:
+                y[3] = 0.0
+        for j in (4, 5):
+            y[j] = min(max(y[j], 0.0), rig.supply)
+        x, _ = self.piston(y)
+        hit = False
+        if abs(x) > rig.half_stroke:
+            hit = True
+            lim = math.copysign(rig.half_stroke, x)
+            if self.k_c:
+                y[7] = lim
+                y[8] = 0.0 if y[8] * lim > 0 else y[8]
+            else:
+                y[0] = math.asin(lim / rig.radius + math.sin(self.phi0)) - self.phi0
+                y[1] = 0.0 if y[1] * lim > 0 else y[1]
+        return hit
+
+    def outputs(self, y) -> dict:
+        """What the rig's transducers see (before noise): flow into A (LPM), pressures (bar)."""
+        qa, _ = self.land_flows(y[2], y[4], y[5])
+        return {"flow_lpm": qa / LPM, "p_a_bar": y[4] / BAR, "p_b_bar": y[5] / BAR}

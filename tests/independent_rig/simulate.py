@@ -1,0 +1,254 @@
+"""Runs of the independent rig: closed-loop sine tracking with the rig's controller, and the valve flow bench.
+
+Integration: ``scipy.integrate.solve_ivp`` with the adaptive Dormand-Prince
+5(4) pair (``RK45``, rtol 1e-7), restarted at every instant the valve's current
+changes (each 1 ms control period, and the delayed command's switch inside it),
+so the zero-order hold is exact and the step size is the method's own choice
+-- unlike the reference model's fixed 0.1 ms RK4.  The delay is exact (the
+switch instant t_k + tau), not resolved to a sub-step.
+
+The controller (docs/reference-model.md §9), re-implemented from the docs:
+``i = Kp e + Ki I + Kv r' + Ka r''``, ``e = r - theta_sensed`` in deg, ``I``
+the rectangle-rule integral of e that stops while the output is clipped and e
+would drive it further, clipped to +-i_max, then the 12-bit DAC.  Reference
+``r = A s(t/T) sin(2 pi f t)`` with the smoothstep ``s = 10x^3 - 15x^4 + 6x^5``
+over the first period T = 1/f, derivatives by the product rule.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from .physics import N, RigModel
+from .rig import BAR, LPM, Rig
+from .sensors import Chain
+
+DT = 1.0e-3  # s: the RMC70's control period
+RTOL = 1.0e-7
+#: absolute tolerances per state (theta, omega, qc, qcd, pa, pb, iv, xp, vp, z)
+ATOL = np.array([1e-10, 1e-8, 1e-12, 1e-10, 1e-2, 1e-2, 1e-8, 1e-11, 1e-9, 1e-12])
+
+
+def reference(t: float, amp: float, freq: float) -> tuple:
+    """(r, r', r'') in deg, deg/s, deg/s^2: the sine with its amplitude faded in over the first period."""
+    w = 2.0 * math.pi * freq
+    T = 1.0 / freq
+    if t < T:
+        x = t / T
+        s = x ** 3 * (10.0 - 15.0 * x + 6.0 * x * x)
+        s1 = (30.0 * x ** 2 - 60.0 * x ** 3 + 30.0 * x ** 4) / T
+        s2 = (60.0 * x - 180.0 * x ** 2 + 120.0 * x ** 3) / T ** 2
+    else:
+        s, s1, s2 = 1.0, 0.0, 0.0
+    sn, cs = math.sin(w * t), math.cos(w * t)
+    r = amp * s * sn
+    r1 = amp * (s1 * sn + s * w * cs)
+    r2 = amp * (s2 * sn + 2.0 * s1 * w * cs - s * w * w * sn)
+    return r, r1, r2
+
+
+class PIFF:
+    """The rig's PI + velocity and acceleration feed-forward, 1 kHz, with conditional-integration anti-windup."""
+
+    def __init__(self, gains: dict, i_max: float):
+        self.g = gains
+        self.i_max = i_max
+        self.integral = 0.0
+
+    def __call__(self, e: float, r1: float, r2: float) -> float:
+        g = self.g
+        ff = g["Kv"] * r1 + g["Ka"] * r2
+        trial = g["Kp"] * e + g["Ki"] * (self.integral + e * DT) + ff
+        clipped = abs(trial) >= self.i_max
+        if not (clipped and trial * e > 0.0):
+            self.integral += e * DT
+        u = g["Kp"] * e + g["Ki"] * self.integral + ff
+        return max(-self.i_max, min(self.i_max, u))
+
+
+def _advance(model: RigModel, y: np.ndarray, t0: float, t1: float, i_cmd: float) -> np.ndarray:
+    if t1 - t0 <= 1e-12:
+        return y
+    sol = solve_ivp(lambda t, s: model.rates(s, i_cmd), (t0, t1), y, method="RK45", rtol=RTOL, atol=ATOL,
+                    first_step=min(t1 - t0, 2.5e-4))
+    if not sol.success:
+        raise RuntimeError(f"integration failed at t = {t0:g} s: {sol.message}")
+    y = sol.y[:, -1].copy()
+    model.apply_stops(y)
+    return y
+
+
+def _period(model: RigModel, y, k: int, cmds: list) -> np.ndarray:
+    """Advance over period k: the valve sees the command of t - tau (exact switch instant)."""
+    tau = model.tau
+    m = int(math.floor(tau / DT + 1e-12))
+    f = tau - m * DT
+    t0 = k * DT
+
+    def cmd(j):
+        return cmds[j] if j >= 0 else 0.0
+
+    if f > 1e-12:
+        y = _advance(model, y, t0, t0 + f, cmd(k - m - 1))
+        return _advance(model, y, t0 + f, t0 + DT, cmd(k - m))
+    return _advance(model, y, t0, t0 + DT, cmd(k - m))
+
+
+@dataclass
+class Run:
+    """One run: logged columns (format units) and its sidecar."""
+
+    name: str
+    columns: dict
+    meta: dict
+
+
+def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, duration: float, effects_si: dict,
+                chain: Chain, rng: np.random.Generator, gains: dict | None = None, progress=None) -> tuple:
+    """A closed-loop sine run.
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig.
+    disc_sets : int
+        Disc sets, 1-7.
+    amplitude_deg, freq_hz : float
+        The reference sine.
+    duration : float
+        Run length, s.
+    effects_si : dict
+        Hidden effects, SI (:func:`.effects.to_si`).
+    chain : Chain
+        Measurement chain.
+    rng : numpy.random.Generator
+        Noise source.
+    gains : dict, optional
+        The controller's gains (Kp, Ki, Kv, Ka; default: the book's carried over to ``rig``).
+    progress : callable, optional
+        Called with the fraction done every 500 periods.
+
+    Returns
+    -------
+    columns : dict
+        Logged columns of the measurement format.
+    true : dict
+        Noise-free theta_deg (LVDT angle), p_a_bar, p_b_bar, flow_lpm.
+    meta : dict
+        The sidecar.
+    """
+    model = RigModel(rig, disc_sets, effects_si)
+    gains = dict(gains or rig.controller_gains())
+    ctrl = PIFF(gains, rig.i_max)
+    n = int(round(duration / DT))
+    y = np.array(model.initial_state())
+    cols = {k: np.zeros(n) for k in ("t", "current_mA", "theta_deg", "theta_ref_deg", "flow_lpm", "p_a_bar",
+                                     "p_b_bar", "p_s_bar")}
+    true = {k: np.zeros(n) for k in ("theta_deg", "flow_lpm", "p_a_bar", "p_b_bar")}
+    cmds: list = []
+    for k in range(n):
+        t = k * DT
+        th_true = model.lvdt_angle_deg(y)
+        th = chain.angle(th_true, rig, rng)
+        r, r1, r2 = reference(t, amplitude_deg, freq_hz)
+        u = chain.dac(ctrl(r - th, r1, r2))
+        cmds.append(u)
+        out = model.outputs(y)
+        cols["t"][k] = t
+        cols["current_mA"][k] = u
+        cols["theta_deg"][k] = th
+        cols["theta_ref_deg"][k] = r
+        true["theta_deg"][k] = th_true
+        for key in ("flow_lpm", "p_a_bar", "p_b_bar"):
+            true[key][k] = out[key]
+        y = _period(model, y, k, cmds)
+        if progress is not None and k % 500 == 0:
+            progress(k / n)
+    cols["flow_lpm"] = chain.flow(true["flow_lpm"], rng)
+    cols["p_a_bar"] = chain.pressure(true["p_a_bar"], rng)
+    cols["p_b_bar"] = chain.pressure(true["p_b_bar"], rng)
+    # the supply transducer sits at the pump's regulated outlet
+    cols["p_s_bar"] = chain.pressure(np.full(n, rig.supply / BAR), rng)
+    cols["load_kN"] = rig.area * (cols["p_a_bar"] - cols["p_b_bar"]) * BAR * 1e-3
+    meta = {"kind": "closed_loop", "disc_sets": int(disc_sets), "supply_bar": rig.supply / BAR,
+            "reference": {"amplitude_deg": amplitude_deg, "freq_hz": freq_hz, "phase_rad": 0.0, "ramp_cycles": 1},
+            "controller": {k: float(v) for k, v in gains.items()}}
+    return cols, true, meta
+
+
+def chirp(n: int, f0: float, f1: float, amp: float) -> np.ndarray:
+    """Logarithmic sweep f0 -> f1 Hz over n periods, amplitude amp mA."""
+    t = np.arange(n) * DT
+    T = n * DT
+    c = math.log(f1 / f0) / T
+    return amp * np.sin(2.0 * math.pi * f0 * (np.exp(c * t) - 1.0) / c)
+
+
+def valve_bench(rig: Rig, command: np.ndarray, supply_bar: float, effects_si: dict, chain: Chain,
+                rng: np.random.Generator) -> tuple:
+    """The valve alone on the flow bench, ports A and B joined through the flow meter.
+
+    The two open lands in series share the drop Ps - p_t, so the metered flow is
+    q_c sqrt((Ps - p_t) / dp_n) for a critically lapped valve; an underlapped one
+    passes (a_1 - a_2) sqrt((Ps - p_t) / dp_n) with the lands' openings
+    a_1 = max(u0 + q_c, 0), a_2 = max(u0 - q_c, 0) (by symmetry the meter sits at
+    (Ps + p_t) / 2); a supply line loss lowers Ps by dp (Q / 20 LPM)^2.
+
+    Returns
+    -------
+    columns : dict
+        t, current_mA, flow_lpm (logged).
+    meta : dict
+        The sidecar.
+    """
+    model = RigModel(rig, 1, effects_si)
+    ps = supply_bar * BAR
+    y = np.zeros(N)
+    flows = np.zeros(command.size)
+    drop = rig.rated_drop
+    cmds = [float(c) for c in command]
+    for k in range(command.size):
+        qc = y[2]
+        a1, a2 = max(model.u0 + qc, 0.0), max(model.u0 - qc, 0.0)
+        net = a1 - a2
+        if model.k_line:
+            # Q^2 = net^2 (ps - k Q^2 - p_t) / dp_n, solved for Q^2
+            q2 = net * net * (ps - model.p_t) / drop / (1.0 + model.k_line * net * net / drop)
+            flows[k] = math.copysign(math.sqrt(q2), net) / LPM
+        else:
+            flows[k] = net * math.sqrt(max(ps - model.p_t, 0.0) / drop) / LPM
+        y = _period_valve(model, y, k, cmds)
+    cols = {"t": np.arange(command.size) * DT, "current_mA": np.asarray(command, float),
+            "flow_lpm": chain.flow(flows, rng)}
+    meta = {"kind": "valve_open_loop", "supply_bar": supply_bar}
+    return cols, meta
+
+
+def _period_valve(model: RigModel, y, k: int, cmds: list) -> np.ndarray:
+    """As :func:`_period` with only the valve's states moving (chambers and mechanics frozen)."""
+    frozen = _ValveOnly(model)
+    return _period(frozen, y, k, cmds)
+
+
+class _ValveOnly:
+    """The valve's part of :class:`RigModel` (coil lag and spool), for the bench."""
+
+    def __init__(self, model: RigModel):
+        self.m = model
+        self.tau = model.tau
+
+    def rates(self, y, i_cmd):
+        dy = self.m.rates(y, i_cmd)
+        return [0.0, 0.0, dy[2], dy[3], 0.0, 0.0, dy[6], 0.0, 0.0, 0.0]
+
+    def apply_stops(self, y):
+        rig = self.m.rig
+        q_stop = rig.K * rig.i_max
+        if abs(y[2]) > q_stop:
+            y[2] = math.copysign(q_stop, y[2])
+            if y[3] * y[2] > 0.0:
+                y[3] = 0.0
+        return False
