@@ -656,10 +656,18 @@ class OpenDiagnosis:
         doc["residual_x_noise"] = self.residual_x_noise
         doc["residual_x_sensor_noise"] = round(self.cost_all, 3)
         doc["grade"] = self.grade
+        # beta and K are fitted relative to the book's rig (replay.Replayer.absolute): report the rig's own numbers
+        rig = self.full.absolute(self.model)
+        scale = {"beta": rig.beta / self.model.beta if self.model.beta else 1.0,
+                 "K": rig.K / self.model.K if self.model.K else 1.0}
+
+        def rig_scale(e, n):
+            return 1.0 if e else scale.get(n, 1.0)
+
         doc["model"] = {"effects": {n: {k: _round(v) for k, v in p.items()} for n, p in self.model.effects.items()},
-                        "beta": _round(self.model.beta), "K": _round(self.model.K),
-                        "ci95": [{"effect": e or "baseline", "param": n, "value": _round(_value_of(self.model, fp)),
-                                  "low": _round(lo), "high": _round(hi), "unit": _unit(e, n)}
+                        "beta": _round(rig.beta), "K": _round(rig.K),
+                        "ci95": [{"effect": e or "baseline", "param": n, "value": _round(rig_scale(e, n) * _value_of(self.model, fp)),
+                                  "low": _round(rig_scale(e, n) * lo), "high": _round(rig_scale(e, n) * hi), "unit": _unit(e, n)}
                                  for fp in self.fit_train.free for (e, n), (lo, hi) in self.ci.items()
                                  if (fp.effect, fp.name) == (e, n)]}
         doc["stack"] = [{"effect": s.effect, "kept": s.kept, "reason": s.reason,
