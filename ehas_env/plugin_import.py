@@ -8,7 +8,7 @@ misbehaving one must not take the command with it.  :func:`import_file`
    ``sys.exit``/``os._exit`` at import, an endless loop at import or in a term the
    registration check calls, or a crash of the interpreter becomes one line naming the
    file.  A file that passed is remembered by its SHA-256 (``~/.cache/ehas/plugins_ok``),
-   so the check costs its ~1 s once per file text;
+   so the check costs its ~0.1 s once per file text;
 2. then imports it in this process, under a watchdog (``signal.setitimer`` in the main
    thread), turning ``SystemExit``, ``KeyboardInterrupt`` and any other exception into
    one ``ValueError`` naming the file.

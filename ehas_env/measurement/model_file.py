@@ -429,6 +429,11 @@ def parse_model(doc, where: str) -> PlantModel:
     if not isinstance(paths, list) or not all(isinstance(p, str) for p in paths):
         raise ValueError(f"{where}: effects_path must be a list of texts (older files; it is not used: name user "
                          "effects in user_effects and give their folder with --effects-path)")
+    if paths:  # said, not silent: the key no longer loads anything
+        import warnings
+
+        warnings.warn(f"{where}: effects_path {paths} is not used (a model file never loads code); give user effect "
+                      "folders with --effects-path (docs/model-file.md)", stacklevel=2)
     user = _user_effects(doc.get("user_effects", {}), where)
     effects = _effects(doc.get("effects", {}), user, where, legacy=paths)
     extra = sorted(set(user) - set(effects))

@@ -59,7 +59,7 @@ def run(argv, capsys):
     except SystemExit as exc:
         rc = exc.code
     out, err = capsys.readouterr()
-    return rc, [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("[")]
+    return rc, [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("[") and ": warning: " not in ln]
 
 
 def _model(path, **extra):
