@@ -7,7 +7,8 @@ project's own modules are checked against the layer map below, lowest first:
 ====================  ======================================================================
 layer                 modules
 ====================  ======================================================================
-0  utilities          ``ehas_env.ranges`` (option ranges, list parsing), ``ehas_env.output`` (files, plots, progress)
+0  utilities          ``ehas_env.ranges`` (option ranges, list parsing), ``ehas_env.output`` (files, plots, progress),
+                      ``ehas_env.plugin_import`` (importing a user's code file with a time limit)
 1  physics            ``ehas_env.physics`` (baseline, effects, codegen, linearisation)
 2  simulation         ``ehas_env.simulation`` (plant, loops, sensors, control laws)
 3  measurement ...    ``ehas_env.measurement``, ``ehas_env.identification``, ``ehas_env.env``, ``ehas_env.book``
@@ -25,7 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {"ehas_env": ROOT / "ehas_env", "ehas_controllers": ROOT / "controllers", "ehas_train": ROOT / "train"}
 LAYERS = (
-    (0, ("ehas_env.ranges", "ehas_env.output")),
+    (0, ("ehas_env.ranges", "ehas_env.output", "ehas_env.plugin_import")),
     (1, ("ehas_env.physics",)),
     (2, ("ehas_env.simulation",)),
     (3, ("ehas_env.measurement", "ehas_env.identification", "ehas_env.env", "ehas_env.book")),

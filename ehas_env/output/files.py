@@ -200,6 +200,10 @@ def atomic_write_bytes(path, data: bytes) -> Path:
     return path
 
 
+#: called when a command's transaction ends (:func:`finish`): the claims' owner (ehas_env.output.outputs) registers
+#: its release here, so this lower module needs no import of it
+AT_FINISH: list = []
+
 #: outputs a command checked before its work (``outputs.check_file``): absolute path -> (option, overwrite)
 CLAIMED: dict[str, tuple] = {}
 #: while a command runs (``begin``): written claimed outputs waiting for its success, (temporary, path, claim)
@@ -267,9 +271,8 @@ def finish(ok: bool) -> None:
                 _unlink_quiet(tmp)
     finally:
         CLAIMED.clear()
-        from ehas_env.output.outputs import unlock_all
-
-        unlock_all()
+        for release in AT_FINISH:
+            release()
 
 
 def _unlink_quiet(p) -> None:
