@@ -63,7 +63,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from effect_files import spring_effect  # beside this script (tests/)
+from ehas_env.physics.effects.example_file import spring_effect
 
 ROOT = Path(__file__).resolve().parents[1]
 TIMEOUT = 120.0
@@ -2071,7 +2071,7 @@ def data_code_cases() -> list[Case]:
 
 def plugin_cases() -> list[Case]:
     """Plug-in files (code by contract) that misbehave: one line naming the file, never a hang or a silent exit."""
-    from effect_files import spring_effect as eff
+    from ehas_env.physics.effects.example_file import spring_effect as eff
 
     ok = eff()
     ctrl_ok = CONTROLLER_PY

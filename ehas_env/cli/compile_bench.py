@@ -23,22 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
-EFFECT = '''"""A torsion spring centring the crank (compile benchmark)."""
-from ehas_env.physics.effects import Effect, Param
+from ehas_env.physics.effects.example_file import spring_effect
 
-
-class {cls}(Effect):
-    name = "{name}"
-    title = "torsion spring on the crank"
-    params = (Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate", typical=(500.0, 5000.0)),)
-    main_param = "k"
-    explanation = "A spring pulls the crank back to 0 deg with a torque -k theta."
-    signature = "load residual in phase with position"
-
-    @staticmethod
-    def crank_torque(theta, k):
-        return -(k * theta)
-'''
 
 
 def _timed(cmd, env) -> tuple[float, float]:
@@ -71,7 +57,7 @@ def main(argv=None) -> int:
             env = {**os.environ, "EHAS_BUILD": build, "EHAS_CACHE_DIR": str(tmp / f"cache-{build}")}
             fx = tmp / f"fx-{build}"
             fx.mkdir()
-            (fx / "bench_spring.py").write_text(EFFECT.format(cls=f"BenchSpring{k}", name=f"bench_spring_{k}"))
+            (fx / "bench_spring.py").write_text(spring_effect(f"bench_spring_{k}", f"BenchSpring{k}"))
             steps = [("library model, first run (once per machine)", ehas + ["compare", str(camp)]),
                      ("new user effect, first replay", ehas + ["compare", str(camp), "--effects-path", str(fx),
                                                                "--effects", f"bench_spring_{k}"]),

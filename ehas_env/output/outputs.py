@@ -335,10 +335,10 @@ def unlock_all() -> None:
 
 import atexit  # noqa: E402
 
-from ehas_env.output import files as _files  # noqa: E402
+from ehas_env.output import files as _transaction  # noqa: E402  (the command transaction of output.files)
 
 atexit.register(unlock_all)
-_files.AT_FINISH.append(unlock_all)  # a command's end releases its claims (files.finish)
+_transaction.AT_FINISH.append(unlock_all)  # a command's end releases its claims (files.finish)
 
 
 # -- stale leftovers -------------------------------------------------------------------------------------

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from ehas_env.physics.effects import REGISTRY, Effect, Param
-from effect_files import spring_effect  # tests/ is on sys.path (conftest.py)
+from ehas_env.physics.effects.example_file import spring_effect
 from refusals import refused
 
 K = Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate", typical=(500.0, 5000.0))

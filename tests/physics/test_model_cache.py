@@ -14,6 +14,8 @@ import textwrap
 
 import pytest
 
+from ehas_env.physics.effects.example_file import spring_effect
+
 PROBE = textwrap.dedent("""
     import json, sys
     import numpy as np
@@ -33,23 +35,10 @@ PROBE = textwrap.dedent("""
 
 
 def _effect(rate_scale: str) -> str:
-    return textwrap.dedent(f'''
-        """A torsion spring centring the crank (the cache test's effect)."""
-        from ehas_env.physics.effects import Effect, Param
-
-
-        class CacheProbeSpring(Effect):
-            name = "cache_probe_spring"
-            title = "torsion spring on the crank"
-            params = (Param("k", "N m/rad", 2000.0, (0.0, 1.0e6), "spring rate", typical=(500.0, 5000.0)),)
-            main_param = "k"
-            explanation = "A spring pulls the crank back to 0 deg with a torque -k theta."
-            signature = "load residual in phase with position"
-
-            @staticmethod
-            def crank_torque(theta, k):
-                return -({rate_scale} * k * theta)
-    ''')
+    """The example spring effect with its torque scaled by ``rate_scale`` (an edit of the law's text)."""
+    text = spring_effect("cache_probe_spring", "CacheProbeSpring")
+    assert "return -(k * theta)" in text
+    return text.replace("return -(k * theta)", f"return -({rate_scale} * k * theta)")
 
 
 def _run(tmp_path, folder) -> dict:

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from effect_files import spring_effect  # tests/ is on sys.path (conftest.py)
+from ehas_env.physics.effects.example_file import spring_effect
 
 SPRING = spring_effect("torsion_spring", "TorsionSpring")
 

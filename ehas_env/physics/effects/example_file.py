@@ -1,5 +1,8 @@
-"""The text of a user's effect file, a torsion spring centring the crank: the tests of user effects, of
-effect declarations and the fault campaign all start from it (and edit it)."""
+"""The text of a user's effect file, a torsion spring centring the crank (docs/effects-and-controllers.md).
+
+The tests of user effects, of effect declarations, of the model cache and the fault campaign start from it (and
+edit it); the compile benchmark (``python -m ehas_env.cli.compile_bench``) times it as "a new user effect".
+"""
 from __future__ import annotations
 
 
