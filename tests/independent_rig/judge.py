@@ -34,6 +34,8 @@ LIBRARY_KIND = {
     "valve_deadband": {"valve"}, "valve_null_bias": {"valve"}, "valve_dynamics": {"valve"},
     "transport_delay": {"command path"}, "supply_droop": {"leakage/flow"},
     "piston_mass": {"load"}, "backlash": {"compliance"}, "bulk_modulus": {"fluid property", "compliance"},
+    # the diagnosis' structural hypotheses (ehas_env/physics/effects/hyp_*.py, kind "hypothesis")
+    "hyp_rod_area": {"geometry/area"}, "hyp_return_pressure": {"leakage/flow"}, "hyp_direction_gain": {"valve"},
 }
 
 #: kinds of the proposal's forms, "place.coefficient" (ehas_env/measurement/proposal_terms.py's dictionary as

@@ -187,11 +187,11 @@ def test_interrupted_campaign_overwrite_keeps_the_previous_campaign(tmp_path, mo
     real = runfile.write_run
     calls = {"n": 0}
 
-    def write_run(stem, cols, meta):  # Ctrl-C after the second run file of the new campaign
+    def write_run(stem, cols, meta, **kw):  # Ctrl-C after the second run file of the new campaign
         calls["n"] += 1
         if calls["n"] == 3:
             raise KeyboardInterrupt
-        return real(stem, cols, meta)
+        return real(stem, cols, meta, **kw)
 
     monkeypatch.setattr(C, "_write_run_files", write_run)
     rc = main(["simulate-campaign", "--duration", "0.3", "--seed", "2", "--out", str(out), "--overwrite"])
