@@ -69,7 +69,7 @@ def main(argv=None) -> int:
                 wall, cpu = _timed(cmd, env)
                 rows.append((build, what, wall, cpu, load0, os.getloadavg()[0]))
     text = ["# Compile time: the user's first number with a new effect", "",
-            "Regenerate with `python -m ehas_env.cli.compile_bench --out results/compile.md`.", "",
+            f"Regenerate with `python -m ehas_env.cli.compile_bench --builds {','.join(builds)} --out {args.out}`.", "",
             f"Measured {time.strftime('%Y-%m-%dT%H:%M:%S%z')} on {os.cpu_count()} cores. Each row is one `ehas "
             "compare` process on a 5-run campaign (2 s runs) in a fresh model cache; CPU = user + system time of "
             "the process, the figure a quiet machine's wall time approaches; load = 1-min load average before / "

@@ -142,7 +142,7 @@ def _run(args, out: Path) -> None:
                 plan.append((title, getattr(module, func)))
     from ehas_env.output.progress import status, working
 
-    status(f"{len(plan)} sections into {out} (about 70 s on two cores; --quick: the first two only)", "demo")
+    status(f"{len(plan)} sections into {out} (about 30 s on two quiet cores, compile included; --quick: the first two only)", "demo")
     for k, (title, section) in enumerate(plan):
         t0 = time.perf_counter()
         with working(f"{k + 1}/{len(plan)} {title}", "demo"):
