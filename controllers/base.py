@@ -332,23 +332,7 @@ def _load_json(path: Path) -> Controller:
         raise ValueError(f"{where}: key 'kind' = {data['kind']!r}, but a {data['type']!r} controller is "
                          f"{getattr(ctrl, 'kind', None)!r}; remove the key or set it to {getattr(ctrl, 'kind', None)!r}")
     ctrl.source = str(path)
-    LOADED_FILES[str(path.resolve())] = ctrl
     return ctrl
-
-
-#: Python controller files loaded in this process (resolved path -> controller): the ones the user named on
-#: the command line.  A training config or an agent folder that names a ``.py`` file uses it only from here.
-LOADED_FILES: dict = {}
-
-
-def loaded_file(path, where: str) -> "Controller":
-    """The controller of the Python file ``path`` a config or agent folder names, if the user loaded it (command
-    line); otherwise a one-line ValueError: data never imports code."""
-    key = str(Path(path).resolve())
-    if key not in LOADED_FILES:
-        raise ValueError(f"{where} names the Python controller file {path}; a config or an agent folder never "
-                         f"imports code: give the file on the command line with --controller-path {path}")
-    return LOADED_FILES[key]
 
 
 def check_file_header(data, where: str) -> None:
