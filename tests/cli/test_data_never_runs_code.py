@@ -15,20 +15,11 @@ import pytest
 
 from ehas_env.cli import main as cli
 
+from ehas_env.physics.effects.example_file import spring_effect
+
 ROOT = Path(__file__).resolve().parents[2]
 
-SPRING = (
-    "from ehas_env.physics.effects import Effect, Param\n\n\n"
-    "class TorsionSpringDD(Effect):\n"
-    "    name = 'torsion_spring_dd'\n"
-    "    title = 'torsion spring on the crank'\n"
-    "    params = (Param('k', 'N m/rad', 2000.0, (0.0, 1.0e6), 'spring rate (assumed)', typical=(500.0, 5000.0)),)\n"
-    "    main_param = 'k'\n"
-    "    explanation = 'A spring pulls the crank back to 0 deg.'\n"
-    "    signature = 'load residual in phase with position'\n\n"
-    "    @staticmethod\n"
-    "    def crank_torque(theta, k):\n"
-    "        return -(k * theta)\n")
+SPRING = spring_effect("torsion_spring_dd", "TorsionSpringDD")  # the example user effect file
 
 
 class _Payload:

@@ -10,6 +10,7 @@ import pytest
 from ehas_env.cli.main import main
 from ehas_env.measurement.model_file import (FIELDS, PlantModel, diff_models, load_model, model_doc, parse_model,
                                              save_model, write_model)
+from ehas_env.physics.effects.example_file import spring_effect
 from ehas_env.physics.rig import RigParams
 from ehas_env.simulation.plant import Plant, RigController
 
@@ -106,18 +107,7 @@ def test_a_model_file_names_its_user_effects_and_never_loads_their_code(tmp_path
     folder = tmp_path / "rig"
     (folder / "my_effects").mkdir(parents=True)
     spring = folder / "my_effects" / "torsion_spring_mf.py"
-    spring.write_text(
-        "from ehas_env.physics.effects import Effect, Param\n\n\n"
-        "class TorsionSpringMF(Effect):\n"
-        "    name = 'torsion_spring_mf'\n"
-        "    title = 'torsion spring on the crank'\n"
-        "    params = (Param('k', 'N m/rad', 2000.0, (0.0, 1.0e6), 'spring rate (assumed)', typical=(500.0, 5000.0)),)\n"
-        "    main_param = 'k'\n"
-        "    explanation = 'A spring pulls the crank back to 0 deg.'\n"
-        "    signature = 'load residual in phase with position'\n\n"
-        "    @staticmethod\n"
-        "    def crank_torque(theta, k):\n"
-        "        return -(k * theta)\n")
+    spring.write_text(spring_effect("torsion_spring_mf", "TorsionSpringMF"))  # the example user effect file
     import hashlib
 
     digest = hashlib.sha256(spring.read_bytes()).hexdigest()
