@@ -318,7 +318,7 @@ def build_model(effects=None, laws=None, inline: bool = True):
     return module
 
 
-#: measured CPU seconds to compile what a command first runs of each build, on one quiet core (results/perf.md)
+#: measured CPU seconds to compile what a command first runs of each build (results/compile.md, compile_quiet.md)
 COMPILE_CPU_S = {True: 60.0, False: 10.0}
 _WATCH = {"depth": 0, "start": 0.0, "name": "", "thread": None, "est": 0.0}
 HEARTBEAT_S = 10.0
@@ -404,7 +404,7 @@ def current_model(inline: bool = True):
         True (the environments' and the batched kernel's build): every model function is inlined into the
         drivers, the fastest step and a long compile.  False (the :class:`~ehas_env.simulation.plant.Plant`'s
         build: replay of logs, fits, single runs): each function is compiled once and called, several times
-        faster to compile for a slower step (``results/perf.md`` has both figures).
+        faster to compile for a slower step (``results/compile.md`` has both figures).
 
     Returns
     -------
@@ -412,6 +412,8 @@ def current_model(inline: bool = True):
         The generated model module.
     """
     forced = os.environ.get("EHAS_BUILD", "")  # "inline" / "quick": one build for everything (benchmarks of the builds)
-    if forced in ("inline", "quick"):
+    if forced not in ("", "inline", "quick"):
+        raise ValueError(f"EHAS_BUILD must be 'inline' or 'quick' (or unset), got {forced!r}")
+    if forced:
         inline = forced == "inline"
     return build_model(inline=inline)
