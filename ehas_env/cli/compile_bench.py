@@ -44,6 +44,13 @@ def main(argv=None) -> int:
     builds = [b for b in args.builds.split(",") if b]
     if not builds or any(b not in ("quick", "inline") for b in builds):
         ap.error("--builds takes quick and/or inline")
+    from ehas_env.output.files import atomic_write_text
+    from ehas_env.output.outputs import OutputError, check_file
+
+    try:  # before minutes of work: a folder, a path under a file or an unwritable folder is refused now
+        check_file(args.out, "--out", overwrite=True, suffix=".md")
+    except OutputError as exc:
+        ap.error(str(exc))
     ehas = [sys.executable, "-m", "ehas_env.cli.main"]
     rows = []
     with tempfile.TemporaryDirectory(prefix="ehas-compile-bench-") as tmp:
@@ -81,7 +88,7 @@ def main(argv=None) -> int:
              "`inline` the one of the environments, the batched kernel and benchmark grids (see "
              "`ehas_env.physics.codegen.current_model`). Both give the same numbers bit for bit "
              "(tests/physics/test_model_cache.py)."]
-    Path(args.out).write_text("\n".join(text) + "\n")
+    atomic_write_text(args.out, "\n".join(text) + "\n")
     print(f"wrote {args.out}")
     return 0
 
