@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.physics import layout as K
-from ehas_env.physics.codegen import current_model
+from ehas_env.simulation.compiled_model import current_model
 from ehas_env.simulation.control_laws import N_GAINS, compiled_form
 from ehas_env.simulation.loops import METRICS, REF_SINE, REF_STEP
 from ehas_env.simulation.metrics import percent_errors

@@ -37,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("controllers", nargs="*", metavar="CONTROLLER_FILE",
                         help="controller files (default: the book's gains plus each tuner's result)")
     parser.add_argument("--out", default="results", help="output folder (default results)")
-    parser.add_argument("--model", default=None, help="model file whose plant to run (ehas_env.measurement.model_file)")
+    parser.add_argument("--model", default=None, help="model file whose plant to run (ehas_env.simulation.model_file)")
     from ehas_env.ranges import number
 
     parser.add_argument("--cycles", type=number("--cycles", "reference periods", 2, 100, lo_open=True), default=5.0, help="reference periods per run, first excluded (default 5)")

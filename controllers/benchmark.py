@@ -438,7 +438,7 @@ def _plant_note(plant_kwargs) -> str:
         return "Baseline plant (the book's rig, no effects), ideal sensors."
     m = plant_kwargs.get("model")
     if m is not None:
-        from ehas_env.measurement.model_file import PlantModel, diff_models
+        from ehas_env.simulation.model_file import PlantModel, diff_models
 
         changed = [d.split(":")[0] for d in diff_models(PlantModel(), m) if d.startswith(("rig.", "valve."))]
         eff = ", ".join(f"{n}({', '.join(f'{k}={v:g}' for k, v in p.items())})" for n, p in m.effects.items())

@@ -34,55 +34,23 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ehas_env.simulation.control_laws import N_MEM, register_law
+from ehas_env.simulation.control_laws import N_MEM
+from ehas_env.simulation.pi_ff_law import GAIN_NAMES, GAIN_UNITS, pi_ff_law
+from ehas_env.simulation.rig_controller import RigController
 
 from .base import Controller, check_measurement, gains_field, register_type
 
-
-def pi_ff_law(gains, mem, t, dt, theta, r, rd, rdd, rddd, p_load, p_s, u_max):
-    """PI + feed-forward + load-pressure feedback, mA, clipped to +-u_max (compiled law "pi_ff").
-
-    gains = (Kp, Ki, Kv, Ka, Kj, Kdp, dp_hp) in the units of GAIN_UNITS;
-    mem = [integral of e (deg s), low-passed load pressure (bar), ...].  The
-    integral stops while the output is clamped and the error would drive it
-    further (anti-windup).
-    """
-    kp, ki, kv, ka, kj, kdp, whp = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6]
-    e = r - theta
-    if whp > 0.0:
-        # first-order high-pass: feed back only the pressure's changes
-        mem[1] += dt * whp * (p_load - mem[1])
-        dp_fb = p_load - mem[1]
-    else:
-        dp_fb = p_load
-    u_ff = kv * rd + ka * rdd + kj * rddd - kdp * dp_fb
-    u = kp * e + ki * (mem[0] + e * dt) + u_ff
-    if (u < u_max and u > -u_max) or (u >= u_max and e < 0.0) or (u <= -u_max and e > 0.0):
-        mem[0] += e * dt
-    u = kp * e + ki * mem[0] + u_ff
-    return min(max(u, -u_max), u_max)
-
-
-register_law("pi_ff", pi_ff_law)
-
-#: gain name -> unit (the order of ehas_env.simulation.plant.RigController)
-GAIN_UNITS = {
-    "Kp": "mA/deg",
-    "Ki": "mA/(deg s)",
-    "Kv": "mA/(deg/s)",
-    "Ka": "mA/(deg/s^2)",
-    "Kj": "mA/(deg/s^3)",
-    "Kdp": "mA/bar",
-    "dp_hp": "rad/s",
-}
-GAIN_NAMES = tuple(GAIN_UNITS)
 DAC_SPAN_MA = 40.0  # +-20 mA output span (docs/rig.md: RMC70 12-bit current output)
 
 
 @register_type("piff")
 @dataclass
-class PIFF(Controller):
+class PIFF(RigController, Controller):
     """PI + velocity/acceleration(/jerk) feed-forward with optional load-pressure feedback.
+
+    The gains and the compiled law are :class:`~ehas_env.simulation.rig_controller.RigController`'s (this
+    class is one, so the compiled model runs it directly); this class adds the controller's output limit,
+    DAC, name, JSON file and the law run in Python (:meth:`act`).
 
     Attributes
     ----------
@@ -111,16 +79,9 @@ class PIFF(Controller):
         Label in tables and files.
     """
 
-    Kp: float = 1.0
-    Ki: float = 2.0
-    Kv: float = 1.0 / 56.25
-    Ka: float = (1.0 / 56.25) * 2.0 * 0.691 / 107.0
-    Kj: float = 0.0
-    Kdp: float = 0.0
-    dp_hp: float = 0.0
+    # Kp, Ki, Kv, Ka, Kj, Kdp, dp_hp, rate_hz: RigController's fields
     i_max: float = 20.0
     output_bits: int = 0
-    rate_hz: float = 1000.0
     name: str = "PI+FF"
     kind = "classical"
     _mem: np.ndarray = field(default=None, init=False, repr=False, compare=False)
@@ -199,8 +160,7 @@ class PIFF(Controller):
 
     # -- the compiled path ------------------------------------------------------
     def rig_gains(self, disc_sets: int | None = None):
-        from ehas_env.simulation.plant import RigController
-
+        """The gains alone (a :class:`RigController`: no output limit, DAC or name)."""
         return RigController(**self.gains(), rate_hz=self.rate_hz)
 
     @property

@@ -48,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--amplitude", type=option("--amplitude", "amplitude_deg"), default=None,
                         help="reference amplitude, deg: as --freq (operating point default 20; conditions default 10, 20, 30)")
     parser.add_argument("--out", default=None, help="controller JSON to write (default results/controllers/METHOD.json)")
-    parser.add_argument("--model", default=None, help="model file whose plant to tune on (ehas_env.measurement.model_file)")
+    parser.add_argument("--model", default=None, help="model file whose plant to tune on (ehas_env.simulation.model_file)")
     g = parser.add_argument_group("model-based")
     g.add_argument("--phase-margin", type=number("--phase-margin", "deg", 0, 90, lo_open=True, hi_open=True), default=50.0, help="phase-margin target, deg (default 50)")
     g.add_argument("--bandwidth", type=number("--bandwidth", "Hz", 0, 100, lo_open=True), default=None, help="crossover target, Hz (default: highest meeting the margins)")
@@ -123,9 +123,9 @@ def plant_kwargs_from_model(path) -> dict:
     if path is None:
         return {}
     try:
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
     except ImportError:
-        raise ValueError(f"--model {path}: model files need ehas_env.measurement.model_file.load_model, which this "
+        raise ValueError(f"--model {path}: model files need ehas_env.simulation.model_file.load_model, which this "
                          "installation does not have") from None
     m = load_model(path)
     return dict(m) if isinstance(m, dict) else {"model": m}
@@ -301,7 +301,7 @@ def _default_name(args) -> str:
     if args.method in ("model", "relay"):
         name += f" @{args.disc_sets or DEFAULT_DISC_SETS} sets"
     if args.model:  # the rig it was tuned on
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         name += f" on {load_model(args.model).name}"
     return name

@@ -2507,9 +2507,9 @@ def api_cases() -> list[Case]:
         ("from ehas_controllers.base import controller_from_dict\n"
          "result = controller_from_dict({'type': 'piff', 'gains': {'Kp': 1}, 'rate_hz': 0})", "refuse",
          ("rate_hz",)),
-        ("from ehas_env.measurement.model_file import load_model\nresult = load_model('{tmp}/missing.json')",
+        ("from ehas_env.simulation.model_file import load_model\nresult = load_model('{tmp}/missing.json')",
          "refuse", ("missing.json",)),
-        ("from ehas_env.measurement.model_file import parse_model\n"
+        ("from ehas_env.simulation.model_file import parse_model\n"
          "result = parse_model({'format': 'ehas-model', 'version': 2, 'rig': {'crank_radius_mm': -5}}, 'x.json')",
          "refuse", ("crank_radius_mm",)),
         (P + "from ehas_env.simulation.sensors import Sensors\nresult = Plant(3, sensors=Sensors(adc_bits=99))",

@@ -78,7 +78,7 @@ def resolve_config(args):
     if getattr(args, "model", None):  # train on a model file's plant (docs/model-file.md): [env.kwargs] model
         from pathlib import Path
 
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         from .config import parse_config
 
@@ -87,7 +87,7 @@ def resolve_config(args):
         raw["env"].setdefault("kwargs", {})["model"] = str(Path(args.model).resolve())
         cfg = parse_config(raw, source=cfg.source)
     elif isinstance(cfg.env_kwargs.get("model"), str):
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         load_model(cfg.env_kwargs["model"])
     return cfg

@@ -37,7 +37,7 @@ def run(args) -> int:
 
     model = None
     if getattr(args, "model", None):
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         model = load_model(args.model)
     effects = parse_spec(args.effects) if args.effects else {}

@@ -8,7 +8,7 @@ and with ``--out`` writes overlays, residual plots, load-velocity loops and a
 ``report.md`` that reads top to bottom: the campaign, where the baseline
 fails, what was tried, what was added (fitted values with units), the error
 drop.  ``--save-model`` writes the calibrated model for ``--model FILE``
-(``ehas_env.measurement.model_file``).
+(``ehas_env.simulation.model_file``).
 
 The campaign is validated completely before anything is computed or written.
 """
@@ -68,7 +68,7 @@ def run(args) -> int:
     outputs = OutputSet(args.out, "--out", overwrite=args.overwrite) if args.out else None
     base_model = None
     if getattr(args, "model", None):  # a saved model: the baseline, validated on this campaign (docs/model-file.md)
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         base_model = load_model(args.model)
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
@@ -120,7 +120,7 @@ def run(args) -> int:
         print(f"\noverall fit: {before:.1f} % -> {after:.1f} % ({after - before:+.1f} points)")
     command = "ehas compare " + " ".join(shlex.quote(a) for a in _argv())
     if args.save_model:
-        from ehas_env.measurement.model_file import save_model
+        from ehas_env.simulation.model_file import save_model
 
         model = rep.absolute(after_model or ModelSpec())
         cal = _calibration(campaign, tables, label_after, command)

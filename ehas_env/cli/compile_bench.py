@@ -86,7 +86,7 @@ def main(argv=None) -> int:
         text.append(f"| {build} | {what} | {wall:.1f} | {cpu:.1f} | {l0:.1f} / {l1:.1f} |")
     text += ["", "`quick` is the build every `Plant` runs (replay, fits, single runs, the campaign generator); "
              "`inline` the one of the environments, the batched kernel and benchmark grids (see "
-             "`ehas_env.physics.codegen.current_model`). Both give the same numbers bit for bit "
+             "`ehas_env.simulation.compiled_model.current_model`). Both give the same numbers bit for bit "
              "(tests/physics/test_model_cache.py)."]
     atomic_write_text(args.out, "\n".join(text) + "\n")
     print(f"wrote {args.out}")

@@ -44,7 +44,7 @@ def run(args) -> int:
     supplies = tuple(FIELDS["supply_bar"].parse(v, "--supplies: each pressure") for v in items)
     model = None
     if getattr(args, "model", None):
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         model = load_model(args.model)
     ctrl = parse_gains(args.gains) if args.gains or model is None else model.controller()

@@ -51,7 +51,8 @@ def design_point_section(out: Path) -> str:
     plant = Plant(disc_sets=7, sensors=Sensors(), seed=0)
     gains = RigController.book()
     res = plant.simulate_closed_loop(gains, amplitude_deg=30.0, freq_hz=3.0, cycles=5)
-    csv_path, _ = res.to_csv(out / "design_point", notes="ehas demo: book gains at the design point")
+    from ehas_env.measurement.runfile import write_result
+    csv_path, _ = write_result(res, out / "design_point", notes="ehas demo: book gains at the design point")
     plot_run(res, out / "design_point.png", title="design point +-30 deg, 3 Hz, 7 disc sets: book rig model (no effects, sensor noise), "
              f"book gains (Kp {gains.Kp:g} mA/deg, Ki {gains.Ki:g} mA/(deg s), Kv, Ka feed-forward)")
     err = res.tracking_errors()
@@ -71,8 +72,6 @@ def design_point_section(out: Path) -> str:
 
 
 def run(args) -> int:
-    from ehas_env.output.files import atomic_write_text
-
     from ehas_env.output.outputs import OutputSet
 
     final = Path(args.out)

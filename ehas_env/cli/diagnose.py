@@ -124,7 +124,7 @@ def run(args) -> int:
         say = (lambda msg: status(msg, "diagnose"))
     model = None
     if getattr(args, "model", None):  # diagnose on that rig, its effects on (docs/model-file.md)
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         model = load_model(args.model)
         print(f"baseline: model {model.label}")
@@ -362,7 +362,7 @@ def demo_section(outdir: Path) -> str:
     from ehas_env.cli.compare import write_report
     from ehas_env.measurement.diagnosis import diagnose_open
     from ehas_env.output.files import atomic_write_text
-    from ehas_env.measurement.model_file import save_model
+    from ehas_env.simulation.model_file import save_model
 
     outdir = Path(outdir)
     t0 = time.perf_counter()

@@ -73,8 +73,6 @@ def build_signal(args):
 def run(args) -> int:
     import dataclasses
 
-    import numpy as np
-
     from ehas_env.simulation.plant import Plant
     from ehas_env.simulation.sensors import Sensors
 
@@ -98,8 +96,9 @@ def run(args) -> int:
     res.meta["excitation"] = {"kind": sig.kind, **sig.params}
     res.meta["valve"] = args.valve
     with outputs as tmp:
-        csv_tmp, _ = res.to_csv(tmp / stem.name, notes=f"ehas excite {sig.describe()}, valve {args.valve}, "
-                                                       f"{args.supply_bar:g} bar supply, ports joined through the meter")
+        from ehas_env.measurement.runfile import write_result
+        csv_tmp, _ = write_result(res, tmp / stem.name, notes=f"ehas excite {sig.describe()}, valve {args.valve}, "
+                                                             f"{args.supply_bar:g} bar supply, ports joined through the meter")
     csv_path = stem.parent / csv_tmp.name
     json_path = csv_path.with_suffix(".json")
     flow = res.logged.get("flow_lpm", res.flow_lpm)

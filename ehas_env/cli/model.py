@@ -23,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ehas_env.ranges import Number
 
     try:
-        from ehas_env.measurement.model_file import FIELDS
+        from ehas_env.simulation.model_file import FIELDS
     except ImportError:  # a broken installation: the other commands still parse
         FIELDS = ()
 
@@ -71,7 +71,7 @@ def _given(value, name: str):
 
 
 def run(args) -> int:
-    from ehas_env.measurement import model_file as mf
+    from ehas_env.simulation import model_file as mf
 
     for attr, name in (("file", "FILE"), ("base", "--from"), ("a", "A"), ("b", "B")):
         _given(getattr(args, attr, None), name)

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
 import statistics
@@ -174,7 +173,7 @@ def _rss_child(num_envs: int, seconds: float) -> None:
     actions = np.asarray(_presampled(envs.action_space, 16))
     rate = batch_rate(envs, actions, seconds)
     peak = peak_rss_mb()
-    from ehas_env.physics.codegen import current_model
+    from ehas_env.simulation.compiled_model import current_model
 
     m = current_model()
     compiled = any(sum(f.stats.cache_misses.values()) for f in (m.batch_reset, m.batch_step_serial,

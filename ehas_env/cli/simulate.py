@@ -90,7 +90,7 @@ def run(args) -> int:
         raise ValueError("--controller and --gains both give the controller; use one of them")
     model = None
     if getattr(args, "model", None):
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         model = load_model(args.model)
     gains, loaded = load_saved_controller(args.controller, args.disc_sets) if args.controller else (parse_gains(args.gains), None)
@@ -104,7 +104,8 @@ def run(args) -> int:
     stem = Path(args.out)
     with outputs as tmp:
         where = f", model {model.label}" if model is not None else ""
-        csv_tmp, _ = res.to_csv(tmp / stem.name, notes=f"ehas simulate, {plant!r}{where}")
+        from ehas_env.measurement.runfile import write_result
+        csv_tmp, _ = write_result(res, tmp / stem.name, notes=f"ehas simulate, {plant!r}{where}")
         if args.plot:
             from ehas_env.output.plots import plot_run
 

@@ -382,7 +382,7 @@ def run(args: argparse.Namespace) -> int:
 
     model = None
     if getattr(args, "model", None):
-        from ehas_env.measurement.model_file import load_model
+        from ehas_env.simulation.model_file import load_model
 
         model = load_model(args.model)
     design = _design(sizing, args, model)  # validates every design argument, even for the grid tables

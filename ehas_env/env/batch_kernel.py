@@ -24,7 +24,7 @@ Examples
 --------
 >>> import numpy as np
 >>> from ehas_env.env import batch_kernel as bk
->>> from ehas_env.physics.codegen import current_model
+>>> from ehas_env.simulation.compiled_model import current_model
 >>> bk.N_OBS_BASE, len(bk.RAW_NAMES)
 (10, 18)
 >>> z = current_model().gauss_noise(12345, 7)

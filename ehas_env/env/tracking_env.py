@@ -151,7 +151,7 @@ from gymnasium import spaces
 from ehas_env.env import batch_kernel as bk
 from ehas_env.env import parts
 from ehas_env.physics import layout as K
-from ehas_env.physics.codegen import current_model
+from ehas_env.simulation.compiled_model import current_model
 from ehas_env.simulation.control_laws import N_MEM, all_laws
 from ehas_env.simulation.plant import TAU_MAX
 
@@ -188,7 +188,7 @@ def model_plant_kwargs(model, plant_kwargs):
     """``plant_kwargs`` with the model (file, dict or PlantModel) routed to ``Plant(model=)``."""
     if model is None:
         return plant_kwargs
-    from ehas_env.measurement.model_file import as_model
+    from ehas_env.simulation.model_file import as_model
 
     return {**(plant_kwargs or {}), "model": as_model(model)}
 

@@ -48,7 +48,7 @@ from gymnasium.vector.utils import batch_space
 from ehas_env.env import batch_kernel as bk
 from ehas_env.env import parts
 from ehas_env.physics import layout as K
-from ehas_env.physics.codegen import current_model
+from ehas_env.simulation.compiled_model import current_model
 from ehas_env.simulation.plant import TAU_MAX
 from ehas_env.env.tracking_env import ACTION_SPACE, EpisodePacker, model_plant_kwargs, observation_space, step_settings
 

@@ -211,7 +211,7 @@ def memory_campaign(effects, seed, *, duration=3.0, position_only=False, plan=No
     times the book's instead of the random +-5 % / +-1 % perturbation."""
     from ehas_env.measurement.synthetic import simulate_campaign
     from ehas_env.measurement.campaign import Campaign, validate_run
-    from ehas_env.measurement.model_file import PlantModel
+    from ehas_env.simulation.model_file import PlantModel
     from ehas_env.physics.rig import RigParams
 
     kw = {} if plan is None else {"plan": plan}

@@ -127,10 +127,12 @@ def extended_model():
     """The compiled model of every registered effect plus the term classes (built once per registry)."""
     from ehas_env.physics.codegen import build_model
     from ehas_env.physics.effects import REGISTRY
+    from ehas_env.simulation.control_laws import all_laws
 
     key = tuple(sorted((n, c.__module__) for n, c in REGISTRY.items()))
     if key not in _EXT:
-        _EXT[key] = build_model(list(REGISTRY.values()) + list(TERM_CLASSES.values()), inline=False)
+        _EXT[key] = build_model(list(REGISTRY.values()) + list(TERM_CLASSES.values()), laws=all_laws(),
+                                inline=False)
     return _EXT[key]
 
 

@@ -172,7 +172,7 @@ class Replayer:
     """
 
     def __init__(self, campaign: Campaign, substeps: int = 10, model=None):
-        from ehas_env.measurement.model_file import as_model
+        from ehas_env.simulation.model_file import as_model
 
         self.campaign = campaign
         self.substeps = substeps

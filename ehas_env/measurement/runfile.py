@@ -44,3 +44,38 @@ def write_run(stem, columns: dict[str, np.ndarray], meta: dict, fmt: str = "csv"
     data_path = formats.write_file(stem.with_suffix(data_format.suffixes[0]), columns, fmt=data_format)
     json_path = atomic_write_text(stem.with_suffix(".json"), json.dumps(meta, indent=2, sort_keys=False) + "\n")
     return data_path, json_path
+
+
+def write_result(result, stem, notes: str = "", fmt: str = "csv") -> tuple[Path, Path]:
+    """Write a simulated run (a :class:`~ehas_env.simulation.plant.Plant`'s result) in the measurement format.
+
+    The logged channels are written (what a rig's DAQ would record) with the run's sidecar.
+
+    Parameters
+    ----------
+    result : SimResult or ValveTestResult
+        A run of :meth:`Plant.simulate_closed_loop`, ``simulate_open_loop`` or the valve bench.
+    stem : path
+        The run's path without suffix.
+    notes : str
+        Free text stored as the sidecar's ``notes``.
+    fmt : str
+        The data file's format (see :func:`write_run`).
+
+    Returns
+    -------
+    data_path, json_path : Path
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from ehas_env.simulation.plant import Plant
+    >>> run = Plant().simulate_valve_test([0.5] * 100)
+    >>> data, side = write_result(run, tempfile.mkdtemp() + "/step", notes="a step")
+    >>> data.suffix, side.suffix
+    ('.csv', '.json')
+    """
+    meta = dict(result.meta)
+    if notes:
+        meta["notes"] = notes
+    return write_run(stem, result.columns(logged=True), meta, fmt=fmt)

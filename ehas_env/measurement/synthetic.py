@@ -99,7 +99,7 @@ def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, dur
     from ehas_env.physics.rig import BULK_MODULUS, VALVE_K, RigParams
     from ehas_env.simulation.sensors import Sensors
 
-    from ehas_env.measurement.model_file import as_model
+    from ehas_env.simulation.model_file import as_model
 
     model = as_model(model)
     base = model.rig if model is not None else RigParams()

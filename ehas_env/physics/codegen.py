@@ -23,8 +23,9 @@ subset of its effects (domain randomisation over effects needs this).
 
 Examples
 --------
->>> from ehas_env.physics.codegen import current_model
->>> m = current_model()
+>>> from ehas_env.physics.codegen import build_model
+>>> from ehas_env.simulation.control_laws import all_laws
+>>> m = build_model(laws=all_laws(), inline=False)
 >>> m.STATE_NAMES[:3], "coulomb_friction.Fc" in m.IDX
 (('theta', 'omega', 'qc'), True)
 """
@@ -269,23 +270,31 @@ class ModelSource:
         return "\n".join(L) + "\n"
 
 
-def compiled_laws() -> list:
-    """(name, law function) of every compiled controller law, built-in ones first."""
-    from ehas_env.simulation import control_laws
-
-    return control_laws.all_laws()
-
-
-def build_model(effects=None, laws=None, inline: bool = True):
-    """The compiled model module of ``effects`` (classes; default every registered effect).
+def build_model(effects=None, laws=(), inline: bool = True):
+    """The compiled model module of ``effects`` and the controller ``laws``.
 
     Writes the generated file on first use (atomically) and imports it; later
     calls with the same text return the loaded module.
+
+    Parameters
+    ----------
+    effects : list of Effect classes, optional
+        The effects the model holds (default: every registered effect).
+    laws : sequence of (name, function)
+        The compiled controller laws, numbered in this order (the simulation layer's registry,
+        :func:`ehas_env.simulation.control_laws.all_laws`, gives them).
+    inline : bool
+        Inline every model function into the drivers (fastest step, longest compile) or compile each once.
+
+    Returns
+    -------
+    module
+        The generated model module.
     """
     from ehas_env.physics.effects import REGISTRY
 
     effects = list(REGISTRY.values()) if effects is None else list(effects)
-    laws = compiled_laws() if laws is None else list(laws)
+    laws = list(laws)
     # the same classes and laws give the same text: skip regenerating it (every Plant asks for its model)
     key = (tuple(effects), tuple(laws), bool(inline))
     if key in _BY_PARTS:
@@ -393,27 +402,3 @@ def _watch_compiles(module: str, inline: bool) -> None:
     event.register("numba:compile", _Listener())
     _WATCH["thread"] = threading.Thread(target=beat, name="ehas-compile-heartbeat", daemon=True)
     _WATCH["thread"].start()
-
-
-def current_model(inline: bool = True):
-    """The model of every effect and controller law registered now (built-in and user-loaded).
-
-    Parameters
-    ----------
-    inline : bool
-        True (the environments' and the batched kernel's build): every model function is inlined into the
-        drivers, the fastest step and a long compile.  False (the :class:`~ehas_env.simulation.plant.Plant`'s
-        build: replay of logs, fits, single runs): each function is compiled once and called, several times
-        faster to compile for a slower step (``results/compile.md`` has both figures).
-
-    Returns
-    -------
-    module
-        The generated model module.
-    """
-    forced = os.environ.get("EHAS_BUILD", "")  # "inline" / "quick": one build for everything (benchmarks of the builds)
-    if forced not in ("", "inline", "quick"):
-        raise ValueError(f"EHAS_BUILD must be 'inline' or 'quick' (or unset), got {forced!r}")
-    if forced:
-        inline = forced == "inline"
-    return build_model(inline=inline)

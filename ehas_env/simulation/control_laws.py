@@ -21,6 +21,8 @@ Examples
 """
 from __future__ import annotations
 
+from ehas_env.simulation.pi_ff_law import pi_ff_law
+
 N_GAINS = 16
 N_MEM = 8
 _LAWS: dict[str, object] = {}
@@ -34,7 +36,7 @@ def register_law(name: str, fn) -> None:
     _LAWS[name] = fn
 
 
-#: a compiled law's arguments, in order (controllers/piff.py's pi_ff_law is the example)
+#: a compiled law's arguments, in order (ehas_env.simulation.pi_ff_law is the example)
 LAW_ARGS = ("gains", "mem", "t", "dt", "theta", "r", "rd", "rdd", "rddd", "p_load", "p_s", "u_max")
 
 
@@ -67,13 +69,8 @@ def check_law(name: str, fn) -> None:
         raise ValueError(f"{who}: returned {out!r:.60} for realistic values; a law returns one finite current, mA")
 
 
-def _builtins() -> None:
-    import ehas_controllers.piff  # noqa: F401  (registers "pi_ff")
-
-
 def all_laws() -> list:
     """(name, function) of every registered law, built-in first, in registration order."""
-    _builtins()
     return list(_LAWS.items())
 
 
@@ -100,3 +97,7 @@ def compiled_form(controller, disc_sets: int | None = None):
     if rc is not None and callable(getattr(rc, "law_id", None)):
         return rc
     return None
+
+
+# the built-in law, registered first (law number 0): the book's PI + feed-forward
+register_law("pi_ff", pi_ff_law)

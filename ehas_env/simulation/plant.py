@@ -21,86 +21,25 @@ import math
 import numbers
 import os
 from collections.abc import Iterable, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ehas_env.physics import layout as K
-from ehas_env.physics.codegen import current_model
+from ehas_env.simulation.compiled_model import current_model
 from ehas_env.physics.effects import REGISTRY, get_effect, resolve_effects
 from ehas_env.physics.effects.base import effect_slots, mark_effects_on
 from ehas_env.ranges import MAX_SAMPLES, check_field, check_number, check_run_length, check_samples
 from ehas_env.simulation.finite import check_run
-from ehas_env.simulation.control_laws import N_GAINS, compiled_form, law_id
+from ehas_env.simulation.control_laws import compiled_form
 from ehas_env.simulation.metrics import tracking_errors
+from ehas_env.simulation.rig_controller import RigController  # noqa: F401  (Plant's default controller; imported from here too)
 from ehas_env.simulation.reference import SineReference
 from ehas_env.physics.rig import BAR, LPM, INERTIA_PER_SET, RigParams
-from ehas_env.measurement.runfile import write_run
 from ehas_env.simulation.sensors import Sensors
 
 V_TANH = 1.0e-3  # m/s, friction sign smoothing of the friction effects (reference model: 1 mm/s)
 TAU_MAX = 0.05  # s, longest transport delay the command buffers hold (transport_delay's bound)
-
-
-@dataclass(frozen=True)
-class RigController:
-    """The rig's RMC70-like controller: PI + velocity/acceleration feed-forward.
-
-    ``i = Kp e + Ki int(e) + Kv theta_ref' + Ka theta_ref'' [+ Kj theta_ref''' - Kdp dP_L]``
-    on theta in degrees, sampled at ``rate_hz`` with zero-order hold, output
-    clipped to +-20 mA with anti-windup.
-
-    Attributes
-    ----------
-    Kp : float
-        mA/deg.
-    Ki : float
-        mA/(deg s).
-    Kv : float
-        mA/(deg/s), velocity feed-forward.
-    Ka : float
-        mA/(deg/s^2), acceleration feed-forward.
-    Kj : float
-        mA/(deg/s^3), jerk feed-forward (model inversion of the valve lag; 0 on the rig).
-    Kdp : float
-        mA/bar, load-pressure feedback (0 on the rig).
-    dp_hp : float
-        rad/s, corner of the pressure feedback's high-pass (0: static feedback).
-    rate_hz : float
-        Controller rate, Hz (rig: 1 kHz).
-    """
-
-    Kp: float = 1.0
-    Ki: float = 2.0
-    Kv: float = 1.0 / 56.25
-    Ka: float = (1.0 / 56.25) * 2.0 * 0.691 / 107.0
-    Kj: float = 0.0
-    Kdp: float = 0.0
-    dp_hp: float = 0.0
-    rate_hz: float = 1000.0
-
-    @classmethod
-    def book(cls) -> "RigController":
-        """The reference model's classical baseline: Kp 1, Ki 2, Kv 1/56.25, Ka = Kv 2 zeta / wn."""
-        return cls()
-
-    def gains_vector(self) -> np.ndarray:
-        """The compiled law's gains, padded to ``control_laws.N_GAINS``."""
-        g = np.zeros(N_GAINS)
-        g[:7] = (self.Kp, self.Ki, self.Kv, self.Ka, self.Kj, self.Kdp, self.dp_hp)
-        return g
-
-    @staticmethod
-    def law_id() -> int:
-        """Number of the compiled law (PI + feed-forward, ``ehas_controllers.piff.pi_ff_law``)."""
-        return law_id("pi_ff")
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    def __post_init__(self):
-        for name, value in asdict(self).items():
-            check_field("rate_hz" if name == "rate_hz" else "gain", value, f"RigController: {name}")
 
 
 @dataclass
@@ -178,16 +117,6 @@ class SimResult:
             cols.update(self.logged)
         return cols
 
-    def to_csv(self, path, notes: str = "") -> tuple:
-        """Write ``path`` (.csv) and its JSON sidecar in the measurement format.
-
-        The logged channels are written (what a rig's DAQ would record).
-        Returns the (csv, json) paths.
-        """
-        meta = dict(self.meta)
-        if notes:
-            meta["notes"] = notes
-        return write_run(path, self.columns(logged=True), meta)
 
 
 class Plant:
@@ -223,7 +152,7 @@ class Plant:
         Folders (or files) of user effect files to load first (see
         ``ehas_env.physics.effects.loading``).
     model : PlantModel, str or Path, optional
-        A model file (or its :class:`~ehas_env.measurement.model_file.PlantModel`):
+        A model file (or its :class:`~ehas_env.simulation.model_file.PlantModel`):
         the plant it describes (docs/model-file.md) - its rig, inertia per disc
         set, valve, effects and effects path.  ``rig``, ``inertia``, ``valve`` and
         ``white_box`` given as well override the model's; ``effects`` are added to
@@ -242,8 +171,8 @@ class Plant:
         disc_sets = check_field("disc_sets", disc_sets)
         effects = _check_effects(effects)
         inertia_where = "inertia"
-        if model is not None:  # a model file is the plant (ehas_env.measurement.model_file)
-            from ehas_env.measurement.model_file import as_model
+        if model is not None:  # a model file is the plant (ehas_env.simulation.model_file)
+            from ehas_env.simulation.model_file import as_model
 
             model = as_model(model)  # data: its user effects must be loaded already (effects_path=)
             rig = rig if rig is not None else model.rig
@@ -506,12 +435,10 @@ class ValveTestResult:
     meta: dict = field(default_factory=dict)
     logged: dict = field(default_factory=dict)
 
-    def to_csv(self, path, notes: str = "") -> tuple:
-        meta = dict(self.meta)
-        if notes:
-            meta["notes"] = notes
-        cols = {"t": self.t, "current_mA": self.current_mA, "flow_lpm": self.logged.get("flow_lpm", self.flow_lpm)}
-        return write_run(path, cols, meta)
+    def columns(self, logged: bool = True) -> dict[str, np.ndarray]:
+        """The run's columns in the measurement format (the logged flow by default)."""
+        flow = self.logged.get("flow_lpm", self.flow_lpm) if logged else self.flow_lpm
+        return {"t": self.t, "current_mA": self.current_mA, "flow_lpm": flow}
 
 
 #: what numpy's dtype kinds hold, for refusals

@@ -49,7 +49,7 @@ class SineReference:
 
     def derivatives(self, t) -> np.ndarray:
         """theta_ref and its first three derivatives (deg, deg/s^k), shape (4,) or (4, len(t))."""
-        from ehas_env.physics.codegen import current_model
+        from ehas_env.simulation.compiled_model import current_model
 
         reference_point = current_model(inline=False).reference_point  # a few calls: the quick-compile build
 

@@ -54,7 +54,7 @@ def run(argv, capsys):
 
 
 def _model(path, **extra):
-    from ehas_env.measurement.model_file import PlantModel, model_doc
+    from ehas_env.simulation.model_file import PlantModel, model_doc
 
     doc = model_doc(PlantModel())
     doc.update(extra)

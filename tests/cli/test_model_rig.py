@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ehas_env.cli.main import main
-from ehas_env.measurement.model_file import load_model
+from ehas_env.simulation.model_file import load_model
 from ehas_env.simulation.plant import Plant
 
 #: rig B: 60 mm crank, 42 mm half stroke, 9 cm^2 area, 0.5 kg m^2 per set, a 40 LPM valve (2 LPM/mA) at 150 rad/s

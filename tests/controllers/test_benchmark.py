@@ -287,16 +287,16 @@ def test_bench_model_option_is_forwarded_or_refused_clearly(tmp_path, capsys, mo
     import types
 
     ctrl = PIFF.book().save(tmp_path / "c.json")
-    monkeypatch.setitem(sys.modules, "ehas_env.measurement.model_file", None)  # as if the module did not exist
+    monkeypatch.setitem(sys.modules, "ehas_env.simulation.model_file", None)  # as if the module did not exist
     assert cli_main(["bench", str(ctrl), "--model", "rig.json", "--out", str(tmp_path), "--no-robustness"]) == 2
-    assert "ehas_env.measurement.model_file" in capsys.readouterr().err
+    assert "ehas_env.simulation.model_file" in capsys.readouterr().err
     seen = {}
 
     def load_model(path):
         seen["path"] = path
         return {"effects": {"coulomb_friction": {"Fc": 400.0}}}
 
-    monkeypatch.setitem(sys.modules, "ehas_env.measurement.model_file", types.SimpleNamespace(load_model=load_model))
+    monkeypatch.setitem(sys.modules, "ehas_env.simulation.model_file", types.SimpleNamespace(load_model=load_model))
     out = tmp_path / "m"
     assert cli_main(["bench", str(ctrl), "--model", "rig.json", "--out", str(out), "--no-robustness",
                      "--no-progress", "--no-book"]) == 0

@@ -74,6 +74,7 @@ def test_user_controller_runs_in_the_benchmark(pd):
     assert all(0.0 < g < 20.0 for g in got)
 
 
+@pytest.mark.slow  # compiles the batched kernel with a user law of its own: 1.5 min
 def test_user_controller_is_the_batched_envs_residual_base(pd):
     from ehas_env.env.vector_env import TrackingVectorEnv
     from ehas_env.simulation.plant import Plant

@@ -159,6 +159,7 @@ def test_wrong_number_of_actions_is_a_clear_error():
         vec.step(np.zeros(2))
 
 
+@pytest.mark.slow  # child processes compile and time the environments: 4 min on 2 loaded cores
 def test_perf_command_writes_both_reports_naming_their_command(tmp_path):
     import json
 

@@ -3,7 +3,7 @@
 Only the ``rig`` and ``valve`` sections are read (a grey-box valve); every key
 left out takes the book rig's value (docs/rig.md, docs/reference-model.md).
 This reader is the independent generator's own: it shares no code with
-``ehas_env.measurement.model_file``.
+``ehas_env.simulation.model_file``.
 """
 from __future__ import annotations
 

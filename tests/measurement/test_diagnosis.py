@@ -22,7 +22,8 @@ from ehas_env.measurement.synthetic import simulate_campaign, write_simulated_ca
 from ehas_env.cli.main import main
 from ehas_env.measurement.diagnosis import diagnose
 from ehas_env.physics.effects import REGISTRY
-from ehas_env.measurement.model_file import load_model, plant_from_model
+from ehas_env.simulation.model_file import load_model
+from ehas_env.simulation.plant import Plant
 
 FRICTION = {"coulomb_friction", "stribeck_friction"}
 TEST_SEED = 8100  # magnitudes and seeds here differ from the docs' and examples'
@@ -178,7 +179,7 @@ def test_compare_fit_raises_the_fit_writes_report_and_model(viscous_dir, tmp_pat
     assert ci[("viscous_friction", "b")]["low"] <= 3700.0 * 1.1 and ci[("viscous_friction", "b")]["unit"] == "N s/m"
     assert kw["effects"]["viscous_friction"]["b"] == pytest.approx(3700.0, rel=0.1)
     assert abs(kw["rig"].beta / truth["beta"] - 1) < 0.1
-    plant = plant_from_model(model, disc_sets=4)
+    plant = Plant(disc_sets=4, model=model)
     assert plant.rig.disc_sets == 4 and plant.effects["viscous_friction"]["b"] == kw["effects"]["viscous_friction"]["b"]
     # without --fit the given values are used as they are
     assert main(["compare", str(folder), "--effects", "viscous_friction:b=3700"]) == 0

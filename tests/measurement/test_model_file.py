@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ehas_env.cli.main import main
-from ehas_env.measurement.model_file import (FIELDS, PlantModel, diff_models, load_model, model_doc, parse_model,
+from ehas_env.simulation.model_file import (FIELDS, PlantModel, diff_models, load_model, model_doc, parse_model,
                                              save_model, write_model)
 from ehas_env.physics.effects.example_file import spring_effect
 from ehas_env.physics.rig import RigParams

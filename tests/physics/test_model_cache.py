@@ -72,7 +72,7 @@ def test_both_builds_give_the_same_numbers():
     """The quick-compile and the inlined build run the same arithmetic: bit for bit the same run."""
     import numpy as np
 
-    from ehas_env.physics.codegen import current_model
+    from ehas_env.simulation.compiled_model import current_model
     from ehas_env.simulation.plant import Plant, RigController
 
     plant = Plant(disc_sets=5)

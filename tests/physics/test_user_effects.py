@@ -138,3 +138,25 @@ def test_bench_and_diagnose_take_the_effect_from_its_folder(spring_dir, tmp_path
     top = res["ranking"][0]
     assert top["effect"] == "torsion_spring"
     assert top["params"]["k"] == pytest.approx(k, rel=0.1)
+
+
+def test_an_effect_folder_named_in_the_environment_is_checked_once_not_recursively(tmp_path):
+    """With EHAS_EFFECTS_PATH naming a folder whose file was never checked, loading it finishes: the import check's
+    child process does not load that folder again (it used to spawn a child per level until the time limit)."""
+    import os
+    import subprocess
+    import sys
+
+    from ehas_env.physics.effects.example_file import spring_effect
+
+    folder = tmp_path / "fx"
+    folder.mkdir()
+    (folder / "spring.py").write_text(spring_effect("env_path_spring", "EnvPathSpring"))
+    env = {**os.environ, "EHAS_EFFECTS_PATH": str(folder), "EHAS_CACHE_DIR": str(tmp_path / "cache"),
+           "EHAS_PLUGIN_TIMEOUT": "60"}
+    proc = subprocess.run([sys.executable, "-c", "from ehas_env.physics.effects import REGISTRY\n"
+                           "print('env_path_spring' in REGISTRY)"], capture_output=True, text=True, env=env)
+    assert proc.returncode == 0, proc.stderr[-400:]
+    assert proc.stdout.strip() == "True"
+    # exactly one check ran (its mark), not a chain of them
+    assert len(list((tmp_path / "cache" / "plugins_ok").iterdir())) == 1

@@ -156,6 +156,7 @@ def test_tune_cli_optimize_on_ray(ray_local, tmp_path):
 
 
 # -- ehas train --sweep ---------------------------------------------------------------------------------
+@pytest.mark.slow  # trains PPO in Ray workers, each compiling the environment: 10 min on 2 loaded cores
 def test_tune_sweep_two_trials_on_ray(ray_local, tmp_path):
     from ehas_train.config import parse_config
 

@@ -52,7 +52,10 @@ def load_effect_file(path) -> None:
     if _LOADED.get(key) == digest[:12]:
         return
     name = f"ehas_user_effects.{path.stem}_{digest[:12]}"
-    import_file(path, name, "effect", setup="import ehas_env.physics.effects")
+    # the check's child process must not load EHAS_EFFECTS_PATH itself: each of those files would be checked
+    # in a child of its own, which loads them again, ... until the time limit
+    import_file(path, name, "effect",
+                setup=f"import os\nos.environ.pop({ENV_VAR!r}, None)\nimport ehas_env.physics.effects")
     mine = [cls for cls in list(REGISTRY.values()) if cls.__module__ == name]
     if not mine:
         sys.modules.pop(name, None)

@@ -46,7 +46,8 @@ Examples
 >>> m = load_model(path)
 >>> m.effects, m.rig.beta, m.rig.K
 ({'coulomb_friction': {'Fc': 412.0}}, 960000000.0, 1.281)
->>> plant_from_model(path, disc_sets=5)
+>>> from ehas_env.simulation.plant import Plant
+>>> Plant(disc_sets=5, model=m)
 Plant(disc_sets=5, inertia=1.915 kg m^2, effects=[coulomb_friction(Fc=412)])
 >>> other = PlantModel.from_values(name="rig B", crank_radius_mm=60, inertia_per_set_kgm2=0.5)
 >>> [d.split(":")[0] for d in diff_models(PlantModel(), other)]
@@ -226,12 +227,6 @@ class PlantModel:
         """Keyword arguments of :class:`~ehas_env.simulation.plant.Plant` (besides ``disc_sets``)."""
         return {"model": self}
 
-    def plant(self, disc_sets: int = 3, **kwargs):
-        """A :class:`~ehas_env.simulation.plant.Plant` of this rig with ``disc_sets`` sets of discs."""
-        from ehas_env.simulation.plant import Plant
-
-        return Plant(disc_sets=disc_sets, model=self, **kwargs)
-
     def white_box_valve(self):
         """The :class:`WhiteBoxValve` of this model (None for the grey box)."""
         if self.valve != "white_box":
@@ -253,7 +248,7 @@ class PlantModel:
         feed-forward ``Kv 2 zeta / wn`` with this valve's dynamics.  For the
         book's rig this is exactly ``RigController.book()``.
         """
-        from ehas_env.simulation.plant import RigController
+        from ehas_env.simulation.rig_controller import RigController
 
         book = RigController.book()
         s = self.velocity_gain() / PlantModel().velocity_gain()
@@ -626,11 +621,6 @@ def save_model(path, effects: dict, *, beta: float | None = None, K: float | Non
     m = base.replace(rig=rig, effects=merged, calibration=dict(calibration or {}), provenance=prov,
                      name=name or (Path(path).stem if base.name == "book rig" else base.name))
     return write_model(path, m)
-
-
-def plant_from_model(path, disc_sets: int = 3, **kwargs):
-    """A :class:`~ehas_env.simulation.plant.Plant` of the model file's rig with ``disc_sets`` sets of discs."""
-    return as_model(path).plant(disc_sets, **kwargs)
 
 
 # -- comparing ---------------------------------------------------------------------------------
