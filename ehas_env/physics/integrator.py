@@ -60,11 +60,10 @@ def project(s, P):
 
 @njit(cache=True, inline="always")
 def measure(s, P, out):
-    """Write the physical outputs of state s into out[0:8] (SI, noise-free)."""
+    """Write the physical outputs of state s into out[0:8] (SI, noise-free; the angle as the LVDT reads it)."""
     r = P[I_RADIUS]
-    ratio = min(max(s[7] / r, -1.0), 1.0)
-    th = math.asin(ratio)
-    out[O_THETA] = th
+    th = math.asin(min(max(s[7] / r, -1.0), 1.0))
+    out[O_THETA] = math.asin(min(max(position_reading(s[7], P) / r, -1.0), 1.0))
     out[O_OMEGA] = s[8] / (r * math.cos(th))
     qa, _, _ = land_flows(s[2], s[4], s[5], s[6], P[I_DROP])
     out[O_FLOW] = qa

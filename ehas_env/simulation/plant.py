@@ -52,10 +52,13 @@ class SimResult:
         Sample times, s.
     current_mA : ndarray
         Command current issued at t_k (held until t_k+1), mA.
-    theta_deg, omega_deg_s : ndarray
-        Crank angle and rate as the LVDT shows them (asin(x/r)), deg, deg/s.
+    theta_deg : ndarray
+        Crank angle as the LVDT shows it (asin(reading / r), the reading of the piston position through the
+        sensor's effects, ``position_reading``), deg.
+    omega_deg_s : ndarray
+        Crank rate from the true piston velocity (asin(x/r))', deg/s.
     theta_crank_deg : ndarray
-        True crank angle, deg (differs from theta_deg only with backlash).
+        True crank angle, deg (differs from theta_deg with backlash, a compliant load path or a sensor effect).
     flow_lpm : ndarray
         Valve flow in line A, LPM.
     p_a_bar, p_b_bar, p_s_bar : ndarray
@@ -249,18 +252,45 @@ class Plant:
         return self._P.copy()
 
     def initial_state(self, theta_deg: float = 0.0) -> np.ndarray:
-        """At rest at ``theta_deg`` with P_A = P_B = Ps/2 (reference model)."""
+        """At rest where the LVDT reads ``theta_deg``, with P_A = P_B = Ps/2 (reference model).
+
+        Parameters
+        ----------
+        theta_deg : float
+            The angle the sensor reads at the start, deg (a log's first sample).  With a sensor effect on
+            (place ``position_reading``) the true piston position is the one the sensor reads so.
+
+        Returns
+        -------
+        ndarray
+            The state vector (``model.STATE_NAMES``), SI.
+        """
         check_number(theta_deg, "theta_deg", "deg", -90.0, 90.0)  # the crank's geometry; the stroke ends lie inside
         s = np.zeros(self._model.N_STATES)
         for name in self._model.EFFECTS:
             for st in REGISTRY[name].states:
                 s[self._model.STATE_NAMES.index(f"{name}.{st[0]}")] = st[2]
-        th = math.radians(theta_deg)
+        x = self._true_position(self.rig.radius * math.sin(math.radians(theta_deg)))
+        th = math.asin(min(max(x / self.rig.radius, -1.0), 1.0))
         s[0] = th
         s[4] = s[5] = 0.5 * self.rig.supply
         s[6] = self.rig.supply
         s[7] = self.rig.radius * math.sin(th)
         return s
+
+    def _true_position(self, reading: float) -> float:
+        """The piston position at which the sensor reads ``reading`` (m): the sensor chain inverted by a secant
+        iteration (the identity without sensor effects)."""
+        read = self._model.position_reading
+        P = self._P
+        x0, x1 = reading, reading - (read(reading, P) - reading)
+        f0, f1 = read(x0, P) - reading, read(x1, P) - reading
+        for _ in range(30):
+            if f1 == 0.0 or f1 == f0:
+                break
+            x0, x1, f0 = x1, x1 - f1 * (x1 - x0) / (f1 - f0), f1
+            f1 = read(x1, P) - reading
+        return x1 if math.isfinite(x1) else reading
 
     # -- simulation -------------------------------------------------------
     def simulate(self, current_mA, *, theta0_deg: float = 0.0) -> SimResult:

@@ -29,6 +29,8 @@ PLACES = {
     "joint_force": ("force the rod-crank joint carries, N (makes piston and crank separate bodies; a constant "
                     "m_min, kg, of the effect is the least piston mass then)"),
     "state_rates": "time derivatives of the effect's own states (tuple, in the order of ``states``)",
+    "position_reading": ("the piston position the position sensor (LVDT) reads, m (gets the reading so far as "
+                         "argument x; the angle the rig logs and its controller sees is asin(reading / r))"),
 }
 #: quantities a term may take as arguments, besides its own parameters and constants and the
 #: baseline slots (``layout.BASE_SLOTS``): SI values at the current instant
@@ -46,6 +48,7 @@ _AT_RATES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "i"
              "x", "v")
 PLACE_QUANTITIES = {place: frozenset(_AT_RATES) for place in PLACES}
 PLACE_QUANTITIES["valve_current"] = frozenset({"i"})
+PLACE_QUANTITIES["position_reading"] = frozenset({"x"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
 #: what an effect is (Effect.kind)
 KINDS = ("physical", "recalibration", "hypothesis")

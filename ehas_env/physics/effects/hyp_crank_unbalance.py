@@ -1,0 +1,42 @@
+"""Structural hypothesis: the load is unbalanced (its centre of mass is off the crank's axis)."""
+import math
+
+from ehas_env.physics.effects.base import Effect, Param
+
+
+class HypCrankUnbalance(Effect):
+    name = "hyp_crank_unbalance"
+    title = "unbalanced load: a torque that depends on the crank angle"
+    kind = "hypothesis"
+    params = (
+        Param("T_sin", "N m", 0.0, (-3000.0, 3000.0),
+              "torque on the crank along -theta proportional to sin(theta): an unbalance whose heavy side is at "
+              "the crank's zero with gravity across the stroke, or a centring spring (assumed range: up to the "
+              "actuator's stall torque)", typical=(-200.0, 200.0)),
+        Param("T_cos", "N m", 0.0, (-3000.0, 3000.0),
+              "torque on the crank along -theta proportional to cos(theta): the same unbalance turned a quarter "
+              "turn, gravity along the stroke", typical=(-200.0, 200.0)),
+    )
+    main_param = "T_sin"
+    explanation = (
+        "A disc stack whose centre of mass is a distance e off the crank's axis, or a crank not mounted level, "
+        "feels gravity's torque m g e sin(theta - theta_0): written T_sin sin(theta) + T_cos cos(theta) with "
+        "both signs allowed, the amplitude and the angle of the heavy side follow. A spring centring the crank "
+        "gives the sin(theta) part too."
+    )
+    signature = (
+        "load pressure residual that follows the crank angle (not its rate): the same at the same angle on the "
+        "way out and back, larger on the large-amplitude runs; a current residual in phase with the angle."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        a = math.hypot(params["T_sin"], params["T_cos"])
+        ang = math.degrees(math.atan2(params["T_cos"], params["T_sin"]))
+        return (f"the load is unbalanced: a torque of {a:.3g} N m pulls the crank toward {-ang:.0f} deg "
+                f"(T = -{a:.3g} sin(theta + {ang:.0f} deg) N m)")
+
+    @staticmethod
+    def crank_torque(theta, T_sin, T_cos):
+        return -(T_sin * math.sin(theta) + T_cos * math.cos(theta))

@@ -1,0 +1,48 @@
+"""Structural hypothesis: leakage across the piston follows the orifice (turbulent) law, not the laminar one."""
+import math
+
+from ehas_env.physics.effects.base import Effect, Param
+
+
+class HypTurbulentLeakage(Effect):
+    name = "hyp_turbulent_leakage"
+    title = "turbulent (orifice-law) leakage across the piston"
+    kind = "hypothesis"
+    params = (
+        Param("q_100", "LPM", 0.5, (0.0, 20.0),
+              "leakage flow from the high- to the low-pressure chamber at 100 bar load pressure (assumed range: "
+              "a scored bore or a broken seal ring, up to a fifth of the valve's rating)",
+              typical=(0.2, 3.0), log_scale=True, si=1.0e-3 / 60.0),
+    )
+    constants = (
+        Param("p_lam", "Pa", 2.0e5, (0.0, 1e7),
+              "load pressure below which the leak is laminar (assumed: a Reynolds transition at a few bar; it "
+              "keeps the law's slope finite at zero)"),
+    )
+    main_param = "q_100"
+    explanation = (
+        "A scored bore, a broken piston ring or a short clearance passes oil from the high- to the low-pressure "
+        "chamber as an orifice does: Q = q_100 sqrt(|P_L| / 100 bar) sign(P_L), laminar below a few bar. "
+        "Against the library's laminar leakage (Q proportional to P_L) it leaks relatively more at low load "
+        "pressure and less at the peaks."
+    )
+    signature = (
+        "current residual that follows the square root of the load pressure; the hydraulic mode damped at "
+        "small load as much as at large; a laminar leakage fitted to it comes out larger at small loads than "
+        "at large ones."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        return (f"oil leaks across the piston as through an orifice: {params['q_100']:.3g} LPM at 100 bar load "
+                f"pressure, growing with the square root of the pressure")
+
+    @staticmethod
+    def chamber_flows(p_load, q_100, p_lam):
+        # sqrt(|p| + p_lam) - sqrt(p_lam): the orifice law away from zero, linear (laminar) through it
+        mag = math.sqrt(abs(p_load) + p_lam) - math.sqrt(p_lam)
+        q = q_100 * mag / (math.sqrt(1.0e7 + p_lam) - math.sqrt(p_lam))
+        if p_load < 0.0:
+            q = -q
+        return -q, q
