@@ -67,14 +67,53 @@ class Controller(ABC):
 
     @abstractmethod
     def act(self, measurement: dict) -> float:
-        """Command current in mA for the period starting at ``measurement["t"]``."""
+        """Command current in mA for the period starting at ``measurement["t"]``.
+
+        Parameters
+        ----------
+        measurement : dict of str to float
+            The sample the plant's closed loop passes: :data:`MEASUREMENT_KEYS` - ``t`` (s),
+            ``theta_deg`` (sensed crank angle, deg), ``theta_ref_deg`` and its derivatives
+            ``theta_ref_dot``, ``theta_ref_ddot``, ``theta_ref_dddot`` (deg/s, deg/s^2, deg/s^3),
+            ``p_a_bar``, ``p_b_bar``, ``p_s_bar`` (bar) - and the reference's ``amplitude_deg``.
+
+        Returns
+        -------
+        float
+            The servo current in mA, held for one control period (the plant clips it to its
+            amplifier's +-20 mA).
+        """
 
     def for_plant(self, disc_sets: int) -> "Controller":
-        """The controller to use on a plant with ``disc_sets`` sets (gain schedules pick theirs)."""
+        """The controller to use on a plant with ``disc_sets`` sets (gain schedules pick theirs).
+
+        Parameters
+        ----------
+        disc_sets : int
+            Number of disc sets on the plant's crank, 1..7.
+
+        Returns
+        -------
+        Controller
+            This controller (the base class has one set of gains for every plant).
+        """
         return self
 
     def rig_gains(self, disc_sets: int | None = None):
-        """This controller as an :class:`ehas_env.simulation.plant.RigController` for the compiled loop, or None."""
+        """This controller as an :class:`ehas_env.simulation.plant.RigController` for the compiled loop, or None.
+
+        Parameters
+        ----------
+        disc_sets : int, optional
+            Number of disc sets of the plant (a gain schedule's entry); None where the controller
+            has one set of gains.
+
+        Returns
+        -------
+        RigController or None
+            The compiled form (an object with ``law_id()`` and ``gains_vector()``); None in the base
+            class: the controller runs through :meth:`act` in Python.
+        """
         return None
 
     def to_dict(self) -> dict:
@@ -87,6 +126,28 @@ class Controller(ABC):
         ``command`` (the command line that regenerates the file), ``metrics``
         (e.g. ``mean_rms_error_pct``) and ``notes`` (tuner report) are stored beside
         the gains.  Returns the path.
+
+        Parameters
+        ----------
+        path : str or path
+            The JSON file to write (``"format": "ehas-controller"``, version 1).
+        command : str, optional
+            The command line that regenerates the file.
+        metrics : dict, optional
+            Results of the controller (e.g. ``mean_rms_error_pct`` in %; that one is also stored at
+            the top level).
+        notes : dict, optional
+            Free notes such as the tuner's report.
+
+        Returns
+        -------
+        Path
+            The path of the written file.
+
+        Raises
+        ------
+        NotImplementedError
+            If the controller has no JSON form (:meth:`to_dict`).
         """
         from ehas_env.output.files import atomic_write_text
 
@@ -103,7 +164,18 @@ class Controller(ABC):
 
     @classmethod
     def load(cls, path) -> "Controller":
-        """Load a controller file of any registered type (see :func:`load_controller`)."""
+        """Load a controller file of any registered type (see :func:`load_controller`).
+
+        Parameters
+        ----------
+        path : str or path
+            A controller file (JSON, Python, or an agent folder; see :func:`load_controller`).
+
+        Returns
+        -------
+        Controller
+            The loaded controller, of whatever type the file holds (not necessarily ``cls``).
+        """
         return load_controller(path)
 
 
@@ -371,6 +443,26 @@ def load_controller(path) -> Controller:
     """Load a controller from ``path``, choosing the loader by the file's suffix.
 
     Raises FileNotFoundError for a missing file and ValueError for an unknown type.
+
+    Parameters
+    ----------
+    path : str or path
+        The controller file: a ``.json`` controller file (written by ``ehas tune`` or
+        :meth:`Controller.save`), a ``.py`` controller file (its ``CONTROLLER`` object or its one
+        Controller subclass), or a folder / other suffix with a loader of :data:`LOADERS` (learned
+        agents).
+
+    Returns
+    -------
+    Controller
+        The loaded controller (``kind`` ``"classical"`` or ``"learned"``).
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        No loader for the suffix, an invalid file, or a loaded object of an unknown ``kind``.
     """
     _import_plugins()
     path = Path(path)

@@ -106,16 +106,55 @@ class PIFF(RigController, Controller):
     # -- constructors ---------------------------------------------------------
     @classmethod
     def book(cls) -> "PIFF":
-        """The reference model's baseline: Kp 1, Ki 2, Kv 1/56.25, Ka = Kv 2 zeta / wn."""
+        """The reference model's baseline: Kp 1, Ki 2, Kv 1/56.25, Ka = Kv 2 zeta / wn.
+
+        Returns
+        -------
+        PIFF
+            The book's gains (Kp 1 mA/deg, Ki 2 mA/(deg s), Kv 1/56.25 mA/(deg/s),
+            Ka = Kv 2 (0.691) / 107 mA/(deg/s^2)), +-20 mA, no DAC, 1 kHz, named ``"book"``.
+        """
         return cls(name="book")
 
     @classmethod
     def from_rig_controller(cls, rc, name: str = "PI+FF") -> "PIFF":
-        """Wrap an :class:`ehas_env.simulation.plant.RigController`."""
+        """Wrap an :class:`ehas_env.simulation.plant.RigController`.
+
+        Parameters
+        ----------
+        rc : RigController
+            The gains (``Kp`` ... ``dp_hp``, in :data:`GAIN_UNITS`) and ``rate_hz`` (Hz) to take.
+        name : str
+            Label of the new controller in tables and files.
+
+        Returns
+        -------
+        PIFF
+            A controller with ``rc``'s gains and rate, the default output limit (+-20 mA) and no DAC.
+        """
         return cls(**{k: getattr(rc, k) for k in GAIN_NAMES}, rate_hz=rc.rate_hz, name=name)
 
     @classmethod
     def from_dict(cls, data: dict) -> "PIFF":
+        """Rebuild a PIFF from its JSON description (:meth:`to_dict`, a controller file).
+
+        Parameters
+        ----------
+        data : dict
+            ``{"gains": {gain: value}, ...}`` with gains of :data:`GAIN_NAMES` in their units
+            (missing ones take the book's values) and optionally ``i_max`` (mA), ``output_bits``,
+            ``rate_hz`` (Hz) and ``name``; a bare ``{gain: value}`` dict is accepted too.
+
+        Returns
+        -------
+        PIFF
+            The controller.
+
+        Raises
+        ------
+        ValueError
+            No or empty ``gains``, an unknown gain, or a value :class:`PIFF` refuses.
+        """
         if "gains" not in data and data and set(data) <= set(GAIN_NAMES):
             data = {"gains": data}  # a bare {gain: value} dict (Python API)
         gains = gains_field(data, GAIN_NAMES)
@@ -126,16 +165,44 @@ class PIFF(RigController, Controller):
         return cls(**kw)
 
     def to_dict(self) -> dict:
+        """JSON-able description; :meth:`from_dict` rebuilds the controller from it.
+
+        Returns
+        -------
+        dict
+            ``type`` (``"piff"``), ``kind``, ``name``, ``variant``, ``gains`` (:meth:`gains`), their
+            ``units``, ``i_max`` (mA), ``output_bits`` and ``rate_hz`` (Hz).
+        """
         return {"type": self.type_name, "kind": self.kind, "name": self.name, "variant": self.variant,
                 "gains": self.gains(), "units": dict(GAIN_UNITS), "i_max": self.i_max,
                 "output_bits": self.output_bits, "rate_hz": self.rate_hz}
 
     # -- description ------------------------------------------------------------
     def gains(self) -> dict[str, float]:
+        """The law's gains by name.
+
+        Returns
+        -------
+        dict of str to float
+            ``Kp``, ``Ki``, ``Kv``, ``Ka``, ``Kj``, ``Kdp``, ``dp_hp`` in the units of
+            :data:`GAIN_UNITS` (mA/deg, mA/(deg s), mA/(deg/s), mA/(deg/s^2), mA/(deg/s^3), mA/bar, rad/s).
+        """
         return {k: getattr(self, k) for k in GAIN_NAMES}
 
     def with_gains(self, **gains) -> "PIFF":
-        """A copy with some gains replaced (state reset)."""
+        """A copy with some gains replaced (state reset).
+
+        Parameters
+        ----------
+        **gains : float
+            New values of fields by name (``Kp=1.5``), in the units of the class's Attributes;
+            checked as the constructor checks them.
+
+        Returns
+        -------
+        PIFF
+            The copy (:func:`dataclasses.replace`), with fresh internal state.
+        """
         return replace(self, **gains)
 
     @property
@@ -160,7 +227,19 @@ class PIFF(RigController, Controller):
 
     # -- the compiled path ------------------------------------------------------
     def rig_gains(self, disc_sets: int | None = None):
-        """The gains alone (a :class:`RigController`: no output limit, DAC or name)."""
+        """The gains alone (a :class:`RigController`: no output limit, DAC or name).
+
+        Parameters
+        ----------
+        disc_sets : int, optional
+            Ignored: a PIFF has one set of gains for every plant (the argument is the
+            :class:`~ehas_controllers.base.Controller` protocol's).
+
+        Returns
+        -------
+        RigController
+            The gains and ``rate_hz``, the compiled loop's form of this controller.
+        """
         return RigController(**self.gains(), rate_hz=self.rate_hz)
 
     @property
@@ -175,7 +254,26 @@ class PIFF(RigController, Controller):
         self._checked = False
 
     def act(self, measurement: dict) -> float:
-        """Current command, mA: :func:`pi_ff_law` on the measurement, then the DAC."""
+        """Current command, mA: :func:`pi_ff_law` on the measurement, then the DAC.
+
+        Parameters
+        ----------
+        measurement : dict of str to float
+            :data:`~ehas_controllers.base.MEASUREMENT_KEYS`: ``t`` (s), ``theta_deg`` (deg),
+            ``theta_ref_deg`` and its derivatives (deg/s^k), ``p_a_bar``, ``p_b_bar``, ``p_s_bar`` (bar);
+            checked on the first call after :meth:`reset`.
+
+        Returns
+        -------
+        float
+            The current in mA, clipped to +-``i_max`` and quantized to the DAC's step when
+            ``output_bits`` is set.
+
+        Raises
+        ------
+        ValueError
+            If the measurement lacks one of the keys.
+        """
         m = measurement
         if self._mem is None:
             self.reset()
@@ -199,6 +297,20 @@ class GainSchedule(Controller):
     scheduled points gets gains interpolated linearly in the inertia (disc
     sets), one outside them the nearest entry's.  ``act`` needs the plant known:
     call :meth:`select` (or use :meth:`for_plant`, which returns the PIFF).
+
+    Parameters
+    ----------
+    entries : dict of int to PIFF
+        Disc sets (1..7; an integer or its text, as in a JSON file) -> the controller tuned for them.
+    name : str
+        Label in tables and files; an entry picked for a plant is named ``name@disc_sets``.
+    basis : str
+        Free text saying how the schedule was obtained (``ehas tune`` writes e.g. ``"relay per disc set"``).
+
+    Raises
+    ------
+    ValueError
+        No entries, a key that is not a number of disc sets in 1..7, or an entry that is not a PIFF.
 
     Examples
     --------
@@ -229,9 +341,24 @@ class GainSchedule(Controller):
 
     @property
     def variant(self) -> str:
+        """``schedule of`` and the entries' variants (:attr:`PIFF.variant`), e.g. ``schedule of PI+FF``."""
         return "schedule of " + ", ".join(sorted({c.variant for c in self.entries.values()}))
 
     def for_plant(self, disc_sets: int) -> PIFF:
+        """The PIFF for a plant with ``disc_sets`` sets of discs.
+
+        Parameters
+        ----------
+        disc_sets : int or float
+            Number of disc sets of the plant (proportional to its load inertia).
+
+        Returns
+        -------
+        PIFF
+            An entry's controller, with gains interpolated linearly in the disc sets between the two
+            nearest entries (the nearest entry's outside them); its output limit, DAC and rate are the
+            lower entry's; named ``name@disc_sets``.
+        """
         keys = list(self.entries)
         n = float(disc_sets)
         if n <= keys[0]:
@@ -250,11 +377,39 @@ class GainSchedule(Controller):
         return replace(a, **gains, name=f"{self.name}@{disc_sets}")
 
     def select(self, disc_sets: int) -> "GainSchedule":
-        """Use the gains for ``disc_sets`` in :meth:`act` from now on."""
+        """Use the gains for ``disc_sets`` in :meth:`act` from now on.
+
+        Parameters
+        ----------
+        disc_sets : int
+            Number of disc sets of the plant the schedule will control.
+
+        Returns
+        -------
+        GainSchedule
+            This schedule (for chaining).
+        """
         self._active = self.for_plant(disc_sets)
         return self
 
     def rig_gains(self, disc_sets: int | None = None):
+        """The compiled form of the schedule's controller for a plant.
+
+        Parameters
+        ----------
+        disc_sets : int, optional
+            Number of disc sets of the plant; None: the plant chosen with :meth:`select`.
+
+        Returns
+        -------
+        RigController
+            The gains (:meth:`PIFF.rig_gains`) of :meth:`for_plant` ``(disc_sets)``.
+
+        Raises
+        ------
+        ValueError
+            If ``disc_sets`` is None and no plant was selected.
+        """
         if disc_sets is None:
             if self._active is None:
                 raise ValueError(f"GainSchedule '{self.name}': which disc sets? pass disc_sets or call select() first")
@@ -266,11 +421,38 @@ class GainSchedule(Controller):
             self._active.reset()
 
     def act(self, measurement: dict) -> float:
+        """Current command, mA, of the selected plant's PIFF (:meth:`select` first).
+
+        Parameters
+        ----------
+        measurement : dict of str to float
+            :data:`~ehas_controllers.base.MEASUREMENT_KEYS` in s, deg, deg/s^k and bar (see
+            :meth:`PIFF.act`).
+
+        Returns
+        -------
+        float
+            The current in mA (:meth:`PIFF.act` of the selected entry).
+
+        Raises
+        ------
+        ValueError
+            If no plant was selected.
+        """
         if self._active is None:
             raise ValueError(f"GainSchedule '{self.name}': no plant selected; call select(disc_sets) before act()")
         return self._active.act(measurement)
 
     def to_dict(self) -> dict:
+        """JSON-able description; :meth:`from_dict` rebuilds the schedule from it.
+
+        Returns
+        -------
+        dict
+            ``type`` (``"schedule"``), ``kind``, ``name``, ``variant``, ``basis``, gain ``units`` and
+            ``entries``: disc sets (text) -> ``gains``, ``variant``, ``i_max`` (mA), ``output_bits``,
+            ``rate_hz`` (Hz).
+        """
         return {"type": self.type_name, "kind": self.kind, "name": self.name, "variant": self.variant,
                 "basis": self.basis, "units": dict(GAIN_UNITS),
                 "entries": {str(n): {"gains": c.gains(), "variant": c.variant, "i_max": c.i_max,
@@ -279,6 +461,24 @@ class GainSchedule(Controller):
 
     @classmethod
     def from_dict(cls, data: dict) -> "GainSchedule":
+        """Rebuild a schedule from its JSON description (:meth:`to_dict`, a controller file).
+
+        Parameters
+        ----------
+        data : dict
+            ``{"entries": {disc_sets: {"gains": {...}, ...}}, "name": ..., "basis": ...}``; each
+            entry as :meth:`PIFF.from_dict` takes it.
+
+        Returns
+        -------
+        GainSchedule
+            The schedule; entry ``k`` is named ``name@k``.
+
+        Raises
+        ------
+        ValueError
+            No entries, or an entry that is not a valid PIFF description (named in the message).
+        """
         entries = data.get("entries")
         if not isinstance(entries, dict) or not entries:
             raise ValueError("a schedule needs 'entries': {disc_sets: {gains: {...}}}")

@@ -228,7 +228,60 @@ class EpisodePacker:
 
 
 class TrackingEnv(gym.Env):
-    """Position tracking of the crank with the servo valve (see the module docstring)."""
+    """Position tracking of the crank with the servo valve (see the module docstring).
+
+    Parameters
+    ----------
+    disc_sets : int
+        Episode default: number of disc sets on the crank, 1..7 (0.383 kg m^2 each).
+    amplitude_deg : float
+        Episode default: amplitude of the sine reference in degrees, in (0, 44.43).
+    freq_hz : float
+        Episode default: frequency of the sine reference in Hz, in (0, 50].
+    cycles : float
+        Episode default: episode length in reference periods (the episode is truncated after them).
+    effects : dict, list of str or str, optional
+        Episode default: effects of the library to switch on, as :class:`~ehas_env.simulation.plant.Plant`
+        takes them (``{"coulomb_friction": {"Fc": 300}}``); added to the model's effects.
+    sensors : {"ideal", "realistic"}, Sensors or dict, optional
+        Episode default: the measurement chain, a :class:`~ehas_env.simulation.sensors.Sensors` or a
+        dict of its fields (None: ideal, no noise or quantization).
+    theta0_deg : float
+        Episode default: initial crank angle in degrees, in [-40, 40].
+    reference : SineReference or MultiSine, optional
+        Episode default: the reference signal, overriding ``amplitude_deg`` and ``freq_hz``.
+    randomise : dict, optional
+        Settings drawn at each reset from the environment's RNG (seeded by ``reset(seed=)``): a pair
+        is a range, a list of >= 3 values a set of choices, ``"typical"`` an effect's realistic ranges
+        (see the module docstring, Options).
+    controller : RigController or object, optional
+        Base controller of the residual mode (the action is added to its current): a controller
+        with a compiled law (``RigController``, ``PIFF``) is compiled into the step; any other object
+        with ``act(measurement) -> mA`` (and optionally ``reset()``) is called in Python every step.
+        None (default): direct mode, the action is the current.
+    rate_penalty : float
+        Weight (>= 0) of the squared change of the normalised action in the reward.
+    termination_penalty : float
+        Penalty (>= 0) per remaining step of the episode on early termination.
+    preview_ms : sequence of float
+        Offsets in milliseconds (positive, at most ``batch_kernel.MAX_PREVIEW`` of them) of the
+        reference preview entries of the observation.
+    dt : float
+        Control period in seconds, in (0, 0.01] (rig: 1 ms).
+    substeps : int
+        RK4 sub-steps per control period, >= 1 (>= 10 recommended: the chambers are stiff).
+    plant_kwargs : dict, optional
+        Keyword arguments forwarded to :class:`~ehas_env.simulation.plant.Plant`: ``rig``,
+        ``inertia`` (kg m^2) or ``model`` only.
+    render_mode : {"rgb_array", "human"}, optional
+        How :meth:`render` shows the run (None: no rendering).
+    effects_path : str, Path or list, optional
+        Folders (or files) of user effect files to load before the model is built.
+    model : PlantModel, str, Path or dict, optional
+        A model file (its path, its JSON document or its
+        :class:`~ehas_env.simulation.model_file.PlantModel`): the rig, valve and effects it describes
+        (docs/model-file.md).
+    """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
 
@@ -271,6 +324,26 @@ class TrackingEnv(gym.Env):
 
     # -- gymnasium API ------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start a new episode (gymnasium API).
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the environment's RNG (the randomised settings and the sensor noise); None
+            keeps the current RNG.
+        options : dict, optional
+            Episode settings for this episode only (keys ``disc_sets``, ``amplitude_deg``, ``freq_hz``,
+            ``cycles``, ``effects``, ``sensors``, ``theta0_deg``, ``reference``, ``randomise``, in the
+            constructor's units), overriding the constructor's defaults.
+
+        Returns
+        -------
+        obs : ndarray of float32
+            The first observation, shape ``(10 + len(preview_ms),)``, scaled (module docstring).
+        info : dict
+            The unscaled quantities of the first sample (deg, deg/s, bar, LPM, kN, mA) plus
+            ``episode`` (the drawn settings), ``episode_steps`` and ``metric_window_s``.
+        """
         super().reset(seed=seed)
         ep = parts.draw_episode(self._defaults, options, self.np_random)
         C, self._desc = self._packer(ep)
@@ -288,6 +361,33 @@ class TrackingEnv(gym.Env):
         return self._obs.copy(), info
 
     def step(self, action):
+        """Advance one control period (gymnasium API).
+
+        Parameters
+        ----------
+        action : float or array_like of one float
+            Normalised servo current in [-1, 1] (``i = 20 mA * a``, added to the base controller's
+            current in residual mode); out-of-range values are clipped, NaN and inf refused.
+
+        Returns
+        -------
+        obs : ndarray of float32
+            The observation of the new sample.
+        reward : float
+            ``-(e / A)^2 - rate_penalty (a - a_prev)^2`` (plus the termination penalty on early end).
+        terminated : bool
+            True when the piston touched a stroke end or the state turned non-finite.
+        truncated : bool
+            True after ``cycles`` reference periods.
+        info : dict
+            The unscaled quantities of the new sample; at the episode's end also ``rms_error_pct``,
+            ``peak_error_pct``, ``metric_complete``, ``episode_steps`` and ``termination``.
+
+        Raises
+        ------
+        ValueError
+            If the action is not one finite number.
+        """
         if type(action) is np.ndarray and action.shape == (1,):
             a = float(action[0])
         else:
@@ -304,6 +404,15 @@ class TrackingEnv(gym.Env):
         return self._end_step(flags, reward, a)
 
     def render(self):
+        """Draw the crank dial and the last 2 s of reference and position.
+
+        Returns
+        -------
+        ndarray or None
+            With ``render_mode="rgb_array"`` the frame, a 320 x 640 x 3 uint8 RGB image; with
+            ``"human"`` None (the frame is shown in a matplotlib window); None with a warning when
+            the environment has no render mode.
+        """
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; make the env with render_mode='rgb_array' or 'human'")
             return None
@@ -329,7 +438,15 @@ class TrackingEnv(gym.Env):
         return copy.deepcopy(self._desc)
 
     def episode_metrics(self) -> dict:
-        """rms/peak % position error of the episode so far (see the module docstring)."""
+        """rms/peak % position error of the episode so far (see the module docstring).
+
+        Returns
+        -------
+        dict
+            ``rms_error_pct`` and ``peak_error_pct`` (float, % of the reference amplitude) over the
+            whole cycles after the first, or over every sample so far when the episode has not reached
+            them, and ``metric_complete`` (bool, False in that case).
+        """
         return parts.episode_metrics(self._X, self._C)
 
     def _info(self) -> dict:

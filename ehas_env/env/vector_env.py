@@ -66,10 +66,49 @@ class TrackingVectorEnv(VectorEnv):
         the registration's cap).
     parallel : bool
         Step the rows on every core (numba ``prange``) instead of one serial loop.
-    **kwargs
-        The settings of :class:`~ehas_env.env.tracking_env.TrackingEnv` (episode
-        defaults, ``randomise``, ``controller``, reward weights, ``preview_ms``,
-        ``dt``, ``substeps``, ``plant_kwargs``, ``model``: a model file, docs/model-file.md).
+    disc_sets : int
+        Episode default: number of disc sets on the crank, 1..7 (0.383 kg m^2 each).
+    amplitude_deg : float
+        Episode default: amplitude of the sine reference in degrees, in (0, 44.43).
+    freq_hz : float
+        Episode default: frequency of the sine reference in Hz, in (0, 50].
+    cycles : float
+        Episode default: episode length in reference periods.
+    effects : dict, list of str or str, optional
+        Episode default: effects of the library to switch on (``{"coulomb_friction": {"Fc": 300}}``).
+    sensors : {"ideal", "realistic"}, Sensors or dict, optional
+        Episode default: the measurement chain (None: ideal).
+    theta0_deg : float
+        Episode default: initial crank angle in degrees, in [-40, 40].
+    reference : SineReference or MultiSine, optional
+        Episode default: the reference signal, overriding ``amplitude_deg`` and ``freq_hz``.
+    randomise : dict, optional
+        Settings drawn at each row's reset from that row's RNG (pairs are ranges, lists of >= 3
+        values choices, ``"typical"`` an effect's realistic ranges), as for ``TrackingEnv``.
+    controller : RigController, PIFF, GainSchedule or None
+        Base controller of the residual mode: it must have a compiled law, or be a gain schedule
+        (``for_plant(disc_sets)``), whose entry for each episode's disc sets is compiled into the
+        step.  A controller with only ``act()`` is refused (use ``TrackingEnv``).  None: direct mode.
+    rate_penalty : float
+        Weight (>= 0) of the squared change of the normalised action in the reward.
+    termination_penalty : float
+        Penalty (>= 0) per remaining step of the episode on early termination.
+    preview_ms : sequence of float
+        Offsets in milliseconds (positive) of the reference preview entries of the observation.
+    dt : float
+        Control period in seconds, in (0, 0.01] (rig: 1 ms).
+    substeps : int
+        RK4 sub-steps per control period, >= 1 (>= 10 recommended).
+    plant_kwargs : dict, optional
+        Keyword arguments forwarded to :class:`~ehas_env.simulation.plant.Plant`: ``rig``,
+        ``inertia`` (kg m^2) or ``model`` only.
+    render_mode : None
+        Must be None: the vector environment does not render (render a single ``TrackingEnv``).
+    effects_path : str, Path or list, optional
+        Folders (or files) of user effect files to load before the model is built.
+    model : PlantModel, str, Path or dict, optional
+        A model file (its path, JSON document or ``PlantModel``): the rig, valve and effects it
+        describes (docs/model-file.md).
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -141,6 +180,24 @@ class TrackingVectorEnv(VectorEnv):
         (None entries draw fresh entropy) or None.  ``options`` hold episode
         settings, as for ``TrackingEnv.reset``; they stay in force for the
         automatic resets that follow.
+
+        Parameters
+        ----------
+        seed : int, list of int or None, optional
+            Environment i's RNG seed: ``seed + i`` for an int, ``seed[i]`` for a list of ``num_envs``
+            seeds (None entries draw fresh entropy); None keeps the RNGs (fresh ones on the first reset).
+        options : dict, optional
+            Episode settings (``disc_sets``, ``amplitude_deg``, ``freq_hz``, ``cycles``, ``effects``,
+            ``sensors``, ``theta0_deg``, ``reference``, ``randomise``, in the constructor's units) and
+            ``reset_mask``, a boolean array of shape ``(num_envs,)`` choosing the rows to reset.
+
+        Returns
+        -------
+        obs : ndarray of float32
+            The observations, shape ``(num_envs, 10 + len(preview_ms))``.
+        info : dict
+            Each unscaled quantity (deg, deg/s, bar, LPM, kN, mA) as an array over the environments,
+            with its ``_key`` mask.
         """
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
@@ -168,6 +225,28 @@ class TrackingVectorEnv(VectorEnv):
         return self._obs.copy(), self._raw_info()
 
     def step(self, actions):
+        """Advance every environment one control period, resetting the ones whose episode ended.
+
+        Parameters
+        ----------
+        actions : array_like of float
+            One normalised servo current in [-1, 1] per environment, shape ``(num_envs, 1)`` (or
+            ``num_envs`` values); out-of-range values are clipped, NaN and inf refused.
+
+        Returns
+        -------
+        obs : ndarray of float32
+            The observations, shape ``(num_envs, 10 + len(preview_ms))``.
+        rewards : ndarray of float
+            Each environment's reward (0 for the environments reset at this step).
+        terminated, truncated : ndarray of bool
+            Each environment's end flags (stroke end or non-finite state; ``cycles`` reached or
+            ``max_episode_steps``).
+        info : dict
+            The unscaled quantities as arrays over the environments and, for the environments whose
+            episode ended, ``rms_error_pct``, ``peak_error_pct``, ``metric_complete``,
+            ``episode_steps`` with their ``_key`` masks.
+        """
         a = np.asarray(actions, dtype=np.float64)
         if a.size != self.num_envs:
             raise ValueError(f"actions must hold one value per environment, shape ({self.num_envs}, 1); got shape {a.shape}")
@@ -197,6 +276,13 @@ class TrackingVectorEnv(VectorEnv):
         return self._obs.copy(), self._rew.copy(), terminated, truncated, info
 
     def close_extras(self, **kwargs):
+        """Nothing to release (gymnasium's ``VectorEnv.close`` hook).
+
+        Parameters
+        ----------
+        **kwargs
+            Ignored (passed on by ``VectorEnv.close``).
+        """
         pass
 
     # -- helpers --------------------------------------------------------------
@@ -232,6 +318,23 @@ class TrackingVectorEnv(VectorEnv):
         and no end flags.  Unscaled values of the latest sample:
         :meth:`raw`.  Not to be mixed with :meth:`step`'s autoreset in one
         episode.
+
+        Parameters
+        ----------
+        actions : array_like of float
+            One normalised servo current in [-1, 1] per environment (``num_envs`` values; inactive
+            rows' are ignored).
+        active : array_like of bool
+            Shape ``(num_envs,)``: the rows to step.
+
+        Returns
+        -------
+        obs : ndarray of float32
+            The observations of every row, shape ``(num_envs, 10 + len(preview_ms))``.
+        rewards : ndarray of float
+            Each row's reward (0 for inactive rows).
+        terminated, truncated : ndarray of bool
+            Each row's end flags at this step (False for inactive rows).
         """
         a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs)
         if not np.isfinite(a).all():
@@ -245,15 +348,39 @@ class TrackingVectorEnv(VectorEnv):
         return self._obs.copy(), self._rew.copy(), terminated, truncated
 
     def raw(self, name: str) -> np.ndarray:
-        """The unscaled quantity ``name`` (a key of ``info``: ``theta_deg``, ``p_a_bar`` ...) of every row, a view."""
+        """The unscaled quantity ``name`` (a key of ``info``: ``theta_deg``, ``p_a_bar`` ...) of every row, a view.
+
+        Parameters
+        ----------
+        name : str
+            A key of ``info`` (``batch_kernel.RAW_NAMES``), for example ``theta_deg`` or ``p_a_bar``.
+
+        Returns
+        -------
+        ndarray
+            Shape ``(num_envs,)``, in the key's unit (s, deg, deg/s^n, bar, LPM, kN, mA; ``action`` is
+            normalised); a view that the next step overwrites.
+        """
         return self._raw[:, bk.RAW_NAMES.index(name)]
 
     def episode_disc_sets(self) -> np.ndarray:
-        """Each row's disc sets (its episode's load)."""
+        """Each row's disc sets (its episode's load).
+
+        Returns
+        -------
+        ndarray of float
+            Shape ``(num_envs,)``: the number of disc sets of each row's current episode (a copy).
+        """
         return self._sets.copy()
 
     def episode_amplitudes(self) -> np.ndarray:
-        """Each row's reference amplitude, deg (the % error's normaliser)."""
+        """Each row's reference amplitude, deg (the % error's normaliser).
+
+        Returns
+        -------
+        ndarray of float
+            Shape ``(num_envs,)``: the reference amplitude of each row's current episode in degrees (a copy).
+        """
         return self._C[:, bk.C_AMP].copy()
 
     def _raw_info(self) -> dict:
@@ -277,5 +404,18 @@ class TrackingVectorEnv(VectorEnv):
             info["_" + key] = done.copy()
 
     def episode_metrics(self, i: int) -> dict:
-        """rms/peak % position error of environment ``i``'s episode so far."""
+        """rms/peak % position error of environment ``i``'s episode so far.
+
+        Parameters
+        ----------
+        i : int
+            Row (environment) index, 0 to ``num_envs - 1``.
+
+        Returns
+        -------
+        dict
+            ``rms_error_pct`` and ``peak_error_pct`` (float, % of the reference amplitude) and
+            ``metric_complete`` (bool: False when the episode has not reached the whole cycles after
+            the first, the metric then covering every sample so far).
+        """
         return parts.episode_metrics(self._X[i], self._C[i])

@@ -182,6 +182,31 @@ class PlantModel:
         """A model from file-unit values by key (``crank_radius_mm=60``), validated as a file is.
 
         ``rated_flow_lpm`` may be given instead of ``K_lpm_per_mA`` (K = rated flow / rated current).
+
+        Parameters
+        ----------
+        name : str
+            The model's short name (figure titles and tables show it).
+        effects : dict, optional
+            Effects to switch on, ``{name: {param: value}}`` in the effects' own units.
+        valve : {"grey_box", "white_box"}
+            The valve model: the identified transfer function or the first-principles valve.
+        **values : float
+            Model-file fields by key, in the file's engineering units (the unit is in the key):
+            ``crank_radius_mm``, ``piston_area_cm2``, ``half_stroke_mm``, ``inertia_per_set_kgm2``,
+            ``dead_volume_cm3``, ``supply_bar``, ``bulk_modulus_Pa``, ``K_lpm_per_mA``, ``wn_rad_s``,
+            ``zeta``, ``rated_drop_bar``, ``rated_current_mA``, or ``rated_flow_lpm`` (LPM).  Keys left
+            out keep the book's values.
+
+        Returns
+        -------
+        PlantModel
+            The model, validated as a model file is (SI inside).
+
+        Raises
+        ------
+        ValueError
+            An unknown key, a value out of its range, or an unknown effect.
         """
         doc = model_doc(PlantModel(name=name))
         flow = values.pop("rated_flow_lpm", None)
@@ -199,11 +224,36 @@ class PlantModel:
         return parse_model(doc, "<values>")
 
     def value(self, f: Field) -> float:
-        """The value of field ``f`` in its file unit."""
+        """The value of field ``f`` in its file unit.
+
+        Parameters
+        ----------
+        f : Field
+            One of :data:`FIELDS` (for example ``FIELD_BY_KEY["supply_bar"]``).
+
+        Returns
+        -------
+        float
+            The model's value of that field converted from SI to the field's file unit
+            (``f.unit``: mm, cm^2, bar, LPM/mA, ...).
+        """
         v = self.inertia_per_set if f.attr == "inertia_per_set" else getattr(self.rig, f.attr)
         return v / f.si
 
     def replace(self, **changes) -> "PlantModel":
+        """A copy of this (frozen) model with some attributes changed.
+
+        Parameters
+        ----------
+        **changes
+            New values of attributes by name (``name="rig B"``, ``effects={...}``), in the
+            attributes' own units (see the class's Attributes); not validated.
+
+        Returns
+        -------
+        PlantModel
+            The copy (:func:`dataclasses.replace`).
+        """
         from dataclasses import replace
 
         return replace(self, **changes)
@@ -220,15 +270,39 @@ class PlantModel:
         return f"{self.name} ({Path(self.path).name})" if self.path else self.name
 
     def rig_for(self, disc_sets: int) -> RigParams:
-        """The :class:`RigParams` of this rig with ``disc_sets`` sets of discs."""
+        """The :class:`RigParams` of this rig with ``disc_sets`` sets of discs.
+
+        Parameters
+        ----------
+        disc_sets : int
+            Number of disc sets on the crank.
+
+        Returns
+        -------
+        RigParams
+            This model's rig with ``disc_sets`` and ``inertia = disc_sets * inertia_per_set`` (kg m^2).
+        """
         return self.rig.replace(disc_sets=int(disc_sets), inertia=float(disc_sets) * self.inertia_per_set)
 
     def plant_kwargs(self) -> dict:
-        """Keyword arguments of :class:`~ehas_env.simulation.plant.Plant` (besides ``disc_sets``)."""
+        """Keyword arguments of :class:`~ehas_env.simulation.plant.Plant` (besides ``disc_sets``).
+
+        Returns
+        -------
+        dict
+            ``{"model": self}``: ``Plant(disc_sets, **m.plant_kwargs())`` is the plant this model describes.
+        """
         return {"model": self}
 
     def white_box_valve(self):
-        """The :class:`WhiteBoxValve` of this model (None for the grey box)."""
+        """The :class:`WhiteBoxValve` of this model (None for the grey box).
+
+        Returns
+        -------
+        WhiteBoxValve or None
+            The white-box valve with this model's ``white_box`` overrides (SI), or None when the
+            valve is the grey box.
+        """
         if self.valve != "white_box":
             return None
         from ehas_env.physics.white_box_valve import WhiteBoxValve
@@ -236,7 +310,13 @@ class PlantModel:
         return WhiteBoxValve(**self.white_box)
 
     def velocity_gain(self) -> float:
-        """Current per crank rate at no load, mA/(deg/s): A r / (K sqrt(Ps / rated drop))."""
+        """Current per crank rate at no load, mA/(deg/s): A r / (K sqrt(Ps / rated drop)).
+
+        Returns
+        -------
+        float
+            The current in mA that moves the unloaded crank at 1 deg/s (near 0 deg), in mA/(deg/s).
+        """
         r = self.rig
         return r.area * r.radius * DEG / (r.K * LPM * math.sqrt(r.supply / r.rated_drop))
 
@@ -247,6 +327,12 @@ class PlantModel:
         book's (the same velocity-loop crossover, 56 rad/s), acceleration
         feed-forward ``Kv 2 zeta / wn`` with this valve's dynamics.  For the
         book's rig this is exactly ``RigController.book()``.
+
+        Returns
+        -------
+        RigController
+            Kp, Ki and Kv of the book scaled by this rig's velocity gain over the book's
+            (mA/deg, mA/(deg s), mA/(deg/s)) and Ka = Kv 2 zeta / wn (mA/(deg/s^2)).
         """
         from ehas_env.simulation.rig_controller import RigController
 
@@ -259,11 +345,25 @@ class PlantModel:
 
     # -- describing -----------------------------------------------------------------------
     def to_dict(self) -> dict:
-        """The JSON document (version 2)."""
+        """The JSON document (version 2).
+
+        Returns
+        -------
+        dict
+            The model-file document (docs/model-file.md), numbers in the file's engineering units.
+        """
         return model_doc(self)
 
     def summary(self) -> str:
-        """Lines with every number, its unit, and whether it is the book's."""
+        """Lines with every number, its unit, and whether it is the book's.
+
+        Returns
+        -------
+        str
+            A multi-line, human-readable description: name, rig and valve fields in file units
+            (each differing from the book's marked with the book's value), derived stroke ends and
+            hydraulic natural frequencies, effects, user effects, calibration and provenance.
+        """
         lines = [f"model: {self.label}" + (f" - {self.description}" if self.description else "")]
         for section in ("rig", "valve"):
             lines.append(f"{section}:")
@@ -610,6 +710,32 @@ def save_model(path, effects: dict, *, beta: float | None = None, K: float | Non
 
     ``effects`` are the model's whole effect set (the base's own effects are kept
     unless ``effects`` names them again, with new values).
+
+    Parameters
+    ----------
+    path : str or path
+        The model JSON file to write (atomically; checked by reading it back first).
+    effects : dict, list of str or str
+        Effects to switch on, as :class:`~ehas_env.simulation.plant.Plant` takes them
+        (``{"coulomb_friction": {"Fc": 412.0}}``), values in the effects' own units.
+    beta : float, optional
+        Recalibrated effective bulk modulus of the oil in Pa; None keeps the base's.
+    K : float, optional
+        Recalibrated valve flow gain at the rated drop in LPM/mA; None keeps the base's.
+    calibration : dict, optional
+        How the numbers were obtained (``campaign``, ``fit_percent_before``, ``fit_percent_after``,
+        ...), stored as the file's ``calibration`` block.
+    base : PlantModel, optional
+        The model to start from (the book's rig by default).
+    name : str, optional
+        The model's name; by default the base's, or the file's stem when the base is the book's rig.
+    command : str, optional
+        The command that produced the model, recorded in ``provenance``.
+
+    Returns
+    -------
+    Path
+        The path of the written file.
     """
     from ehas_env.physics.effects import resolve_effects
 

@@ -93,17 +93,45 @@ class SimResult:
 
     @property
     def hit_stroke_end(self) -> bool:
+        """True if the piston touched a stroke end at any sample of the run (any ``stroke_end``)."""
         return bool(np.any(self.stroke_end))
 
     def tracking_errors(self) -> dict[str, float]:
-        """rms/peak % position error over whole cycles after the first (closed loop)."""
+        """rms/peak % position error over whole cycles after the first (closed loop).
+
+        Returns
+        -------
+        dict of str to float
+            The metrics of :func:`ehas_env.simulation.metrics.tracking_errors` computed on the measured
+            angle ``theta_deg`` against ``theta_ref_deg``, in percent of the reference amplitude
+            (``rms_error_pct``, ``peak_error_pct``, ...).
+
+        Raises
+        ------
+        ValueError
+            If the run has no reference (an open-loop run).
+        """
         if self.theta_ref_deg is None:
             raise ValueError("tracking_errors: this run has no reference (open-loop run)")
         ref = self.meta["reference"]
         return tracking_errors(self.t, self.theta_ref_deg, self.theta_deg, ref["amplitude_deg"], ref["freq_hz"])
 
     def columns(self, logged: bool = True) -> dict[str, np.ndarray]:
-        """The run's columns in the measurement format (logged channels by default)."""
+        """The run's columns in the measurement format (logged channels by default).
+
+        Parameters
+        ----------
+        logged : bool
+            True (default): the channels as the DAQ logged them (``logged``: sensor noise and
+            quantization) replace the physical ones; False: the physical outputs.
+
+        Returns
+        -------
+        dict of str to ndarray
+            Column name -> samples, engineering units: ``t`` (s), ``current_mA`` (mA),
+            ``theta_deg`` (deg), ``flow_lpm`` (LPM), ``p_a_bar``, ``p_b_bar``, ``p_s_bar`` (bar),
+            ``load_kN`` (kN), and ``theta_ref_deg`` (deg) for a closed-loop run.
+        """
         cols = {
             "t": self.t,
             "current_mA": self.current_mA,
@@ -226,7 +254,15 @@ class Plant:
         return self._model
 
     def slots(self) -> dict[str, float]:
-        """The model's parameter slots (SI) by name, with the effects applied."""
+        """The model's parameter slots (SI) by name, with the effects applied.
+
+        Returns
+        -------
+        dict of str to float
+            Slot name (``model.SLOTS``) -> value in SI units (inertia in kg m^2, pressures in Pa,
+            lengths in m, ...): the rig's baseline, the valve's, each effect's parameters after its
+            ``apply`` and ``adjust`` for this plant's sub-step, and the effects' on-flags.
+        """
         r = self.rig
         s = dict.fromkeys(self._model.SLOTS, 0.0)
         s.update(inertia=r.inertia, radius=r.radius, area=r.area, half_stroke=r.half_stroke, supply=r.supply,
@@ -257,13 +293,16 @@ class Plant:
         Parameters
         ----------
         theta_deg : float
-            The angle the sensor reads at the start, deg (a log's first sample).  With a sensor effect on
-            (place ``position_reading``) the true piston position is the one the sensor reads so.
+            Initial crank angle as the sensor reads it, deg, in [-90, 90] (a log's first sample; the stroke
+            ends lie inside).  With a sensor effect on (place ``position_reading``) the true piston position
+            is the one the sensor reads so.
 
         Returns
         -------
         ndarray
-            The state vector (``model.STATE_NAMES``), SI.
+            The model's state vector (layout ``model.STATE_NAMES``, SI units): crank angle in rad,
+            zero rate, chamber pressures at half the supply pressure (Pa), the supply pressure, the
+            piston position ``r sin(theta)`` in m, and each effect's states at their initial values.
         """
         check_number(theta_deg, "theta_deg", "deg", -90.0, 90.0)  # the crank's geometry; the stroke ends lie inside
         s = np.zeros(self._model.N_STATES)
@@ -296,6 +335,19 @@ class Plant:
     def simulate(self, current_mA, *, theta0_deg: float = 0.0) -> SimResult:
         """Open loop: the command current sequence (mA, one value per period dt).
 
+        Parameters
+        ----------
+        current_mA : array_like of float
+            Command current in mA, one finite value per sample period ``dt`` (a 1-D sequence; each
+            value is held for one period).
+        theta0_deg : float
+            Initial crank angle in degrees, in [-40, 40]; the plant starts at rest there.
+
+        Returns
+        -------
+        SimResult
+            The run (``meta["kind"] == "open_loop"``), one sample per command value.
+
         Examples
         --------
         >>> r = Plant(disc_sets=1).simulate(np.zeros(100))
@@ -323,6 +375,39 @@ class Plant:
         The run lasts ``duration`` s, or ``cycles`` reference periods.  Numbers are checked against the
         ranges of ``ehas_env.ranges.FIELDS`` (docs/errors.md): amplitude in (0, 44.43) deg, frequency
         in (0, 50] Hz, cycles in (0, 10000], duration in (0, 600] s, theta0_deg in [-40, 40] deg.
+
+        Parameters
+        ----------
+        controller : RigController or object, optional
+            The controller: a :class:`RigController` (or anything with a compiled form, such as
+            :class:`ehas_controllers.piff.PIFF`) runs in the compiled loop; any other object needs
+            ``act(measurement) -> current in mA`` (and optionally ``reset()``).  Default: the book's gains.
+        amplitude_deg : float
+            Amplitude of the sinusoidal reference in degrees, in (0, 44.43); ignored when
+            ``reference`` is given.
+        freq_hz : float
+            Frequency of the sinusoidal reference in Hz, in (0, 50]; ignored when ``reference`` is given.
+        cycles : float
+            Length of the run in reference periods, in (0, 10000]; ignored when ``duration`` is given.
+        duration : float, optional
+            Length of the run in seconds, in (0, 600]; overrides ``cycles``.
+        reference : SineReference, optional
+            The reference signal (:class:`ehas_env.simulation.reference.SineReference`) in place of
+            ``amplitude_deg`` and ``freq_hz``.
+        theta0_deg : float
+            Initial crank angle in degrees, in [-40, 40]; the plant starts at rest there.
+
+        Returns
+        -------
+        SimResult
+            The run (``meta["kind"] == "closed_loop"``) with ``theta_ref_deg`` and, in ``meta``, the
+            reference and the controller.
+
+        Raises
+        ------
+        ValueError
+            If a number is out of its range, the controller is no controller (or its ``rate_hz`` is not
+            ``1/dt``), or the run turns non-finite.
         """
         controller = RigController.book() if controller is None else controller
         compiled = _check_controller(controller, self.rig.disc_sets)
@@ -404,6 +489,19 @@ class Plant:
 
     def simulate_valve_test(self, current_mA, *, supply_bar: float = 70.0) -> "ValveTestResult":
         """The valve alone on the flow bench: control ports joined through the meter.
+
+        Parameters
+        ----------
+        current_mA : array_like of float
+            Command current in mA, one finite value per sample period ``dt`` (a 1-D sequence).
+        supply_bar : float
+            Supply pressure of the bench in bar, in (0, 350] (the valve's rated drop is at 70 bar).
+
+        Returns
+        -------
+        ValveTestResult
+            Times (s), command current (mA), flow through the meter (LPM) and the valve's current
+            (mA), with ``meta["kind"] == "valve_open_loop"``.
 
         Examples
         --------

@@ -66,21 +66,50 @@ class RigController:
 
     @classmethod
     def book(cls) -> "RigController":
-        """The reference model's classical baseline: Kp 1, Ki 2, Kv 1/56.25, Ka = Kv 2 zeta / wn."""
+        """The reference model's classical baseline: Kp 1, Ki 2, Kv 1/56.25, Ka = Kv 2 zeta / wn.
+
+        Returns
+        -------
+        RigController
+            The book's gains (the class defaults): Kp 1 mA/deg, Ki 2 mA/(deg s), Kv 1/56.25 mA/(deg/s),
+            Ka = Kv 2 (0.691) / 107 mA/(deg/s^2), no jerk or pressure feedback, 1 kHz.
+        """
         return cls()
 
     def gains_vector(self) -> np.ndarray:
-        """The compiled law's gains (:data:`GAIN_NAMES` in order), padded to ``control_laws.N_GAINS``."""
+        """The compiled law's gains (:data:`GAIN_NAMES` in order), padded to ``control_laws.N_GAINS``.
+
+        Returns
+        -------
+        ndarray
+            ``Kp, Ki, Kv, Ka, Kj, Kdp, dp_hp`` in the units of
+            :data:`~ehas_env.simulation.pi_ff_law.GAIN_UNITS` (mA/deg, ..., rad/s), then zeros up to
+            ``N_GAINS`` entries.
+        """
         g = np.zeros(N_GAINS)
         g[:len(GAIN_NAMES)] = [getattr(self, k) for k in GAIN_NAMES]
         return g
 
     @staticmethod
     def law_id() -> int:
-        """Number of the compiled law (PI + feed-forward, :func:`~ehas_env.simulation.pi_ff_law.pi_ff_law`)."""
+        """Number of the compiled law (PI + feed-forward, :func:`~ehas_env.simulation.pi_ff_law.pi_ff_law`).
+
+        Returns
+        -------
+        int
+            The id under which :mod:`ehas_env.simulation.control_laws` registered the law ``"pi_ff"`` (0).
+        """
         return law_id("pi_ff")
 
     def to_dict(self) -> dict:
+        """The gains as a plain dict.
+
+        Returns
+        -------
+        dict
+            Field name -> value (``Kp``, ``Ki``, ``Kv``, ``Ka``, ``Kj``, ``Kdp``, ``dp_hp``, ``rate_hz``),
+            in the units of the class's Attributes.
+        """
         return asdict(self)
 
     def __post_init__(self):

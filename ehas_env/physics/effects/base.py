@@ -72,7 +72,8 @@ class Param:
     name : str
         The name users type (``Fc``, ``tau`` ...).
     unit : str
-        SI unit.
+        Unit of the values users give and see: SI, or an engineering unit (bar, LPM, L) with
+        ``si`` its factor to SI.
     default : float
         Value used when the effect is switched on without this parameter.
     bounds : tuple of float
@@ -83,6 +84,8 @@ class Param:
         Realistic range for this rig (robustness tables, synthetic campaigns).
     log_scale : bool
         Fit on a log scale (parameters spanning decades, e.g. leakage).
+    si : float
+        Factor from ``unit`` to SI (1 for SI units, 1e5 for bar): the terms see ``value * si``.
     """
 
     name: str
@@ -97,7 +100,14 @@ class Param:
 
     def problem(self) -> str | None:
         """What is wrong with this declaration (None when nothing): the rules every effect's parameters and
-        constants are held to when the effect registers."""
+        constants are held to when the effect registers.
+
+        Returns
+        -------
+        str or None
+            One sentence naming the first broken rule (name, unit, bounds, default, typical range,
+            ``si``, doc, ``log_scale``, a name taken by a model quantity), or None.
+        """
         def real(v):
             return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
 
@@ -136,6 +146,25 @@ class Param:
         return None
 
     def check(self, effect: str, value) -> float:
+        """A user-given value of this parameter, checked against its bounds.
+
+        Parameters
+        ----------
+        effect : str
+            Name of the effect the parameter belongs to (named in the error).
+        value : float
+            The value, in the parameter's ``unit`` (not SI-converted); text and booleans are refused.
+
+        Returns
+        -------
+        float
+            ``value`` as a float, in the parameter's ``unit``.
+
+        Raises
+        ------
+        ValueError
+            If the value is not a finite number within ``bounds``.
+        """
         try:
             if isinstance(value, (str, bytes, bool)):  # a file's "300" or true is not a number: say so
                 raise TypeError
@@ -341,6 +370,23 @@ class Effect:
 
     @classmethod
     def param(cls, name: str) -> Param:
+        """The declaration of one of this effect's parameters.
+
+        Parameters
+        ----------
+        name : str
+            The parameter's name (``Fc``, ``tau`` ...).
+
+        Returns
+        -------
+        Param
+            The parameter's declaration (unit, default, bounds, ...).
+
+        Raises
+        ------
+        ValueError
+            If the effect has no such parameter (the message lists its parameters).
+        """
         for p in cls.params:
             if p.name == name:
                 return p
@@ -349,7 +395,25 @@ class Effect:
 
     @classmethod
     def resolve(cls, values: dict | None) -> dict[str, float]:
-        """Defaults completed with ``values``, each checked against its bounds."""
+        """Defaults completed with ``values``, each checked against its bounds.
+
+        Parameters
+        ----------
+        values : dict of str to float or None
+            Parameter name -> value in the parameter's ``unit``; parameters left out take their
+            defaults (None: all defaults).
+
+        Returns
+        -------
+        dict of str to float
+            Every parameter of the effect -> its value in the parameter's ``unit`` (not SI-converted),
+            after the cross-parameter :meth:`validate`.
+
+        Raises
+        ------
+        ValueError
+            An unknown parameter, a value out of its bounds, or a failed :meth:`validate`.
+        """
         values = dict(values or {})
         out = {}
         for p in cls.params:
@@ -361,7 +425,14 @@ class Effect:
 
     @classmethod
     def validate(cls, values: dict[str, float]) -> None:
-        """Cross-parameter checks (override where parameters constrain each other)."""
+        """Cross-parameter checks (override where parameters constrain each other).
+
+        Parameters
+        ----------
+        values : dict of str to float
+            Every parameter -> its value in the parameter's ``unit``.  An override raises
+            ``ValueError`` for a combination it refuses; the base class accepts everything.
+        """
 
     @classmethod
     def apply(cls, values: dict[str, float], slots: dict[str, float]) -> None:
@@ -369,19 +440,55 @@ class Effect:
 
         Effects that act through terms need not override it: their own slots
         (``"name.param"``, SI) are filled by :func:`effect_slots`.
+
+        Parameters
+        ----------
+        values : dict of str to float
+            The effect's resolved parameters (:meth:`resolve`), in the parameters' units.
+        slots : dict of str to float
+            The model's parameter slots by name, SI; an override changes them in place.  The base
+            class changes nothing.
         """
 
     @classmethod
     def adjust(cls, slots: dict[str, float], substep_s: float) -> None:
-        """Last look at the finished slots (after every effect), e.g. to keep the model integrable."""
+        """Last look at the finished slots (after every effect), e.g. to keep the model integrable.
+
+        Parameters
+        ----------
+        slots : dict of str to float
+            The model's parameter slots by name, SI, after every effect's :meth:`apply`; an override
+            changes them in place.  The base class changes nothing.
+        substep_s : float
+            The integrator's sub-step in seconds (``dt / substeps``).
+        """
 
     @classmethod
     def terms(cls) -> dict:
-        """{place: function} of the physics this effect contributes."""
+        """{place: function} of the physics this effect contributes.
+
+        Returns
+        -------
+        dict of str to callable
+            Each place of :data:`PLACES` where the effect defines a term -> that static method.
+        """
         return {place: getattr(cls, place) for place in PLACES if callable(getattr(cls, place, None))}
 
     @classmethod
     def term_args(cls, place: str) -> list[str]:
+        """The argument names of the effect's term at ``place``.
+
+        Parameters
+        ----------
+        place : str
+            One of :data:`PLACES` where the effect defines a term.
+
+        Returns
+        -------
+        list of str
+            The term's argument names in order (parameters, quantities, states or slots; see
+            :meth:`arg_kind`).
+        """
         return list(inspect.signature(getattr(cls, place)).parameters)
 
     @classmethod
@@ -389,7 +496,27 @@ class Effect:
         """What the argument ``name`` of the term at ``place`` stands for, looked up in this order: ``"param"``
         (one of its parameters or constants), ``"quantity"`` (a model quantity available at the place:
         :data:`PLACE_QUANTITIES`), ``"state"`` (its own state) or ``"slot"`` (a baseline slot).  The check at
-        registration and the code generator both resolve through here."""
+        registration and the code generator both resolve through here.
+
+        Parameters
+        ----------
+        name : str
+            The argument's name.
+        place : str
+            The place (:data:`PLACES`) of the term that takes the argument.
+        who : str, optional
+            How the error names the effect (default: ``effect '<name>'``).
+
+        Returns
+        -------
+        str
+            ``"param"``, ``"quantity"``, ``"state"`` or ``"slot"``.
+
+        Raises
+        ------
+        ValueError
+            If the name is none of these.
+        """
         from ehas_env.physics import layout
 
         if name in {p.name for p in cls.params + cls.constants}:
@@ -407,11 +534,25 @@ class Effect:
 
     @classmethod
     def slot_names(cls) -> list[str]:
-        """This effect's slots in a model: its on flag, parameters, then constants."""
+        """This effect's slots in a model: its on flag, parameters, then constants.
+
+        Returns
+        -------
+        list of str
+            ``"<effect>.on"``, then ``"<effect>.<param>"`` for each parameter and constant.
+        """
         return [f"{cls.name}.on"] + [f"{cls.name}.{p.name}" for p in cls.params + cls.constants]
 
     @classmethod
     def describe(cls) -> str:
+        """A plain-text description of the effect for users (what ``ehas effects NAME`` prints).
+
+        Returns
+        -------
+        str
+            Name and title, explanation, residual signature, and one line per parameter with its
+            unit, default, bounds and doc.
+        """
         lines = [f"{cls.name}: {cls.title}", "", cls.explanation, "", f"Residual signature: {cls.signature}", "", "Parameters:"]
         for p in cls.params:
             lines.append(f"  {p.name} [{p.unit}] default {p.default:g}, bounds [{p.bounds[0]:g}, {p.bounds[1]:g}]: {p.doc}")
