@@ -197,13 +197,14 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
         ccmd[0] = ehas_exe()
         if "--model" not in ccmd:
             ccmd += mopt
-        # the library effects kept ride along (the effect file holds the proposed term only)
-        k = ccmd.index("--effects")
-        extra = [e for e in kept if e not in ccmd[k + 1].split(",")]
-        if extra:
-            ccmd[k + 1] = ",".join(extra + [ccmd[k + 1]])
+        if not m:  # an ehas whose diagnosis prints no next: the library effects kept ride along
+            ccmd[ccmd.index("--effects") + 1] = ",".join([e for e in kept if not e.startswith("hyp_")] + [name])
+        # the command as printed (it names every effect it needs), its --json redirected into the work folder
         cmp_json = wdir / "cmp.json"
         if caps["compare_json"]:
+            if "--json" in ccmd:
+                k = ccmd.index("--json")
+                del ccmd[k:k + 2]
             ccmd += ["--json", str(cmp_json), "--overwrite"]
         code, cout, cerr, cwall = _run(ccmd, log=wdir / "compare.log")
         rec["compare_command"] = shlex.join(ccmd)

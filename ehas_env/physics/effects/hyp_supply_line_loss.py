@@ -35,8 +35,8 @@ class HypSupplyLineLoss(Effect):
 
     @staticmethod
     def chamber_flows(qc, pa, pb, ps, rated_drop, dp_25):
-        # the feeding land's flow with its supply lowered by the loss at that flow (one fixed-point step
-        # from the baseline's flow: accurate while the loss is a fraction of the land's drop)
+        # the feeding land passes q = |qc| sqrt((ps - dp_25 (q / 25 LPM)^2 - p_in) / half): solved for q,
+        # q = q0 / sqrt(1 + dp_25 qc^2 / (half q25^2)) with q0 the baseline's flow
         half = 0.5 * rated_drop
         q25 = 25.0e-3 / 60.0
         p_in = pa if qc >= 0.0 else pb
@@ -44,8 +44,7 @@ class HypSupplyLineLoss(Effect):
         if d0 <= 0.0:
             return 0.0, 0.0
         q0 = abs(qc) * math.sqrt(d0 / half)
-        d1 = max(d0 - dp_25 * (q0 / q25) ** 2, 0.0)
-        dq = abs(qc) * (math.sqrt(d1 / half) - math.sqrt(d0 / half))
+        dq = q0 * (1.0 / math.sqrt(1.0 + dp_25 * qc * qc / (half * q25 * q25)) - 1.0)
         if qc >= 0.0:
             return dq, 0.0
         return 0.0, dq
