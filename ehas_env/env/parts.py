@@ -293,12 +293,19 @@ def draw_episode(defaults: dict, options: dict | None, rng: np.random.Generator)
         reference_components(ref)
     else:
         SineReference(cfg.get("amplitude_deg", 20.0), cfg.get("freq_hz", 1.0))  # validates both
+    effects = resolve_effects(cfg.get("effects"))
+    for name in effects:
+        if get_effect(name).kind == "hypothesis":
+            # the environments' compiled model leaves the diagnosis' hypotheses out (compile time)
+            raise ValueError(f"effects: '{name}' is a structural hypothesis of the diagnosis, not an effect the "
+                             "environments simulate; write it as your own effect file (ehas diagnose CAMPAIGN "
+                             "--write-effect DIR/NAME.py) and load it with effects_path")
     return Episode(
         disc_sets=int(cfg.get("disc_sets", 3)),
         amplitude_deg=_number("amplitude_deg", cfg.get("amplitude_deg", 20.0)),
         freq_hz=_number("freq_hz", cfg.get("freq_hz", 1.0)),
         cycles=_number("cycles", cfg.get("cycles", 3.0), 0.0, 1.0e6, lo_open=True),
-        effects=resolve_effects(cfg.get("effects")),
+        effects=effects,
         sensors=_sensors(cfg.get("sensors")),
         theta0_deg=_number("theta0_deg", cfg.get("theta0_deg", 0.0), -40.0, 40.0),
         reference=ref,

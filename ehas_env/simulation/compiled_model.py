@@ -19,7 +19,7 @@ from ehas_env.physics.codegen import build_model
 from ehas_env.simulation.control_laws import all_laws
 
 
-def current_model(inline: bool = True):
+def current_model(inline: bool = True, hypotheses: bool = False):
     """The model of every effect and controller law registered now (built-in and user-loaded).
 
     Parameters
@@ -29,15 +29,29 @@ def current_model(inline: bool = True):
         drivers, the fastest step and a long compile.  False (the :class:`~ehas_env.simulation.plant.Plant`'s
         build: replay of logs, fits, single runs): each function is compiled once and called, several times
         faster to compile for a slower step (``results/compile.md`` has both figures).
+    hypotheses : bool
+        Also hold the diagnosis' structural hypotheses (effects of kind ``"hypothesis"``).  They are left out
+        otherwise: every model a command compiles pays for every effect it holds, and only a diagnosis that
+        reaches them (or a plant that names one) uses them.
 
     Returns
     -------
     module
         The generated model module.
     """
+    from ehas_env.physics.effects import REGISTRY
+
     forced = os.environ.get("EHAS_BUILD", "")  # "inline" / "quick": one build for everything (benchmarks of the builds)
     if forced not in ("", "inline", "quick"):
         raise ValueError(f"EHAS_BUILD must be 'inline' or 'quick' (or unset), got {forced!r}")
     if forced:
         inline = forced == "inline"
-    return build_model(laws=all_laws(), inline=inline)
+    effects = [c for c in REGISTRY.values() if hypotheses or c.kind != "hypothesis"]
+    return build_model(effects, laws=all_laws(), inline=inline)
+
+
+def names_hypothesis(names) -> bool:
+    """True when one of the effect ``names`` is a structural hypothesis (its model is the one with them)."""
+    from ehas_env.physics.effects import REGISTRY
+
+    return any(n in REGISTRY and REGISTRY[n].kind == "hypothesis" for n in names)

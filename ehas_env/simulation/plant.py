@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.physics import layout as K
-from ehas_env.simulation.compiled_model import current_model
+from ehas_env.simulation.compiled_model import current_model, names_hypothesis
 from ehas_env.physics.effects import REGISTRY, get_effect, resolve_effects
 from ehas_env.physics.effects.base import effect_slots, mark_effects_on
 from ehas_env.ranges import MAX_SAMPLES, check_field, check_number, check_run_length, check_samples
@@ -236,9 +236,10 @@ class Plant:
         self.effects = resolve_effects(effects)
         self.dt = float(dt)
         self.substeps = substeps
-        # every registered effect, so every resolved effect is in it; the quick-to-compile build (no inlining):
-        # a plant replays, fits and runs single simulations, where the compile, not the step, is the wait
-        self._model = current_model(inline=False)
+        # every registered effect, so every resolved effect is in it (the diagnosis' structural hypotheses only
+        # when one is used); the quick-to-compile build (no inlining): a plant replays, fits and runs single
+        # simulations, where the compile, not the step, is the wait
+        self._model = current_model(inline=False, hypotheses=names_hypothesis(self.effects))
         self._P = self._param_vector()
         self._hist_len = K.history_length(TAU_MAX, self.dt)
 
