@@ -59,6 +59,8 @@ DT_TOLERANCE = 0.01
 MIN_SAMPLES = 50
 SAMPLES_PER_PARAMETER = 10
 INTERSAMPLE = ("zoh", "foh")
+#: offsets=: none, the output's only (a sensor bias), or the operating point (input and output)
+OFFSETS = ("none", "output", "estimate")
 #: two-sided 99 % point of the standard normal distribution (confidence bands of the residual tests)
 Z99 = 2.5758293035489004
 
@@ -475,7 +477,8 @@ class TFEstimate:
         The operating point the model is at rest at before the record, in the
         run's units (0 unless estimated: ``offsets="estimate"``).
     estimated : tuple of str
-        Which of ``"delay"``, ``"offsets"``, ``"x0"`` were estimated (they enter the covariance).
+        Which of ``"delay"``, ``"input_offset"``, ``"output_offset"``, ``"x0"`` were estimated (they enter
+        the covariance).
     """
 
     tf: object
@@ -555,6 +558,13 @@ class TFEstimate:
         if self.n_zeros:
             lines.append(f"  zeros: {', '.join(f'{z:.4g}' for z in self.zeros())}")
         lines.append(f"  poles: {', '.join(f'{p:.4g}' for p in self.poles())}")
+        if self.delay_s or "delay" in self.estimated:
+            lines.append(f"  input delay = {1e3 * self.delay_s:.4g} ms" + (" (estimated)" if "delay" in self.estimated
+                                                                         else ""))
+        if "input_offset" in self.estimated or "output_offset" in self.estimated:
+            lines.append(f"  offsets: input {self.data.input_name} = {self.input_offset:.6g}, output "
+                         f"{self.data.output_name} = {self.output_offset:.6g} (estimated; the model: y - output = "
+                         "G (u - input))")
         lines.append(f"  fit = {self.fit_percent:.2f} % (NRMSE, as MATLAB compare)")
         if self.data.interpolated:
             lines.append(f"  interpolated missing samples: {self.data.interpolated}")
@@ -623,8 +633,9 @@ def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample:
         Start the model at rest (a run that starts at rest) or also fit its initial state.
     max_nfev : int
         Budget of simulations for the refinement.
-    offsets : {"none", "estimate"}
-        ``estimate``: also fit the operating point (input and output offsets)
+    offsets : {"none", "output", "estimate"}
+        ``output``: also fit a constant output offset (a sensor's bias; the
+        input as given); ``estimate``: fit the operating point (input and output offsets)
         the system rests at before the record, ``y - y0 = G (u - u0)`` (MATLAB's
         ``InputOffset``/``OutputOffset``, estimated instead of given).  The two
         are told apart only by the record's start (a record starting at rest
@@ -649,8 +660,6 @@ def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample:
         raise ValueError(f"intersample must be one of {INTERSAMPLE}, got {intersample!r}")
     if initial_state not in ("zero", "estimate"):
         raise ValueError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
-    if offsets not in ("none", "estimate"):
-        raise ValueError(f"offsets must be 'none' or 'estimate', got {offsets!r}")
     est_delay = isinstance(delay, str)
     if est_delay and delay != "estimate":
         raise ValueError(f"delay must be a number of seconds >= 0 or 'estimate', got {delay!r}")
@@ -664,12 +673,14 @@ def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample:
                 or not math.isfinite(delay) or not 0 <= delay <= 0.5 * T:
             raise ValueError(f"delay must be 'estimate' or a number of seconds in [0, {0.5 * T:.6g}] (half the "
                              f"record), got {delay!r}")
+    if offsets not in OFFSETS:
+        raise ValueError(f"offsets must be one of {', '.join(OFFSETS)}, got {offsets!r}")
     est_off = offsets == "estimate"
     if est_off and initial_state == "estimate":
         raise ValueError("offsets='estimate' and initial_state='estimate' together are not identifiable (a free "
                          "initial state absorbs the input offset); estimate one of them")
     n, m = int(n_poles), int(n_zeros)
-    n_par = n + m + 1 + (n if initial_state == "estimate" else 0) + int(est_delay) + 2 * int(est_off)
+    n_par = n + m + 1 + (n if initial_state == "estimate" else 0) + int(est_delay) + int(est_off) + int(offsets != "none")
     if data.n < SAMPLES_PER_PARAMETER * n_par:
         raise ValueError(f"{data.source}: too short: {data.n} samples for {n_par} parameters; need at least "
                          f"{SAMPLES_PER_PARAMETER * n_par}")
@@ -679,17 +690,22 @@ def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample:
     if n == 0:
         if est_delay or delay_n:
             raise ValueError("a delay needs a dynamic model (n_poles >= 1)")
-        if est_off:
+        if offsets == "estimate":  # a static model: the operating point taken at the means
             uc, yc = data.u - data.u.mean(), data.y - data.y.mean()
             gain = float(np.dot(uc, yc) / np.dot(uc, uc))
             u0, y0 = float(data.u.mean()), float(data.y.mean())
+        elif offsets == "output":
+            (gain, y0), *_ = np.linalg.lstsq(np.column_stack([data.u, np.ones(data.n)]), data.y, rcond=None)
+            gain, y0 = float(gain), float(y0)
         else:
             gain = float(np.dot(data.u, data.y) / np.dot(data.u, data.u))
         num, den, nfev = np.array([gain]), np.array([1.0]), 0
     else:
         num, den, nfev, delay_n, u0, y0 = _fit(data, n, m, intersample, est_x0, max_nfev, delay=delay_n,
-                                               est_delay=est_delay, est_offsets=est_off,
+                                               est_delay=est_delay, offsets=offsets,
                                                max_delay=max_delay_s / data.dt)
+    if delay_n < 1e-6:  # at the bound: no delay
+        delay_n = 0.0
     import control
 
     tf = control.tf(num, den)
@@ -704,7 +720,7 @@ def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample:
     y_sim = simulate_tf(tf, data.t, data.u - u0, intersample=intersample, x0=x0 if n else None,
                         delay_s=delay_n * data.dt) + y0
     fit = fit_percent(data.y, y_sim)
-    estimated = tuple(k for k, on in (("delay", est_delay), ("offsets", est_off), ("x0", est_x0 and n > 0)) if on)
+    estimated = tuple(k for k, on in (("delay", est_delay), ("input_offset", est_off), ("output_offset", offsets != "none"), ("x0", est_x0 and n > 0)) if on)
     return TFEstimate(tf=tf, num=num, den=den, n_poles=n, n_zeros=m, fit_percent=fit, data=data, y_sim=y_sim,
                       intersample=intersample, x0=x0, nfev=nfev, elapsed_s=time.perf_counter() - t0,
                       delay_s=float(delay_n * data.dt), input_offset=float(u0), output_offset=float(y0),
@@ -764,18 +780,20 @@ class _Problem:
 
     The nonlinear parameters are ``q = [z, delay?, u0?]``: the log-factors of
     the denominator (:func:`_poly_from_z`), the input delay in sample periods
-    (``est_delay``) and the input offset (``est_offsets``); the numerator, the
+    (``est_delay``) and the input offset (``offsets="estimate"``); the numerator, the
     output offset and the initial state enter linearly and are eliminated by
     least squares.  ``delay`` is the fixed delay (samples) when not estimated.
     """
 
     def __init__(self, data: IdData, n: int, m: int, intersample: str, est_x0: bool, ws: float, *,
-                 delay: float = 0.0, est_delay: bool = False, est_offsets: bool = False):
+                 delay: float = 0.0, est_delay: bool = False, offsets: str = "none"):
         self.u, self.y = data.u, data.y
         self.n, self.m, self.intersample, self.est_x0 = n, m, intersample, est_x0
         self.ws = ws
         self.h = data.dt * ws  # the scaled sample period
-        self.delay, self.est_delay, self.est_offsets = float(delay), est_delay, est_offsets
+        self.delay, self.est_delay = float(delay), est_delay
+        self.est_offsets = offsets == "estimate"  # the input offset: a nonlinear parameter
+        self.est_y0 = offsets != "none"  # the output offset: linear
         self.nfev = 0
 
     def split(self, q: np.ndarray):
@@ -800,7 +818,7 @@ class _Problem:
         cols = []
         for k in range(m, -1, -1):  # p^k / A u is state x_(n-k) (1-based), p^n / A u = u - a.x
             cols.append(wd - X @ a[1:] if k == n else X[:, n - 1 - k])
-        if self.est_offsets:
+        if self.est_y0:
             cols.append(np.ones(self.u.size))
         Phi = np.column_stack(cols)
         if self.est_x0:
@@ -812,7 +830,7 @@ class _Problem:
         a, delay, u0 = self.split(q)
         Phi = self.basis(a, delay, u0)
         coef, *_ = np.linalg.lstsq(Phi, self.y, rcond=None)
-        y0 = float(coef[self.m + 1]) if self.est_offsets else 0.0
+        y0 = float(coef[self.m + 1]) if self.est_y0 else 0.0
         return coef[: self.m + 1], y0, self.y - Phi @ coef
 
     def solve(self, a: np.ndarray):
@@ -886,48 +904,59 @@ def _srivc(prob: _Problem, a0: np.ndarray, iters: int = 20) -> tuple[np.ndarray,
 
 
 def _fit(data: IdData, n: int, m: int, intersample: str, est_x0: bool, max_nfev: int, *, delay: float = 0.0,
-         est_delay: bool = False, est_offsets: bool = False, max_delay: float = 0.0):
+         est_delay: bool = False, offsets: str = "none", max_delay: float = 0.0):
     """(num, den, nfev, delay in samples, input offset, output offset) of the output-error optimum.
 
     ``delay`` (samples) is fixed unless ``est_delay``; then it is searched in
     [0, max_delay] (a scan of at most 41 delays, each with the poles refitted
     briefly, from the best of which all parameters are refined).
     """
+    est_offsets = offsets == "estimate"
     T = data.n * data.dt
     w_lo = 2.0 * math.pi * 2.0 / T
     w_hi = 2.0 * math.pi * 0.1 / data.dt
     starts = np.geomspace(w_lo, w_hi, 8) if w_hi > w_lo else np.array([w_lo])
-    # the starts see the input delayed by the fixed delay (an estimated one starts at zero) and, with
-    # offsets, both signals without their means
-    start_data = data
-    if delay or est_offsets:
-        uu = delayed_input(data.u - (data.u.mean() if est_offsets else 0.0), delay, intersample) if delay else \
-            data.u - data.u.mean()
-        start_data = IdData(t=data.t, u=uu, y=data.y - (data.y.mean() if est_offsets else 0.0), dt=data.dt)
+    # the starts see the input delayed by the fixed delay (an estimated one starts at zero); with offsets
+    # SRIVC runs on the signals as they are and without their means, and each start is scored on the
+    # problem itself (with its offset column)
+    start_sets = [data]
+    if delay or offsets != "none":
+        variants = [False, True] if offsets != "none" else [False]
+        start_sets = []
+        for demean in variants:
+            uu = data.u - (data.u.mean() if demean and est_offsets else 0.0)
+            uu = delayed_input(uu, delay, intersample) if delay else uu
+            start_sets.append(IdData(t=data.t, u=uu, y=data.y - (data.y.mean() if demean else 0.0), dt=data.dt))
+    u0_start = float(data.u.mean()) if est_offsets else 0.0
     cands = []
-    for lam in starts:
-        prob = _Problem(start_data, n, m, intersample, est_x0, lam)
-        a0 = np.poly(-np.ones(n))  # (p + 1)^n: pre-filter of bandwidth lam
-        try:
-            a, _ = _srivc(prob, a0)
-            _, r = prob.solve(a)
-        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
-            continue
-        cost = float(r @ r)
-        if np.isfinite(cost):
-            num, den = prob.unscale(np.ones(m + 1), a)
-            cands.append((cost, den))
+    for start_data in start_sets:
+        for lam in starts:
+            prob = _Problem(start_data, n, m, intersample, est_x0, lam)
+            a0 = np.poly(-np.ones(n))  # (p + 1)^n: pre-filter of bandwidth lam
+            try:
+                a, _ = _srivc(prob, a0)
+                if start_data is data:
+                    _, r = prob.solve(a)
+                else:
+                    full = _Problem(data, n, m, intersample, est_x0, lam, delay=delay, offsets=offsets)
+                    q = np.r_[_z_from_poly(a), [u0_start] if est_offsets else []]
+                    r = full.solve_q(q)[2]
+            except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+                continue
+            cost = float(r @ r)
+            if np.isfinite(cost):
+                num, den = prob.unscale(np.ones(m + 1), a)
+                cands.append((cost, den))
     if not cands:
         raise ValueError(f"{data.source}: no start of the estimation converged; check the data")
     cands.sort(key=lambda c: c[0])
     best = None
     nfev = 0
-    u0_start = float(data.u.mean()) if est_offsets else 0.0
     d_start = None
     for cost0, den0 in cands[:2]:
         ws = float(abs(den0[-1]) ** (1.0 / n))
         prob = _Problem(data, n, m, intersample, est_x0, ws, delay=delay, est_delay=est_delay,
-                        est_offsets=est_offsets)
+                        offsets=offsets)
         z0 = _z_from_poly(den0 / ws ** np.arange(n + 1))
         # poles beyond ten times the Nyquist frequency are not identifiable from the samples: keep them in reach
         w_max = 10.0 * math.pi / data.dt / ws
@@ -945,7 +974,7 @@ def _fit(data: IdData, n: int, m: int, intersample: str, est_x0: bool, max_nfev:
         fin_lo, fin_hi = np.isfinite(lo), np.isfinite(hi)
         q0 = np.clip(q0, np.where(fin_lo, lo + 1e-9 * np.maximum(1.0, np.abs(np.where(fin_lo, lo, 0.0))), lo),
                      np.where(fin_hi, hi - 1e-9 * np.maximum(1.0, np.abs(np.where(fin_hi, hi, 0.0))), hi))
-        if est_delay or est_offsets:
+        if est_delay or offsets != "none":
             sol = least_squares(prob.residual_q, q0, method="trf", bounds=(lo, hi), x_scale="jac", xtol=1e-12,
                                 ftol=1e-12, max_nfev=max_nfev)
             q = sol.x

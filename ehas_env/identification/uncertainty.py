@@ -99,7 +99,8 @@ class Uncertainty:
         out = {k: [v - self.z * s, v + self.z * s] for k, (v, s) in self.derived.items()}
         for name, v, s in zip(self.names, self.values, self.se):
             if not name.startswith("x0"):
-                out[name] = [float(v - self.z * s), float(v + self.z * s)]
+                lo = float(v - self.z * s)
+                out[name] = [max(lo, 0.0) if name == "delay_s" else lo, float(v + self.z * s)]  # a delay is >= 0
         return {k: [float(a), float(b)] for k, (a, b) in out.items()}
 
     def interval(self, name: str) -> tuple[float, float]:
@@ -133,14 +134,16 @@ class Uncertainty:
 def parameter_names(n: int, m: int, estimated=()) -> list[str]:
     """Names of the parameter vector of :func:`covariance`.
 
-    >>> parameter_names(2, 0, ("delay", "offsets"))
+    >>> parameter_names(2, 0, ("delay", "input_offset", "output_offset"))
     ['a1', 'a0', 'b0', 'delay_s', 'input_offset', 'output_offset']
     """
     names = [f"a{k}" for k in range(n - 1, -1, -1)] + [f"b{k}" for k in range(m, -1, -1)]
     if "delay" in estimated:
         names.append("delay_s")
-    if "offsets" in estimated:
-        names += ["input_offset", "output_offset"]
+    if "input_offset" in estimated:
+        names.append("input_offset")
+    if "output_offset" in estimated:
+        names.append("output_offset")
     if "x0" in estimated:
         names += [f"x0[{i}]" for i in range(n)]
     return names
@@ -189,8 +192,9 @@ def sensitivity(est) -> np.ndarray:
             cols.append((_output(est, **{**base, "delay_s": est.delay_s + step}) - _output(est, **base)) / step)
         else:
             cols.append(central("delay_s", None, step))
-    if "offsets" in est.estimated:
+    if "input_offset" in est.estimated:
         cols.append(central("u0", None, 1e-6 * max(abs(est.input_offset), float(np.std(d.u)))))
+    if "output_offset" in est.estimated:
         cols.append(np.ones(d.n))
     if "x0" in est.estimated:
         A, _, C, _ = companion(est.num, est.den)
@@ -246,8 +250,10 @@ def covariance(est, coloured: str = "auto") -> Uncertainty:
     values = np.r_[np.asarray(est.den[1:], float), np.asarray(est.num[-(m + 1):], float)]
     if "delay" in est.estimated:
         values = np.r_[values, est.delay_s]
-    if "offsets" in est.estimated:
-        values = np.r_[values, est.input_offset, est.output_offset]
+    if "input_offset" in est.estimated:
+        values = np.r_[values, est.input_offset]
+    if "output_offset" in est.estimated:
+        values = np.r_[values, est.output_offset]
     if "x0" in est.estimated:
         values = np.r_[values, est.x0]
     J = sensitivity(est)
