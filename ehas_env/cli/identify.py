@@ -251,7 +251,9 @@ def run(args) -> int:
                        initial_state=args.initial_state, offsets=args.offsets, delay=args.delay,
                        max_delay_s=args.max_delay)
         print(est.summary())
-        unc = est.uncertainty(args.covariance)
+        from ehas_env.identification.uncertainty import covariance
+
+        unc = covariance(est, coloured=args.covariance)
         print(unc.summary())
     ra = ID.residual_analysis(est.residuals, data.u, max_lag=min(args.max_lag, data.n - 1))
     print(f"  {ra.verdict()}")

@@ -502,16 +502,6 @@ class TFEstimate:
     def residuals(self) -> np.ndarray:
         return self.data.y - self.y_sim
 
-    def uncertainty(self, coloured: str = "auto"):
-        """Covariance and 95 % intervals of the estimated parameters (:func:`ehas_env.identification.uncertainty.covariance`)."""
-        from ehas_env.identification.uncertainty import covariance
-
-        key = ("_unc", coloured)
-        cache = self.__dict__.setdefault("_cache", {})
-        if key not in cache:
-            cache[key] = covariance(self, coloured=coloured)
-        return cache[key]
-
     def poles(self) -> np.ndarray:
         return np.roots(self.den)
 

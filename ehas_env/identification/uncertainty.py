@@ -33,7 +33,7 @@ Examples
 >>> t = np.arange(3000) * 1e-3
 >>> u = np.sign(np.sin(2 * np.pi * 2.0 * t))
 >>> y = simulate_tf(control.tf([2.0 * 80.0**2], [1.0, 80.0, 80.0**2]), t, u) + 0.05 * rng.normal(size=t.size)
->>> unc = tfest(t, u, y, 2, 0).uncertainty()
+>>> unc = covariance(tfest(t, u, y, 2, 0))
 >>> lo, hi = unc.ci95["K"]
 >>> bool(lo < 2.0 < hi), unc.method
 (True, 'white')

@@ -20,6 +20,7 @@ from ehas_env.identification import fit as ID
 from ehas_env.identification.excitation import chirp
 from ehas_env.identification.export import read_model, read_model_dict
 from ehas_env.identification.orders import fit_ar, predict
+from ehas_env.identification.uncertainty import covariance
 from ehas_env.measurement.runfile import write_run
 
 TRUTH = CV.truth()  # K = 1.2723 LPM/mA, wn = 107.0 rad/s, zeta = 0.691 (the book's chirp model)
@@ -72,7 +73,7 @@ def test_interval_width_shrinks_with_the_noise_like_sigma():
     widths = []
     for noise in (0.1, 0.4):
         t, u, y = noisy_chirp(seed=5, noise=noise)
-        unc = ID.tfest(t, u, y, 2, 0).uncertainty()
+        unc = covariance(ID.tfest(t, u, y, 2, 0))
         widths.append({k: hi - lo for k, (lo, hi) in unc.ci95.items()})
         assert unc.noise_std == pytest.approx(noise, rel=0.05)
     for k in ("K", "wn", "zeta", "a1", "a0", "b0"):
