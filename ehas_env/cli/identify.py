@@ -1,7 +1,9 @@
 """``ehas identify``: a continuous-time transfer function fitted to a valve run.
 
     ehas identify RUN.csv --poles 2 --zeros 0 [--input current_mA --output flow_lpm]
-                  [--json FILE] [--out DIR]
+                  [--json FILE] [--out DIR] [--offsets none|output|estimate]
+                  [--delay SECONDS|estimate] [--orders LO:HI [--validate RUN2]] [--predict K]
+                  [--export FILE.mat|FILE.json] [--covariance auto|white|coloured]
 
 prints the coefficients, K, wn, zeta (2-pole models) and the fit % (NRMSE, as
 MATLAB's ``compare``), and writes into DIR (default ``results/identify/RUN/``)
@@ -10,6 +12,13 @@ spectral estimate where it is coherent) and the residual analysis (MATLAB
 ``resid``: autocorrelation of the residuals and their cross-correlation with
 the input, 99 % bands).  ``--num/--den`` instead evaluate a given transfer
 function: alone they print its K, wn, zeta; with a run they report its fit on it.
+
+A fit also prints (and ``--json`` writes as ``ci95``) the 95 % intervals of its
+coefficients and of K, wn, zeta (:mod:`ehas_env.identification.uncertainty`), the
+residual tests (``residual_tests``) and warns in one line when the run looks
+closed-loop (:mod:`ehas_env.identification.checks`); ``--orders`` adds the table of
+structures (:mod:`ehas_env.identification.orders`), ``--export`` the model file
+(:mod:`ehas_env.identification.export`).
 
 The plotting functions here are reused by :mod:`ehas_env.identification.book_valve`.
 """

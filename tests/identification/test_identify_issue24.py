@@ -53,14 +53,13 @@ def test_intervals_contain_the_truth_often_enough_fast():
         assert 75.0 <= v <= 100.0, (k, cov)
 
 
-@pytest.mark.slow
 def test_intervals_contain_the_truth_in_90_to_99_percent_of_200_seeds():
+    """The acceptance check (about 15 s): 93.0 / 95.5 / 95.0 % measured (results/identification/coverage.md)."""
     cov = _coverage(CV.run_case("white", range(200)))
     for k, v in cov.items():
         assert 90.0 <= v <= 99.0, (k, cov)
 
 
-@pytest.mark.slow
 def test_coloured_noise_intervals_cover_where_the_white_formula_does_not():
     res = CV.run_case("coloured", range(40))
     auto, white = res["inside"]["auto"], res["inside"]["white"]
