@@ -315,3 +315,25 @@ def test_export_under_a_file_is_refused_before_work(small_run, capsys, tmp_path)
     rc, err = _one_line(["identify", small_run, "--export", str(tmp_path / "afile" / "m.json"), "--no-plots"], capsys)
     assert rc == 2 and len(err) == 1 and "--export" in err[0]
     assert (tmp_path / "afile").read_text() == "keep"
+
+
+# -- 8. ARX beside the output-error fit -------------------------------------------------------------------------
+
+def test_arx_is_exact_without_noise_and_biased_by_measurement_noise_where_oe_is_not():
+    from ehas_env.identification.arx import arx
+
+    t, u = CV.chirp_input(5.0)
+    y0 = CV.true_output(t, u)
+    Gc = arx(u, y0, 2, 2, 1, dt=1e-3).continuous()  # d2c of the exact ZOH model
+    num, den = np.squeeze(Gc.num[0][0]), np.squeeze(Gc.den[0][0])
+    p = ID.second_order_parameters(num[-1:], den)
+    for k in ("K", "wn", "zeta"):
+        assert p[k] == pytest.approx(TRUTH[k], rel=1e-4), k
+    y = y0 + 0.3 * np.random.default_rng(14).normal(size=y0.size)  # a flow meter's white noise
+    m = arx(u, y, 2, 2, 1, dt=1e-3)
+    Gc = m.continuous()
+    den = np.squeeze(Gc.den[0][0])
+    oe = ID.tfest(t, u, y, 2, 0)
+    assert oe.second_order()["wn"] == pytest.approx(TRUTH["wn"], rel=0.01)
+    assert abs(np.sqrt(den[-1]) / TRUTH["wn"] - 1) > 0.2  # the equation-error bias
+    assert ID.fit_percent(y, m.simulate(u)) < oe.fit_percent - 5
