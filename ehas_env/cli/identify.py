@@ -241,7 +241,12 @@ def run(args) -> int:
             return 0
 
     data = ID.read_columns(args.run, args.input, args.output)
-    validation = ID.read_columns(args.validate, args.input, args.output) if args.validate else None
+    validation = None
+    if args.validate:
+        try:
+            validation = ID.read_columns(args.validate, args.input, args.output)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"--validate: {exc}") from None
     T = data.n * data.dt
     if isinstance(args.delay, float) and args.delay > 0.5 * T:
         raise ValueError(f"--delay must be at most half the run ({0.5 * T:.6g} s), got {args.delay:g} s")
