@@ -1,7 +1,9 @@
 """``ehas identify``: a continuous-time transfer function fitted to a valve run.
 
     ehas identify RUN.csv --poles 2 --zeros 0 [--input current_mA --output flow_lpm]
-                  [--json FILE] [--out DIR]
+                  [--json FILE] [--out DIR] [--offsets none|output|estimate]
+                  [--delay SECONDS|estimate] [--orders LO:HI [--validate RUN2]] [--predict K]
+                  [--export FILE.mat|FILE.json] [--covariance auto|white|coloured]
 
 prints the coefficients, K, wn, zeta (2-pole models) and the fit % (NRMSE, as
 MATLAB's ``compare``), and writes into DIR (default ``results/identify/RUN/``)
@@ -10,6 +12,13 @@ spectral estimate where it is coherent) and the residual analysis (MATLAB
 ``resid``: autocorrelation of the residuals and their cross-correlation with
 the input, 99 % bands).  ``--num/--den`` instead evaluate a given transfer
 function: alone they print its K, wn, zeta; with a run they report its fit on it.
+
+A fit also prints (and ``--json`` writes as ``ci95``) the 95 % intervals of its
+coefficients and of K, wn, zeta (:mod:`ehas_env.identification.uncertainty`), the
+residual tests (``residual_tests``) and warns in one line when the run looks
+closed-loop (:mod:`ehas_env.identification.checks`); ``--orders`` adds the table of
+structures (:mod:`ehas_env.identification.orders`), ``--export`` the model file
+(:mod:`ehas_env.identification.export`).
 
 The plotting functions here are reused by :mod:`ehas_env.identification.book_valve`.
 """
@@ -44,6 +53,65 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="lags of the residual analysis, 1..10000 (default 25)")
     parser.add_argument("--overwrite", action="store_true", help="replace an earlier --out folder / --json file")
     parser.add_argument("--timing", action="store_true", help="repeat the fit 5 times and print the median wall time")
+    # issue 24: what a MATLAB System Identification user expects beside the fit
+    parser.add_argument("--offsets", choices=("none", "output", "estimate"), default="none",
+                        help="none (default); output: fit a constant output offset (a sensor bias); estimate: fit "
+                             "the operating point (input and output offsets) the system rests at before the run")
+    parser.add_argument("--delay", type=DelayOption(), default=0.0,
+                        help="input delay: seconds in [0, 10] (default 0) or 'estimate' (fractional, with its "
+                             "95 %% interval)")
+    parser.add_argument("--max-delay", type=number("--max-delay", "s", 0, 10, lo_open=True), default=None,
+                        help="largest delay --delay estimate searches, s (default: 100 samples or a tenth of the "
+                             "run, the smaller)")
+    parser.add_argument("--covariance", choices=("auto", "white", "coloured"), default="auto",
+                        help="covariance of the estimates: auto (default: coloured when the residuals fail the "
+                             "whiteness test), white, coloured")
+    parser.add_argument("--orders", type=OrdersOption(),
+                        help="compare structures: POLES or LO:HI poles, each with 0..poles-1 zeros (e.g. 1:3): fit "
+                             "%%, AIC, BIC, FPE on estimation (first 2/3) and validation (last 1/3 or --validate) "
+                             "data; the lowest validation BIC is chosen")
+    parser.add_argument("--validate", metavar="RUN2",
+                        help="a second run that validates (--orders, and the fit's validation fit %%)")
+    parser.add_argument("--predict", type=number("--predict", "steps", 1, 10_000, integer=True),
+                        help="also the K-step-ahead prediction fit (AR noise model of the residuals), 1..10000")
+    parser.add_argument("--export", metavar="FILE",
+                        help="write the model to FILE.mat or FILE.json (num, den, dt = 0, delay_s, offsets)")
+
+
+class DelayOption:
+    """argparse ``type=`` of ``--delay``: ``estimate`` or seconds in [0, 10]."""
+
+    __name__ = "delay"
+
+    def __call__(self, text: str):
+        import argparse
+
+        from ehas_env.ranges import Range
+
+        if str(text).strip().lower() == "estimate":
+            return "estimate"
+        try:
+            return Range(0.0, 10.0, "s").parse(text, "--delay")
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"--delay must be 'estimate' or a number in [0, 10] s, got {text!r}") \
+                from None
+
+
+class OrdersOption:
+    """argparse ``type=`` of ``--orders``: ``POLES`` or ``LO:HI`` in 1..10."""
+
+    __name__ = "orders"
+
+    def __call__(self, text: str):
+        import argparse
+
+        from ehas_env.identification.orders import parse_orders
+
+        try:
+            parse_orders(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+        return text
 
 
 def _command(args) -> str:
@@ -56,7 +124,11 @@ def _command(args) -> str:
     for flag, value, default in (("--input", args.input, "current_mA"), ("--output", args.output, "flow_lpm"),
                                  ("--intersample", args.intersample, "zoh"),
                                  ("--initial-state", args.initial_state, "zero"), ("--json", args.json, None),
-                                 ("--out", args.out, None)):
+                                 ("--out", args.out, None), ("--offsets", args.offsets, "none"),
+                                 ("--delay", args.delay, 0.0), ("--max-delay", args.max_delay, None),
+                                 ("--covariance", args.covariance, "auto"), ("--orders", args.orders, None),
+                                 ("--validate", args.validate, None), ("--predict", args.predict, None),
+                                 ("--export", args.export, None)):
         if value != default:
             parts += [flag, str(value)]
     return " ".join(shlex.quote(p) for p in parts)
@@ -98,6 +170,22 @@ def run(args) -> int:
     if args.num is None and args.zeros >= args.poles:
         raise ValueError(f"--zeros must be fewer than --poles (a proper transfer function), got --poles {args.poles} "
                          f"--zeros {args.zeros}")
+    fitting = args.num is None
+    if not fitting:
+        for flag, value, default in (("--offsets", args.offsets, "none"), ("--orders", args.orders, None),
+                                     ("--max-delay", args.max_delay, None), ("--predict", args.predict, None),
+                                     ("--validate", args.validate, None)):
+            if value != default:
+                raise ValueError(f"{flag} applies to a fit; it does not go with --num/--den")
+        if args.delay == "estimate":
+            raise ValueError("--delay estimate applies to a fit; with --num/--den give the delay in seconds")
+    if args.run is None and args.delay != 0.0:
+        raise ValueError("--delay needs a run file")
+    if args.max_delay is not None and args.delay != "estimate":
+        raise ValueError("--max-delay goes with --delay estimate")
+    if args.offsets == "estimate" and args.initial_state == "estimate":
+        raise ValueError("--offsets estimate and --initial-state estimate together are not identifiable (a free "
+                         "initial state absorbs the input offset); use --offsets output or one of them")
     command = _command(args)
     from ehas_env.output.outputs import OutputSet, check_file, check_not_input
 
@@ -105,6 +193,14 @@ def run(args) -> int:
     if args.json:
         check_not_input(args.json, "--json", [args.run])
         check_file(args.json, "--json", overwrite=args.overwrite)
+    if args.export:
+        from ehas_env.identification.export import check_path
+
+        check_path(args.export, "--export")
+        check_not_input(args.export, "--export", [args.run, args.validate])
+        check_file(args.export, "--export", overwrite=args.overwrite)
+    if args.validate is not None and args.run is None:
+        raise ValueError("--validate needs a run file to fit")
     outputs = None
     if args.run is not None and not args.no_plots:
         check_not_input(Path(args.out) if args.out else Path("results/identify") / Path(args.run).stem, "--out",
@@ -138,21 +234,87 @@ def run(args) -> int:
             if args.json:
                 atomic_write_text(args.json, json.dumps(result, indent=2) + "\n")
                 print(f"wrote {args.json}")
+            if args.export:
+                from ehas_env.identification.export import write_model
+
+                print(f"wrote {write_model(args.export, num_arr, den_arr)}")
             return 0
 
     data = ID.read_columns(args.run, args.input, args.output)
+    validation = None
+    if args.validate:
+        try:
+            validation = ID.read_columns(args.validate, args.input, args.output)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"--validate: {exc}") from None
+    T = data.n * data.dt
+    if isinstance(args.delay, float) and args.delay > 0.5 * T:
+        raise ValueError(f"--delay must be at most half the run ({0.5 * T:.6g} s), got {args.delay:g} s")
+    if args.max_delay is not None and args.max_delay > 0.5 * T:
+        raise ValueError(f"--max-delay must be at most half the run ({0.5 * T:.6g} s), got {args.max_delay:g} s")
+    unc = None
     if given is not None:
-        y_sim = ID.simulate_tf(given, data.t, data.u, intersample=args.intersample)
+        y_sim = ID.simulate_tf(given, data.t, data.u, intersample=args.intersample, delay_s=args.delay)
         est = ID.TFEstimate(tf=given, num=num_arr, den=den_arr, n_poles=len(den) - 1,
                             n_zeros=len(np.trim_zeros(num_arr, "f")) - 1, fit_percent=ID.fit_percent(data.y, y_sim),
-                            data=data, y_sim=y_sim, intersample=args.intersample, x0=np.zeros(len(den) - 1))
+                            data=data, y_sim=y_sim, intersample=args.intersample, x0=np.zeros(len(den) - 1),
+                            delay_s=float(args.delay))
         print(f"fit on {args.run}: {est.fit_percent:.2f} % (NRMSE, {args.intersample} input)")
     else:
         est = ID.tfest(data, n_poles=args.poles, n_zeros=args.zeros, intersample=args.intersample,
-                       initial_state=args.initial_state)
+                       initial_state=args.initial_state, offsets=args.offsets, delay=args.delay,
+                       max_delay_s=args.max_delay)
         print(est.summary())
+        from ehas_env.identification.uncertainty import covariance
+
+        unc = covariance(est, coloured=args.covariance)
+        print(unc.summary())
     ra = ID.residual_analysis(est.residuals, data.u, max_lag=min(args.max_lag, data.n - 1))
     print(f"  {ra.verdict()}")
+    from ehas_env.identification import checks
+
+    loop = checks.closed_loop_evidence(ra, checks.sidecar_of(args.run))
+    if loop["suspected"]:
+        import sys
+
+        print(f"ehas identify: {checks.warning_line(loop)}", file=sys.stderr)
+    extra = {"residual_tests": _residual_tests(ra), "closed_loop": loop}
+    if unc is not None:
+        extra["ci95"] = unc.ci95
+        extra["covariance"] = unc.to_json_dict()
+        ci = unc.ci95
+        extra["offsets"] = {"input": est.input_offset, "output": est.output_offset, "unit_input": data.input_name,
+                            "unit_output": data.output_name, "estimated": args.offsets,
+                            "ci95": {k: ci[f"{k}_offset"] for k in ("input", "output") if f"{k}_offset" in ci}}
+        extra["delay_s"] = {"value": est.delay_s, "ci95": ci.get("delay_s"), "estimated": args.delay == "estimate"}
+    else:
+        extra.update(ci95=None, delay_s={"value": est.delay_s, "ci95": None, "estimated": False})
+    if validation is not None:
+        y_val = est.simulate(validation.t, validation.u)
+        vfit = ID.fit_percent(validation.y, y_val)
+        print(f"  validation on {args.validate}: fit = {vfit:.2f} % (simulated from rest)")
+        extra["validation"] = {"run": args.validate, "fit_percent": float(vfit)}
+    if args.predict:
+        from ehas_env.identification.orders import fit_ar, predict
+
+        c = fit_ar(est.residuals)
+        pfit = ID.fit_percent(data.y, predict(est, args.predict, ar=c))
+        print(f"  {args.predict}-step-ahead prediction fit = {pfit:.2f} % beside simulation fit {est.fit_percent:.2f} % "
+              f"(noise model AR({c.size}) of the residuals)")
+        extra["prediction"] = {"steps": args.predict, "fit_percent": float(pfit), "ar_order": int(c.size),
+                               "simulation_fit_percent": float(est.fit_percent)}
+        if validation is not None:
+            pv = ID.fit_percent(validation.y, predict(est, args.predict, validation.t, validation.u, validation.y, ar=c))
+            extra["prediction"]["validation_fit_percent"] = float(pv)
+    table = None
+    if args.orders:
+        from ehas_env.identification.orders import order_table, parse_orders
+
+        table = order_table(data, parse_orders(args.orders), validation=validation, intersample=args.intersample,
+                            delay=args.delay, offsets=args.offsets, predict_k=args.predict,
+                            max_delay_s=args.max_delay)
+        print(table.markdown())
+        extra["orders"] = table.to_json_dict()
     if args.timing and given is None:
         import time
 
@@ -165,8 +327,15 @@ def run(args) -> int:
         print(f"  timing: median {np.median(times):.3f} s over 5 fits of {data.n} samples "
               f"(min {min(times):.3f}, max {max(times):.3f})")
     if args.json:
-        atomic_write_text(args.json, json.dumps(est.to_json_dict(), indent=2) + "\n")
+        atomic_write_text(args.json, json.dumps({**est.to_json_dict(), **extra}, indent=2) + "\n")
         print(f"wrote {args.json}")
+    if args.export:
+        from ehas_env.identification.export import write_model
+
+        info = {k: v for k, v in est.to_json_dict().items() if k in ("K", "wn", "zeta", "fit_percent")}
+        if unc is not None:
+            info["ci95"] = unc.ci95
+        print(f"wrote {write_model(args.export, est.num, est.den, delay_s=est.delay_s, input_offset=est.input_offset, output_offset=est.output_offset, input_name=data.input_name, output_name=data.output_name, extra=info)}")
     if outputs is not None:
         label = f"{est.n_poles}p{est.n_zeros}z"
         from ehas_env.output.identification_plots import plot_bode, plot_overlay, plot_residuals
@@ -177,11 +346,37 @@ def run(args) -> int:
                                title=f"{Path(args.run).name}: {label} model and the data's spectral estimate"),
                      plot_residuals(ra, out / "residuals.png",
                                     title=f"{Path(args.run).name}: residuals of the {label} model")]
+            if table is not None:
+                from ehas_env.output.identification_plots import plot_compare, plot_orders
+
+                files.append(plot_orders(table, out / "orders.png",
+                                         title=f"{Path(args.run).name}: structures compared"))
+                files.append(plot_compare(table, data if validation is None else validation, out / "compare.png",
+                                          title=f"{Path(args.run).name}: the models on the validation data"))
             md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", est.summary(),
-                  f"  {ra.verdict()}", "```", "", "Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
+                  *([unc.summary()] if unc is not None else []), f"  {ra.verdict()}", "```", ""]
+            if loop["suspected"]:
+                md += [checks.warning_line(loop), ""]
+            if table is not None:
+                md += ["## Structures", "", table.markdown(), ""]
+            md += ["Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
             files.append(atomic_write_text(out / "identify.md", "\n".join(md)))
         print(f"wrote {', '.join(str(outputs.path / f.name) for f in files)}")
     return 0
+
+
+def _residual_tests(ra) -> dict:
+    """The residual analysis as JSON: autocorrelation and input cross-correlation, 99 % bands, verdicts."""
+    allowed_a = max(1, round(0.01 * ra.lags.size))
+    allowed_c = max(1, round(0.01 * ra.cross_lags.size))
+    return {"confidence": 0.99, "samples": ra.n, "max_lag": int(ra.lags[-1]),
+            "autocorrelation": {"lags": ra.lags.tolist(), "values": [float(v) for v in ra.auto],
+                                "band": float(ra.auto_band), "outside": ra.auto_outside(), "allowed": allowed_a,
+                                "pass": ra.auto_outside() <= allowed_a},
+            "cross_correlation": {"lags": ra.cross_lags.tolist(), "values": [float(v) for v in ra.cross],
+                                  "band": float(ra.cross_band), "outside": ra.cross_outside(),
+                                  "allowed": allowed_c, "pass": ra.cross_outside() <= allowed_c},
+            "verdict": ra.verdict()}
 
 
 # ---------------------------------------------------------------------------

@@ -59,6 +59,8 @@ DT_TOLERANCE = 0.01
 MIN_SAMPLES = 50
 SAMPLES_PER_PARAMETER = 10
 INTERSAMPLE = ("zoh", "foh")
+#: offsets=: none, the output's only (a sensor bias), or the operating point (input and output)
+OFFSETS = ("none", "output", "estimate")
 #: two-sided 99 % point of the standard normal distribution (confidence bands of the residual tests)
 Z99 = 2.5758293035489004
 
@@ -342,13 +344,73 @@ def _states(A, B, dt, u, intersample, x0=None) -> np.ndarray:
     return X
 
 
-def simulate_tf(sys, t, u, *, intersample: str = "zoh", x0=None) -> np.ndarray:
+def delayed_input(w: np.ndarray, delay_samples: float, intersample: str = "zoh") -> np.ndarray:
+    """The input delayed by ``delay_samples`` sample periods, at the sample instants (0 before the record).
+
+    For a held input (``zoh``) the value just after each sample instant
+    (``w[k - d - 1]`` for a fractional part f > 0, ``w[k - d]`` for f = 0, with
+    d = floor(delay)); for ``foh`` linear interpolation of the samples.
+
+    Examples
+    --------
+    >>> delayed_input(np.arange(1.0, 6.0), 1.5).tolist()
+    [0.0, 0.0, 1.0, 2.0, 3.0]
+    >>> delayed_input(np.arange(1.0, 6.0), 1.5, "foh").tolist()
+    [0.0, 0.5, 1.5, 2.5, 3.5]
+    """
+    w = np.asarray(w, dtype=float)
+    N = w.size
+    d = int(math.floor(delay_samples))
+    f = float(delay_samples - d)
+    if f < 1e-12:
+        f = 0.0
+    if intersample == "foh" and f > 0.0:
+        k = np.arange(N) - float(delay_samples)
+        return np.interp(k, np.arange(-1, N), np.r_[0.0, w], left=0.0)
+    shift = d + (1 if f > 0.0 else 0)
+    out = np.zeros(N)
+    if shift < N:
+        out[shift:] = w[: N - shift]
+    return out
+
+
+def _delayed_states(A, B, dt, w, intersample, delay_samples: float = 0.0, x0=None):
+    """States and the delayed input at the sample instants for the input ``w`` delayed by ``delay_samples``.
+
+    A held input delayed by a fraction f of a period changes mid-period: the
+    exact sampled system is x[k+1] = Ad x[k] + Ga w[k-d-1] + Gb w[k-d] with
+    Gb = int_0^((1-f)h) e^(As) ds B and Ga = e^(A(1-f)h) int_0^(fh) e^(As) ds B.
+    A linearly interpolated input (``foh``) is interpolated at the shifted
+    instants and simulated as ``foh`` (exact for a whole-sample delay).
+    """
+    wd = delayed_input(w, delay_samples, intersample) if delay_samples > 0 else np.asarray(w, dtype=float)
+    n = A.shape[0]
+    f = delay_samples - math.floor(delay_samples)
+    if intersample != "zoh" or f < 1e-12 or n == 0:
+        return _states(A, B, dt, wd, intersample, x0), wd
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n] = A
+    M[:n, n] = B
+    E1 = expm(M * ((1.0 - f) * dt))
+    E2 = expm(M * (f * dt))
+    Ad = E1[:n, :n] @ E2[:n, :n]
+    Ga = E1[:n, :n] @ E2[:n, n]
+    Gb = E1[:n, n].copy()
+    X = np.zeros((wd.size, n))
+    _lsim(Ad, Ga, Gb, np.ascontiguousarray(wd), np.zeros(n) if x0 is None else np.asarray(x0, float), X)
+    return X, wd
+
+
+def simulate_tf(sys, t, u, *, intersample: str = "zoh", x0=None, delay_s: float = 0.0) -> np.ndarray:
     """Output of a continuous-time transfer function for the sampled input ``u``, from rest.
 
     Exact at the sample times for a zero-order-hold (default) or a linearly
     interpolated input (``intersample="foh"``, which equals
     ``control.forced_response(sys, t, u)``).  ``x0`` is the initial state of
-    the controllable canonical realisation (:func:`companion`).
+    the controllable canonical realisation (:func:`companion`).  ``delay_s``
+    delays the input (zero before the record): exact for a held input and
+    any delay, exact for ``foh`` at whole sample periods (linear
+    interpolation of the samples otherwise).
 
     Examples
     --------
@@ -363,6 +425,9 @@ def simulate_tf(sys, t, u, *, intersample: str = "zoh", x0=None) -> np.ndarray:
     u = np.asarray(u, dtype=float)
     dt = _uniform_dt(t)
     A, B, C, D = companion(num, den)
+    if delay_s:
+        X, ud = _delayed_states(A, B, dt, u, intersample, float(delay_s) / dt, x0)
+        return X @ C + D * ud
     X = _states(A, B, dt, u, intersample, x0)
     return X @ C + D * u
 
@@ -406,6 +471,14 @@ class TFEstimate:
         Simulations used by the refinement.
     elapsed_s : float
         Wall time of the estimation.
+    delay_s : float
+        Input delay, s: the model is ``y = G(s) e^(-s delay_s) (u - input_offset) + output_offset``.
+    input_offset, output_offset : float
+        The operating point the model is at rest at before the record, in the
+        run's units (0 unless estimated: ``offsets="estimate"``).
+    estimated : tuple of str
+        Which of ``"delay"``, ``"input_offset"``, ``"output_offset"``, ``"x0"`` were estimated (they enter
+        the covariance).
     """
 
     tf: object
@@ -420,6 +493,10 @@ class TFEstimate:
     x0: np.ndarray
     nfev: int = 0
     elapsed_s: float = 0.0
+    delay_s: float = 0.0
+    input_offset: float = 0.0
+    output_offset: float = 0.0
+    estimated: tuple = ()
 
     @property
     def residuals(self) -> np.ndarray:
@@ -438,8 +515,10 @@ class TFEstimate:
         return second_order_parameters(self.num, self.den)
 
     def simulate(self, t, u, x0=None) -> np.ndarray:
-        """The model's output for another input (same intersample assumption)."""
-        return simulate_tf(self.tf, t, u, intersample=self.intersample, x0=x0)
+        """The model's output for another input (same intersample assumption, delay and offsets)."""
+        u = np.asarray(u, dtype=float)
+        return simulate_tf(self.tf, t, u - self.input_offset, intersample=self.intersample, x0=x0,
+                           delay_s=self.delay_s) + self.output_offset
 
     def to_json_dict(self) -> dict:
         """``{"num", "den", "K", "wn", "zeta", "fit_percent", ...}`` (den monic, highest power first)."""
@@ -469,6 +548,13 @@ class TFEstimate:
         if self.n_zeros:
             lines.append(f"  zeros: {', '.join(f'{z:.4g}' for z in self.zeros())}")
         lines.append(f"  poles: {', '.join(f'{p:.4g}' for p in self.poles())}")
+        if self.delay_s or "delay" in self.estimated:
+            lines.append(f"  input delay = {1e3 * self.delay_s:.4g} ms" + (" (estimated)" if "delay" in self.estimated
+                                                                         else ""))
+        if "input_offset" in self.estimated or "output_offset" in self.estimated:
+            lines.append(f"  offsets: input {self.data.input_name} = {self.input_offset:.6g}, output "
+                         f"{self.data.output_name} = {self.output_offset:.6g} (estimated; the model: y - output = "
+                         "G (u - input))")
         lines.append(f"  fit = {self.fit_percent:.2f} % (NRMSE, as MATLAB compare)")
         if self.data.interpolated:
             lines.append(f"  interpolated missing samples: {self.data.interpolated}")
@@ -519,7 +605,8 @@ def second_order_parameters(num, den) -> dict:
 
 
 def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample: str = "zoh",
-          initial_state: str = "zero", max_nfev: int = 400) -> TFEstimate:
+          initial_state: str = "zero", max_nfev: int = 400, offsets: str = "none", delay=0.0,
+          max_delay_s: float | None = None) -> TFEstimate:
     """Fit a continuous-time transfer function with ``n_poles`` poles and ``n_zeros`` zeros.
 
     Parameters
@@ -536,6 +623,18 @@ def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample:
         Start the model at rest (a run that starts at rest) or also fit its initial state.
     max_nfev : int
         Budget of simulations for the refinement.
+    offsets : {"none", "output", "estimate"}
+        ``output``: also fit a constant output offset (a sensor's bias; the
+        input as given); ``estimate``: fit the operating point (input and output offsets)
+        the system rests at before the record, ``y - y0 = G (u - u0)`` (MATLAB's
+        ``InputOffset``/``OutputOffset``, estimated instead of given).  The two
+        are told apart only by the record's start (a record starting at rest
+        away from the operating point); their sum ``y0 - K u0`` always.
+    delay : float or "estimate"
+        Input delay, s (>= 0, fractional delays exact for a held input), or
+        ``"estimate"`` to fit it in [0, ``max_delay_s``].
+    max_delay_s : float, optional
+        Largest delay searched (default: 100 sample periods or a tenth of the record, the smaller).
 
     Returns
     -------
@@ -551,17 +650,52 @@ def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample:
         raise ValueError(f"intersample must be one of {INTERSAMPLE}, got {intersample!r}")
     if initial_state not in ("zero", "estimate"):
         raise ValueError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
+    est_delay = isinstance(delay, str)
+    if est_delay and delay != "estimate":
+        raise ValueError(f"delay must be a number of seconds >= 0 or 'estimate', got {delay!r}")
+    T = data.n * data.dt
+    if max_delay_s is None:
+        max_delay_s = min(100 * data.dt, 0.1 * T)
+    if not (isinstance(max_delay_s, (int, float, np.floating, np.integer)) and 0 < max_delay_s <= 0.5 * T):
+        raise ValueError(f"max_delay_s must be a number in (0, {0.5 * T:.6g}] s (half the record), got {max_delay_s!r}")
+    if not est_delay:
+        if isinstance(delay, bool) or not isinstance(delay, (int, float, np.floating, np.integer)) \
+                or not math.isfinite(delay) or not 0 <= delay <= 0.5 * T:
+            raise ValueError(f"delay must be 'estimate' or a number of seconds in [0, {0.5 * T:.6g}] (half the "
+                             f"record), got {delay!r}")
+    if offsets not in OFFSETS:
+        raise ValueError(f"offsets must be one of {', '.join(OFFSETS)}, got {offsets!r}")
+    est_off = offsets == "estimate"
+    if est_off and initial_state == "estimate":
+        raise ValueError("offsets='estimate' and initial_state='estimate' together are not identifiable (a free "
+                         "initial state absorbs the input offset); estimate one of them")
     n, m = int(n_poles), int(n_zeros)
-    n_par = n + m + 1 + (n if initial_state == "estimate" else 0)
+    n_par = n + m + 1 + (n if initial_state == "estimate" else 0) + int(est_delay) + int(est_off) + int(offsets != "none")
     if data.n < SAMPLES_PER_PARAMETER * n_par:
         raise ValueError(f"{data.source}: too short: {data.n} samples for {n_par} parameters; need at least "
                          f"{SAMPLES_PER_PARAMETER * n_par}")
     est_x0 = initial_state == "estimate"
+    delay_n = 0.0 if est_delay else float(delay) / data.dt  # samples
+    u0 = y0 = 0.0
     if n == 0:
-        gain = float(np.dot(data.u, data.y) / np.dot(data.u, data.u))
+        if est_delay or delay_n:
+            raise ValueError("a delay needs a dynamic model (n_poles >= 1)")
+        if offsets == "estimate":  # a static model: the operating point taken at the means
+            uc, yc = data.u - data.u.mean(), data.y - data.y.mean()
+            gain = float(np.dot(uc, yc) / np.dot(uc, uc))
+            u0, y0 = float(data.u.mean()), float(data.y.mean())
+        elif offsets == "output":
+            (gain, y0), *_ = np.linalg.lstsq(np.column_stack([data.u, np.ones(data.n)]), data.y, rcond=None)
+            gain, y0 = float(gain), float(y0)
+        else:
+            gain = float(np.dot(data.u, data.y) / np.dot(data.u, data.u))
         num, den, nfev = np.array([gain]), np.array([1.0]), 0
     else:
-        num, den, nfev = _fit(data, n, m, intersample, est_x0, max_nfev)
+        num, den, nfev, delay_n, u0, y0 = _fit(data, n, m, intersample, est_x0, max_nfev, delay=delay_n,
+                                               est_delay=est_delay, offsets=offsets,
+                                               max_delay=max_delay_s / data.dt)
+    if delay_n < 1e-6:  # at the bound: no delay
+        delay_n = 0.0
     import control
 
     tf = control.tf(num, den)
@@ -569,13 +703,18 @@ def tfest(t, u=None, y=None, n_poles: int = 2, n_zeros: int = 0, *, intersample:
     x0 = np.zeros(n)
     if est_x0 and n:
         # free responses of the final realisation; the initial state enters linearly
-        forced = _states(A, B, data.dt, data.u, intersample) @ C + D * data.u
+        X, ud = _delayed_states(A, B, data.dt, data.u - u0, intersample, delay_n)
+        forced = X @ C + D * ud + y0
         O = _free_responses(A, C, data.dt, data.n)
         x0 = np.linalg.lstsq(O, data.y - forced, rcond=None)[0]
-    y_sim = simulate_tf(tf, data.t, data.u, intersample=intersample, x0=x0 if n else None)
+    y_sim = simulate_tf(tf, data.t, data.u - u0, intersample=intersample, x0=x0 if n else None,
+                        delay_s=delay_n * data.dt) + y0
     fit = fit_percent(data.y, y_sim)
+    estimated = tuple(k for k, on in (("delay", est_delay), ("input_offset", est_off), ("output_offset", offsets != "none"), ("x0", est_x0 and n > 0)) if on)
     return TFEstimate(tf=tf, num=num, den=den, n_poles=n, n_zeros=m, fit_percent=fit, data=data, y_sim=y_sim,
-                      intersample=intersample, x0=x0, nfev=nfev, elapsed_s=time.perf_counter() - t0)
+                      intersample=intersample, x0=x0, nfev=nfev, elapsed_s=time.perf_counter() - t0,
+                      delay_s=float(delay_n * data.dt), input_offset=float(u0), output_offset=float(y0),
+                      estimated=estimated)
 
 
 def _free_responses(A: np.ndarray, C: np.ndarray, dt: float, N: int) -> np.ndarray:
@@ -627,28 +766,62 @@ def _z_from_poly(den: np.ndarray) -> np.ndarray:
 
 
 class _Problem:
-    """The output-error problem on the scaled time axis (s = ws p)."""
+    """The output-error problem on the scaled time axis (s = ws p).
 
-    def __init__(self, data: IdData, n: int, m: int, intersample: str, est_x0: bool, ws: float):
+    The nonlinear parameters are ``q = [z, delay?, u0?]``: the log-factors of
+    the denominator (:func:`_poly_from_z`), the input delay in sample periods
+    (``est_delay``) and the input offset (``offsets="estimate"``); the numerator, the
+    output offset and the initial state enter linearly and are eliminated by
+    least squares.  ``delay`` is the fixed delay (samples) when not estimated.
+    """
+
+    def __init__(self, data: IdData, n: int, m: int, intersample: str, est_x0: bool, ws: float, *,
+                 delay: float = 0.0, est_delay: bool = False, offsets: str = "none"):
         self.u, self.y = data.u, data.y
         self.n, self.m, self.intersample, self.est_x0 = n, m, intersample, est_x0
         self.ws = ws
         self.h = data.dt * ws  # the scaled sample period
+        self.delay, self.est_delay = float(delay), est_delay
+        self.est_offsets = offsets == "estimate"  # the input offset: a nonlinear parameter
+        self.est_y0 = offsets != "none"  # the output offset: linear
         self.nfev = 0
 
-    def basis(self, a: np.ndarray) -> np.ndarray:
-        """Columns p^m/A u, ..., p^0/A u (and free responses): the output is linear in them."""
+    def split(self, q: np.ndarray):
+        """(a, delay in samples, input offset) from the nonlinear parameters."""
+        n = self.n
+        a = _poly_from_z(q[:n], n)
+        k = n
+        delay = self.delay
+        if self.est_delay:
+            delay = float(q[k])
+            k += 1
+        u0 = float(q[k]) if self.est_offsets else 0.0
+        return a, delay, u0
+
+    def basis(self, a: np.ndarray, delay: float = None, u0: float = 0.0) -> np.ndarray:
+        """Columns p^m/A w, ..., p^0/A w of the delayed offset-free input w (then ones, free responses)."""
         n, m = self.n, self.m
+        delay = self.delay if delay is None else delay
         A, B, _, _ = companion(np.ones(1), a)
-        X = _states(A, B, self.h, self.u, self.intersample)
+        X, wd = _delayed_states(A, B, self.h, self.u - u0, self.intersample, delay)
         self.nfev += 1
         cols = []
         for k in range(m, -1, -1):  # p^k / A u is state x_(n-k) (1-based), p^n / A u = u - a.x
-            cols.append(self.u - X @ a[1:] if k == n else X[:, n - 1 - k])
+            cols.append(wd - X @ a[1:] if k == n else X[:, n - 1 - k])
+        if self.est_y0:
+            cols.append(np.ones(self.u.size))
         Phi = np.column_stack(cols)
         if self.est_x0:
             Phi = np.column_stack([Phi, _free_basis(A, self.h, self.u.size)])
         return Phi
+
+    def solve_q(self, q: np.ndarray):
+        """(numerator, output offset, residual) for the nonlinear parameters q."""
+        a, delay, u0 = self.split(q)
+        Phi = self.basis(a, delay, u0)
+        coef, *_ = np.linalg.lstsq(Phi, self.y, rcond=None)
+        y0 = float(coef[self.m + 1]) if self.est_y0 else 0.0
+        return coef[: self.m + 1], y0, self.y - Phi @ coef
 
     def solve(self, a: np.ndarray):
         Phi = self.basis(a)
@@ -657,6 +830,9 @@ class _Problem:
 
     def residual_z(self, z: np.ndarray) -> np.ndarray:
         return self.solve(_poly_from_z(z, self.n))[1]
+
+    def residual_q(self, q: np.ndarray) -> np.ndarray:
+        return self.solve_q(q)[2]
 
     def unscale(self, b: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients in s from those in p = s / ws."""
@@ -717,47 +893,119 @@ def _srivc(prob: _Problem, a0: np.ndarray, iters: int = 20) -> tuple[np.ndarray,
     return a, b
 
 
-def _fit(data: IdData, n: int, m: int, intersample: str, est_x0: bool, max_nfev: int):
+def _fit(data: IdData, n: int, m: int, intersample: str, est_x0: bool, max_nfev: int, *, delay: float = 0.0,
+         est_delay: bool = False, offsets: str = "none", max_delay: float = 0.0):
+    """(num, den, nfev, delay in samples, input offset, output offset) of the output-error optimum.
+
+    ``delay`` (samples) is fixed unless ``est_delay``; then it is searched in
+    [0, max_delay] (a scan of at most 41 delays, each with the poles refitted
+    briefly, from the best of which all parameters are refined).
+    """
+    est_offsets = offsets == "estimate"
     T = data.n * data.dt
     w_lo = 2.0 * math.pi * 2.0 / T
     w_hi = 2.0 * math.pi * 0.1 / data.dt
     starts = np.geomspace(w_lo, w_hi, 8) if w_hi > w_lo else np.array([w_lo])
+    # the starts see the input delayed by the fixed delay (an estimated one starts at zero); with offsets
+    # SRIVC runs on the signals as they are and without their means, and each start is scored on the
+    # problem itself (with its offset column)
+    start_sets = [data]
+    if delay or offsets != "none":
+        variants = [False, True] if offsets != "none" else [False]
+        start_sets = []
+        for demean in variants:
+            uu = data.u - (data.u.mean() if demean and est_offsets else 0.0)
+            uu = delayed_input(uu, delay, intersample) if delay else uu
+            start_sets.append(IdData(t=data.t, u=uu, y=data.y - (data.y.mean() if demean else 0.0), dt=data.dt))
+    u0_start = float(data.u.mean()) if est_offsets else 0.0
     cands = []
-    for lam in starts:
-        prob = _Problem(data, n, m, intersample, est_x0, lam)
-        a0 = np.poly(-np.ones(n))  # (p + 1)^n: pre-filter of bandwidth lam
-        try:
-            a, _ = _srivc(prob, a0)
-            _, r = prob.solve(a)
-        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
-            continue
-        cost = float(r @ r)
-        if np.isfinite(cost):
-            num, den = prob.unscale(np.ones(m + 1), a)
-            cands.append((cost, den))
+    for start_data in start_sets:
+        for lam in starts:
+            prob = _Problem(start_data, n, m, intersample, est_x0, lam)
+            a0 = np.poly(-np.ones(n))  # (p + 1)^n: pre-filter of bandwidth lam
+            try:
+                a, _ = _srivc(prob, a0)
+                if start_data is data:
+                    _, r = prob.solve(a)
+                else:
+                    full = _Problem(data, n, m, intersample, est_x0, lam, delay=delay, offsets=offsets)
+                    q = np.r_[_z_from_poly(a), [u0_start] if est_offsets else []]
+                    r = full.solve_q(q)[2]
+            except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+                continue
+            cost = float(r @ r)
+            if np.isfinite(cost):
+                num, den = prob.unscale(np.ones(m + 1), a)
+                cands.append((cost, den))
     if not cands:
         raise ValueError(f"{data.source}: no start of the estimation converged; check the data")
     cands.sort(key=lambda c: c[0])
     best = None
     nfev = 0
+    d_start = None
     for cost0, den0 in cands[:2]:
         ws = float(abs(den0[-1]) ** (1.0 / n))
-        prob = _Problem(data, n, m, intersample, est_x0, ws)
+        prob = _Problem(data, n, m, intersample, est_x0, ws, delay=delay, est_delay=est_delay,
+                        offsets=offsets)
         z0 = _z_from_poly(den0 / ws ** np.arange(n + 1))
         # poles beyond ten times the Nyquist frequency are not identifiable from the samples: keep them in reach
         w_max = 10.0 * math.pi / data.dt / ws
         upper = np.array([math.log(2.0 * w_max), math.log(w_max**2)] * (n // 2) + [math.log(w_max)] * (n % 2))
         z0 = np.minimum(z0, upper - 1e-6)
-        sol = least_squares(prob.residual_z, z0, method="trf", bounds=(-np.inf, upper), x_scale="jac", xtol=1e-12,
-                            ftol=1e-12, max_nfev=max_nfev)
-        a = _poly_from_z(sol.x, n)
-        b, r = prob.solve(a)
+        lower = np.full(n, -np.inf)
+        q0, lo, hi = z0, lower, upper
+        if est_delay:
+            if d_start is None:  # one scan, from the best start
+                d_start = _scan_delay(prob, z0, lower, upper, u0_start, max_delay)
+            d0 = d_start
+            q0, lo, hi = np.r_[q0, d0], np.r_[lo, 0.0], np.r_[hi, max_delay]
+        if est_offsets:
+            q0, lo, hi = np.r_[q0, u0_start], np.r_[lo, -np.inf], np.r_[hi, np.inf]
+        fin_lo, fin_hi = np.isfinite(lo), np.isfinite(hi)
+        q0 = np.clip(q0, np.where(fin_lo, lo + 1e-9 * np.maximum(1.0, np.abs(np.where(fin_lo, lo, 0.0))), lo),
+                     np.where(fin_hi, hi - 1e-9 * np.maximum(1.0, np.abs(np.where(fin_hi, hi, 0.0))), hi))
+        if est_delay or offsets != "none":
+            sol = least_squares(prob.residual_q, q0, method="trf", bounds=(lo, hi), x_scale="jac", xtol=1e-12,
+                                ftol=1e-12, max_nfev=max_nfev)
+            q = sol.x
+        else:
+            sol = least_squares(prob.residual_z, z0, method="trf", bounds=(-np.inf, upper), x_scale="jac",
+                                xtol=1e-12, ftol=1e-12, max_nfev=max_nfev)
+            q = sol.x
+        a, d, u0 = prob.split(q)
+        b, y0, r = prob.solve_q(q)
         nfev += prob.nfev
         cost = float(r @ r)
         if best is None or cost < best[0]:
             num, den = prob.unscale(b, a)
-            best = (cost, num, den)
-    return best[1], best[2], nfev
+            best = (cost, num, den, d, u0, y0)
+    return best[1], best[2], nfev, best[3], best[4], best[5]
+
+
+def _scan_delay(prob: _Problem, z0, lower, upper, u0: float, max_delay: float) -> float:
+    """The delay (samples) of the lowest cost over a grid of [0, max_delay], each with the poles refitted briefly."""
+    step = max(1.0, max_delay / 40.0)
+    grid = np.arange(0.0, max_delay + 1e-9, step)
+    best = (math.inf, 0.0)
+    keep_delay, keep_est, keep_off = prob.delay, prob.est_delay, prob.est_offsets
+    prob.est_delay = False
+    z = z0
+    try:
+        for d in grid:
+            prob.delay = float(d)
+            prob.est_offsets = keep_off
+
+            def res(zz):
+                return prob.residual_q(np.r_[zz, u0] if keep_off else zz)
+
+            sol = least_squares(res, np.clip(z, lower, upper - 1e-9), method="trf", bounds=(lower, upper),
+                                x_scale="jac", max_nfev=8)
+            cost = float(sol.fun @ sol.fun)
+            if cost < best[0]:
+                best = (cost, float(d))
+    finally:
+        prob.delay, prob.est_delay, prob.est_offsets = keep_delay, keep_est, keep_off
+    return min(max(best[1], 1e-6), max_delay)
 
 
 # ---------------------------------------------------------------------------

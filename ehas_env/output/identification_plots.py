@@ -139,3 +139,69 @@ def plot_residuals(ra, path, title: str = "") -> Path:
     ax[1].legend(loc="upper right", fontsize=8)
     ax[0].set_title((title + "\n" if title else "") + ra.verdict(), fontsize=9)
     return save(fig, path)
+
+
+def plot_orders(table, path, title: str = "") -> Path:
+    """Fit % of every structure of an order table (estimation, validation, k-step prediction) and its BIC."""
+    import numpy as np
+
+    from ehas_env.output.plots import _pyplot
+
+    plt = _pyplot()
+    rows = table.rows
+    labels = [r.label for r in rows]
+    x = np.arange(len(rows))
+    fig, ax = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    series = [("estimation (simulation)", [r.estimation["fit_percent"] for r in rows]),
+              ("validation (simulation)", [r.validation["fit_percent"] for r in rows])]
+    if table.predict_k:
+        series.append((f"validation ({table.predict_k}-step prediction)",
+                       [r.validation["predict_fit_percent"] for r in rows]))
+    w = 0.8 / len(series)
+    for i, (lab, vals) in enumerate(series):
+        ax[0].bar(x + (i - (len(series) - 1) / 2) * w, vals, w, label=lab)
+    lo = min(min(v) for _, v in series)
+    hi = max(max(v) for _, v in series)
+    ax[0].set_ylim(max(lo - 0.1 * (hi - lo + 1e-9), min(0.0, lo)) if lo < 0 else lo - 0.1 * (hi - lo + 1e-9) - 0.01,
+                   hi + 0.1 * (hi - lo + 1e-9) + 0.01)
+    ax[0].set_ylabel("fit %")
+    ax[0].legend(loc="lower right", fontsize=8)
+    ax[0].grid(axis="y", alpha=0.3)
+    bic = [r.validation["BIC"] for r in rows]
+    colors = ["tab:green" if r is table.chosen else "tab:gray" for r in rows]
+    ax[1].bar(x, np.asarray(bic) - min(bic), color=colors)
+    ax[1].set_ylabel("validation BIC - lowest")
+    ax[1].set_xticks(x, labels)
+    ax[1].grid(axis="y", alpha=0.3)
+    ax[1].set_title(f"chosen: {table.chosen.label} ({table.rule}, green)", fontsize=9)
+    if title:
+        ax[0].set_title(title, fontsize=10)
+    return save(fig, path)
+
+
+def plot_compare(table, data, path, title: str = "") -> Path:
+    """Every structure's simulated output over the validation data, with the measurement (MATLAB ``compare``)."""
+    import numpy as np
+
+    from ehas_env.output.plots import _pyplot
+
+    plt = _pyplot()
+    n_val = table.n_validation
+    t = np.asarray(data.t)[-n_val:]
+    y = np.asarray(data.y)[-n_val:]
+    fig, ax = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    ax[0].plot(t, y, color="0.55", lw=2.2, label=f"measured {data.output_name}")
+    for k, r in enumerate(table.rows):
+        lw = 1.4 if r is table.chosen else 0.8
+        ax[0].plot(t, r.y_val, lw=lw, color=f"C{k}", label=f"{r.label}: fit {r.validation['fit_percent']:.2f} %")
+        ax[1].plot(t, y - r.y_val, lw=lw, color=f"C{k}")
+    unit = output_unit(data.output_name)
+    ax[0].set_ylabel(f"{data.output_name}" + (f" [{unit}]" if unit else ""))
+    ax[0].legend(loc="upper right", fontsize=8)
+    ax[1].set_ylabel("measured - model")
+    ax[1].set_xlabel("t [s]")
+    for a in ax:
+        a.grid(alpha=0.25)
+    if title:
+        ax[0].set_title(title, fontsize=10)
+    return save(fig, path)
