@@ -66,7 +66,7 @@ def measure(s, P, out):
     out[O_THETA] = math.asin(min(max(position_reading(s[7], P) / r, -1.0), 1.0))
     out[O_OMEGA] = s[8] / (r * math.cos(th))
     qa, _, _ = land_flows(s[2], s[4], s[5], s[6], P[I_DROP])
-    out[O_FLOW] = qa
+    out[O_FLOW] = qa + valve_side_flows(s[2], s[4], s[5], s[6], P)[0]
     out[O_PA] = s[4]
     out[O_PB] = s[5]
     out[O_PS] = s[6]
@@ -158,6 +158,30 @@ def run_open_loop(s, P, cmd, dt, nsub, hist, out):
 
 
 @njit(cache=True)
+def bench_flow(qc, supply, scale, P):
+    """The bench meter's flow with the control ports joined through it, m^3/s: q_c sqrt(supply / rated drop)
+    for the critically lapped lands; with valve-side effects on, the flow at the ports' pressure where what
+    enters through A leaves through B (bisection)."""
+    if P[I_EFFECTS_ON] == 0.0:
+        return qc * scale
+    ea, eb = valve_side_flows(qc, 0.5 * supply, 0.5 * supply, supply, P)
+    if ea == 0.0 and eb == 0.0:  # no valve-side effect acts: the lapped lands' exact figure
+        return qc * scale
+    lo, hi = 0.0, supply
+    qa = 0.0
+    for _ in range(60):
+        pm = 0.5 * (lo + hi)
+        la, lb, _ = land_flows(qc, pm, pm, supply, P[I_DROP])
+        ea, eb = valve_side_flows(qc, pm, pm, supply, P)
+        qa = la + ea
+        if qa + lb + eb > 0.0:  # more enters the ports than leaves: their pressure is higher
+            lo = pm
+        else:
+            hi = pm
+    return qa
+
+
+@njit(cache=True)
 def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
     """Valve alone, control ports joined through the flow meter (rated test).
 
@@ -171,7 +195,7 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
     scale = math.sqrt(max(supply, 0.0) / P[I_DROP])
     hist[:] = 0.0
     for k in range(cmd.shape[0]):
-        out[k, 0] = s[2] * scale
+        out[k, 0] = bench_flow(s[2], supply, scale, P)
         out[k, 1] = s[2]
         hist[k % hist.shape[0]] = cmd[k]
         for j in range(nsub):

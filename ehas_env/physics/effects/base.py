@@ -50,6 +50,9 @@ PLACE_QUANTITIES = {place: frozenset(_AT_RATES) for place in PLACES}
 PLACE_QUANTITIES["valve_current"] = frozenset({"i"})
 PLACE_QUANTITIES["position_reading"] = frozenset({"x"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
+#: the quantities a valve-side chamber_flows term (``Effect.valve_side``) may take: the valve's own, known
+#: wherever a flow is metered (a run's line A, the valve bench)
+VALVE_SIDE_QUANTITIES = ("qc", "pa", "pb", "ps", "p_load", "q_a", "q_b", "q_supply")
 #: what an effect is (Effect.kind)
 KINDS = ("physical", "recalibration", "hypothesis")
 #: how many numbers a term returns at each place (state_rates: one per state, a number for one state)
@@ -209,6 +212,11 @@ class Effect:
     #: False for terms with no small-signal meaning at rest (sign functions, deadbands, play):
     #: the linearisation switches them off (ehas_env.physics.linearise)
     smooth: ClassVar[bool] = True
+    #: True when the effect's ``chamber_flows`` term is flow through the valve's metering lands (a lap, the
+    #: return or supply pressure at the lands): it then shows in the flows a meter reads (line A in a run, the
+    #: bench's meter with the ports joined), not only in the chambers.  Such a term may use the valve's
+    #: quantities only (:data:`VALVE_SIDE_QUANTITIES`).
+    valve_side: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -292,9 +300,15 @@ class Effect:
                              f"({', '.join(own) or 'it has none'})")
         if not cls.main_param and own:
             cls.main_param = own[0]  # documented default: the first parameter
-        for flag in ("smooth",):
+        for flag in ("smooth", "valve_side"):
             if not isinstance(getattr(cls, flag), bool):
                 raise ValueError(f"{who}: {flag} must be True or False, got {getattr(cls, flag)!r}")
+        if cls.valve_side and "chamber_flows" in cls.terms():
+            fn = getattr(cls.terms()["chamber_flows"], "__func__", cls.terms()["chamber_flows"])
+            for arg in inspect.signature(fn).parameters:
+                if arg in QUANTITIES and arg not in VALVE_SIDE_QUANTITIES:
+                    raise ValueError(f"{who}: valve_side = True, but its chamber_flows term takes '{arg}': a term "
+                                     f"at the valve's lands may use {', '.join(VALVE_SIDE_QUANTITIES)} only")
         if isinstance(cls.chain_order, bool) or not isinstance(cls.chain_order, int):
             raise ValueError(f"{who}: chain_order must be an integer, got {cls.chain_order!r}")
         for text in ("explanation", "signature", "title"):

@@ -8,6 +8,7 @@ class HypReturnPressure(Effect):
     name = "hyp_return_pressure"
     title = "return-line (tank) pressure at the valve"
     kind = "hypothesis"
+    valve_side = True  # flow through the metering lands: a meter in line A (and the bench's) reads it
     params = (
         Param("p_t", "bar", 5.0, (0.0, 60.0),
               "pressure in the return line at the valve's return lands (assumed: a filter, cooler or long "

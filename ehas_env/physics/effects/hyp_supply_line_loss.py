@@ -8,6 +8,7 @@ class HypSupplyLineLoss(Effect):
     name = "hyp_supply_line_loss"
     title = "pressure loss in the supply line between the regulated supply and the valve"
     kind = "hypothesis"
+    valve_side = True  # flow through the metering lands: a meter in line A (and the bench's) reads it
     params = (
         Param("dp_25", "bar", 5.0, (0.0, 150.0),
               "pressure lost between the supply's gauge and the valve's pressure port at 25 LPM (a long or thin "

@@ -8,6 +8,7 @@ class HypValveUnderlap(Effect):
     name = "hyp_valve_underlap"
     title = "underlapped valve: lands open at null"
     kind = "hypothesis"
+    valve_side = True  # flow through the metering lands: a meter in line A (and the bench's) reads it
     params = (
         Param("i_u", "mA", 0.5, (0.0, 8.0),
               "the underlap, as the current that moves the spool by it: within +-i_u of null all four lands are "
