@@ -850,6 +850,9 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                 base = {k: dict(v) for k, v in current.model.effects.items()}
                 # on top of a structural change, the library's effects may now be seen: try them again too
                 pool = list(candidates or library_effects()) + hyps
+        if kept is not None and structural and \
+                grade(blocks_of(full, cur_sims, COST_SIGNALS))["verdict"] == "explained":
+            break  # a structural hypothesis explains the campaign: no round of every candidate again on top of it
         if kept is not None and stack:
             continue
         if structural or not hypotheses or not hyps or \
