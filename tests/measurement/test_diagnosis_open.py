@@ -43,7 +43,10 @@ def ehas(*argv):
     return r
 
 
-def test_crank_spring_is_unexplained_followed_by_position_and_proposed(ool_dir, tmp_path, capsys):
+def test_crank_spring_is_named_a_torque_that_follows_the_angle(ool_dir, tmp_path, capsys):
+    """A centring spring on the crank (a user effect, out of the library's effects): the library leaves it
+    unexplained, and the structural hypothesis of a torque that depends on the crank angle names it, with the
+    spring's rate as its size (-T sin(theta) is -T theta near the middle), and writes it as an effect file."""
     from ehas_env.cli.main import main
 
     camp_dir = tmp_path / "spring"
@@ -52,22 +55,20 @@ def test_crank_spring_is_unexplained_followed_by_position_and_proposed(ool_dir, 
     out, eff = tmp_path / "d.json", tmp_path / "mine" / "centring.py"
     assert main(["diagnose", str(camp_dir), "--json", str(out), "--quiet", "--write-effect", str(eff)]) == 0
     text = capsys.readouterr().out
-    assert "verdict: unexplained" in text and "nothing beats noise" not in text
     doc = json.loads(out.read_text())
-    u = doc["unexplained"]
-    assert u["follows"][0] == "theta"
-    assert u["residual_x_noise"] > 5
-    p = u["proposal"]
-    assert p["where"] == ["crank_torque"]
-    assert A.spring_rate(p) == pytest.approx(400.0, rel=0.3)
-    assert p["validation"]["residual_x_noise_all_after"] <= 2.0
-    (term,) = [t for t in p["terms"] if t["form"] == "theta"]
-    assert term["ci95"][0] <= term["value"] <= term["ci95"][1]
-    assert doc["unexplained"]["proposal"]["effect_file"] == str(eff)
+    assert doc["validation"]["residual_x_noise_before_hypotheses"] > 5  # the library alone does not explain it
+    h = doc["hypothesis"]
+    assert h["effect"] == "hyp_crank_unbalance", h
+    assert h["params"]["T_sin"] == pytest.approx(400.0, rel=0.3)  # N m per rad near theta = 0
+    assert abs(h["params"]["T_cos"]) < 0.05 * h["params"]["T_sin"]  # centred on the crank's zero
+    assert h["ci95"]["T_sin"][0] <= h["params"]["T_sin"] <= h["ci95"]["T_sin"][1]
+    assert doc["verdict"] != "unexplained" and doc["residual_x_noise"] <= 2.0
+    assert "centring spring" in h["words"] and h["effect_file"] == str(eff)
+    assert "structural hypothesis kept: hyp_crank_unbalance" in text
     # the written effect file is a valid user effect (ehas compare --fit on it: the slow sweep)
     r = ehas("effects", "--effects-path", str(eff.parent), "centring")
     assert r.returncode == 0, r.stderr
-    assert "N m/rad" in r.stdout
+    assert "T_sin [N m]" in r.stdout
 
 
 @pytest.mark.slow

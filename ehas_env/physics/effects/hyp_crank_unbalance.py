@@ -33,9 +33,12 @@ class HypCrankUnbalance(Effect):
     def in_words(cls, params: dict) -> str:
         """The fitted hypothesis in words."""
         a = math.hypot(params["T_sin"], params["T_cos"])
-        ang = math.degrees(math.atan2(params["T_cos"], params["T_sin"]))
-        return (f"the load is unbalanced: a torque of {a:.3g} N m pulls the crank toward {-ang:.0f} deg "
-                f"(T = -{a:.3g} sin(theta + {ang:.0f} deg) N m)")
+        phi = math.degrees(math.atan2(params["T_cos"], params["T_sin"]))
+        # T = -a sin(theta + phi): it pulls the crank back toward theta = -phi
+        eq = round(-phi) + 0  # + 0: no "-0"
+        arg = "theta" if eq == 0 else (f"theta - {eq} deg" if eq > 0 else f"theta + {-eq} deg")
+        return (f"a torque that follows the crank angle pulls the crank back toward {eq} deg: T = -{a:.3g} "
+                f"sin({arg}) N m (an unbalance hanging there, or a centring spring of {a:.3g} N m/rad about it)")
 
     @staticmethod
     def crank_torque(theta, T_sin, T_cos):
