@@ -282,7 +282,7 @@ def _black_box_row(structure, n, nk, est_data, data, validation, k0, offsets, pr
 
 def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay=0.0, offsets: str = "none",
                 predict_k: int | None = None, max_delay_s: float | None = None, black_box=(), nk: int = 1,
-                tf: bool = True) -> OrderTable:
+                tf: bool = True, share: float = ESTIMATION_SHARE) -> OrderTable:
     """Fit every structure with ``poles`` poles (and 0..poles-1 zeros) and score it.
 
     Parameters
@@ -307,6 +307,8 @@ def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay
         Input delay of the black-box models, samples.
     tf : bool
         Also the continuous-time transfer functions (the grey-box rows).
+    share : float
+        Share of ``data`` that estimates when no ``validation`` run is given (default 2/3).
 
     Returns
     -------
@@ -315,7 +317,7 @@ def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay
     from ehas_env.identification.fit import fit_percent, tfest
 
     if validation is None:
-        est_data, k0 = split(data)
+        est_data, k0 = split(data, share)
         val_y, val_src = data.y[k0:], f"last {data.n - k0} samples of {data.source}"
     else:
         est_data, k0 = data, 0
