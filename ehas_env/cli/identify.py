@@ -4,6 +4,8 @@
                   [--json FILE] [--out DIR] [--offsets none|output|estimate]
                   [--delay SECONDS|estimate] [--orders LO:HI [--validate RUN2]] [--predict K]
                   [--export FILE.mat|FILE.json] [--covariance auto|white|coloured]
+    ehas identify RUN.csv --structure arx|armax|oe|bj|ss [--na N --nb N --nc N --nd N --nf N --nk N | --nx N]
+                  [--offsets none|output|estimate] [--orders LO:HI [--compare arx,armax,oe,bj,ss|all]] ...
 
 prints the coefficients, K, wn, zeta (2-pole models) and the fit % (NRMSE, as
 MATLAB's ``compare``), and writes into DIR (default ``results/identify/RUN/``)
@@ -19,6 +21,20 @@ residual tests (``residual_tests``) and warns in one line when the run looks
 closed-loop (:mod:`ehas_env.identification.checks`); ``--orders`` adds the table of
 structures (:mod:`ehas_env.identification.orders`), ``--export`` the model file
 (:mod:`ehas_env.identification.export`).
+
+``--structure`` (default ``tf``, the behaviour above) picks a discrete-time
+black box instead (:mod:`ehas_env.identification.pem`), its orders given one
+flag each as MATLAB's order vectors name them - arx ``[na nb nk]``, armax
+``[na nb nc nk]``, oe ``[nb nf nk]``, bj ``[nb nc nd nf nk]``, ss ``nx``
+(N4SID, needs ``pip install 'ehas[ident]'``); an order flag the structure does
+not have is refused, and orders left out take 2 (nk: 1).  Its JSON carries
+``structure``, ``orders``, the polynomials in q^-1 with each coefficient's
+standard error, the transfer function in z (``tf_z``), the fit % and the
+residual tests of the one-step prediction errors; ``--offsets output|estimate``
+removes the run's output / input and output means first.  ``--compare`` adds
+black-box rows "of order n" (every polynomial of degree n, or n states) beside
+the transfer functions of ``--orders``, on the same estimation and validation
+data (with a black-box ``--structure`` they are added by default).
 
 The plotting functions here are reused by :mod:`ehas_env.identification.book_valve`.
 """
