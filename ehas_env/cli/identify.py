@@ -4,6 +4,8 @@
                   [--json FILE] [--out DIR] [--offsets none|output|estimate]
                   [--delay SECONDS|estimate] [--orders LO:HI [--validate RUN2]] [--predict K]
                   [--export FILE.mat|FILE.json] [--covariance auto|white|coloured]
+    ehas identify RUN.csv --structure arx|armax|oe|bj|ss [--na N --nb N --nc N --nd N --nf N --nk N | --nx N]
+                  [--offsets none|output|estimate] [--orders LO:HI [--compare arx,armax,oe,bj,ss|all]] ...
 
 prints the coefficients, K, wn, zeta (2-pole models) and the fit % (NRMSE, as
 MATLAB's ``compare``), and writes into DIR (default ``results/identify/RUN/``)
@@ -20,6 +22,20 @@ closed-loop (:mod:`ehas_env.identification.checks`); ``--orders`` adds the table
 structures (:mod:`ehas_env.identification.orders`), ``--export`` the model file
 (:mod:`ehas_env.identification.export`).
 
+``--structure`` (default ``tf``, the behaviour above) picks a discrete-time
+black box instead (:mod:`ehas_env.identification.pem`), its orders given one
+flag each as MATLAB's order vectors name them - arx ``[na nb nk]``, armax
+``[na nb nc nk]``, oe ``[nb nf nk]``, bj ``[nb nc nd nf nk]``, ss ``nx``
+(N4SID, needs ``pip install 'ehas[ident]'``); an order flag the structure does
+not have is refused, and orders left out take 2 (nk: 1).  Its JSON carries
+``structure``, ``orders``, the polynomials in q^-1 with each coefficient's
+standard error, the transfer function in z (``tf_z``), the fit % and the
+residual tests of the one-step prediction errors; ``--offsets output|estimate``
+removes the run's output / input and output means first.  ``--compare`` adds
+black-box rows "of order n" (every polynomial of degree n, or n states) beside
+the transfer functions of ``--orders``, on the same estimation and validation
+data (with a black-box ``--structure`` they are added by default).
+
 The plotting functions here are reused by :mod:`ehas_env.identification.book_valve`.
 """
 from __future__ import annotations
@@ -30,14 +46,33 @@ import shlex
 from pathlib import Path
 
 
+from ehas_env.identification.pem import DEFAULT_ORDERS, ORDER_RANGE, ORDERS, STRUCTURES  # noqa: E402
+
+ORDER_FLAGS = ("na", "nb", "nc", "nd", "nf", "nk", "nx")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", nargs="?", help="run file (measurement format CSV); optional with --num/--den")
     from ehas_env.ranges import number
 
-    parser.add_argument("--poles", type=number("--poles", "poles", 1, 10, integer=True), default=2,
-                        help="number of poles, 1..10 (default 2)")
-    parser.add_argument("--zeros", type=number("--zeros", "zeros", 0, 10, integer=True), default=0,
-                        help="number of zeros, 0..10, fewer than the poles (default 0)")
+    parser.add_argument("--poles", type=number("--poles", "poles", 1, 10, integer=True), default=None,
+                        help="number of poles, 1..10 (default 2; --structure tf)")
+    parser.add_argument("--zeros", type=number("--zeros", "zeros", 0, 10, integer=True), default=None,
+                        help="number of zeros, 0..10, fewer than the poles (default 0; --structure tf)")
+    parser.add_argument("--structure", choices=("tf",) + STRUCTURES, default="tf",
+                        help="tf (default): the continuous-time transfer function (--poles, --zeros); or a "
+                             "discrete-time black box: arx (--na --nb --nk), armax (--na --nb --nc --nk), oe (--nb "
+                             "--nf --nk), bj (--nb --nc --nd --nf --nk), ss (N4SID, --nx; needs ehas[ident])")
+    for name, what in (("na", "A (poles of arx/armax)"), ("nb", "B (input terms)"), ("nc", "C (noise zeros)"),
+                       ("nd", "D (noise poles of bj)"), ("nf", "F (poles of oe/bj)"), ("nk", "input delay, samples"),
+                       ("nx", "states of ss")):
+        lo, hi = ORDER_RANGE[name]
+        parser.add_argument(f"--{name}", type=number(f"--{name}", "", lo, hi, integer=True), default=None,
+                            help=f"order of {what}, {lo}..{hi} (default {DEFAULT_ORDERS[name]}); only with the "
+                                 f"structures that have it")
+    parser.add_argument("--compare", type=CompareOption(),
+                        help="with --orders: black-box structures fitted beside the tf rows at each order n "
+                             "(comma list of arx,armax,oe,bj,ss or 'all'; default: the --structure if not tf)")
     parser.add_argument("--input", default="current_mA", help="input column (default current_mA)")
     parser.add_argument("--output", default="flow_lpm", help="output column (default flow_lpm)")
     parser.add_argument("--intersample", choices=("zoh", "foh"), default="zoh",
@@ -114,13 +149,38 @@ class OrdersOption:
         return text
 
 
+class CompareOption:
+    """argparse ``type=`` of ``--compare``: a comma list of black-box structures, or ``all``."""
+
+    __name__ = "compare"
+
+    def __call__(self, text: str):
+        import argparse
+
+        items = [t.strip().lower() for t in str(text).split(",") if t.strip()]
+        if items == ["all"]:
+            return list(STRUCTURES)
+        bad = [t for t in items if t not in STRUCTURES]
+        if not items or bad or len(set(items)) != len(items):
+            raise argparse.ArgumentTypeError(f"--compare must be 'all' or a comma list of distinct structures from "
+                                             f"{', '.join(STRUCTURES)}, got {text!r}")
+        return items
+
+
 def _command(args) -> str:
     """The command line that regenerates this output, from the parsed arguments."""
     parts = ["ehas", "identify"] + ([args.run] if args.run else [])
     if args.num is not None:
         parts += ["--num", args.num, "--den", args.den]
-    else:
+    elif args.structure == "tf":
         parts += ["--poles", str(args.poles), "--zeros", str(args.zeros)]
+    else:
+        parts += ["--structure", args.structure]
+    for name in ORDER_FLAGS:
+        if getattr(args, name) is not None:
+            parts += [f"--{name}", str(getattr(args, name))]
+    if args.compare:
+        parts += ["--compare", ",".join(args.compare)]
     for flag, value, default in (("--input", args.input, "current_mA"), ("--output", args.output, "flow_lpm"),
                                  ("--intersample", args.intersample, "zoh"),
                                  ("--initial-state", args.initial_state, "zero"), ("--json", args.json, None),
@@ -165,9 +225,10 @@ def run(args) -> int:
 
     if args.run is None and (args.num is None or args.den is None):
         raise ValueError("give a run file to identify, or --num and --den to evaluate a transfer function")
+    _check_structure(args)
     if (args.num is None) != (args.den is None):
         raise ValueError("--num and --den go together")
-    if args.num is None and args.zeros >= args.poles:
+    if args.num is None and args.structure == "tf" and args.zeros >= args.poles:
         raise ValueError(f"--zeros must be fewer than --poles (a proper transfer function), got --poles {args.poles} "
                          f"--zeros {args.zeros}")
     fitting = args.num is None
@@ -186,6 +247,8 @@ def run(args) -> int:
     if args.offsets == "estimate" and args.initial_state == "estimate":
         raise ValueError("--offsets estimate and --initial-state estimate together are not identifiable (a free "
                          "initial state absorbs the input offset); use --offsets output or one of them")
+    if args.compare and not args.orders:
+        raise ValueError("--compare goes with --orders (it adds black-box rows to the structure table)")
     command = _command(args)
     from ehas_env.output.outputs import OutputSet, check_file, check_not_input
 
@@ -208,6 +271,8 @@ def run(args) -> int:
         outputs = OutputSet(Path(args.out) if args.out else Path("results/identify") / Path(args.run).stem, "--out",
                             overwrite=args.overwrite)
 
+    if args.structure != "tf":
+        return _run_black_box(args, command, outputs)
     given = None
     if args.num is not None:
         import control
@@ -278,7 +343,7 @@ def run(args) -> int:
         import sys
 
         print(f"ehas identify: {checks.warning_line(loop)}", file=sys.stderr)
-    extra = {"residual_tests": _residual_tests(ra), "closed_loop": loop}
+    extra = {"structure": "tf", "residual_tests": _residual_tests(ra), "closed_loop": loop}
     if unc is not None:
         extra["ci95"] = unc.ci95
         extra["covariance"] = unc.to_json_dict()
@@ -312,7 +377,8 @@ def run(args) -> int:
 
         table = order_table(data, parse_orders(args.orders), validation=validation, intersample=args.intersample,
                             delay=args.delay, offsets=args.offsets, predict_k=args.predict,
-                            max_delay_s=args.max_delay)
+                            max_delay_s=args.max_delay, black_box=args.compare or (),
+                            nk=args.nk if args.nk is not None else DEFAULT_ORDERS["nk"])
         print(table.markdown())
         extra["orders"] = table.to_json_dict()
     if args.timing and given is None:
@@ -355,6 +421,138 @@ def run(args) -> int:
                                           title=f"{Path(args.run).name}: the models on the validation data"))
             md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", est.summary(),
                   *([unc.summary()] if unc is not None else []), f"  {ra.verdict()}", "```", ""]
+            if loop["suspected"]:
+                md += [checks.warning_line(loop), ""]
+            if table is not None:
+                md += ["## Structures", "", table.markdown(), ""]
+            md += ["Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
+            files.append(atomic_write_text(out / "identify.md", "\n".join(md)))
+        print(f"wrote {', '.join(str(outputs.path / f.name) for f in files)}")
+    return 0
+
+
+def _check_structure(args) -> None:
+    """The options of ``--structure`` and its orders, one line each (before any work); fills the defaults."""
+    given = {n: getattr(args, n) for n in ORDER_FLAGS if getattr(args, n) is not None}
+    if args.structure == "tf":
+        for name in given:
+            if name == "nk" and args.compare:
+                continue
+            raise ValueError(f"--{name} goes with a black-box --structure ({', '.join(s for s in STRUCTURES if name in ORDERS[s])}); "
+                             f"the transfer function (--structure tf) takes --poles and --zeros")
+        args.poles = 2 if args.poles is None else args.poles
+        args.zeros = 0 if args.zeros is None else args.zeros
+        return
+    s = args.structure
+    for flag, bad in (("--num/--den", args.num is not None or args.den is not None),
+                      ("--poles", args.poles is not None), ("--zeros", args.zeros is not None),
+                      ("--delay", args.delay != 0.0), ("--max-delay", args.max_delay is not None),
+                      ("--intersample", args.intersample != "zoh"), ("--initial-state", args.initial_state != "zero"),
+                      ("--covariance", args.covariance != "auto"), ("--timing", args.timing)):
+        if bad:
+            hint = {"--delay": "; give the input delay in samples with --nk", "--poles": f"; its orders are "
+                    f"{', '.join('--' + n for n in ORDERS[s])}", "--zeros": f"; its orders are "
+                    f"{', '.join('--' + n for n in ORDERS[s])}"}.get(flag, "")
+            raise ValueError(f"{flag} applies to --structure tf, not to --structure {s}{hint}")
+    from ehas_env.identification.pem import check_orders
+
+    args.orders_of_structure = check_orders(s, given, where="--")
+    if s == "ss":
+        from ehas_env.identification.pem import _import_nfoursid
+
+        try:
+            _import_nfoursid()
+        except ValueError:
+            raise ValueError("--structure ss needs the optional package nfoursid: pip install 'ehas[ident]'") from None
+
+
+def _run_black_box(args, command: str, outputs) -> int:
+    """``--structure arx|armax|oe|bj|ss``: the discrete-time model, its fit, residual tests, table, files."""
+    import json
+    import sys
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from ehas_env.identification import checks
+    from ehas_env.identification import fit as ID
+    from ehas_env.identification.pem import estimate
+    from ehas_env.output.files import atomic_write_text
+
+    data = ID.read_columns(args.run, args.input, args.output)
+    validation = None
+    if args.validate:
+        try:
+            validation = ID.read_columns(args.validate, args.input, args.output)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"--validate: {exc}") from None
+    # operating point: the run's means (MATLAB detrend(z, 0)) when asked for
+    u0 = float(np.mean(data.u)) if args.offsets == "estimate" else 0.0
+    y0 = float(np.mean(data.y)) if args.offsets in ("output", "estimate") else 0.0
+    m = estimate(args.structure, data.u - u0, data.y - y0, args.orders_of_structure, dt=data.dt)
+    y_sim = m.simulate(data.u - u0) + y0
+    fit = ID.fit_percent(data.y, y_sim)
+    print(m.summary())
+    if args.offsets != "none":
+        print(f"  offsets (the run's means, removed before the fit): input {u0:.6g}, output {y0:.6g}")
+    ra = ID.residual_analysis(m.residuals, data.u - u0, max_lag=min(args.max_lag, data.n - 1))
+    print(f"  {ra.verdict()} (one-step prediction errors)")
+    loop = checks.closed_loop_evidence(ra, checks.sidecar_of(args.run))
+    if loop["suspected"]:
+        print(f"ehas identify: {checks.warning_line(loop)}", file=sys.stderr)
+    G = m.tf()
+    result = {**m.to_json_dict(), "fit_percent": float(fit), "command": command,
+              "tf_z": {"num": [float(v) for v in np.squeeze(G.num[0][0])],
+                       "den": [float(v) for v in np.squeeze(G.den[0][0])], "dt": float(data.dt)},
+              "offsets": {"input": u0, "output": y0, "estimated": args.offsets},
+              "residual_tests": _residual_tests(ra), "closed_loop": loop}
+    if validation is not None:
+        vfit = ID.fit_percent(validation.y, m.simulate(validation.u - u0) + y0)
+        print(f"  validation on {args.validate}: fit = {vfit:.2f} % (simulated from rest)")
+        result["validation"] = {"run": args.validate, "fit_percent": float(vfit)}
+    if args.predict:
+        pfit = ID.fit_percent(data.y, m.predict(data.u - u0, data.y - y0, args.predict) + y0)
+        print(f"  {args.predict}-step-ahead prediction fit = {pfit:.2f} % beside simulation fit {fit:.2f} % "
+              f"(the model's own noise model)")
+        result["prediction"] = {"steps": args.predict, "fit_percent": float(pfit), "simulation_fit_percent": float(fit)}
+        if validation is not None:
+            pv = ID.fit_percent(validation.y, m.predict(validation.u - u0, validation.y - y0, args.predict) + y0)
+            result["prediction"]["validation_fit_percent"] = float(pv)
+    table = None
+    if args.orders:
+        from ehas_env.identification.orders import order_table, parse_orders
+
+        table = order_table(data, parse_orders(args.orders), validation=validation, offsets=args.offsets,
+                            predict_k=args.predict, black_box=args.compare or [args.structure],
+                            nk=args.orders_of_structure.get("nk", DEFAULT_ORDERS["nk"]))
+        print(table.markdown())
+        result["orders"] = table.to_json_dict()
+    if args.json:
+        atomic_write_text(args.json, json.dumps(result, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    if args.export:
+        from ehas_env.identification.export import write_model
+
+        print(f"wrote {write_model(args.export, result['tf_z']['num'], result['tf_z']['den'], dt=data.dt, input_offset=u0, output_offset=y0, input_name=data.input_name, output_name=data.output_name, extra={'model': m.to_json_dict()})}")
+    if outputs is not None:
+        from ehas_env.output.identification_plots import plot_bode, plot_overlay, plot_residuals
+
+        label = m.label
+        shown = SimpleNamespace(data=data, y_sim=y_sim, fit_percent=fit, residuals=data.y - y_sim)
+        with outputs as out:
+            files = [plot_overlay(shown, out / "overlay.png", title=f"{Path(args.run).name}: {label} model"),
+                     plot_bode([(label, G)], out / "bode.png", data=data,
+                               title=f"{Path(args.run).name}: {label} model and the data's spectral estimate"),
+                     plot_residuals(ra, out / "residuals.png",
+                                    title=f"{Path(args.run).name}: one-step prediction errors of the {label} model")]
+            if table is not None:
+                from ehas_env.output.identification_plots import plot_compare, plot_orders
+
+                files.append(plot_orders(table, out / "orders.png", title=f"{Path(args.run).name}: structures compared"))
+                files.append(plot_compare(table, data if validation is None else validation, out / "compare.png",
+                                          title=f"{Path(args.run).name}: the models on the validation data"))
+            md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", m.summary(),
+                  f"  {ra.verdict()} (one-step prediction errors)", "```", ""]
             if loop["suspected"]:
                 md += [checks.warning_line(loop), ""]
             if table is not None:

@@ -10,10 +10,9 @@ compare both on the same data).  The continuous-time equivalent is the
 inverse of the zero-order-hold sampling (matrix logarithm), defined when no
 pole lies on the negative real axis of the z-plane.
 
-Other structures were evaluated rather than written here: ARMAX/BJ need the
-prediction-error iterations that ``tfest`` already does for OE; ``nfoursid``
-(N4SID, on PyPI) and ``sysidentpy`` (NARMAX) would be new dependencies;
-``harold`` has no estimation; scipy has none.
+ARMAX, OE, BJ (prediction-error method) and N4SID state space are in
+:mod:`ehas_env.identification.pem`, which also wraps this ARX with standard
+errors (``estimate("arx", ...)``).
 
 Examples
 --------

@@ -41,8 +41,8 @@ def check_path(path, where: str = "--export") -> Path:
 
 
 def write_model(path, num, den, *, delay_s: float = 0.0, input_offset: float = 0.0, output_offset: float = 0.0,
-                input_name: str = "u", output_name: str = "y", extra: dict | None = None) -> Path:
-    """Write a continuous-time transfer function to ``path`` (.json or .mat, atomically).
+                input_name: str = "u", output_name: str = "y", extra: dict | None = None, dt: float = 0.0) -> Path:
+    """Write a transfer function to ``path`` (.json or .mat, atomically): continuous (dt = 0) or in z (dt > 0).
 
     Parameters
     ----------
@@ -56,6 +56,8 @@ def write_model(path, num, den, *, delay_s: float = 0.0, input_offset: float = 0
         Signal names.
     extra : dict, optional
         More JSON-ready fields (JSON only; e.g. K, wn, zeta, ci95).
+    dt : float
+        0 for a transfer function in s; the sample period for one in z (MATLAB: ``tf(num, den, dt)``).
 
     Returns
     -------
@@ -66,7 +68,7 @@ def write_model(path, num, den, *, delay_s: float = 0.0, input_offset: float = 0
     p = check_path(path, "path")
     num = [float(v) for v in np.atleast_1d(num)]
     den = [float(v) for v in np.atleast_1d(den)]
-    doc = {"format": FORMAT, "version": 1, "num": num, "den": den, "dt": 0.0, "delay_s": float(delay_s),
+    doc = {"format": FORMAT, "version": 1, "num": num, "den": den, "dt": float(dt), "delay_s": float(delay_s),
            "input_offset": float(input_offset), "output_offset": float(output_offset), "input": input_name,
            "output": output_name}
     if p.suffix.lower() == ".json":
@@ -78,7 +80,7 @@ def write_model(path, num, den, *, delay_s: float = 0.0, input_offset: float = 0
 
     buf = io.BytesIO()
     mat = {k: (np.array([v]) if k in ("num", "den") else v) for k, v in doc.items()}
-    mat["matlab"] = "G = tf(num, den, 'InputDelay', delay_s)"
+    mat["matlab"] = "G = tf(num, den, 'InputDelay', delay_s)" if not dt else "G = tf(num, den, dt)"
     savemat(buf, mat, do_compression=True)
     return atomic_write_bytes(p, buf.getvalue())
 
@@ -116,8 +118,8 @@ def read_model_dict(path) -> dict:
         if not math.isfinite(v):
             raise ValueError(f"{p}: '{key}' must be a finite number, got {v}")
         out[key] = v
-    if out["dt"] != 0:
-        raise ValueError(f"{p}: dt = {out['dt']:g}; only continuous-time models (dt = 0) are read")
+    if out["dt"] < 0:
+        raise ValueError(f"{p}: dt = {out['dt']:g}; it must be 0 (continuous time) or a sample period > 0")
     return out
 
 
@@ -126,4 +128,4 @@ def read_model(path):
     import control
 
     d = read_model_dict(path)
-    return control.tf(d["num"], d["den"])
+    return control.tf(d["num"], d["den"], d["dt"]) if d["dt"] else control.tf(d["num"], d["den"])

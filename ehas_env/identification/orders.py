@@ -14,7 +14,11 @@
   ``BIC = N ln V + p ln N + N (ln 2 pi + 1)``,
   ``FPE = V (1 + p/N) / (1 - p/N)`` (MATLAB's definitions);
 * the structure chosen is the one of the **lowest BIC on the validation
-  data** (rule :data:`RULE`).
+  data** (rule :data:`RULE`);
+* discrete-time black-box structures (ARX, ARMAX, OE, BJ, N4SID state
+  space, :mod:`ehas_env.identification.pem`) can stand beside the transfer
+  functions (``black_box=``), fitted on the same estimation part and scored
+  by the same simulation criteria on the same validation part.
 
 :func:`predict` gives the k-step-ahead prediction of an output-error model
 with a noise model: an AR model of the residuals (order by BIC, at most
@@ -156,7 +160,7 @@ def predict(est, k: int, t=None, u=None, y=None, ar=None) -> np.ndarray:
 
 @dataclass
 class OrderRow:
-    """One structure's scores (see the module docstring)."""
+    """One structure's scores (see the module docstring); ``structure`` tf (poles, zeros) or a black-box one."""
 
     poles: int
     zeros: int
@@ -165,15 +169,20 @@ class OrderRow:
     validation: dict
     est: object = field(repr=False, default=None)
     y_val: np.ndarray = field(repr=False, default=None)
+    structure: str = "tf"
 
     @property
     def label(self) -> str:
-        return f"{self.poles}p{self.zeros}z"
+        return f"{self.poles}p{self.zeros}z" if self.structure == "tf" else self.est.label
 
     def to_json_dict(self) -> dict:
-        return {"poles": self.poles, "zeros": self.zeros, "parameters": self.p,
-                "num": [float(v) for v in self.est.num], "den": [float(v) for v in self.est.den],
-                "delay_s": float(self.est.delay_s), "estimation": self.estimation, "validation": self.validation}
+        if self.structure != "tf":
+            return {"structure": self.structure, "label": self.label, "parameters": self.p,
+                    "model": self.est.to_json_dict(), "estimation": self.estimation, "validation": self.validation}
+        return {"structure": "tf", "label": self.label, "poles": self.poles, "zeros": self.zeros,
+                "parameters": self.p, "num": [float(v) for v in self.est.num],
+                "den": [float(v) for v in self.est.den], "delay_s": float(self.est.delay_s),
+                "estimation": self.estimation, "validation": self.validation}
 
 
 @dataclass
@@ -190,7 +199,8 @@ class OrderTable:
 
     def to_json_dict(self) -> dict:
         return {"rows": [r.to_json_dict() for r in self.rows],
-                "chosen": {"poles": self.chosen.poles, "zeros": self.chosen.zeros, "rule": self.rule},
+                "chosen": {"label": self.chosen.label, "structure": self.chosen.structure, "poles": self.chosen.poles,
+                           "zeros": self.chosen.zeros, "rule": self.rule},
                 "validation": self.validation_source, "estimation_samples": self.n_estimation,
                 "validation_samples": self.n_validation, "predict_steps": self.predict_k}
 
@@ -232,8 +242,47 @@ def parse_orders(text: str, where: str = "--orders") -> list[int]:
     return list(range(lo, hi + 1))
 
 
+def black_box_orders(structure: str, n: int, nk: int = 1) -> dict:
+    """The orders of a black-box ``structure`` "of order n": every polynomial of degree n, or n states.
+
+    >>> black_box_orders("bj", 2), black_box_orders("ss", 3)
+    ({'nb': 2, 'nc': 2, 'nd': 2, 'nf': 2, 'nk': 1}, {'nx': 3})
+    """
+    from ehas_env.identification.pem import ORDERS
+
+    return {k: (nk if k == "nk" else n) for k in ORDERS[structure]}
+
+
+def _black_box_row(structure, n, nk, est_data, data, validation, k0, offsets, predict_k, val_y):
+    """A black-box row: fitted on the estimation part (means removed per ``offsets``), scored like the tf rows."""
+    from ehas_env.identification.fit import fit_percent
+    from ehas_env.identification.pem import estimate
+
+    u0 = float(np.mean(est_data.u)) if offsets == "estimate" else 0.0
+    y0 = float(np.mean(est_data.y)) if offsets in ("output", "estimate") else 0.0
+    m = estimate(structure, est_data.u - u0, est_data.y - y0, black_box_orders(structure, n, nk), dt=est_data.dt)
+    p = m.n_parameters + {"none": 0, "output": 1, "estimate": 2}[offsets]
+    y_est = m.simulate(est_data.u - u0) + y0
+    if validation is None:
+        y_all = m.simulate(data.u - u0) + y0
+        y_val = y_all[k0:]
+    else:
+        y_val = m.simulate(validation.u - u0) + y0
+    e_crit = {"fit_percent": float(fit_percent(est_data.y, y_est)), **criteria(est_data.y - y_est, p)}
+    v_crit = {"fit_percent": float(fit_percent(val_y, y_val)), **criteria(val_y - y_val, p)}
+    if predict_k:
+        rec = data if validation is None else validation
+        yp = m.predict(rec.u - u0, rec.y - y0, predict_k) + y0
+        v_crit["predict_fit_percent"] = float(fit_percent(val_y, yp[k0:] if validation is None else yp))
+        e_crit["predict_fit_percent"] = float(fit_percent(
+            est_data.y, m.predict(est_data.u - u0, est_data.y - y0, predict_k) + y0))
+    return OrderRow(poles=n, zeros=0, p=p, estimation=e_crit, validation=v_crit, est=m, y_val=y_val,
+                    structure=structure)
+
+
 def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay=0.0, offsets: str = "none",
-                predict_k: int | None = None, max_delay_s: float | None = None) -> OrderTable:
+                predict_k: int | None = None, max_delay_s: float | None = None, black_box=(), nk: int = 1,
+                tf: bool = True, share: float = ESTIMATION_SHARE) -> OrderTable:
     """Fit every structure with ``poles`` poles (and 0..poles-1 zeros) and score it.
 
     Parameters
@@ -247,7 +296,19 @@ def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay
     intersample, delay, offsets, max_delay_s
         As :func:`ehas_env.identification.fit.tfest`.
     predict_k : int, optional
-        Also the k-step-ahead prediction fit on the validation data (:func:`predict`).
+        Also the k-step-ahead prediction fit on the validation data (:func:`predict`; a black-box model
+        predicts with its own noise model).
+    black_box : sequence of str
+        Discrete-time structures (:mod:`ehas_env.identification.pem`: arx, armax, oe, bj, ss) fitted beside
+        the transfer functions, each "of order n" for every n of ``poles`` (:func:`black_box_orders`), on the
+        same estimation data and scored on the same validation data (``offsets`` output / estimate: the
+        estimation part's means removed).
+    nk : int
+        Input delay of the black-box models, samples.
+    tf : bool
+        Also the continuous-time transfer functions (the grey-box rows).
+    share : float
+        Share of ``data`` that estimates when no ``validation`` run is given (default 2/3).
 
     Returns
     -------
@@ -256,14 +317,14 @@ def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay
     from ehas_env.identification.fit import fit_percent, tfest
 
     if validation is None:
-        est_data, k0 = split(data)
+        est_data, k0 = split(data, share)
         val_y, val_src = data.y[k0:], f"last {data.n - k0} samples of {data.source}"
     else:
         est_data, k0 = data, 0
         val_y, val_src = validation.y, validation.source
     rows = []
     for n in poles:
-        for m in range(n):
+        for m in range(n if tf else 0):
             est = tfest(est_data, n_poles=n, n_zeros=m, intersample=intersample, delay=delay, offsets=offsets,
                         max_delay_s=max_delay_s)
             p = n_parameters(est)
@@ -284,6 +345,10 @@ def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay
                 v_crit["predict_fit_percent"] = float(fit_percent(val_y, yp))
                 e_crit["predict_fit_percent"] = float(fit_percent(est_data.y, predict(est, predict_k, ar=c)))
             rows.append(OrderRow(poles=n, zeros=m, p=p, estimation=e_crit, validation=v_crit, est=est, y_val=y_val))
+        for structure in black_box:
+            rows.append(_black_box_row(structure, n, nk, est_data, data, validation, k0, offsets, predict_k, val_y))
+    if not rows:
+        raise ValueError("order_table: no structure to compare (tf=False and no black_box)")
     chosen = min(rows, key=lambda r: r.validation["BIC"])
     return OrderTable(rows=rows, chosen=chosen, validation_source=val_src, n_estimation=est_data.n,
                       n_validation=int(np.size(val_y)), predict_k=predict_k)

@@ -83,7 +83,7 @@ def spectral_estimate(data, nperseg: int | None = None):
 
 
 def plot_bode(models, path, data=None, title: str = "", f_range=None, coherence_min: float = 0.9) -> Path:
-    """Bode plot of ``[(label, TransferFunction), ...]``, with the data's spectral estimate if given."""
+    """Bode plot of ``[(label, TransferFunction), ...]`` (in s, or in z with their dt), with the data's estimate."""
     import numpy as np
 
     from ehas_env.output.plots import _pyplot
@@ -106,7 +106,10 @@ def plot_bode(models, path, data=None, title: str = "", f_range=None, coherence_
               dict(lw=1.3, ls=(0, (6, 2, 1, 2)))]
     for k, (label, sys_) in enumerate(models):
         num, den = np.squeeze(sys_.num[0][0]), np.squeeze(sys_.den[0][0])
-        g = np.polyval(np.atleast_1d(num), 2j * np.pi * f) / np.polyval(np.atleast_1d(den), 2j * np.pi * f)
+        x = 2j * np.pi * f if not sys_.dt else np.exp(2j * np.pi * f * float(sys_.dt))  # s, or z of a sampled model
+        g = np.polyval(np.atleast_1d(num), x) / np.polyval(np.atleast_1d(den), x)
+        if sys_.dt:  # with the half-sample advance the data's estimate has (see spectral_estimate)
+            g = g * np.exp(1j * np.pi * f * float(sys_.dt))
         st = styles[k % len(styles)]
         ax[0].semilogx(f, 20 * np.log10(np.abs(g)), label=label, color=f"C{k}", **st)
         ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(g))), label=label, color=f"C{k}", **st)
