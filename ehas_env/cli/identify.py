@@ -404,30 +404,9 @@ def run(args) -> int:
         print(f"wrote {write_model(args.export, est.num, est.den, delay_s=est.delay_s, input_offset=est.input_offset, output_offset=est.output_offset, input_name=data.input_name, output_name=data.output_name, extra=info)}")
     if outputs is not None:
         label = f"{est.n_poles}p{est.n_zeros}z"
-        from ehas_env.output.identification_plots import plot_bode, plot_overlay, plot_residuals
-
-        with outputs as out:
-            files = [plot_overlay(est, out / "overlay.png", title=f"{Path(args.run).name}: {label} model"),
-                     plot_bode([(label, est.tf)], out / "bode.png", data=data,
-                               title=f"{Path(args.run).name}: {label} model and the data's spectral estimate"),
-                     plot_residuals(ra, out / "residuals.png",
-                                    title=f"{Path(args.run).name}: residuals of the {label} model")]
-            if table is not None:
-                from ehas_env.output.identification_plots import plot_compare, plot_orders
-
-                files.append(plot_orders(table, out / "orders.png",
-                                         title=f"{Path(args.run).name}: structures compared"))
-                files.append(plot_compare(table, data if validation is None else validation, out / "compare.png",
-                                          title=f"{Path(args.run).name}: the models on the validation data"))
-            md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", est.summary(),
-                  *([unc.summary()] if unc is not None else []), f"  {ra.verdict()}", "```", ""]
-            if loop["suspected"]:
-                md += [checks.warning_line(loop), ""]
-            if table is not None:
-                md += ["## Structures", "", table.markdown(), ""]
-            md += ["Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
-            files.append(atomic_write_text(out / "identify.md", "\n".join(md)))
-        print(f"wrote {', '.join(str(outputs.path / f.name) for f in files)}")
+        summary = [est.summary(), *([unc.summary()] if unc is not None else []), f"  {ra.verdict()}"]
+        _write_report(outputs, args, command, est, est.tf, label, f"residuals of the {label} model", ra, summary,
+                      loop, table, data, validation)
     return 0
 
 
@@ -535,32 +514,67 @@ def _run_black_box(args, command: str, outputs) -> int:
 
         print(f"wrote {write_model(args.export, result['tf_z']['num'], result['tf_z']['den'], dt=data.dt, input_offset=u0, output_offset=y0, input_name=data.input_name, output_name=data.output_name, extra={'model': m.to_json_dict()})}")
     if outputs is not None:
-        from ehas_env.output.identification_plots import plot_bode, plot_overlay, plot_residuals
-
-        label = m.label
         shown = SimpleNamespace(data=data, y_sim=y_sim, fit_percent=fit, residuals=data.y - y_sim)
-        with outputs as out:
-            files = [plot_overlay(shown, out / "overlay.png", title=f"{Path(args.run).name}: {label} model"),
-                     plot_bode([(label, G)], out / "bode.png", data=data,
-                               title=f"{Path(args.run).name}: {label} model and the data's spectral estimate"),
-                     plot_residuals(ra, out / "residuals.png",
-                                    title=f"{Path(args.run).name}: one-step prediction errors of the {label} model")]
-            if table is not None:
-                from ehas_env.output.identification_plots import plot_compare, plot_orders
-
-                files.append(plot_orders(table, out / "orders.png", title=f"{Path(args.run).name}: structures compared"))
-                files.append(plot_compare(table, data if validation is None else validation, out / "compare.png",
-                                          title=f"{Path(args.run).name}: the models on the validation data"))
-            md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", m.summary(),
-                  f"  {ra.verdict()} (one-step prediction errors)", "```", ""]
-            if loop["suspected"]:
-                md += [checks.warning_line(loop), ""]
-            if table is not None:
-                md += ["## Structures", "", table.markdown(), ""]
-            md += ["Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
-            files.append(atomic_write_text(out / "identify.md", "\n".join(md)))
-        print(f"wrote {', '.join(str(outputs.path / f.name) for f in files)}")
+        _write_report(outputs, args, command, shown, G, m.label, f"one-step prediction errors of the {m.label} model",
+                      ra, [m.summary(), f"  {ra.verdict()} (one-step prediction errors)"], loop, table, data, validation)
     return 0
+
+
+def _write_report(outputs, args, command, shown, model, label, resid_title, ra, summary, loop, table, data,
+                  validation) -> None:
+    """The plots and ``identify.md`` of one identified model (any structure) into the ``--out`` folder.
+
+    Parameters
+    ----------
+    outputs : Outputs
+        The ``--out`` folder, written as a whole (``ehas_env.output.outputs``).
+    args : argparse.Namespace
+        The command's options (the run's name).
+    command : str
+        The command line that regenerates the report.
+    shown : object
+        What the overlay plots: ``data``, ``y_sim``, ``fit_percent``, ``residuals``.
+    model : control.TransferFunction
+        The model the Bode plot shows.
+    label : str
+        The model's short name (``2p0z``, ``ARX [2 2 1]``).
+    resid_title : str
+        What the residual plot shows.
+    ra : ResidualAnalysis
+        The residual analysis.
+    summary : list of str
+        The text block of the report.
+    loop : dict
+        The closed-loop check (``checks``).
+    table : OrderTable or None
+        The structures compared (``--orders``), if any.
+    data, validation : IdData
+        The estimation data and the validation data (None: the estimation data).
+    """
+    from ehas_env.output.files import atomic_write_text
+    from ehas_env.identification import checks
+    from ehas_env.output.identification_plots import plot_bode, plot_overlay, plot_residuals
+
+    name = Path(args.run).name
+    with outputs as out:
+        files = [plot_overlay(shown, out / "overlay.png", title=f"{name}: {label} model"),
+                 plot_bode([(label, model)], out / "bode.png", data=data,
+                           title=f"{name}: {label} model and the data's spectral estimate"),
+                 plot_residuals(ra, out / "residuals.png", title=f"{name}: {resid_title}")]
+        if table is not None:
+            from ehas_env.output.identification_plots import plot_compare, plot_orders
+
+            files.append(plot_orders(table, out / "orders.png", title=f"{name}: structures compared"))
+            files.append(plot_compare(table, data if validation is None else validation, out / "compare.png",
+                                      title=f"{name}: the models on the validation data"))
+        md = [f"# Identification of {args.run}", "", f"Regenerate: `{command}`", "", "```", *summary, "```", ""]
+        if loop["suspected"]:
+            md += [checks.warning_line(loop), ""]
+        if table is not None:
+            md += ["## Structures", "", table.markdown(), ""]
+        md += ["Files: " + ", ".join(f"`{f.name}`" for f in files), ""]
+        files.append(atomic_write_text(out / "identify.md", "\n".join(md)))
+    print(f"wrote {', '.join(str(outputs.path / f.name) for f in files)}")
 
 
 def _residual_tests(ra) -> dict:

@@ -8,9 +8,15 @@ from pathlib import Path
 
 
 def save(fig, path) -> Path:
+    import warnings
+
     from ehas_env.output.plots import save_figure
 
-    fig.tight_layout()
+    with warnings.catch_warnings():
+        # a figure with a legend or table axes tight_layout cannot place: matplotlib's warning is for the
+        # programmer, not the user of the command; the layout it leaves is the one drawn
+        warnings.filterwarnings("ignore", message=".*not compatible with tight_layout.*")
+        fig.tight_layout()
     return save_figure(fig, path)
 
 
