@@ -3,7 +3,7 @@
 Regenerates the evaluation numbers of results/identification/structures.md:
 
     pip install nfoursid==1.0.2 sysidentpy==0.9.0 harold==1.0.3
-    python results/identification/structures_eval.py
+    python tests/identification/scripts/structures_eval.py
 """
 import time, numpy as np, pandas as pd, control
 from scipy.signal import lfilter

@@ -2,7 +2,7 @@
 
 Regenerates the second table of results/identification/structures.md:
 
-    python results/identification/structures_sim.py
+    python tests/identification/scripts/structures_sim.py
 """
 import numpy as np, time
 from scipy.signal import lfilter
