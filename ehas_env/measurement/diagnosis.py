@@ -903,7 +903,10 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                        "follows_shares": fol["follows"],
                        "proposal": None,
                        "text": ""}
-        if propose:
+        # a term is proposed for an unexplained campaign only: a structured residual below that (within twice what
+        # does not repeat) is as likely two simulators' numerics as physics, and a term fitted to it names a kind
+        # of effect that may not be there
+        if propose and result.verdict == "unexplained":
             say("proposing the missing term")
             prop = P.propose(rep, final, confidence=confidence)
             if prop is not None:
@@ -941,6 +944,9 @@ def unexplained_text(res: OpenDiagnosis, u: dict) -> str:
             + f"), worst {w.get('signal', '')} in run {w.get('run', '')} at {w.get('residual_x_noise', 0.0):.2f}x; "
             f"residual RMS in sensor-noise units: {where}. What is left follows {fol}.")
     p = u.get("proposal")
+    if res.verdict != "unexplained":
+        text += (" No term is proposed at this level: a residual this small may come from the numerics of two "
+                 "simulators of one rig as much as from physics.")
     if p:
         text += (f" Proposed missing term at {', '.join(p['where'])}: {p['equation']}; residual "
                  f"{p['residual_x_noise_before']:.2f}x -> {p['residual_x_noise_after']:.2f}x noise on the fit data.")
