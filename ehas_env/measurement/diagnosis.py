@@ -235,6 +235,14 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
     main = next(fp for fp in free if fp.name == get_effect(effect).main_param)
     f = fit(rep, free, start, null.model, scan=main, max_nfev=SCREEN_NFEV * len(free), tol=1e-3,
             null_cost=null.cost)
+    if f.cost >= null.cost and len(free) > 1:
+        # the main parameter alone, the others at their typical middle, never beat the null model (an unbalance
+        # whose heavy side is between the sine's and the cosine's): fit them all together from the effect's
+        # defaults (no effect), where the first step sees every direction
+        defaults = {(fp.effect, fp.name): min(max(get_effect(effect).param(fp.name).default, fp.lo), fp.hi)
+                    for fp in free}
+        g = fit(rep, free, defaults, null.model, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
+        f = g if g.cost < f.cost else f
     if reopens_baseline(effect) and len(free) > 1:
         # it re-opens numbers of the baseline: screen it also from the recalibrated baseline's numbers
         # (its others at the book's values), so that a valve whose gain alone is off is not judged only
