@@ -34,6 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ehas_env.ranges import check_field
 from ehas_env.simulation.control_laws import N_MEM
 from ehas_env.simulation.pi_ff_law import GAIN_NAMES, GAIN_UNITS, pi_ff_law
 from ehas_env.simulation.rig_controller import RigController
@@ -94,6 +95,9 @@ class PIFF(RigController, Controller):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"PIFF: {name} must be a finite number in {GAIN_UNITS.get(name, '')}, got {v!r}".rstrip())
             setattr(self, name, float(v))
+        # the ranges RigController holds its gains to (a gain of 1e308 overflows the loop; ehas_env.ranges)
+        for name in (*GAIN_NAMES, "rate_hz"):
+            check_field("rate_hz" if name == "rate_hz" else "gain", getattr(self, name), f"PIFF: {name}")
         if self.dp_hp < 0:
             raise ValueError(f"PIFF: dp_hp must be >= 0 rad/s (0: static pressure feedback), got {self.dp_hp!r}")
         if not 0 < self.i_max <= 20.0:

@@ -92,6 +92,9 @@ def test_repr_names_gains_with_units_and_variants():
     (dict(i_max=25.0), "i_max must be in"),
     (dict(dp_hp=-1.0), "dp_hp must be >= 0"),
     (dict(output_bits=2.5), "output_bits"),
+    # the ranges the compiled loop holds gains to (a gain of 1e308 overflows it; fault campaign cont021, cont033)
+    (dict(Kp=1e308), r"PIFF: Kp must be a number in \[-1000000, 1000000\]"),
+    (dict(rate_hz=1e9), r"PIFF: rate_hz must be a number in \[1, 1000000\] Hz"),
 ])
 def test_bad_gains_are_refused(bad, match):
     with pytest.raises(ValueError, match=match):
