@@ -1,25 +1,51 @@
-"""proposed_ool_crank_unbalance_mild: a term proposed by ehas diagnose for /tmp/ehas_open_world/ool_crank_unbalance_mild/campaign.
+"""proposed_ool_crank_unbalance_mild: unbalanced load: a torque that depends on the crank angle, found by ehas diagnose on /tmp/ow_final_work/ool_crank_unbalance_mild/campaign.
 
-F_piston [N] += c_pb·p_B   with c_pb = -3.508e-05 m^2 (95 % CI -3.6e-05 to -3.415e-05)
-
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 8.16 -> 1.62; fit 80.3 % -> 96.2 %.
-Rename the file, the class and ``name``, give the parameters physical names and documentation,
-then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+A torque that follows the crank angle pulls the crank back toward -60 deg: T = -25.1 sin(theta + 60 deg) N m (an unbalance hanging there, or a centring spring of 25.1 N m/rad about it).
+T_sin = 12.51 N m (95 % CI 12.37 to 12.65)
+T_cos = 21.73 N m (95 % CI 21.58 to 21.88)
+Residual against what does not repeat: 6.71x -> 1.04x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
+import math
+
 from ehas_env.physics.effects import Effect, Param
 
 
 class ProposedOolCrankUnbalanceMild(Effect):
     name = "proposed_ool_crank_unbalance_mild"
-    title = "proposed term (piston force)"
+    title = "unbalanced load: a torque that depends on the crank angle"
     params = (
-        Param("f_pb", "m^2", 3.5076e-05, (0.0, 0.00070152),
-              "force per Pa of chamber B pressure (area error on side B: a single rod) (fitted: -3.508e-05, 95 % CI -3.6e-05 to -3.415e-05)", typical=(1.7538e-05, 7.0152e-05)),
+        Param("T_sin", "N m", 12.5133, (-3000.0, 3000.0),
+              "torque on the crank along -theta proportional to sin(theta): an unbalance whose heavy side is at "
+              "the crank's zero with gravity across the stroke, or a centring spring (assumed range: up to the "
+              "actuator's stall torque)", typical=(6.25663, 25.0265)),
+        Param("T_cos", "N m", 21.7334, (-3000.0, 3000.0),
+              "torque on the crank along -theta proportional to cos(theta): the same unbalance turned a quarter "
+              "turn, gravity along the stroke", typical=(10.8667, 43.4668)),
     )
-    main_param = "f_pb"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_pb·p_B with c_pb = -3.508e-05 m^2 (95 % CI -3.6e-05 to -3.415e-05)'
-    signature = 'the residual it was fitted to: p_B'
+    main_param = "T_sin"
+    explanation = (
+        "A disc stack whose centre of mass is a distance e off the crank's axis, or a crank not mounted level, "
+        "feels gravity's torque m g e sin(theta - theta_0): written T_sin sin(theta) + T_cos cos(theta) with "
+        "both signs allowed, the amplitude and the angle of the heavy side follow. A spring centring the crank "
+        "gives the sin(theta) part too."
+    )
+    signature = (
+        "load pressure residual that follows the crank angle (not its rate): the same at the same angle on the "
+        "way out and back, larger on the large-amplitude runs; a current residual in phase with the angle."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        a = math.hypot(params["T_sin"], params["T_cos"])
+        phi = math.degrees(math.atan2(params["T_cos"], params["T_sin"]))
+        # T = -a sin(theta + phi): it pulls the crank back toward theta = -phi
+        eq = round(-phi) + 0  # + 0: no "-0"
+        arg = "theta" if eq == 0 else (f"theta - {eq} deg" if eq > 0 else f"theta + {-eq} deg")
+        return (f"a torque that follows the crank angle pulls the crank back toward {eq} deg: T = -{a:.3g} "
+                f"sin({arg}) N m (an unbalance hanging there, or a centring spring of {a:.3g} N m/rad about it)")
 
     @staticmethod
-    def piston_force(pb, f_pb):
-        return -(f_pb * pb)
+    def crank_torque(theta, T_sin, T_cos):
+        return -(T_sin * math.sin(theta) + T_cos * math.cos(theta))

@@ -1,25 +1,51 @@
-"""proposed_ool_crank_unbalance_strong: a term proposed by ehas diagnose for /tmp/ehas_open_world/ool_crank_unbalance_strong/campaign.
+"""proposed_ool_crank_unbalance_strong: unbalanced load: a torque that depends on the crank angle, found by ehas diagnose on /tmp/ow_final_work/ool_crank_unbalance_strong/campaign.
 
-F_piston [N] += c_pb·p_B   with c_pb = -0.0001362 m^2 (95 % CI -0.0001393 to -0.0001332)
-
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 54.7 -> 4.79; fit 12.3 % -> 87.5 %.
-Rename the file, the class and ``name``, give the parameters physical names and documentation,
-then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+A torque that follows the crank angle pulls the crank back toward -60 deg: T = -80.1 sin(theta + 60 deg) N m (an unbalance hanging there, or a centring spring of 80.1 N m/rad about it).
+T_sin = 40.1 N m (95 % CI 40.03 to 40.18)
+T_cos = 69.3 N m (95 % CI 69.26 to 69.34)
+Residual against what does not repeat: 47.1x -> 1.04x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
+import math
+
 from ehas_env.physics.effects import Effect, Param
 
 
 class ProposedOolCrankUnbalanceStrong(Effect):
     name = "proposed_ool_crank_unbalance_strong"
-    title = "proposed term (piston force)"
+    title = "unbalanced load: a torque that depends on the crank angle"
     params = (
-        Param("f_pb", "m^2", 0.000136233, (0.0, 0.00272467),
-              "force per Pa of chamber B pressure (area error on side B: a single rod) (fitted: -0.0001362, 95 % CI -0.0001393 to -0.0001332)", typical=(6.81167e-05, 0.000272467)),
+        Param("T_sin", "N m", 40.1038, (-3000.0, 3000.0),
+              "torque on the crank along -theta proportional to sin(theta): an unbalance whose heavy side is at "
+              "the crank's zero with gravity across the stroke, or a centring spring (assumed range: up to the "
+              "actuator's stall torque)", typical=(20.0519, 80.2075)),
+        Param("T_cos", "N m", 69.3, (-3000.0, 3000.0),
+              "torque on the crank along -theta proportional to cos(theta): the same unbalance turned a quarter "
+              "turn, gravity along the stroke", typical=(34.65, 138.6)),
     )
-    main_param = "f_pb"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_pb·p_B with c_pb = -0.0001362 m^2 (95 % CI -0.0001393 to -0.0001332)'
-    signature = 'the residual it was fitted to: p_B'
+    main_param = "T_sin"
+    explanation = (
+        "A disc stack whose centre of mass is a distance e off the crank's axis, or a crank not mounted level, "
+        "feels gravity's torque m g e sin(theta - theta_0): written T_sin sin(theta) + T_cos cos(theta) with "
+        "both signs allowed, the amplitude and the angle of the heavy side follow. A spring centring the crank "
+        "gives the sin(theta) part too."
+    )
+    signature = (
+        "load pressure residual that follows the crank angle (not its rate): the same at the same angle on the "
+        "way out and back, larger on the large-amplitude runs; a current residual in phase with the angle."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        a = math.hypot(params["T_sin"], params["T_cos"])
+        phi = math.degrees(math.atan2(params["T_cos"], params["T_sin"]))
+        # T = -a sin(theta + phi): it pulls the crank back toward theta = -phi
+        eq = round(-phi) + 0  # + 0: no "-0"
+        arg = "theta" if eq == 0 else (f"theta - {eq} deg" if eq > 0 else f"theta + {-eq} deg")
+        return (f"a torque that follows the crank angle pulls the crank back toward {eq} deg: T = -{a:.3g} "
+                f"sin({arg}) N m (an unbalance hanging there, or a centring spring of {a:.3g} N m/rad about it)")
 
     @staticmethod
-    def piston_force(pb, f_pb):
-        return -(f_pb * pb)
+    def crank_torque(theta, T_sin, T_cos):
+        return -(T_sin * math.sin(theta) + T_cos * math.cos(theta))

@@ -1,8 +1,8 @@
-"""proposed_ool_lugre_friction_strong: a term proposed by ehas diagnose for /tmp/ehas_open_world/ool_lugre_friction_strong/campaign.
+"""proposed_ool_lugre_friction_strong: a term proposed by ehas diagnose for /tmp/ow_final_work/ool_lugre_friction_strong/campaign.
 
-(Q_A, Q_B) [m^3/s] += c_int·(-(p_A - p_B), +(p_A - p_B))   with c_int = 3.982e-14 m^3/s/Pa (95 % CI 1.89e-14 to 6.073e-14)
+F_piston [N] += c_vv·v |v|   with c_vv = -145.3 N s^2/m^2 (95 % CI -263.4 to -27.24)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 4.27 -> 4.23; fit 86.9 % -> 86.8 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 5.13 -> 4.77; fit 85.4 % -> 85.9 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
@@ -11,19 +11,15 @@ from ehas_env.physics.effects import Effect, Param
 
 class ProposedOolLugreFrictionStrong(Effect):
     name = "proposed_ool_lugre_friction_strong"
-    title = "proposed term (chamber flows)"
+    title = "proposed term (piston force)"
     params = (
-        Param("q_int", "m^3/s/Pa", 3.9815e-14, (0.0, 7.963e-13),
-              "leakage across the piston, per Pa of load pressure (fitted: 3.982e-14, 95 % CI 1.89e-14 to 6.073e-14)", typical=(1.99075e-14, 7.963e-14)),
+        Param("f_vv", "N s^2/m^2", 145.308, (0.0, 2906.17),
+              "quadratic damping: force per (m/s)^2, signed (fitted: -145.3, 95 % CI -263.4 to -27.24)", typical=(72.6541, 290.617)),
     )
-    main_param = "q_int"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: (Q_A, Q_B) [m^3/s] += c_int·(-(p_A - p_B), +(p_A - p_B)) with c_int = 3.982e-14 m^3/s/Pa (95 % CI 1.89e-14 to 6.073e-14)'
-    signature = 'the residual it was fitted to: (-(p_A - p_B), +(p_A - p_B))'
+    main_param = "f_vv"
+    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_vv·v |v| with c_vv = -145.3 N s^2/m^2 (95 % CI -263.4 to -27.24)'
+    signature = 'the residual it was fitted to: v |v|'
 
     @staticmethod
-    def chamber_flows(pa, pb, q_int):
-        dqa = 0.0
-        dqb = 0.0
-        dqa -= q_int * (pa - pb)
-        dqb += q_int * (pa - pb)
-        return dqa, dqb
+    def piston_force(v, f_vv):
+        return -(f_vv * v * abs(v))

@@ -1,29 +1,48 @@
-"""proposed_ool_return_pressure_mild: a term proposed by ehas diagnose for /tmp/ehas_open_world/ool_return_pressure_mild/campaign.
+"""proposed_ool_return_pressure_mild: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow_final_work/ool_return_pressure_mild/campaign.
 
-(Q_A, Q_B) [m^3/s] += c_ext·(-p_A, -p_B)   with c_ext = -2.463e-14 m^3/s/Pa (95 % CI -3.647e-14 to -1.28e-14)
-
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 5.62 -> 5.01; fit 75.0 % -> 80.4 %.
-Rename the file, the class and ``name``, give the parameters physical names and documentation,
-then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+The return line is at 5 bar at the valve's return lands (the baseline: 0 bar).
+p_t = 4.997 bar (95 % CI 4.989 to 5.006)
+Residual against what does not repeat: 4.62x -> 1.05x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
+import math
+
 from ehas_env.physics.effects import Effect, Param
 
 
 class ProposedOolReturnPressureMild(Effect):
     name = "proposed_ool_return_pressure_mild"
-    title = "proposed term (chamber flows)"
+    title = "return-line (tank) pressure at the valve"
+    valve_side = True  # flow through the metering lands: a meter in line A (and the bench's) reads it
     params = (
-        Param("q_ext", "m^3/s/Pa", 2.46304e-14, (0.0, 4.92608e-13),
-              "leakage from each chamber to drain, per Pa (fitted: -2.463e-14, 95 % CI -3.647e-14 to -1.28e-14)", typical=(1.23152e-14, 4.92608e-14)),
+        Param("p_t", "bar", 4.99743, (0.0, 60.0),
+              "pressure in the return line at the valve's return lands (assumed: a filter, cooler or long "
+              "return hose; the baseline takes 0)",
+              typical=(2.49872, 9.99486), log_scale=True, si=1e5),
     )
-    main_param = "q_ext"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: (Q_A, Q_B) [m^3/s] += c_ext·(-p_A, -p_B) with c_ext = -2.463e-14 m^3/s/Pa (95 % CI -3.647e-14 to -1.28e-14)'
-    signature = 'the residual it was fitted to: (-p_A, -p_B)'
+    main_param = "p_t"
+    explanation = (
+        "The baseline drains the low-pressure chamber to 0 bar. With back pressure p_t in the return line the "
+        "draining land sees P - p_t instead of P: the outflow is smaller, both chambers sit higher, and the "
+        "load pressure available to move the crank is lower."
+    )
+    signature = (
+        "both chamber pressures' residuals positive and largest in the draining chamber; mean chamber pressure "
+        "higher than the model's; a current residual that follows the load and the sign of the velocity."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        return f"the return line is at {params['p_t']:.3g} bar at the valve's return lands (the baseline: 0 bar)"
 
     @staticmethod
-    def chamber_flows(pa, pb, q_ext):
-        dqa = 0.0
-        dqb = 0.0
-        dqa -= (-q_ext) * pa
-        dqb -= (-q_ext) * pb
-        return dqa, dqb
+    def chamber_flows(qc, pa, pb, rated_drop, p_t):
+        half = 0.5 * rated_drop
+        if qc >= 0.0:  # B drains to the return line
+            dq = -qc * (math.copysign(math.sqrt(abs(pb - p_t) / half), pb - p_t)
+                        - math.copysign(math.sqrt(abs(pb) / half), pb))
+            return 0.0, dq
+        dq = qc * (math.copysign(math.sqrt(abs(pa - p_t) / half), pa - p_t)
+                   - math.copysign(math.sqrt(abs(pa) / half), pa))
+        return dq, 0.0

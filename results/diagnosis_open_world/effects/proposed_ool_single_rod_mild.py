@@ -1,25 +1,44 @@
-"""proposed_ool_single_rod_mild: a term proposed by ehas diagnose for /tmp/ehas_open_world/ool_single_rod_mild/campaign.
+"""proposed_ool_single_rod_mild: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow_final_work/ool_single_rod_mild/campaign.
 
-F_piston [N] += c_pb·p_B   with c_pb = 7.965e-05 m^2 (95 % CI 7.845e-05 to 8.086e-05)
-
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 51.8 -> 20.3; fit 43.5 % -> 70.3 %.
-Rename the file, the class and ``name``, give the parameters physical names and documentation,
-then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+Chamber B's piston area is 0.90 of chamber A's.
+d_area = 0.09985 - (95 % CI 0.09979 to 0.09991)
+Residual against what does not repeat: 39x -> 1.02x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param
 
 
 class ProposedOolSingleRodMild(Effect):
     name = "proposed_ool_single_rod_mild"
-    title = "proposed term (piston force)"
+    title = "chamber B's piston area differs from chamber A's"
     params = (
-        Param("f_pb", "m^2", 7.96539e-05, (0.0, 0.00159308),
-              "force per Pa of chamber B pressure (area error on side B: a single rod) (fitted: 7.965e-05, 95 % CI 7.845e-05 to 8.086e-05)", typical=(3.98269e-05, 0.000159308)),
+        Param("d_area", "-", 0.0998471, (-0.6, 0.7),
+              "1 - A_B / A_A: the share of the piston area the rod (or a different bore) takes on the B side "
+              "(assumed range: a rod up to 0.7 of the bore's area; negative: B larger)",
+              typical=(0.0499235, 0.199694)),
     )
-    main_param = "f_pb"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_pb·p_B with c_pb = 7.965e-05 m^2 (95 % CI 7.845e-05 to 8.086e-05)'
-    signature = 'the residual it was fitted to: p_B'
+    main_param = "d_area"
+    explanation = (
+        "The baseline's actuator is double-rod, equal areas A on both sides. A single-rod actuator (or a "
+        "rig whose B-side area differs) has A_B = (1 - d_area) A: the piston force is A P_A - A_B P_B and "
+        "chamber B's volume changes by A_B x' instead of A x'. (Chamber B's volume at mid-stroke is kept: "
+        "its change is second order.)"
+    )
+    signature = (
+        "load residual proportional to P_B; pressure residuals that differ between extending and retracting "
+        "(B's pressure follows velocity with a different gain than A's); a velocity-dependent offset of the "
+        "load pressure the controller holds."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        return f"chamber B's piston area is {1.0 - params['d_area']:.2f} of chamber A's"
 
     @staticmethod
-    def piston_force(pb, f_pb):
-        return (f_pb * pb)
+    def piston_force(pb, area, d_area):
+        return d_area * area * pb
+
+    @staticmethod
+    def chamber_flows(v, area, d_area):
+        return 0.0, -d_area * area * v

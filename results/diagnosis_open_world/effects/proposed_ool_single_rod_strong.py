@@ -1,35 +1,44 @@
-"""proposed_ool_single_rod_strong: a term proposed by ehas diagnose for /tmp/ehas_open_world/ool_single_rod_strong/campaign.
+"""proposed_ool_single_rod_strong: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow_final_work/ool_single_rod_strong/campaign.
 
-(Q_A, Q_B) [m^3/s] += c_gb·(0, q_B)   with c_gb = 0.333 - (95 % CI 0.3323 to 0.3336)
-F_piston [N] += c_pa·p_A   with c_pa = 0.0002488 m^2 (95 % CI 0.000243 to 0.0002545)
-
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 407 -> 38.5; fit 22.8 % -> 80.1 %.
-Rename the file, the class and ``name``, give the parameters physical names and documentation,
-then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+Chamber B's piston area is 0.75 of chamber A's.
+d_area = 0.2486 - (95 % CI 0.2475 to 0.2497)
+Residual against what does not repeat: 50.9x -> 1.46x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param
 
 
 class ProposedOolSingleRodStrong(Effect):
     name = "proposed_ool_single_rod_strong"
-    title = "proposed term (chamber flows, piston force)"
+    title = "chamber B's piston area differs from chamber A's"
     params = (
-        Param("q_gb", "-", 0.332961, (0.0, 6.65923),
-              "extra flow gain into or out of chamber B (relative) (fitted: 0.333, 95 % CI 0.3323 to 0.3336)", typical=(0.166481, 0.665923)),
-        Param("f_pa", "m^2", 0.000248754, (0.0, 0.00497508),
-              "force per Pa of chamber A pressure (area error on side A) (fitted: 0.0002488, 95 % CI 0.000243 to 0.0002545)", typical=(0.000124377, 0.000497508)),
+        Param("d_area", "-", 0.248578, (-0.6, 0.7),
+              "1 - A_B / A_A: the share of the piston area the rod (or a different bore) takes on the B side "
+              "(assumed range: a rod up to 0.7 of the bore's area; negative: B larger)",
+              typical=(0.124289, 0.497156)),
     )
-    main_param = "q_gb"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: (Q_A, Q_B) [m^3/s] += c_gb·(0, q_B) with c_gb = 0.333 - (95 % CI 0.3323 to 0.3336); F_piston [N] += c_pa·p_A with c_pa = 0.0002488 m^2 (95 % CI 0.000243 to 0.0002545)'
-    signature = 'the residual it was fitted to: (0, q_B), p_A'
+    main_param = "d_area"
+    explanation = (
+        "The baseline's actuator is double-rod, equal areas A on both sides. A single-rod actuator (or a "
+        "rig whose B-side area differs) has A_B = (1 - d_area) A: the piston force is A P_A - A_B P_B and "
+        "chamber B's volume changes by A_B x' instead of A x'. (Chamber B's volume at mid-stroke is kept: "
+        "its change is second order.)"
+    )
+    signature = (
+        "load residual proportional to P_B; pressure residuals that differ between extending and retracting "
+        "(B's pressure follows velocity with a different gain than A's); a velocity-dependent offset of the "
+        "load pressure the controller holds."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        return f"chamber B's piston area is {1.0 - params['d_area']:.2f} of chamber A's"
 
     @staticmethod
-    def chamber_flows(q_b, q_gb):
-        dqa = 0.0
-        dqb = 0.0
-        dqb += q_gb * q_b
-        return dqa, dqb
+    def piston_force(pb, area, d_area):
+        return d_area * area * pb
 
     @staticmethod
-    def piston_force(pa, f_pa):
-        return (f_pa * pa)
+    def chamber_flows(v, area, d_area):
+        return 0.0, -d_area * area * v

@@ -1,25 +1,45 @@
-"""proposed_ool_valve_direction_gain_mild: a term proposed by ehas diagnose for /tmp/ehas_open_world/ool_valve_direction_gain_mild/campaign.
+"""proposed_ool_valve_direction_gain_mild: valve gain per spool direction, found by ehas diagnose on /tmp/ow_final_work/ool_valve_direction_gain_mild/campaign.
 
-i_valve [mA] += c_abs·|i|   with c_abs = 0.06 - (95 % CI 0.05991 to 0.06008)
-
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 14.1 -> 1.11; fit 92.7 % -> 96.2 %.
-Rename the file, the class and ``name``, give the parameters physical names and documentation,
-then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+The valve's gain for negative current is 0.89 of its gain for positive current.
+g_dir = 0.06 - (95 % CI 0.05994 to 0.06006)
+Residual against what does not repeat: 13.1x -> 1.04x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param
 
 
 class ProposedOolValveDirectionGainMild(Effect):
     name = "proposed_ool_valve_direction_gain_mild"
-    title = "proposed term (valve current)"
+    title = "valve gain per spool direction"
     params = (
-        Param("i_abs", "-", 0.0599959, (0.0, 1.19992),
-              "flow gain change by spool direction: i (1 + c sign(i)) (fitted: 0.06, 95 % CI 0.05991 to 0.06008)", typical=(0.0299979, 0.119992)),
+        Param("g_dir", "-", 0.0600018, (-0.6, 0.6),
+              "relative gain difference: the valve acts as if the current were (1 + g_dir) i for i > 0 and "
+              "(1 - g_dir) i for i < 0 (assumed range: worn or asymmetric metering edges)",
+              typical=(0.0300009, 0.120004)),
     )
-    main_param = "i_abs"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: i_valve [mA] += c_abs·|i| with c_abs = 0.06 - (95 % CI 0.05991 to 0.06008)'
-    signature = 'the residual it was fitted to: |i|'
+    main_param = "g_dir"
+    explanation = (
+        "The baseline valve has one gain K for both spool directions. Worn, chamfered or unequally lapped "
+        "metering edges make the flow per mA larger one way than the other: K (1 + g_dir) for positive "
+        "current, K (1 - g_dir) for negative."
+    )
+    signature = (
+        "flow residual proportional to |i| (even in the current); closed loop: a current residual that "
+        "changes sign with the spool direction; valve runs: the flow gain differs between the two halves of "
+        "each cycle."
+    )
+
+    chain_order = 20
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        g = params["g_dir"]
+        return (f"the valve's gain for negative current is {(1.0 - g) / (1.0 + g):.2f} of its gain for positive "
+                f"current")
 
     @staticmethod
-    def valve_current(i, i_abs):
-        return i + (i_abs * abs(i))
+    def valve_current(i, g_dir):
+        if i >= 0.0:
+            return i * (1.0 + g_dir)
+        return i * (1.0 - g_dir)
