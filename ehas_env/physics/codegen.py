@@ -188,19 +188,22 @@ class ModelSource:
         a("def valve_side_flows(qc, pa, pb, ps, P):")
         a('    """Flows into lines A and B added at the valve\'s lands by valve-side effects (Effect.valve_side),')
         a('    m^3/s: what meters in the lines read beyond the critically lapped lands\' flows."""')
-        a("    if P[I_EFFECTS_ON] == 0.0:")
-        a("        return 0.0, 0.0")
-        a("    p_load = pa - pb")
-        a("    q_a, q_b, q_supply = land_flows(qc, pa, pb, ps, P[I_DROP])")
-        a("    extra_a = 0.0")
-        a("    extra_b = 0.0")
-        for cls in self._with("chamber_flows"):
-            if cls.valve_side:
+        side = [c for c in self._with("chamber_flows") if c.valve_side]
+        if not side:  # no valve-side effect in this model: nothing recomputed on every measurement
+            a("    return 0.0, 0.0")
+        else:
+            a("    if P[I_EFFECTS_ON] == 0.0:")
+            a("        return 0.0, 0.0")
+            a("    p_load = pa - pb")
+            a("    q_a, q_b, q_supply = land_flows(qc, pa, pb, ps, P[I_DROP])")
+            a("    extra_a = 0.0")
+            a("    extra_b = 0.0")
+            for cls in side:
                 a(f"    if {self._on(cls)}:")
                 a(f"        dqa, dqb = {self._call(cls, 'chamber_flows')}")
                 a("        extra_a += dqa")
                 a("        extra_b += dqb")
-        a("    return extra_a, extra_b")
+            a("    return extra_a, extra_b")
         a("")
         joint = self._with("joint_force")
         a('@njit(cache=True, inline="always")')
