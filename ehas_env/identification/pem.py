@@ -74,9 +74,16 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
 
 from ehas_env.simulation.metrics import fit_percent
+
+
+def lfilter(b, a, x):
+    """``scipy.signal.lfilter``, imported on first use: every command's parser imports this module (through
+    ``ehas identify``'s choices), and scipy.signal costs 1.5 s to import."""
+    from scipy.signal import lfilter as _lfilter
+
+    return _lfilter(b, a, x)
 
 #: the black-box structures and their orders, in MATLAB's order-vector order
 ORDERS = {"arx": ("na", "nb", "nk"), "armax": ("na", "nb", "nc", "nk"), "oe": ("nb", "nf", "nk"),
