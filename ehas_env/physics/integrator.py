@@ -17,6 +17,28 @@ from numba import njit
 
 from ehas_env.physics.layout import *  # noqa: F401,F403  (for readers: the names below come from the model)
 
+# >>> compiled, the same for every model
+@njit(cache=True, inline="always")
+def rk4_work(s):
+    """Scratch arrays of one RK4 step (k1, k2, k3, k4, tmp) for a state like s."""
+    return np.empty_like(s), np.empty_like(s), np.empty_like(s), np.empty_like(s), np.empty_like(s)
+
+
+@njit(cache=True, inline="always")
+def delayed_command(hist, k, j, nsub, dt, tau, i_initial):
+    """Command applied at sub-step j of period k with transport delay tau.
+
+    ``hist[m % len(hist)]`` holds the command issued at step m (zero-order hold).
+    """
+    if tau <= 0.0:
+        return hist[k % hist.shape[0]]
+    t = (k + j / nsub) * dt - tau
+    m = int(math.floor(t / dt + 1e-9))
+    if m < 0:
+        return i_initial
+    return hist[m % hist.shape[0]]
+
+
 # >>> compiled
 @njit(cache=True, inline="always")
 def project(s, P):
@@ -75,12 +97,6 @@ def measure(s, P, out):
 
 
 @njit(cache=True, inline="always")
-def rk4_work(s):
-    """Scratch arrays of one RK4 step (k1, k2, k3, k4, tmp) for a state like s."""
-    return np.empty_like(s), np.empty_like(s), np.empty_like(s), np.empty_like(s), np.empty_like(s)
-
-
-@njit(cache=True, inline="always")
 def rates(s, i_valve, P, ds, bench_supply):
     """The model's rates; with bench_supply >= 0 only the valve's, on the flow bench at that supply (Pa)."""
     if bench_supply < 0.0:
@@ -107,21 +123,6 @@ def rk4_substep(s, i_valve, P, h, k1, k2, k3, k4, tmp, bench_supply):
     rates(tmp, i_valve, P, k4, bench_supply)
     for j in range(n):
         s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-
-
-@njit(cache=True, inline="always")
-def delayed_command(hist, k, j, nsub, dt, tau, i_initial):
-    """Command applied at sub-step j of period k with transport delay tau.
-
-    ``hist[m % len(hist)]`` holds the command issued at step m (zero-order hold).
-    """
-    if tau <= 0.0:
-        return hist[k % hist.shape[0]]
-    t = (k + j / nsub) * dt - tau
-    m = int(math.floor(t / dt + 1e-9))
-    if m < 0:
-        return i_initial
-    return hist[m % hist.shape[0]]
 
 
 @njit(cache=True, _nrt=False)

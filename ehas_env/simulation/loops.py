@@ -19,12 +19,7 @@ from numba import njit, prange
 
 from ehas_env.physics.layout import *  # noqa: F401,F403  (for readers: the names below come from the model)
 
-# >>> compiled
-METRICS = ("rms_error_pct", "peak_error_pct", "max_current_mA", "saturation_frac", "peak_delta_p_bar",
-           "hit_stroke_end")
-REF_SINE, REF_STEP = 0, 1
-
-
+# >>> compiled, the same for every model
 @njit(cache=True, inline="always")
 def reference_point(ref, t):
     """theta_ref and its first three derivatives (deg, deg/s^k) at t.
@@ -63,6 +58,12 @@ def quantize(x, lsb):
 def sense(theta_rad, gain_err, noise, adc):
     """The controller's reading of the LVDT angle, deg: gain error, noise, ADC."""
     return quantize(math.degrees(theta_rad) * (1.0 + gain_err) + noise, adc)
+
+
+# >>> compiled
+METRICS = ("rms_error_pct", "peak_error_pct", "max_current_mA", "saturation_frac", "peak_delta_p_bar",
+           "hit_stroke_end")
+REF_SINE, REF_STEP = 0, 1
 
 
 @njit(cache=True)

@@ -1,4 +1,5 @@
-"""The compiled model is keyed by its text: an edited effect file gives a new model, an unchanged one is reused.
+"""The compiled model is keyed by its text: an edited effect file gives a new model, an unchanged one is reused,
+and what an edit does not touch (the library's baseline) is not compiled again.
 
 Counted, not timed: each case runs in a fresh process (numba's on-disk cache is what carries over between
 runs) and reports the generated model's module name and numba's own cache statistics of ``derivatives``
@@ -29,8 +30,11 @@ PROBE = textwrap.dedent("""
     ds = np.zeros(m.N_STATES)
     m.derivatives(s, 0.0, plant.param_vector, ds)
     st = m.derivatives.stats
+    lib = m.land_flows.stats  # a library function: its own module in the quick build, whatever the effects
     print(json.dumps({"module": m.__name__, "misses": sum(st.cache_misses.values()),
-                      "hits": sum(st.cache_hits.values()), "alpha": ds[1]}))
+                      "hits": sum(st.cache_hits.values()), "alpha": ds[1],
+                      "lib_module": m.land_flows.py_func.__module__,
+                      "lib_misses": sum(lib.cache_misses.values()), "lib_hits": sum(lib.cache_hits.values())}))
 """)
 
 
@@ -63,6 +67,10 @@ def test_edited_effect_file_gives_a_new_model_and_an_unchanged_one_is_not_recomp
     edited = _run(tmp_path, fx)
     assert edited["module"] != first["module"]  # a new model text, hence a new compiled model
     assert edited["misses"] >= 1 and edited["hits"] == 0
+    # ... while what did not change is not compiled again: the library (baseline) loads from the cache
+    assert first["lib_misses"] >= 1 and first["lib_hits"] == 0
+    assert edited["lib_module"] == first["lib_module"] != edited["module"]
+    assert edited["lib_misses"] == 0 and edited["lib_hits"] >= 1
     # no stale code: the edited law runs (the spring's share of the crank's acceleration doubles)
     assert edited["alpha"] != first["alpha"]
 
