@@ -1,7 +1,9 @@
 """The one integrator: fixed-step RK4 over the model's right-hand side, the command delay, the stroke ends.
 
 Compiled into every generated model (:mod:`ehas_env.physics.codegen`): the part
-below the ``# >>> compiled`` line runs there, beside the model's ``derivatives``,
+below the ``# >>> compiled`` line runs there (the one above it, from ``# >>> compiled,
+the same for every model``, calls nothing of the assembled model and goes to the
+quick build's library module), beside the model's ``derivatives``,
 ``valve_current``, ``project`` parts and ``measure``; this file is not imported
 on its own.  ``advance`` is compiled without reference counting (it never
 allocates, and the views it gets never outlive the call): with every model

@@ -1,7 +1,9 @@
 """The compiled drivers around the plant: reference, sensing, control law dispatch, the one closed loop.
 
 Compiled into every generated model (:mod:`ehas_env.physics.codegen`); the part
-below ``# >>> compiled`` runs there.  :func:`closed_loop` is the one closed-loop
+below ``# >>> compiled`` runs there (the part above it, from ``# >>> compiled, the
+same for every model``, calls nothing of the assembled model: the quick build
+compiles it once into its library module).  :func:`closed_loop` is the one closed-loop
 driver (sense -> law -> DAC -> advance -> metrics) of ``Plant``, the benchmark
 and the replay of logged runs; the environment's step uses the same
 :func:`sense` and :func:`control_law`.
