@@ -7,7 +7,12 @@ the drivers, the environments' build) and in a fresh model cache, it times as wh
 1. ``ehas compare CAMP``: the library's model, first run (compile included) -- once per machine;
 2. ``ehas compare CAMP --effects-path FX --effects NAME`` with an effect file this cache has never seen
    (library model cached): the user's first replay;
-3. the same command again (everything cached).
+3. the same command again (everything cached);
+
+and, unless ``--no-diagnose``, the user's loop on a fresh 5-run campaign (3 s runs) from a rig with a hidden
+torsion spring of 800 N m/rad (a user effect the diagnosis is not given), in an empty model cache (every compile
+included): ``ehas diagnose CAMP --write-effect DIR/found.py``, then the ``next:`` compare it prints, run as
+printed.
 
 Wall time and the processes' CPU time (user + system, the figure a quiet machine's wall time approaches) are
 reported with the load average, since the machine may be shared.
@@ -16,7 +21,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import resource
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -27,19 +34,53 @@ from ehas_env.physics.effects.example_file import spring_effect
 
 
 
-def _timed(cmd, env) -> tuple[float, float]:
+def _timed(cmd, env, cwd=None) -> tuple[float, float, str]:
+    """Wall and CPU seconds of the process ``cmd``, and its standard output."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    subprocess.run(cmd, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    out = subprocess.run(cmd, env=env, check=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                         cwd=cwd).stdout
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), out
+
+
+def _diagnose_rows(ehas, tmp: Path) -> list:
+    """The diagnose -> next: compare loop on a fresh campaign with a hidden spring, in an empty model cache."""
+    env = {**os.environ, "EHAS_CACHE_DIR": str(tmp / "cache-diagnose")}
+    hidden = tmp / "fx-hidden"
+    hidden.mkdir()
+    (hidden / "hidden_spring.py").write_text(spring_effect("hidden_spring", "HiddenSpring"))
+    camp = tmp / "camp-spring"
+    print("compile_bench: writing a 5-run campaign with a hidden 800 N m/rad spring ...", file=sys.stderr, flush=True)
+    subprocess.run(ehas + ["simulate-campaign", "--seed", "2", "--out", str(camp), "--effects-path", str(hidden),
+                           "--effects", "hidden_spring:k=800"], env={**env, "EHAS_CACHE_DIR": str(tmp / "cache-gen")},
+                   check=True, stdout=subprocess.DEVNULL)
+    rows = []
+    print("compile_bench: quick build: ehas diagnose --write-effect (empty model cache) ...", file=sys.stderr,
+          flush=True)
+    load0 = os.getloadavg()[0]
+    wall, cpu, out = _timed(ehas + ["diagnose", str(camp), "--write-effect", str(tmp / "found" / "found.py")], env,
+                            cwd=tmp)
+    rows.append(("quick", "`ehas diagnose CAMP --write-effect DIR/found.py` (empty model cache)", wall, cpu, load0,
+                 os.getloadavg()[0]))
+    m = re.search(r"^next: ehas (compare .*)$", out, flags=re.M)
+    if m is None:
+        raise SystemExit("compile_bench: the diagnosis printed no next: command:\n" + out[-2000:])
+    print("compile_bench: quick build: the printed next: compare ...", file=sys.stderr, flush=True)
+    load0 = os.getloadavg()[0]
+    wall, cpu, _ = _timed(ehas + shlex.split(m.group(1)), env, cwd=tmp)
+    rows.append(("quick", "the printed `next:` compare, run as printed", wall, cpu, load0, os.getloadavg()[0]))
+    rows.append(("quick", "**diagnose + next: together**", rows[-2][2] + rows[-1][2], rows[-2][3] + rows[-1][3],
+                 rows[-2][4], rows[-1][5]))
+    return rows
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m ehas_env.cli.compile_bench", description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="results/compile.md", help="markdown file to write (default results/compile.md)")
     ap.add_argument("--builds", default="quick,inline", help="builds to time, comma-separated (quick, inline)")
+    ap.add_argument("--no-diagnose", action="store_true", help="leave out the diagnose -> next: compare rows")
     args = ap.parse_args(argv)
     builds = [b for b in args.builds.split(",") if b]
     if not builds or any(b not in ("quick", "inline") for b in builds):
@@ -73,12 +114,16 @@ def main(argv=None) -> int:
             for what, cmd in steps:
                 print(f"compile_bench: {build} build: {what} ...", file=sys.stderr, flush=True)
                 load0 = os.getloadavg()[0]
-                wall, cpu = _timed(cmd, env)
+                wall, cpu, _ = _timed(cmd, env)
                 rows.append((build, what, wall, cpu, load0, os.getloadavg()[0]))
+        if not args.no_diagnose:
+            rows += _diagnose_rows(ehas, tmp)
     text = ["# Compile time: the user's first number with a new effect", "",
-            f"Regenerate with `python -m ehas_env.cli.compile_bench --builds {','.join(builds)} --out {args.out}`.", "",
-            f"Measured {time.strftime('%Y-%m-%dT%H:%M:%S%z')} on {os.cpu_count()} cores. Each row is one `ehas "
-            "compare` process on a 5-run campaign (2 s runs) in a fresh model cache; CPU = user + system time of "
+            f"Regenerate with `python -m ehas_env.cli.compile_bench --builds {','.join(builds)}"
+            f"{' --no-diagnose' if args.no_diagnose else ''} --out {args.out}`.", "",
+            f"Measured {time.strftime('%Y-%m-%dT%H:%M:%S%z')} on {os.cpu_count()} cores. Each row is one `ehas` "
+            "process: the compare rows on a 5-run campaign (2 s runs) in a fresh model cache per build, the diagnose "
+            "rows on a 5-run campaign (3 s runs) with a hidden 800 N m/rad torsion spring in an empty model cache; CPU = user + system time of "
             "the process, the figure a quiet machine's wall time approaches; load = 1-min load average before / "
             "after (above the core count, other processes shared the machine).", "",
             "| build | step | wall s | CPU s | load |", "|---|---|---:|---:|---|"]

@@ -15,6 +15,11 @@ classic-control environment):
 * the peak resident memory of a fresh process that imports, builds and steps
   the N = 8192 batch (a subprocess, so that nothing else in this run counts;
   a first short process fills the compiled-code cache, so compiling does not);
+* the plant's two builds (the compile-time options, ``results/compile.md`` has
+  their compile times): steps per second of one closed-loop run of the book
+  controller in the quick-compile build (linked modules, functions called: what
+  replay and fits run) and the fast-step build (everything inlined: what the
+  environments, the batched kernel and benchmark grids run), rounds alternating;
 * training throughput (when stable-baselines3 is installed; ``--training-steps 0``
   skips it): env-steps per second of PPO and SAC training (``ehas_train.throughput``,
   the bundled ``ppo`` and ``residual_sac_gentle`` configs) with the batched
@@ -201,6 +206,48 @@ def measure_rss(num_envs: int, seconds: float) -> dict:
     return out
 
 
+def plant_rate(plant, controller, seconds: float) -> float:
+    """Control steps per second of ``plant``'s closed loop (5 sets, 20 deg at 2 Hz, 2 s runs) over ``seconds``."""
+    n = 0
+    t0 = time.perf_counter()
+    while True:
+        res = plant.simulate_closed_loop(controller, amplitude_deg=20.0, freq_hz=2.0, cycles=4)
+        n += len(res.theta_deg)
+        if time.perf_counter() - t0 >= seconds:
+            return n / (time.perf_counter() - t0)
+
+
+def measure_builds(seconds: float, repeats: int, bar=None) -> dict:
+    """Step speed of the plant's quick-compile and fast-step builds, rounds alternating (EHAS_BUILD picks one)."""
+    from ehas_env.simulation.plant import Plant, RigController
+
+    plants = {}
+    saved = os.environ.get("EHAS_BUILD")
+    try:
+        for build in ("quick", "inline"):
+            os.environ["EHAS_BUILD"] = build
+            plants[build] = Plant(disc_sets=5)
+            plants[build].simulate_closed_loop(RigController.book(), amplitude_deg=20.0, freq_hz=2.0, cycles=1)
+    finally:
+        if saved is None:
+            os.environ.pop("EHAS_BUILD", None)
+        else:
+            os.environ["EHAS_BUILD"] = saved
+    ctrl = RigController.book()
+    rounds = []
+    for r in range(repeats):
+        res = {}
+        for build in (("quick", "inline") if r % 2 == 0 else ("inline", "quick")):
+            res[build] = plant_rate(plants[build], ctrl, seconds)
+            if bar is not None:
+                bar.update()
+        res["ratio"] = res["inline"] / res["quick"]
+        rounds.append(res)
+    return {"quick_steps_per_s": statistics.median(x["quick"] for x in rounds),
+            "inline_steps_per_s": statistics.median(x["inline"] for x in rounds),
+            "inline_over_quick": statistics.median(x["ratio"] for x in rounds), "rounds": rounds}
+
+
 def _machine() -> dict:
     import gymnasium
     import numba
@@ -257,7 +304,7 @@ def run(args) -> int:
     from ehas_env.env.vector_env import TrackingVectorEnv
 
     n_both = sum(1 for n in sizes if n >= PARALLEL_MIN_ENVS)
-    total = 2 * args.repeats * (1 + len(sizes)) + args.repeats * n_both + (1 if args.rss_envs else 0)
+    total = 2 * args.repeats * (2 + len(sizes)) + args.repeats * n_both + (1 if args.rss_envs else 0)
     bar = tqdm(total=total, desc="ehas perf", unit="run")
     rounds = []
     for r in range(args.repeats):
@@ -309,6 +356,7 @@ def run(args) -> int:
             row["ehas_prange_env_steps_per_s"] = statistics.median(par)
         batched.append(row)
 
+    builds = measure_builds(args.seconds, args.repeats, bar)
     memory = None
     if args.rss_envs:
         memory = measure_rss(args.rss_envs, args.seconds)
@@ -345,6 +393,7 @@ def run(args) -> int:
         "single": single,
         "batched": batched,
         "memory": memory,
+        "builds": builds,
         "training": training,
         "targets": targets,
     }
@@ -481,6 +530,18 @@ def render_markdown(rep: dict) -> str:
             f"resident (after the imports alone: {mem['import_rss_mb']:.1f} MB); it stepped "
             f"{mem['env_steps_per_s']:,.0f} env-steps/s.",
         ]
+    if rep.get("builds"):
+        b = rep["builds"]
+        lines += ["", "## The plant's two builds (the compile-time options)", "",
+                  "One closed-loop run of the book controller (5 sets, 20 deg at 2 Hz, 10 RK4 sub-steps per 1 ms "
+                  "step), control steps per second, rounds alternating. Their compile times are in "
+                  "`results/compile.md` (`python -m ehas_env.cli.compile_bench`): the quick build compiles a new "
+                  "effect in seconds and runs replay and fits; the fast-step build compiles for a minute or more "
+                  "and runs the environments, the batched kernel and benchmark grids, where the step speed counts.",
+                  "", "| build | steps/s |", "|---|---|",
+                  f"| quick-compile (linked modules, functions called) | {b['quick_steps_per_s']:,.0f} |",
+                  f"| fast-step (everything inlined) | {b['inline_steps_per_s']:,.0f} |",
+                  f"| fast-step over quick (median of the rounds' ratios) | {b['inline_over_quick']:.2f} |"]
     if rep.get("training"):
         lines += _training_md(rep["training"])
     lines += ["", f"Compile or cache load before the first step: {rep['settings']['warmup_s']} s.", ""]

@@ -561,18 +561,23 @@ def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
 
 
 def _widen(rep: Replayer, f: Fit, effect: str) -> Fit:
-    """Refit with the ranges of ``effect``'s parameters that the fit ran into widened 4x toward their bounds."""
+    """Refit with the ranges of ``effect``'s parameters that the fit ran into widened 4x toward their bounds
+    (a signed range widens at both ends: its fit range is symmetric about zero)."""
     free, changed = [], False
     vals = f.model.effects.get(effect, {})
     for fp in f.free:
-        if fp.effect == effect and fp.lo >= 0:
+        if fp.effect == effect:
             p = get_effect(effect).param(fp.name)
             u = fp.u(vals[fp.name])
             lo, hi = fp.lo, fp.hi
-            if u <= 1e-3 and fp.lo > p.bounds[0]:
-                lo = max(p.bounds[0], fp.lo / 4.0) if fp.lo / 4.0 > 0 else p.bounds[0]
-            if u >= 1 - 1e-3 and fp.hi < p.bounds[1]:
-                hi = min(p.bounds[1], fp.hi * 4.0)
+            if fp.lo < 0:  # a signed range (symmetric about zero, fit_range): both ends widen together
+                if (u <= 1e-3 or u >= 1 - 1e-3) and (fp.lo > p.bounds[0] or fp.hi < p.bounds[1]):
+                    lo, hi = max(p.bounds[0], 4.0 * fp.lo), min(p.bounds[1], 4.0 * fp.hi)
+            else:
+                if u <= 1e-3 and fp.lo > p.bounds[0]:
+                    lo = max(p.bounds[0], fp.lo / 4.0) if fp.lo / 4.0 > 0 else p.bounds[0]
+                if u >= 1 - 1e-3 and fp.hi < p.bounds[1]:
+                    hi = min(p.bounds[1], fp.hi * 4.0)
             if (lo, hi) != (fp.lo, fp.hi):
                 changed = True
                 log = lo > 0 and hi / lo >= 8.0

@@ -37,7 +37,7 @@ LIBRARY_KIND = {
     # the diagnosis' structural hypotheses (ehas_env/physics/effects/hyp_*.py, kind "hypothesis")
     "hyp_rod_area": {"geometry/area"}, "hyp_return_pressure": {"leakage/flow"}, "hyp_direction_gain": {"valve"},
     "hyp_turbulent_leakage": {"leakage/flow"}, "hyp_pressure_friction": {"friction"},
-    "hyp_quadratic_drag": {"friction"}, "hyp_crank_unbalance": {"load"}, "hyp_supply_line_loss": {"leakage/flow"},
+    "hyp_quadratic_drag": {"friction"}, "hyp_crank_unbalance": {"load"}, "hyp_crank_spring": {"load"}, "hyp_supply_line_loss": {"leakage/flow"},
     "hyp_entrained_air": {"fluid property"}, "hyp_dead_volume": {"compliance", "fluid property"},
     "hyp_load_compliance": {"compliance"}, "hyp_valve_underlap": {"valve"}, "hyp_position_offset": {"sensor"},
     "hyp_position_shape": {"sensor"},

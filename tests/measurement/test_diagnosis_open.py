@@ -43,10 +43,10 @@ def ehas(*argv):
     return r
 
 
-def test_crank_spring_is_named_a_torque_that_follows_the_angle(ool_dir, tmp_path, capsys):
+def test_crank_spring_is_named_a_spring_on_the_load(ool_dir, tmp_path, capsys):
     """A centring spring on the crank (a user effect, out of the library's effects): the library leaves it
-    unexplained, and the structural hypothesis of a torque that depends on the crank angle names it, with the
-    spring's rate as its size (-T sin(theta) is -T theta near the middle), and writes it as an effect file."""
+    unexplained, and the structural hypothesis of a spring on the load names it with the spring's rate (not the
+    unbalance, whose sin(theta) parts from a linear spring at large angles), and writes it as an effect file."""
     from ehas_env.cli.main import main
 
     camp_dir = tmp_path / "spring"
@@ -58,17 +58,17 @@ def test_crank_spring_is_named_a_torque_that_follows_the_angle(ool_dir, tmp_path
     doc = json.loads(out.read_text())
     assert doc["validation"]["residual_x_noise_before_hypotheses"] > 5  # the library alone does not explain it
     h = doc["hypothesis"]
-    assert h["effect"] == "hyp_crank_unbalance", h
-    assert h["params"]["T_sin"] == pytest.approx(400.0, rel=0.3)  # N m per rad near theta = 0
-    assert abs(h["params"]["T_cos"]) < 0.05 * h["params"]["T_sin"]  # centred on the crank's zero
-    assert h["ci95"]["T_sin"][0] <= h["params"]["T_sin"] <= h["ci95"]["T_sin"][1]
+    assert h["effect"] == "hyp_crank_spring", h
+    assert h["params"]["k"] == pytest.approx(400.0, rel=0.05)  # the hidden spring's rate, N m/rad
+    assert abs(h["params"]["T_0"]) < 0.02 * 400.0 * 0.6  # centred on the crank's zero (< 2 % of its torque at 35 deg)
+    assert h["ci95"]["k"][0] <= h["params"]["k"] <= h["ci95"]["k"][1]
     assert doc["verdict"] != "unexplained" and doc["residual_x_noise"] <= 2.0
-    assert "centring spring" in h["words"] and h["effect_file"] == str(eff)
-    assert "structural hypothesis kept: hyp_crank_unbalance" in text
+    assert "spring on the load" in h["words"] and h["effect_file"] == str(eff)
+    assert "structural hypothesis kept: hyp_crank_spring" in text
     # the written effect file is a valid user effect (ehas compare --fit on it: the slow sweep)
     r = ehas("effects", "--effects-path", str(eff.parent), "centring")
     assert r.returncode == 0, r.stderr
-    assert "T_sin [N m]" in r.stdout
+    assert "k [N m/rad]" in r.stdout
 
 
 @pytest.mark.slow
