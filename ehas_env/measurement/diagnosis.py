@@ -539,7 +539,8 @@ def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cu
 def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
     """Why ``effect`` (fitted in ``f``) stands in for something else, or None when it is real: its parameters
     refitted on two separate groups of the fitted runs (:func:`ehas_env.measurement.keeping.run_groups`), with
-    beta and K, do not agree within their 95 % intervals (:func:`ehas_env.measurement.keeping.agree`).
+    beta and K, do not agree within their 95 % intervals (:func:`ehas_env.measurement.keeping.agree`; an
+    estimate that ran to the end of its fitted range is flagged, its interval being one-sided).
     With fewer than two closed-loop runs fitted there is nothing to compare: None."""
     groups = run_groups([c.run.name for c in rep.cases], [c.run.kind for c in rep.cases])
     if groups is None:
@@ -555,7 +556,10 @@ def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
         rep.n_evals += sub.n_evals
         for fp in free:
             if fp.effect == effect:
-                ests.setdefault(fp.name, []).append((_value_of(gf.model, fp), ci[(fp.effect, fp.name)]))
+                # an estimate at the end of its fitted range has a one-sided interval (keeping.agree)
+                u = fp.u(_value_of(gf.model, fp))
+                ests.setdefault(fp.name, []).append((_value_of(gf.model, fp), ci[(fp.effect, fp.name)],
+                                                     u <= 1e-3 or u >= 1 - 1e-3))
     ok, why = agree(ests)
     return None if ok else why
 

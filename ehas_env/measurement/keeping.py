@@ -14,6 +14,8 @@ True
 >>> ok, why = agree({"Fc": [(100.0, (90.0, 110.0)), (300.0, (280.0, 320.0))]})
 >>> ok, why.split(":")[0]
 (False, 'Fc')
+>>> agree({"r_s": [(4.0, (1.25, 4.0), True), (1.34, (1.05, 1.64))]})[0]   # one ran to its range's end
+True
 """
 from __future__ import annotations
 
@@ -28,17 +30,20 @@ AGREE_WITHIN = 1.0
 MODEL_ERROR_FLOOR = 0.1
 
 
-def agree(estimates: dict[str, list[tuple[float, tuple[float, float]]]]) -> tuple[bool, str]:
+def agree(estimates: dict[str, list[tuple]]) -> tuple[bool, str]:
     """Whether each parameter's estimates from separate groups of runs agree within their 95 % intervals.
 
     Two estimates a, b with half-widths ha, hb agree when |a - b| <= AGREE_WITHIN * sqrt(ha^2 + hb^2)
     (the 95 % interval of the difference of independent estimates); a half-width is at least
-    :data:`MODEL_ERROR_FLOOR` of its estimate.
+    :data:`MODEL_ERROR_FLOOR` of its estimate.  An estimate that ran to the end of its fitted range
+    (flagged by a third element True) is no point estimate: its interval is cut at that end and one-sided,
+    so it agrees with another estimate when their intervals (each at least the floor wide) overlap.
 
     Parameters
     ----------
     estimates : dict
-        {parameter: [(value, (low, high)), ...]}, one entry per group of runs.
+        {parameter: [(value, (low, high)) or (value, (low, high), at_range_end), ...]}, one entry per group
+        of runs.
 
     Returns
     -------
@@ -48,11 +53,19 @@ def agree(estimates: dict[str, list[tuple[float, tuple[float, float]]]]) -> tupl
     for name, ests in estimates.items():
         for i in range(len(ests)):
             for j in range(i + 1, len(ests)):
-                (a, (alo, ahi)), (b, (blo, bhi)) = ests[i], ests[j]
+                (a, (alo, ahi)), (b, (blo, bhi)) = ests[i][:2], ests[j][:2]
+                pinned = any(len(e) > 2 and e[2] for e in (ests[i], ests[j]))
                 ha = max(0.5 * (ahi - alo), MODEL_ERROR_FLOOR * abs(a))
                 hb = max(0.5 * (bhi - blo), MODEL_ERROR_FLOOR * abs(b))
-                if not all(map(math.isfinite, (a, b, ha, hb))):
+                if not all(map(math.isfinite, (a, b, ha, hb, alo, ahi, blo, bhi))):
                     return False, f"{name}: an estimate or its interval is not finite"
+                if pinned:
+                    fa, fb = MODEL_ERROR_FLOOR * abs(a), MODEL_ERROR_FLOOR * abs(b)
+                    if max(min(alo, a - fa), min(blo, b - fb)) <= min(max(ahi, a + fa), max(bhi, b + fb)):
+                        continue
+                    return False, (f"{name}: {a:.4g} [{alo:.4g}, {ahi:.4g}] on one group of runs and {b:.4g} "
+                                   f"[{blo:.4g}, {bhi:.4g}] on another (one at the end of its range) do not "
+                                   "overlap")
                 if abs(a - b) > AGREE_WITHIN * math.hypot(ha, hb):
                     return False, (f"{name}: {a:.4g} [{alo:.4g}, {ahi:.4g}] on one group of runs and {b:.4g} "
                                    f"[{blo:.4g}, {bhi:.4g}] on another do not agree within their 95 % intervals")

@@ -242,6 +242,31 @@ class Replayer:
         mark_effects_on(named)
         return ext, np.array([named.get(n, 0.0) for n in ext.SLOTS], dtype=float), plant
 
+    @staticmethod
+    def initial_state(mod, plant: Plant, theta0_deg: float) -> np.ndarray:
+        """``plant``'s initial state (:meth:`Plant.initial_state`) laid out for the compiled model ``mod`` it runs
+        on: the same vector when ``mod`` is the plant's own model; for the extended model of a proposal (every
+        registered effect, :meth:`compiled`) each state by name, and the states of effects the plant does not
+        have at their declared initial values.  (An effect with states of its own makes the two layouts
+        differ in length and order.)"""
+        s = plant.initial_state(theta0_deg)
+        if mod is plant.model:
+            return s
+        from ehas_env.physics.effects import REGISTRY
+
+        out = np.zeros(mod.N_STATES)
+        pos = {n: k for k, n in enumerate(mod.STATE_NAMES)}
+        for name in mod.STATE_NAMES:
+            eff, _, own = name.partition(".")
+            if own and eff in REGISTRY:
+                out[pos[name]] = next((st[2] for st in REGISTRY[eff].states if st[0] == own), 0.0)
+        missing = [n for n in plant.model.STATE_NAMES if n not in pos]
+        if missing:
+            raise ValueError(f"the extended model has no state {missing[0]!r} of the plant's model")
+        for k, name in enumerate(plant.model.STATE_NAMES):
+            out[pos[name]] = s[k]
+        return out
+
     def absolute(self, model: ModelSpec) -> ModelSpec:
         """``model`` with the bulk modulus (Pa) and valve gain (LPM/mA) the plant runs (see ``model=``)."""
         if self.model is None:
@@ -289,7 +314,7 @@ class Replayer:
                 mod, Pj, plant = self.compiled(models[m], case.run, case.dt)
                 if mod is not model:
                     raise ValueError("simulate_many: models with and without proposed terms go in separate calls")
-                S0[j] = plant.initial_state(case.theta0)
+                S0[j] = self.initial_state(mod, plant, case.theta0)
                 P[j] = Pj
                 gains[j] = case.gains
                 refs[j] = case.ref
@@ -314,7 +339,7 @@ class Replayer:
         if run.kind == "valve_open_loop":
             mod.run_valve_test(P, case.cmd, case.dt, self.substeps, run.meta["supply_bar"] * BAR, case.hist, case.out)
             return {"flow_lpm": case.out[:, 0] / LPM}
-        s = plant.initial_state(case.theta0)
+        s = self.initial_state(mod, plant, case.theta0)
         sensor = np.array([0.0, 0.0, 0.0, plant.rig.i_max])
         o = case.out
         mod.closed_loop(s, P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,

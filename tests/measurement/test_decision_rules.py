@@ -133,6 +133,18 @@ def test_keeping_needs_agreement_across_groups():
     assert not agree({"Fc": [(100.0, (float("nan"), 200.0)), (150.0, (50.0, 250.0))]})[0]
 
 
+def test_an_estimate_at_the_end_of_its_range_is_judged_by_its_one_sided_interval():
+    """An estimate that ran to the end of its fitted range (third element True) has an interval cut at that end:
+    its value is no centre.  (LuGre's breakaway ratio on fast runs: 4 [1.25, 4] against 1.34 [1.05, 1.64] on
+    slow ones; the symmetric test called that a stand-in although 1.34 lies inside [1.25, 4].)"""
+    pinned = (4.0, (1.25, 4.0), True)
+    assert not agree({"r_s": [pinned[:2], (1.344, (1.049, 1.638))]})[0]  # read as a centre: apart
+    assert agree({"r_s": [pinned, (1.344, (1.049, 1.638))]})[0]  # one-sided: the intervals overlap
+    # a pinned estimate whose interval stays near its end still disagrees with one far from it
+    ok, why = agree({"tau": [(0.05, (0.045, 0.05), True), (0.001, (0.0009, 0.0011))]})
+    assert not ok and "end of its range" in why
+
+
 def test_run_groups_split_closed_loop_runs_and_keep_windows_together():
     g = run_groups(["s1", "s2", "s3", "s4", "chirp@0.4s", "chirp@1.2s"], ["closed_loop"] * 4 + ["valve_open_loop"] * 2)
     assert g == [[0, 2, 4, 5], [1, 3]]

@@ -1,6 +1,4 @@
 """Structural hypothesis: leakage across the piston follows the orifice (turbulent) law, not the laminar one."""
-import math
-
 from ehas_env.physics.effects.base import Effect, Param
 
 
@@ -15,9 +13,9 @@ class HypTurbulentLeakage(Effect):
               typical=(0.2, 3.0), log_scale=True, si=1.0e-3 / 60.0),
     )
     constants = (
-        Param("p_lam", "Pa", 2.0e5, (0.0, 1e7),
+        Param("p_lam", "Pa", 2.0e5, (1.0e3, 1e7),
               "load pressure below which the leak is laminar (assumed: a Reynolds transition at a few bar; it "
-              "keeps the law's slope finite at zero)"),
+              "keeps the law's slope finite at zero; from 5 p_lam up the flow is the orifice law's within 1 %)"),
     )
     main_param = "q_100"
     explanation = (
@@ -40,9 +38,8 @@ class HypTurbulentLeakage(Effect):
 
     @staticmethod
     def chamber_flows(p_load, q_100, p_lam):
-        # sqrt(|p| + p_lam) - sqrt(p_lam): the orifice law away from zero, linear (laminar) through it
-        mag = math.sqrt(abs(p_load) + p_lam) - math.sqrt(p_lam)
-        q = q_100 * mag / (math.sqrt(1.0e7 + p_lam) - math.sqrt(p_lam))
-        if p_load < 0.0:
-            q = -q
+        # p / (p^2 + p_lam^2)^(1/4): the orifice law sqrt(|p|) sign(p) above a few p_lam (within 1 % from
+        # 5 p_lam), linear (laminar) through zero with a finite slope; normalised so that q_100 flows at 100 bar
+        ref = 1.0e7 / (1.0e14 + p_lam * p_lam) ** 0.25
+        q = q_100 * p_load / ((p_load * p_load + p_lam * p_lam) ** 0.25 * ref)
         return -q, q
