@@ -48,3 +48,30 @@ def ray_local(request):
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
     yield ray
     ray.shutdown()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _registered_effects_and_laws_stay_in_their_module():
+    """What a test module registers (user effects, test effects, user controller laws) is unregistered when it ends.
+
+    The compiled model holds every registered effect and law (ehas_env.simulation.compiled_model), so an effect or
+    law left registered by one module gave every later environment, benchmark or plant in that worker a model of
+    its own, compiled again: seven inlined builds (each 3-5 min on 2 loaded cores) in one default run instead of
+    one.  The registries and the loaders' "already loaded" records are restored together, so a later module that
+    loads the same file imports and registers it again.
+    """
+    from ehas_controllers import base as cbase
+    from ehas_env.physics.effects import REGISTRY
+    from ehas_env.physics.effects import loading
+    from ehas_env.simulation import control_laws
+
+    saved = (dict(REGISTRY), dict(control_laws._LAWS), dict(loading._LOADED), dict(loading.SOURCES),
+             dict(cbase.LOADED_FILES))
+    user_modules = {n for n in sys.modules if n.startswith(("ehas_user_effects.", "ehas_user_controllers."))}
+    yield
+    for live, old in zip((REGISTRY, control_laws._LAWS, loading._LOADED, loading.SOURCES, cbase.LOADED_FILES), saved):
+        live.clear()
+        live.update(old)
+    for n in [n for n in sys.modules if n.startswith(("ehas_user_effects.", "ehas_user_controllers."))]:
+        if n not in user_modules:
+            del sys.modules[n]

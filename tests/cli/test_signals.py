@@ -32,6 +32,9 @@ def test_sigterm_during_bench_is_a_clean_interrupt(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no leftover temporaries
 
 
+@pytest.mark.slow  # trains PPO in a child process until a checkpoint, then resumes: 536 s on 2 loaded cores; the
+# default run keeps tests/train/test_train.py::test_ctrl_c_writes_a_checkpoint (Ctrl-C checkpoints, the resume ends
+# at total_steps) and the SIGINT tests below (status 130, one line)
 def test_ctrl_c_during_training_checkpoints_and_the_resume_ends_at_total_steps(tmp_path):
     """Ctrl-C: one line naming the step and --resume, status 130; the resumed run ends at total_steps exactly."""
     import json

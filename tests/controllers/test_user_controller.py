@@ -90,7 +90,7 @@ def test_user_controller_is_the_batched_envs_residual_base(pd):
     np.testing.assert_allclose(np.array(thetas), res.theta_deg[1:1501], atol=1e-9)
 
 
-def test_user_controller_is_the_learned_agents_base_in_evaluation(pd):
+def _learned_agents_base_in_evaluation(pd):
     from ehas_train.config import parse_config
     from ehas_train.evaluate import evaluate_policy
     from ehas_train.envs import resolve_controller_spec
@@ -102,6 +102,17 @@ def test_user_controller_is_the_learned_agents_base_in_evaluation(pd):
     desc = resolve_controller_spec(str(path))
     rows = evaluate_policy(cfg, lambda obs: np.zeros((obs.shape[0], 1)), CONDS, controller_desc=desc)
     np.testing.assert_allclose([r["rms_error_pct"] for r in rows], _plant_rows(ctrl), rtol=1e-6)
+
+
+@pytest.mark.slow  # compiles the batched kernel's inlined build with the user's law: 343 s on 2 loaded cores
+def test_user_controller_is_the_learned_agents_base_in_evaluation(pd):
+    _learned_agents_base_in_evaluation(pd)
+
+
+def test_user_controller_is_the_learned_agents_base_in_evaluation_on_the_quick_build(pd, monkeypatch):
+    """The same check on the quick-compile build (EHAS_BUILD=quick, seconds to compile): the default run's."""
+    monkeypatch.setenv("EHAS_BUILD", "quick")
+    _learned_agents_base_in_evaluation(pd)
 
 
 def test_bench_command_takes_a_controller_file(pd, tmp_path):

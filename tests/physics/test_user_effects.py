@@ -57,7 +57,7 @@ def test_linearisation_shows_the_spring(spring_dir):
     assert lin.hydraulic_wn_hz() * 2 * math.pi == pytest.approx(math.sqrt((k_h + k) / inertia), rel=1e-5)
 
 
-def test_environment_uses_a_user_effect(spring_dir):
+def _spring_moves_the_crank_less(spring_dir):
     import gymnasium
 
     import ehas_env  # noqa: F401
@@ -71,6 +71,17 @@ def test_environment_uses_a_user_effect(spring_dir):
     infos2 = [env2.step(np.array([0.2], np.float32))[4] for _ in range(300)]
     # the same current moves the spring-loaded crank less far
     assert abs(infos[-1]["theta_deg"]) < abs(infos2[-1]["theta_deg"])
+
+
+@pytest.mark.slow  # compiles the environment's inlined build with the user's effect: 352 s on 2 loaded cores
+def test_environment_uses_a_user_effect(spring_dir):
+    _spring_moves_the_crank_less(spring_dir)
+
+
+def test_environment_uses_a_user_effect_on_the_quick_build(spring_dir, monkeypatch):
+    """The same check on the quick-compile build (EHAS_BUILD=quick, seconds to compile): the default run's."""
+    monkeypatch.setenv("EHAS_BUILD", "quick")
+    _spring_moves_the_crank_less(spring_dir)
 
 
 def test_simulate_and_effects_commands_take_effects_path(spring_dir, tmp_path, capsys):
