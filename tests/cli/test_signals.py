@@ -184,9 +184,14 @@ def test_ctrl_c_during_the_swap_waits_until_the_new_set_is_in_place(tmp_path, mo
         return real_replace(src, dst)
 
     monkeypatch.setattr(outputs.os, "replace", replace)
-    with pytest.raises(KeyboardInterrupt):
-        with outputs.OutputSet(final, "--out", overwrite=True) as tmp:
-            (tmp / "a.txt").write_text("new")
+    # Python's own Ctrl-C handler, whatever an earlier test in this worker left installed (ray.init sets its own)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with outputs.OutputSet(final, "--out", overwrite=True) as tmp:
+                (tmp / "a.txt").write_text("new")
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert len(calls) >= 2  # the swap went on after the signal
     assert (final / "a.txt").read_text() == "new"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report"]  # no temporaries, no old set aside
