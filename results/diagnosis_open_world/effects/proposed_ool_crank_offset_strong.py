@@ -1,4 +1,4 @@
-"""proposed_ool_crank_offset_strong: a term proposed by ehas diagnose for /tmp/ow_final_work/ool_crank_offset_strong/campaign.
+"""proposed_ool_crank_offset_strong: a term proposed by ehas diagnose for /tmp/snapA/work/ool_crank_offset_strong/campaign.
 
 T_crank [N m] += c_th3·theta^3   with c_th3 = 27.02 N m/rad^3 (95 % CI 2.383 to 51.65)
 

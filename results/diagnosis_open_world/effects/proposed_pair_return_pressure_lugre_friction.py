@@ -1,0 +1,48 @@
+"""proposed_pair_return_pressure_lugre_friction: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/snapA/work/pair_return_pressure+lugre_friction/campaign.
+
+The return line is at 5 bar at the valve's return lands (the baseline: 0 bar).
+p_t = 5.003 bar (95 % CI 4.994 to 5.011)
+Residual against what does not repeat: 6.38x -> 1.04x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+"""
+import math
+
+from ehas_env.physics.effects import Effect, Param
+
+
+class ProposedPairReturnPressureLugreFriction(Effect):
+    name = "proposed_pair_return_pressure_lugre_friction"
+    title = "return-line (tank) pressure at the valve"
+    valve_side = True  # flow through the metering lands: a meter in line A (and the bench's) reads it
+    params = (
+        Param("p_t", "bar", 5.0027, (0.0, 60.0),
+              "pressure in the return line at the valve's return lands (assumed: a filter, cooler or long "
+              "return hose; the baseline takes 0)",
+              typical=(2.50135, 10.0054), log_scale=True, si=1e5),
+    )
+    main_param = "p_t"
+    explanation = (
+        "The baseline drains the low-pressure chamber to 0 bar. With back pressure p_t in the return line the "
+        "draining land sees P - p_t instead of P: the outflow is smaller, both chambers sit higher, and the "
+        "load pressure available to move the crank is lower."
+    )
+    signature = (
+        "both chamber pressures' residuals positive and largest in the draining chamber; mean chamber pressure "
+        "higher than the model's; a current residual that follows the load and the sign of the velocity."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        return f"the return line is at {params['p_t']:.3g} bar at the valve's return lands (the baseline: 0 bar)"
+
+    @staticmethod
+    def chamber_flows(qc, pa, pb, rated_drop, p_t):
+        half = 0.5 * rated_drop
+        if qc >= 0.0:  # B drains to the return line
+            dq = -qc * (math.copysign(math.sqrt(abs(pb - p_t) / half), pb - p_t)
+                        - math.copysign(math.sqrt(abs(pb) / half), pb))
+            return 0.0, dq
+        dq = qc * (math.copysign(math.sqrt(abs(pa - p_t) / half), pa - p_t)
+                   - math.copysign(math.sqrt(abs(pa) / half), pa))
+        return dq, 0.0

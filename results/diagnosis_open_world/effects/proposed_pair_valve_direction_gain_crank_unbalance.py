@@ -1,0 +1,45 @@
+"""proposed_pair_valve_direction_gain_crank_unbalance: valve gain per spool direction, found by ehas diagnose on /tmp/snapA/work/pair_valve_direction_gain+crank_unbalance/campaign.
+
+The valve's gain for negative current is 0.89 of its gain for positive current.
+g_dir = 0.05994 - (95 % CI 0.05986 to 0.06002)
+Residual against what does not repeat: 27.7x -> 1.03x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+"""
+from ehas_env.physics.effects import Effect, Param
+
+
+class ProposedPairValveDirectionGainCrankUnbalance(Effect):
+    name = "proposed_pair_valve_direction_gain_crank_unbalance"
+    title = "valve gain per spool direction"
+    params = (
+        Param("g_dir", "-", 0.0599402, (-0.6, 0.6),
+              "relative gain difference: the valve acts as if the current were (1 + g_dir) i for i > 0 and "
+              "(1 - g_dir) i for i < 0 (assumed range: worn or asymmetric metering edges)",
+              typical=(0.0299701, 0.11988)),
+    )
+    main_param = "g_dir"
+    explanation = (
+        "The baseline valve has one gain K for both spool directions. Worn, chamfered or unequally lapped "
+        "metering edges make the flow per mA larger one way than the other: K (1 + g_dir) for positive "
+        "current, K (1 - g_dir) for negative."
+    )
+    signature = (
+        "flow residual proportional to |i| (even in the current); closed loop: a current residual that "
+        "changes sign with the spool direction; valve runs: the flow gain differs between the two halves of "
+        "each cycle."
+    )
+
+    chain_order = 20
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        g = params["g_dir"]
+        return (f"the valve's gain for negative current is {(1.0 - g) / (1.0 + g):.2f} of its gain for positive "
+                f"current")
+
+    @staticmethod
+    def valve_current(i, g_dir):
+        if i >= 0.0:
+            return i * (1.0 + g_dir)
+        return i * (1.0 - g_dir)
