@@ -498,10 +498,9 @@ def sanity(f: Fit, effect: str) -> str | None:
     for fp in f.free:
         if fp.effect != effect:
             continue
-        u = fp.u(vals[fp.name])
-        if u <= 1e-3 or u >= 1 - 1e-3:
+        where = fp.end(vals[fp.name])
+        if where is not None:
             p = get_effect(effect).param(fp.name)
-            where = "lower" if u <= 1e-3 else "upper"
             return (f"{fp.name} = {vals[fp.name]:.4g} {p.unit} sits at the {where} end of its range "
                     f"[{fp.lo:.4g}, {fp.hi:.4g}]")
     if effect == "stribeck_friction" and vals.get("Fs", 0.0) <= DEGENERATE_STRIBECK * vals.get("Fc", 0.0):
@@ -557,9 +556,8 @@ def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
         for fp in free:
             if fp.effect == effect:
                 # an estimate at the end of its fitted range has a one-sided interval (keeping.agree)
-                u = fp.u(_value_of(gf.model, fp))
-                ests.setdefault(fp.name, []).append((_value_of(gf.model, fp), ci[(fp.effect, fp.name)],
-                                                     u <= 1e-3 or u >= 1 - 1e-3))
+                v = _value_of(gf.model, fp)
+                ests.setdefault(fp.name, []).append((v, ci[(fp.effect, fp.name)], fp.end(v) is not None))
     ok, why = agree(ests)
     return None if ok else why
 
@@ -572,15 +570,15 @@ def _widen(rep: Replayer, f: Fit, effect: str) -> Fit:
     for fp in f.free:
         if fp.effect == effect:
             p = get_effect(effect).param(fp.name)
-            u = fp.u(vals[fp.name])
+            where = fp.end(vals[fp.name])
             lo, hi = fp.lo, fp.hi
             if fp.lo < 0:  # a signed range (symmetric about zero, fit_range): both ends widen together
-                if (u <= 1e-3 or u >= 1 - 1e-3) and (fp.lo > p.bounds[0] or fp.hi < p.bounds[1]):
+                if where is not None and (fp.lo > p.bounds[0] or fp.hi < p.bounds[1]):
                     lo, hi = max(p.bounds[0], 4.0 * fp.lo), min(p.bounds[1], 4.0 * fp.hi)
             else:
-                if u <= 1e-3 and fp.lo > p.bounds[0]:
+                if where == "lower" and fp.lo > p.bounds[0]:
                     lo = max(p.bounds[0], fp.lo / 4.0) if fp.lo / 4.0 > 0 else p.bounds[0]
-                if u >= 1 - 1e-3 and fp.hi < p.bounds[1]:
+                if where == "upper" and fp.hi < p.bounds[1]:
                     hi = min(p.bounds[1], fp.hi * 4.0)
             if (lo, hi) != (fp.lo, fp.hi):
                 changed = True

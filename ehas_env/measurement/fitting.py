@@ -66,6 +66,12 @@ class FreeParam:
             return (math.log(v) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
         return (v - self.lo) / (self.hi - self.lo)
 
+    def end(self, value: float) -> str | None:
+        """``"lower"`` or ``"upper"`` when ``value`` sits at that end of the fit range (within 1e-3 of it in u),
+        else None: a fit that ran into its range."""
+        u = self.u(value)
+        return "lower" if u <= 1e-3 else "upper" if u >= 1 - 1e-3 else None
+
 
 def reopens_baseline(effect: str) -> bool:
     """Whether ``effect`` re-opens the baseline's numbers over their full ranges (its ``kind`` is

@@ -139,6 +139,7 @@ class ModelSource:
         for cls in self.effects:
             self.slots.extend(cls.slot_names())
         self.idx = {n: k for k, n in enumerate(self.slots)}
+        self.sections = [_compiled_sections(rel) for rel in COMPILED_PARTS]  # (shared, own) of each file, read once
 
     # -- code of the assembled functions ---------------------------------
     def _arg(self, cls, name: str, place: str) -> str:
@@ -170,7 +171,7 @@ class ModelSource:
 
     def _library(self) -> str:
         """The baseline and the compiled functions that call nothing of the assembled model."""
-        return "\n".join([_baseline_source()] + [sh for sh, _ in map(_compiled_sections, COMPILED_PARTS) if sh])
+        return "\n".join([_baseline_source()] + [sh for sh, _ in self.sections if sh])
 
     def _terms(self, cls) -> str:
         return "\n".join(_term_source(cls, place, f"_t_{_ident(cls.name)}__{place}") for place in cls.terms())
@@ -196,7 +197,7 @@ class ModelSource:
         out += [self._terms(cls) for cls in self.effects if cls.terms()]
         out.append(self._laws())
         out.append(self._assembled())
-        out += [own for _, own in map(_compiled_sections, COMPILED_PARTS)]
+        out += [own for _, own in self.sections]
         return "\n".join(out) + "\n"
 
     def modules(self) -> list[tuple[str, str]]:
@@ -227,7 +228,7 @@ class ModelSource:
         laws = add("ehas_laws", "the compiled controller laws", use_lib + self._laws())
         imports.append(f"from {laws} import control_law")
         body = "\n".join(imports + [""] + self._constants()
-                         + [self._assembled()] + [own for _, own in map(_compiled_sections, COMPILED_PARTS)])
+                         + [self._assembled()] + [own for _, own in self.sections])
         add("ehas_model", "one compiled model (quick build: linked to the modules it imports)", body)
         return mods
 

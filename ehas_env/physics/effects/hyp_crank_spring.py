@@ -1,4 +1,6 @@
 """Structural hypothesis: a spring on the load, a torque proportional to the crank angle."""
+import math
+
 from ehas_env.physics.effects.base import Effect, Param
 
 
@@ -31,7 +33,7 @@ class HypCrankSpring(Effect):
     def in_words(cls, params: dict) -> str:
         """The fitted hypothesis in words."""
         k, t0 = params["k"], params["T_0"]
-        centre = f", centred at {t0 / k * 57.29577951308232:.2g} deg" if k > 0 and abs(t0) > 1e-3 * k else ""
+        centre = f", centred at {math.degrees(t0 / k):.2g} deg" if k > 0 and abs(t0) > 1e-3 * k else ""
         return f"a spring on the load pulls the crank back to its centre: {k:.4g} N m/rad{centre}"
 
     @staticmethod
