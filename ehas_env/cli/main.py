@@ -133,6 +133,14 @@ def _redeliver() -> None:
 def _at_exit() -> None:
     if _Stop.rc is not None:
         _flush()
+        # The point of no return.  A signal whose C handler ran but whose Python handler has not run
+        # yet would be lost in os._exit: blocking the signals runs it first (pthread_sigmask checks for
+        # pending handlers), and it ends the process with 130.  A signal after the block stays pending
+        # and the process exits with main()'s status: it came after the exit (SigBlk in /proc tells).
+        try:
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        except (ValueError, OSError):  # pragma: no cover - not the main thread
+            pass
         os._exit(_Stop.rc)
 
 

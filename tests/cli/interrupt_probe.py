@@ -14,7 +14,7 @@ signal to the command's process group (as a terminal's Ctrl-C does) after a
 sweep of delays from 0.05 s to a little past T (geometric, linear, and a few
 just before the end, where the exit path runs).  The command is stopped
 (SIGSTOP) for the moment of sending, so that a run that had already begun to
-exit is told apart (it counts as ended, and may exit 0).  Each run is recorded: status,
+exit (gone, or SIGINT blocked at its point of no return) is told apart (it counts as ended, and may exit 0).  Each run is recorded: status,
 the last line of stderr, whether a traceback (or "Exception ignored") appeared,
 whether the process had a SIGINT handler when the signal was sent
 (``/proc/PID/status`` SigCgt: none in the interpreter's first milliseconds, nor
@@ -69,18 +69,25 @@ def _ehas() -> list[str]:
     return [sys.executable, "-m", "ehas_env.cli.main"]
 
 
-def _proc_status(pid: int) -> tuple[bool | None, str]:
-    """(SIGINT has a handler, the state letter: R, S, T stopped, Z exited, '' gone) from /proc/PID/status."""
-    caught, state = None, ""
+def _proc_status(pid: int) -> tuple[bool | None, str, bool]:
+    """(SIGINT has a handler, the state letter: R, S, T stopped, Z exited, '' gone, it is exiting) from /proc.
+
+    *Exiting*: the process is gone, or its main thread blocks SIGINT, which ehas does at its point of no
+    return, just before ``os._exit`` (``ehas_env.cli.main._at_exit``): a signal from then on comes after the
+    exit, and the process ends with the command's status.
+    """
+    caught, state, blocked = None, "", False
     try:
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
             if line.startswith("SigCgt:"):
                 caught = bool(int(line.split()[1], 16) & (1 << (signal.SIGINT - 1)))
+            elif line.startswith("SigBlk:"):
+                blocked = bool(int(line.split()[1], 16) & (1 << (signal.SIGINT - 1)))
             elif line.startswith("State:"):
                 state = line.split()[1]
     except OSError:
-        return None, ""
-    return caught, state
+        return None, "", True
+    return caught, state, blocked or state in ("Z", "")
 
 
 def _manifest(folder: Path) -> dict[str, str]:
@@ -156,11 +163,11 @@ def one(argv: list[str], delay: float, sig: int, double: bool) -> dict:
         try:
             os.killpg(proc.pid, signal.SIGSTOP)
             for _ in range(2000):
-                caught, state = _proc_status(proc.pid)
+                caught, state, exiting = _proc_status(proc.pid)
                 if state in ("T", "t", "Z", ""):
                     break
                 time.sleep(0.001)
-            ended_before = state in ("Z", "")
+            ended_before = exiting
             if not ended_before:
                 os.killpg(proc.pid, sig)
             os.killpg(proc.pid, signal.SIGCONT)

@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
+from interrupt_probe import _proc_status  # tests/cli: the probe's reading of /proc
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -130,14 +131,6 @@ def test_ctrl_c_mid_run_keeps_the_previous_output(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries left
 
 
-def _state(pid: int) -> str:
-    """The process's state letter from /proc (R, S, T stopped, Z ended), '' when gone."""
-    try:
-        return Path(f"/proc/{pid}/status").read_text().split("State:")[1].split()[0]
-    except (OSError, IndexError):
-        return ""
-
-
 def test_ctrl_c_after_the_output_is_written_is_still_130(tmp_path):
     """The signal after the command wrote its output (its return, the interpreter's exit): 130, one line."""
     import os
@@ -152,9 +145,9 @@ def test_ctrl_c_after_the_output_is_written_is_still_130(tmp_path):
         assert proc.poll() is None and time.time() < deadline, proc.communicate()[1]
         time.sleep(0.002)  # the sidecar is moved in last: the set is complete
     os.kill(proc.pid, signal.SIGSTOP)  # hold it where it is, to know whether it had ended
-    while _state(proc.pid) not in ("T", "t", "Z", ""):  # stopped, or it was already exiting
+    while _proc_status(proc.pid)[1] not in ("T", "t", "Z", ""):  # stopped, or it was already exiting
         time.sleep(0.001)
-    ended = _state(proc.pid) in ("Z", "")
+    ended = _proc_status(proc.pid)[2]  # gone, or past its point of no return (SIGINT blocked before os._exit)
     os.kill(proc.pid, signal.SIGINT)
     os.kill(proc.pid, signal.SIGCONT)
     _, err = proc.communicate(timeout=60)
