@@ -247,6 +247,27 @@ class ModelSource:
             a(f"        i = {self._call(cls, 'valve_current')}")
         a("    return i")
         a("")
+        coils = sorted(self._with("coil_current"), key=lambda c: (c.chain_order, c.name))
+        a('@njit(cache=True, inline="always")')
+        a("def coil_current(s, i, P, ds):")
+        a('    """The current the torque motor acts on for the valve current i, mA; the rates of the coil effects\'')
+        a('    states into ds (they move with the current alone: the same in the right-hand side and on the bench)."""')
+        for cls in coils:
+            ks = [self.state_owner[f"{cls.name}.{st[0]}"] for st in cls.states]
+            for k in ks:
+                a(f"    ds[{k}] = 0.0")
+            a(f"    if P[I_EFFECTS_ON] != 0.0 and {self._on(cls)}:")
+            if "state_rates" in cls.terms():
+                call = self._call(cls, "state_rates")
+                if len(ks) == 1:
+                    a(f"        ds[{ks[0]}] = {call}")
+                else:
+                    a(f"        _r = {call}")
+                    for j, k in enumerate(ks):
+                        a(f"        ds[{k}] = _r[{j}]")
+            a(f"        i = {self._call(cls, 'coil_current')}")
+        a("    return i")
+        a("")
         a('@njit(cache=True, inline="always")')
         a("def position_reading(x, P):")
         a('    """The piston position the LVDT reads for the true position x, m: the effects of the sensor chain."""')
@@ -289,7 +310,7 @@ class ModelSource:
         a("def derivatives(s, i_valve, P, ds):")
         a('    """Right-hand side ds = f(s) for the valve current i_valve (mA, after the current chain)."""')
         a("    theta, omega, qc, qc_dot, pa, pb, ps, xp, vp = s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8]")
-        a("    i = i_valve")
+        a("    i = coil_current(s, i_valve, P, ds)")
         a("    r, A = P[I_RADIUS], P[I_AREA]")
         a("    c, sn = math.cos(theta), math.sin(theta)")
         a("    p_load = pa - pb")
@@ -356,7 +377,7 @@ class ModelSource:
             a(f"    if {self._on(cls)}:")
             a(f"        ds[6] += {self._call(cls, 'supply_rate')}")
         for cls in self.effects:
-            if not cls.states:
+            if not cls.states or "coil_current" in cls.terms():  # a coil effect's rates: in coil_current
                 continue
             ks = [self.state_owner[f"{cls.name}.{st[0]}"] for st in cls.states]
             for k in ks:
@@ -471,13 +492,25 @@ def compile_estimate_s(build: str) -> float:
     float
         ``COMPILE_CPU_S[build]`` times the square root of the run queue per core when above one.
     """
+    return COMPILE_CPU_S[build] * load_scale()
+
+
+def load_scale() -> float:
+    """Wall seconds per CPU second to expect now: the square root of the run queue per core when above one.
+
+    Measured: wall / CPU of a compile was ~1.5 at 2.5-3.5 runnable processes per core (results/compile.md), far
+    below the run queue's share: other jobs are not always runnable.
+
+    Returns
+    -------
+    float
+        At least 1.
+    """
     try:
         load = os.getloadavg()[0] / max(1, os.cpu_count() or 1)
     except OSError:
         load = 1.0
-    # measured: wall / CPU of a compile was ~1.5 at 2.5-3.5 runnable processes per core (results/compile.md),
-    # far below the run queue's share: other jobs are not always runnable
-    return COMPILE_CPU_S[build] * max(1.0, load) ** 0.5
+    return max(1.0, load) ** 0.5
 
 
 def _watch_compiles(modules: list, build: str) -> None:

@@ -4,7 +4,7 @@ Compiled into every generated model (:mod:`ehas_env.physics.codegen`): the part
 below the ``# >>> compiled`` line runs there (the one above it, from ``# >>> compiled,
 the same for every model``, calls nothing of the assembled model and goes to the
 quick build's library module), beside the model's ``derivatives``,
-``valve_current``, ``project`` parts and ``measure``; this file is not imported
+``valve_current``, ``coil_current``, ``project`` parts and ``measure``; this file is not imported
 on its own.  ``advance`` is compiled without reference counting (it never
 allocates, and the views it gets never outlive the call): with every model
 function inlined into it, one control period is one straight compiled body.
@@ -106,7 +106,7 @@ def rates(s, i_valve, P, ds, bench_supply):
     else:
         for j in range(ds.shape[0]):
             ds[j] = 0.0
-        valve_rates(s, i_valve, bench_supply, 0.0, P, ds)
+        valve_rates(s, coil_current(s, i_valve, P, ds), bench_supply, 0.0, P, ds)
 
 
 @njit(cache=True, inline="always")

@@ -54,6 +54,32 @@ def valve_current(i_cmd: float, p: dict) -> float:
     return i
 
 
+def coil_current(state: dict, i: float, p: dict) -> tuple[float, dict]:
+    """The current the torque motor acts on, and the rates of the coil effects' states (by ``effect.state``)."""
+    rates = {}
+    chain = sorted((n for n in REGISTRY if "coil_current" in REGISTRY[n].terms()),
+                   key=lambda n: (REGISTRY[n].chain_order, n))
+    for name in chain:
+        cls = REGISTRY[name]
+        keys = [f"{name}.{st[0]}" for st in cls.states]
+        rates.update(dict.fromkeys(keys, 0.0))
+        if not p.get(f"{name}.on"):
+            continue
+
+        def value(arg):
+            if arg == "i":
+                return i
+            if f"{name}.{arg}" in state:
+                return state[f"{name}.{arg}"]
+            return p.get(f"{name}.{arg}", p.get(arg))
+
+        if "state_rates" in cls.terms():
+            val = cls.state_rates(**{a: value(a) for a in cls.term_args("state_rates")})
+            rates.update(zip(keys, list(val) if len(keys) > 1 else [val]))
+        i = cls.coil_current(**{a: value(a) for a in cls.term_args("coil_current")})
+    return i, rates
+
+
 def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     """Time derivatives of the named state for the valve current ``i_valve_mA`` (after the current chain)."""
     th, om = state["theta"], state["omega"]
@@ -62,6 +88,8 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     r, A = p["radius"], p["area"]
     half = p["rated_drop"] / 2.0
     d = {}
+    i_valve_mA, coil_rates = coil_current(state, i_valve_mA, p)
+    d.update(coil_rates)
 
     if p.get("valve_model", 0.0) == 1.0:
         # white-box valve (ehas_env.physics.white_box_valve): q_c = K3 x_v, armature states
@@ -119,7 +147,7 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     d["pa"] = p["beta"] / (v0 + A * x) * (q_a - A * xd)
     d["pb"] = p["beta"] / (v0 - A * x) * (q_b + A * xd)
     d["ps"] = sum(v for _, v in _terms("supply_rate", p, ctx))
-    for name in sorted(n for n in REGISTRY if REGISTRY[n].states):
+    for name in sorted(n for n in REGISTRY if REGISTRY[n].states and "coil_current" not in REGISTRY[n].terms()):
         cls = REGISTRY[name]
         keys = [f"{name}.{st[0]}" for st in cls.states]
         rates = [0.0] * len(keys)

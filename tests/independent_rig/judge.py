@@ -40,7 +40,8 @@ LIBRARY_KIND = {
     "hyp_quadratic_drag": {"friction"}, "hyp_crank_unbalance": {"load"}, "hyp_crank_spring": {"load"}, "hyp_supply_line_loss": {"leakage/flow"},
     "hyp_entrained_air": {"fluid property"}, "hyp_dead_volume": {"compliance", "fluid property"},
     "hyp_load_compliance": {"compliance"}, "hyp_valve_underlap": {"valve"}, "hyp_position_offset": {"sensor"},
-    "hyp_position_shape": {"sensor"}, "hyp_lugre_friction": {"friction"},
+    "hyp_position_shape": {"sensor"}, "hyp_lugre_friction": {"friction"}, "hyp_coil_lag": {"command path", "valve"},
+    "hyp_crank_offset": {"geometry/area"},
 }
 
 #: kinds of the proposal's forms, "place.coefficient" (ehas_env/measurement/proposal_terms.py's dictionary as

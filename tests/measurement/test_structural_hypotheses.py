@@ -38,3 +38,30 @@ def test_a_sensor_zero_offset_is_named_on_the_measurement_side():
     res = diagnose_open(_campaign({"hyp_position_offset": {"x0": 2.0}}, seed=42))
     assert res.hypothesis == "hyp_position_offset", (res.kept, res.verdict)
     assert res.model.effects["hyp_position_offset"]["x0"] == pytest.approx(2.0, rel=0.15)
+
+
+@pytest.mark.slow
+def test_a_coil_lag_is_named_not_a_transport_delay_or_a_slower_spool():
+    """A coil lag is mistaken for a transport delay or a slower spool by the library (both lower the residual):
+    fitted in their place (Effect.mistaken_for) it does better on the validation data and replaces them."""
+    res = diagnose_open(_campaign({"hyp_coil_lag": {"T": 5.0}}, seed=43))
+    assert res.hypothesis == "hyp_coil_lag", (res.kept, res.verdict)
+    assert res.model.effects["hyp_coil_lag"]["T"] == pytest.approx(5.0, rel=0.15)
+    assert not {"transport_delay", "valve_dynamics"} & set(res.model.effects)
+    stood_in = [s for s in res.steps if s.effect in ("transport_delay", "valve_dynamics") and not s.kept]
+    assert stood_in and "stands in for hyp_coil_lag" in stood_in[0].reason
+
+
+@pytest.mark.slow
+def test_a_transport_delay_stays_a_transport_delay():
+    """The converse: a delay (the library's effect) is not replaced by the coil lag it could be mistaken for."""
+    res = diagnose_open(_campaign({"transport_delay": {"tau": 0.004}}, seed=44))
+    assert "transport_delay" in res.model.effects and "hyp_coil_lag" not in res.model.effects, res.kept
+    assert res.model.effects["transport_delay"]["tau"] == pytest.approx(0.004, rel=0.15)
+
+
+@pytest.mark.slow
+def test_a_crank_angle_offset_is_named_with_its_angle():
+    res = diagnose_open(_campaign({"hyp_crank_offset": {"phi0": 12.0}}, seed=45))
+    assert res.hypothesis == "hyp_crank_offset", (res.kept, res.verdict)
+    assert res.model.effects["hyp_crank_offset"]["phi0"] == pytest.approx(12.0, rel=0.15)

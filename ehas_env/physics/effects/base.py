@@ -29,6 +29,9 @@ PLACES = {
     "joint_force": ("force the rod-crank joint carries, N (makes piston and crank separate bodies; a constant "
                     "m_min, kg, of the effect is the least piston mass then)"),
     "state_rates": "time derivatives of the effect's own states (tuple, in the order of ``states``)",
+    "coil_current": ("the current the valve's torque motor acts on, mA (gets the current after the current chain "
+                     "as argument i; evaluated inside the right-hand side and on the valve bench, so it may read the "
+                     "effect's own states: a lag of the coil current)"),
     "position_reading": ("the piston position the position sensor (LVDT) reads, m (gets the reading so far as "
                          "argument x; the angle the rig logs and its controller sees is asin(reading / r))"),
 }
@@ -49,6 +52,7 @@ _AT_RATES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "i"
 PLACE_QUANTITIES = {place: frozenset(_AT_RATES) for place in PLACES}
 PLACE_QUANTITIES["valve_current"] = frozenset({"i"})
 PLACE_QUANTITIES["position_reading"] = frozenset({"x"})
+PLACE_QUANTITIES["coil_current"] = frozenset({"i"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
 #: the quantities a valve-side chamber_flows term (``Effect.valve_side``) may take: the valve's own, known
 #: wherever a flow is metered (a run's line A, the valve bench)
@@ -207,6 +211,10 @@ class Effect:
     constants: ClassVar[tuple[Param, ...]] = ()
     #: the effect's own states: (name, unit, initial value in SI)
     states: ClassVar[tuple[tuple[str, str, float], ...]] = ()
+    #: (hypotheses) library effects that fit this hypothesis' residual as well, being another law of the same
+    #: signature (a transport delay for a coil's lag): when the diagnosis keeps one of them, it fits this
+    #: hypothesis in its place and keeps whichever the validation data prefer (the other is named a stand-in)
+    mistaken_for: ClassVar[tuple[str, ...]] = ()
     #: order in the valve-current chain (lower first)
     chain_order: ClassVar[int] = 0
     #: False for terms with no small-signal meaning at rest (sign functions, deadbands, play):
@@ -309,6 +317,12 @@ class Effect:
                 if arg in QUANTITIES and arg not in VALVE_SIDE_QUANTITIES:
                     raise ValueError(f"{who}: valve_side = True, but its chamber_flows term takes '{arg}': a term "
                                      f"at the valve's lands may use {', '.join(VALVE_SIDE_QUANTITIES)} only")
+        if isinstance(cls.mistaken_for, list):
+            cls.mistaken_for = tuple(cls.mistaken_for)
+        if not isinstance(cls.mistaken_for, tuple) or not all(isinstance(n, str) and _NAME.match(n)
+                                                              for n in cls.mistaken_for):
+            raise ValueError(f"{who}: mistaken_for must be a tuple of effect names, e.g. ('transport_delay',), "
+                             f"got {cls.mistaken_for!r}")
         if isinstance(cls.chain_order, bool) or not isinstance(cls.chain_order, int):
             raise ValueError(f"{who}: chain_order must be an integer, got {cls.chain_order!r}")
         for text in ("explanation", "signature", "title"):
@@ -535,7 +549,12 @@ class Effect:
 
         if name in {p.name for p in cls.params + cls.constants}:
             return "param"
-        if name in PLACE_QUANTITIES[place]:
+        available = PLACE_QUANTITIES[place]
+        if place == "state_rates" and "coil_current" in cls.terms():
+            # a coil effect's states move with the current alone: their rates are computed where the coil's
+            # current is, in the right-hand side and on the valve bench (no load there)
+            available = PLACE_QUANTITIES["coil_current"]
+        if name in available:
             return "quantity"
         if name in {st[0] for st in cls.states}:
             return "state"
@@ -544,7 +563,7 @@ class Effect:
         raise ValueError(
             f"{who or f'effect {cls.name!r}'}: argument '{name}' of its term '{place}' is neither one of its "
             f"parameters or constants, nor its own state, nor a model quantity available there "
-            f"({', '.join(sorted(PLACE_QUANTITIES[place]))}), nor a baseline slot")
+            f"({', '.join(sorted(available))}), nor a baseline slot")
 
     @classmethod
     def slot_names(cls) -> list[str]:
