@@ -69,15 +69,26 @@ def project(s, P):
             if s[8] * s[7] > 0.0:
                 s[8] = 0.0
     else:
-        ratio = min(P[I_HALF_STROKE] / r, 1.0)
-        if abs(s[0]) >= ratio:  # asin(x) >= x: only past this can the crank reach a stroke end (saves the asin)
-            th_end = math.asin(ratio)
-            if abs(s[0]) >= th_end:
+        # the stroke ends: the piston r sin(theta) - piston_offset at +-half stroke
+        x_off = P[I_XOFF]
+        hi = min((P[I_HALF_STROKE] + x_off) / r, 1.0)
+        lo = max((x_off - P[I_HALF_STROKE]) / r, -1.0)
+        # asin(y) >= y for y >= 0 (<= y for y <= 0): only past y can the crank reach that end (saves the asin)
+        if s[0] >= (hi if hi >= 0.0 else -2.0):
+            th_end = math.asin(hi)
+            if s[0] >= th_end:
                 hit = True
-                s[0] = math.copysign(th_end, s[0])
-                if s[1] * s[0] > 0.0:
+                s[0] = th_end
+                if s[1] > 0.0:
                     s[1] = 0.0
-        s[7] = r * math.sin(s[0])
+        elif s[0] <= (lo if lo <= 0.0 else 2.0):
+            th_end = math.asin(lo)
+            if s[0] <= th_end:
+                hit = True
+                s[0] = th_end
+                if s[1] < 0.0:
+                    s[1] = 0.0
+        s[7] = r * math.sin(s[0]) - x_off
         s[8] = r * math.cos(s[0]) * s[1]
     return hit
 

@@ -14,7 +14,7 @@ Baseline state vector::
     4 pa      chamber A pressure, Pa
     5 pb      chamber B pressure, Pa
     6 ps      supply pressure, Pa (changes only with a supply effect)
-    7 xp      piston position, m (differs from r sin(theta) only with a rod-joint effect)
+    7 xp      piston position, m (r sin(theta) - piston_offset, but with a rod-joint effect a state of its own)
     8 vp      piston velocity, m/s (integrated only with a rod-joint effect)
     9 theta_a armature (torque-motor) rotation, rad    } white-box valve only
    10 omega_a its rate, rad/s                          }
@@ -67,11 +67,13 @@ BASE_SLOTS = (
     "wb_kjet",  # m, flapper jet negative spring 8 pi Cdf^2 x_f0 (k = kjet Ps)
     "wb_xv_max",  # m, spool stops
     "effects_on",  # 1 when any effect with terms is on (0: the baseline's short path, fewer branches per step)
+    "piston_offset",  # m, the piston sits at r sin(theta) - piston_offset: a crank arm off the perpendicular at
+    # mid-stroke by phi0 gives r sin(phi0) (0 on the book's rig; hyp_crank_offset opens it)
 )
 N_BASE_SLOTS = len(BASE_SLOTS)
 (I_INERTIA, I_RADIUS, I_AREA, I_HALF_STROKE, I_SUPPLY, I_DROP, I_BETA, I_VDEAD, I_K, I_WN, I_ZETA, I_IMAX, I_TAU,
  I_VTANH, I_VALVE_MODEL, I_WB_KT, I_WB_KW, I_WB_KF, I_WB_JA, I_WB_BA, I_WB_R, I_WB_AV, I_WB_K2, I_WB_PREF, I_WB_K3,
- I_WB_XF0, I_WB_KFF, I_WB_BFF, I_WB_AN, I_WB_KJET, I_WB_XVMAX, I_EFFECTS_ON) = range(N_BASE_SLOTS)
+ I_WB_XF0, I_WB_KFF, I_WB_BFF, I_WB_AN, I_WB_KJET, I_WB_XVMAX, I_EFFECTS_ON, I_XOFF) = range(N_BASE_SLOTS)
 WHITE_BOX = 1.0  # valve_model value of the white-box valve
 
 # Output channels written by the simulators (SI).  theta/omega are what the LVDT

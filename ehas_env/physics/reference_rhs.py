@@ -118,7 +118,7 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     if joint:
         x, xd = state["xp"], state["vp"]
     else:
-        x, xd = r * math.sin(th), r * math.cos(th) * om
+        x, xd = r * math.sin(th) - p.get("piston_offset", 0.0), r * math.cos(th) * om
     ctx = {"theta": th, "omega": om, "qc": qc, "qc_dot": qcd, "pa": pa, "pb": pb, "ps": ps, "xp": state["xp"],
            "vp": state["vp"], "i": i_valve_mA, "p_load": pa - pb, "q_a": q_a, "q_b": q_b, "q_supply": q_supply,
            "x": x, "v": xd, **{k: v for k, v in state.items() if "." in k}}
@@ -130,7 +130,7 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     torque = sum(v for _, v in _terms("crank_torque", p, ctx))
 
     if joint:
-        ctx["gap"] = x - r * math.sin(th)
+        ctx["gap"] = x - (r * math.sin(th) - p.get("piston_offset", 0.0))
         ctx["gap_rate"] = xd - r * math.cos(th) * om
         joint_force = sum(v for _, v in _terms("joint_force", p, ctx))
         m_min = max([p[f"{n}.m_min"] for n in REGISTRY if p.get(f"{n}.on") and f"{n}.m_min" in p] or [0.0])

@@ -164,7 +164,7 @@ def required_load(P, s0, theta, omega, alpha, out):
     r, ps = P[I_RADIUS], s0[6]
     for k in range(theta.shape[0]):
         s[0], s[1] = theta[k], omega[k]
-        s[7] = r * math.sin(theta[k])
+        s[7] = r * math.sin(theta[k]) - P[I_XOFF]
         s[8] = r * math.cos(theta[k]) * omega[k]
         s[4], s[5] = 0.5 * ps, 0.5 * ps
         derivatives(s, 0.0, P, ds)

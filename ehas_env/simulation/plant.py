@@ -311,11 +311,12 @@ class Plant:
             for st in REGISTRY[name].states:
                 s[self._model.STATE_NAMES.index(f"{name}.{st[0]}")] = st[2]
         x = self._true_position(self.rig.radius * math.sin(math.radians(theta_deg)))
-        th = math.asin(min(max(x / self.rig.radius, -1.0), 1.0))
+        x_off = self._P[K.I_XOFF]  # the crank's angle offset (hyp_crank_offset): the piston is r sin(theta) - x_off
+        th = math.asin(min(max((x + x_off) / self.rig.radius, -1.0), 1.0))
         s[0] = th
         s[4] = s[5] = 0.5 * self.rig.supply
         s[6] = self.rig.supply
-        s[7] = self.rig.radius * math.sin(th)
+        s[7] = self.rig.radius * math.sin(th) - x_off
         return s
 
     def _true_position(self, reading: float) -> float:

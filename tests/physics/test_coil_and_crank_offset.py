@@ -34,7 +34,7 @@ def _both(plant, ind, st, psi, extra=None):
     s = np.zeros(m.N_STATES)
     s[[0, 1, 2, 3, 4, 5]] = psi, st["omega"], st["qc"], st["qcd"], st["pa"], st["pb"]
     s[6] = plant.rig.supply
-    s[7] = plant.rig.radius * math.sin(psi)
+    s[7] = plant.rig.radius * math.sin(psi) - plant.slots()["piston_offset"]  # the piston (layout.S_XP)
     for name, value in (extra or {}).items():
         s[m.STATE_NAMES.index(name)] = value
     ds = np.zeros(m.N_STATES)
@@ -57,7 +57,7 @@ def test_crank_offset_is_the_independent_rigs_kinematics(phi0_deg):
         out = np.zeros(layout.N_OUT + 4)
         s = plant.initial_state()
         s[0] = st["theta"] + phi0
-        s[7] = plant.rig.radius * math.sin(s[0])
+        s[7] = plant.rig.radius * math.sin(s[0]) - plant.slots()["piston_offset"]
         plant.model.measure(s, plant.param_vector, out)
         y = [st["theta"], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
         assert math.degrees(out[layout.O_THETA]) == pytest.approx(ind.lvdt_angle_deg(y), abs=1e-9)
@@ -95,3 +95,18 @@ def test_coil_lag_on_the_valve_bench_is_the_lagged_second_order_response(t_ms):
     np.testing.assert_allclose(flow, expected, atol=1e-6 * np.abs(expected).max())  # RK4 at 0.1 ms: ~1e-8
     lag_free = Plant().simulate_valve_test(cmd, supply_bar=70.0).flow_lpm
     assert np.abs(lag_free - expected).max() > 0.05 * np.abs(expected).max()  # the lag is what is tested
+
+
+@pytest.mark.parametrize("current", [6.0, -6.0])
+def test_crank_offset_stroke_ends_are_where_the_piston_is_at_half_stroke(current):
+    """Driven into an end stop, the piston (what the LVDT reads) stops at +-half stroke on both sides, and the
+    crank at asin((+-h + r sin phi0) / r) from the perpendicular: the ends lie at unequal crank angles."""
+    phi0 = 10.0
+    plant = Plant(1, effects={"hyp_crank_offset": {"phi0": phi0}})
+    r = plant.simulate(np.full(1500, current))
+    h, rad = plant.rig.half_stroke, plant.rig.radius
+    sign = math.copysign(1.0, current)
+    assert r.stroke_end[-1]
+    assert math.radians(r.theta_deg[-1]) == pytest.approx(math.asin(sign * h / rad), abs=1e-9)
+    crank = math.asin((sign * h + rad * math.sin(math.radians(phi0))) / rad)
+    assert math.radians(r.theta_crank_deg[-1]) == pytest.approx(crank, abs=1e-9)
