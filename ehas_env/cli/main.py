@@ -216,7 +216,9 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``ehas`` parser; with ``command`` only that command's options are built (its module alone is
+    imported: every command's start skips the others' imports), otherwise every command's."""
     parser = Parser(
         prog="ehas",
         description="Electro-hydraulic actuation systems toolkit.",
@@ -228,6 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     for name, (module_name, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(_module=module_name)
+        if command is not None and name != command:
+            continue  # not the command being run: its name and help line are enough
         module = _load(module_name)
         if module is not None:
             module.add_arguments(p)
@@ -337,7 +341,9 @@ def _catch_sigterm():
 def _main(argv, program: bool = False) -> int:
     if program:
         _Stop.name = _command_name()
-    parser = build_parser()
+    words = sys.argv[1:] if argv is None else list(argv)
+    first = next((w for w in words if not w.startswith("-")), None)
+    parser = build_parser(first if first in COMMANDS else None)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse's usage error (status 2) or --help/--version (0): a status, not an exit

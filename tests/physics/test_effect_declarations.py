@@ -170,3 +170,20 @@ def test_an_argument_that_names_nothing_is_refused_where_the_compiler_would():
             "argument 'vv' of its term 'piston_force' is neither one of its parameters", "nor a baseline slot")
     cls = REGISTRY["coulomb_friction"]
     assert [cls.arg_kind(a, "piston_force") for a in ("Fc", "v", "v_tanh")] == ["param", "quantity", "slot"]
+
+
+def test_a_coil_effects_state_moves_with_the_current_alone():
+    """A coil_current effect's states are integrated where the coil's current is, on the valve bench too (no
+    load there): its state_rates may take the current, not the load's quantities."""
+    def rates(i, z, p_load, k):
+        return i - z + 0.0 * p_load
+
+    refused(lambda: define(states=(("z", "mA", 0.0),), body={"state_rates": staticmethod(rates),
+                                                            "coil_current": staticmethod(lambda z: z)}),
+            "argument 'p_load' of its term 'state_rates'", "available there (i)")
+    assert REGISTRY["hyp_coil_lag"].arg_kind("i", "state_rates") == "quantity"
+
+
+@pytest.mark.parametrize("value", ["transport_delay", ("transport delay",), (3,)])
+def test_mistaken_for_names_effects(value):
+    refused(lambda: define(mistaken_for=value), "mistaken_for must be a tuple of effect names")
