@@ -17,7 +17,7 @@ Checkpoints: each finished case is ``OUT/cases/ID.json``; a rerun skips those
 copied into ``OUT/effects/``.
 
     python -m tests.independent_rig.acceptance --out results/diagnosis_open_world [--quick]
-        [--groups clean,library,ool,pairs,timing] [--only ID[,ID]] [--limit N] [--readme-only]
+        [--groups clean,library,ool,pairs,timing] [--only ID[,ID]] [--limit N] [--reverse] [--readme-only]
 """
 from __future__ import annotations
 
@@ -454,6 +454,9 @@ def main(argv=None) -> int:
     ap.add_argument("--groups", default="clean,library,ool,pairs,timing")
     ap.add_argument("--only", default="", help="case ids, comma-separated")
     ap.add_argument("--limit", type=int, default=0, help="run at most this many new cases")
+    ap.add_argument("--reverse", action="store_true",
+                    help="run the cases last first (a second process on the same --out meets the first in the middle: "
+                         "each skips what the other has finished)")
     ap.add_argument("--timing-repeats", type=int, default=3)
     ap.add_argument("--readme-only", action="store_true", help="rewrite README.md and results.json from cases/")
     ap.add_argument("--redo", action="store_true", help="rerun cases already checkpointed")
@@ -470,6 +473,8 @@ def main(argv=None) -> int:
     done_files = {p.stem: p for p in (out / "cases").glob("*.json")}
     done = [json.loads(p.read_text()) for p in done_files.values()]
     todo = [] if a.readme_only else [c for c in cases if a.redo or c["id"] not in done_files]
+    if a.reverse:  # a second process on the same OUT takes the cases from the other end
+        todo = todo[::-1]
     if a.limit:
         todo = todo[:a.limit]
     est = estimate(todo, done)
@@ -480,6 +485,9 @@ def main(argv=None) -> int:
     t_start = time.time()
     try:
         for n, c in enumerate(todo, 1):
+            if not a.redo and (out / "cases" / f"{c['id']}.json").exists():  # another process on OUT did it
+                print(f"[acceptance] {n}/{len(todo)} {c['id']}: done meanwhile, skipped", flush=True)
+                continue
             print(f"[acceptance] {n}/{len(todo)} {c['id']} (rig {c['rig']}, {c['duration']:g} s runs) ...", flush=True)
             rec = run_case(c, work, out, caps, cold_cache=c["group"] == "timing")
             rec["ehas_commit"] = _commit()
