@@ -329,9 +329,7 @@ def run(args) -> int:
         est = ID.tfest(data, n_poles=args.poles, n_zeros=args.zeros, intersample=args.intersample,
                        initial_state=args.initial_state, offsets=args.offsets, delay=args.delay,
                        max_delay_s=args.max_delay)
-        poles = np.roots(est.den)
-        if not (np.isfinite(est.fit_percent) and est.fit_percent > -100.0 and np.all(np.isfinite(est.y_sim))
-                and np.all(np.real(poles) <= 1e-6 * np.maximum(np.abs(poles), 1.0))):
+        if not est.usable():
             # too many poles and zeros for what the run holds: the fit ends at an unstable or diverging model
             raise ValueError(f"--poles {args.poles} --zeros {args.zeros}: the fit to {args.run} ends at an unstable "
                              "model (more poles and zeros than the run determines); give fewer")

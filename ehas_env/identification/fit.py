@@ -508,6 +508,18 @@ class TFEstimate:
     def zeros(self) -> np.ndarray:
         return np.roots(self.num) if self.num.size > 1 else np.zeros(0)
 
+    def usable(self) -> bool:
+        """False when the fit ended at an unstable or diverging model (more poles and zeros than the record
+        determines): a pole in the right half-plane, or a non-finite simulation or fit.
+
+        Returns
+        -------
+        bool
+        """
+        poles = self.poles()
+        return bool(np.isfinite(self.fit_percent) and self.fit_percent > -100.0 and np.all(np.isfinite(self.y_sim))
+                    and np.all(np.real(poles) <= 1e-6 * np.maximum(np.abs(poles), 1.0)))
+
     def second_order(self) -> dict | None:
         """K (DC gain), wn, zeta of a 2-pole model; None otherwise."""
         if self.n_poles != 2:

@@ -14,7 +14,10 @@
   ``BIC = N ln V + p ln N + N (ln 2 pi + 1)``,
   ``FPE = V (1 + p/N) / (1 - p/N)`` (MATLAB's definitions);
 * the structure chosen is the one of the **lowest BIC on the validation
-  data** (rule :data:`RULE`);
+  data** (rule :data:`RULE`) among the usable ones: a fit that ends at an
+  unstable model or a diverging simulation (more poles and zeros than the
+  record determines, :meth:`~ehas_env.identification.fit.TFEstimate.usable`)
+  is listed, marked "(unstable)", and never chosen;
 * discrete-time black-box structures (ARX, ARMAX, OE, BJ, N4SID state
   space, :mod:`ehas_env.identification.pem`) can stand beside the transfer
   functions (``black_box=``), fitted on the same estimation part and scored
@@ -170,6 +173,8 @@ class OrderRow:
     est: object = field(repr=False, default=None)
     y_val: np.ndarray = field(repr=False, default=None)
     structure: str = "tf"
+    #: the model is stable and its simulations finite (an unusable row is listed, never chosen)
+    usable: bool = True
 
     @property
     def label(self) -> str:
@@ -177,10 +182,10 @@ class OrderRow:
 
     def to_json_dict(self) -> dict:
         if self.structure != "tf":
-            return {"structure": self.structure, "label": self.label, "parameters": self.p,
+            return {"structure": self.structure, "label": self.label, "parameters": self.p, "usable": self.usable,
                     "model": self.est.to_json_dict(), "estimation": self.estimation, "validation": self.validation}
         return {"structure": "tf", "label": self.label, "poles": self.poles, "zeros": self.zeros,
-                "parameters": self.p, "num": [float(v) for v in self.est.num],
+                "parameters": self.p, "usable": self.usable, "num": [float(v) for v in self.est.num],
                 "den": [float(v) for v in self.est.den], "delay_s": float(self.est.delay_s),
                 "estimation": self.estimation, "validation": self.validation}
 
@@ -212,7 +217,8 @@ class OrderTable:
         lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for r in self.rows:
             e, v = r.estimation, r.validation
-            cells = [r.label + (" **chosen**" if r is self.chosen else ""), str(r.p), f"{e['fit_percent']:.2f}",
+            cells = [r.label + (" **chosen**" if r is self.chosen else "") + ("" if r.usable else " (unstable)"),
+                     str(r.p), f"{e['fit_percent']:.2f}",
                      f"{v['fit_percent']:.2f}"] + ([f"{v['predict_fit_percent']:.2f}"] if pk else []) + \
                 [f"{e['AIC']:.1f}", f"{e['BIC']:.1f}", f"{e['FPE']:.4g}", f"{v['AIC']:.1f}", f"{v['BIC']:.1f}",
                  f"{v['FPE']:.4g}"]
@@ -277,7 +283,28 @@ def _black_box_row(structure, n, nk, est_data, data, validation, k0, offsets, pr
         e_crit["predict_fit_percent"] = float(fit_percent(
             est_data.y, m.predict(est_data.u - u0, est_data.y - y0, predict_k) + y0))
     return OrderRow(poles=n, zeros=0, p=p, estimation=e_crit, validation=v_crit, est=m, y_val=y_val,
-                    structure=structure)
+                    structure=structure, usable=bool(np.all(np.isfinite(y_val)) and np.isfinite(v_crit["BIC"])))
+
+
+def choose(rows: list) -> OrderRow:
+    """The row of the lowest validation BIC among the usable ones (all rows when none is usable).
+
+    Parameters
+    ----------
+    rows : list of OrderRow
+
+    Returns
+    -------
+    OrderRow
+
+    Examples
+    --------
+    >>> a = OrderRow(2, 0, 3, {}, {"BIC": 10.0})
+    >>> b = OrderRow(3, 2, 6, {}, {"BIC": 5.0}, usable=False)
+    >>> choose([a, b]) is a
+    True
+    """
+    return min([r for r in rows if r.usable] or rows, key=lambda r: r.validation["BIC"])
 
 
 def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay=0.0, offsets: str = "none",
@@ -344,11 +371,12 @@ def order_table(data, poles, *, validation=None, intersample: str = "zoh", delay
                     yp = y_val + predict_residual(val_y - y_val, c, predict_k)
                 v_crit["predict_fit_percent"] = float(fit_percent(val_y, yp))
                 e_crit["predict_fit_percent"] = float(fit_percent(est_data.y, predict(est, predict_k, ar=c)))
-            rows.append(OrderRow(poles=n, zeros=m, p=p, estimation=e_crit, validation=v_crit, est=est, y_val=y_val))
+            rows.append(OrderRow(poles=n, zeros=m, p=p, estimation=e_crit, validation=v_crit, est=est, y_val=y_val,
+                                 usable=est.usable() and bool(np.all(np.isfinite(y_val)))))
         for structure in black_box:
             rows.append(_black_box_row(structure, n, nk, est_data, data, validation, k0, offsets, predict_k, val_y))
     if not rows:
         raise ValueError("order_table: no structure to compare (tf=False and no black_box)")
-    chosen = min(rows, key=lambda r: r.validation["BIC"])
+    chosen = choose(rows)
     return OrderTable(rows=rows, chosen=chosen, validation_source=val_src, n_estimation=est_data.n,
                       n_validation=int(np.size(val_y)), predict_k=predict_k)

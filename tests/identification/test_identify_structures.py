@@ -168,3 +168,21 @@ def test_inconsistent_structure_options_are_one_line(argv, words, small_run, cap
     monkeypatch.chdir(tmp_path)
     rc, err = _one_line(["identify", small_run, *argv, "--no-plots"], capsys)
     assert rc == 2 and len(err) == 1 and words in err[0], err
+
+
+def test_a_fit_that_ends_unstable_is_not_usable():
+    """TFEstimate.usable: a right-half-plane pole (or a diverging simulation) is refused where a model is chosen
+    (ehas identify, the order table); the same record with a stable model is usable."""
+    from ehas_env.identification.fit import IdData, TFEstimate
+
+    t = np.arange(200) * 1e-3
+    data = IdData(t=t, u=np.ones_like(t), y=np.zeros_like(t), dt=1e-3)
+    den_ok, den_bad = np.array([1.0, 3.0, 2.0]), np.array([1.0, -1.0, 2.0])  # poles -1, -2 / 0.5 +- 1.32j
+
+    def est(den, y_sim):
+        return TFEstimate(tf=control.tf([1.0], den), num=np.array([1.0]), den=den, n_poles=2, n_zeros=0,
+                          fit_percent=50.0, data=data, y_sim=y_sim, intersample="zoh", x0=np.zeros(2))
+
+    assert est(den_ok, np.zeros_like(t)).usable()
+    assert not est(den_bad, np.zeros_like(t)).usable()
+    assert not est(den_ok, np.full_like(t, np.inf)).usable()
