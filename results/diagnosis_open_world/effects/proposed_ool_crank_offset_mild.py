@@ -1,40 +1,46 @@
-"""proposed_ool_crank_offset_mild: zero offset of the position sensor (LVDT), found by ehas diagnose on /tmp/ow_final_work/ool_crank_offset_mild/campaign.
+"""proposed_ool_crank_offset_mild: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ow2/work/ool_crank_offset_mild/campaign.
 
-The position sensor reads -3.42 mm at the piston's true mid-stroke (a zero offset of the LVDT).
-x0 = -3.423 mm (95 % CI -3.486 to -3.359)
-Residual against what does not repeat: 2.61x -> 1.08x.
+The crank arm stands +4.01 deg off the perpendicular at the piston's mid-stroke (its lever is r cos(theta +4.01 deg)).
+phi0 = 4.012 deg (95 % CI 3.958 to 4.067)
+Residual against what does not repeat: 2.61x -> 1.04x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
+import math
+
 from ehas_env.physics.effects import Effect, Param
 
 
 class ProposedOolCrankOffsetMild(Effect):
     name = "proposed_ool_crank_offset_mild"
-    title = "zero offset of the position sensor (LVDT)"
+    title = "angle offset of the crank: the rod pin is off the perpendicular at mid-stroke"
     params = (
-        Param("x0", "mm", -3.42258, (-10.0, 10.0),
-              "what the LVDT reads when the piston is at mid-stroke (a zero set wrongly, a shifted mounting, "
-              "electronics' offset; assumed range: up to 10 mm either way)", typical=(1.71129, 6.84517), si=1.0e-3),
+        Param("phi0", "deg", 4.01236, (-25.0, 25.0),
+              "angle of the crank arm from the perpendicular to the piston's axis when the piston is at "
+              "mid-stroke (an arm clamped at an angle, a keyway cut off its mark; assumed range: up to 25 deg)",
+              typical=(2.00618, 8.02472)),
     )
-    main_param = "x0"
+    main_param = "phi0"
     explanation = (
-        "The rig's angle is computed from the LVDT's reading of the piston, and its controller closes the loop "
-        "on it. A sensor that reads x + x0 makes the rig track the reference with the piston displaced by -x0: "
-        "the logged angle follows the reference as before, but the chambers work about a shifted mid-stroke, "
-        "and the current and pressures show it."
+        "The baseline's crank is square to the piston at mid-stroke: x = r sin(theta). An arm fixed at an "
+        "angle phi0 off that gives x = r (sin(theta + phi0) - sin(phi0)) with theta from mid-stroke: the lever "
+        "r cos(theta + phi0) is longer on one side of the stroke than on the other, the stroke ends lie at "
+        "different crank angles, and the angle the rig logs, asin(x / r) from the LVDT, is not the crank's. "
+        "The model's crank angle is then measured from the perpendicular, and the piston sits at "
+        "r sin(theta) - r sin(phi0) (the baseline slot piston_offset; Merritt sec. 6.4, load kinematics)."
     )
     signature = (
-        "pressure residuals of opposite sign in the two chambers, nearly constant over each run (a shifted "
-        "chamber volume); a small constant current residual; the logged angle's residual small and largest "
-        "near the stroke ends."
+        "a load-pressure residual that grows toward one end of the stroke and shrinks toward the other (the "
+        "lever's asymmetry); pressure residuals of opposite sign in the two chambers; at large amplitude a "
+        "stroke end reached on one side only; a sensor offset and a dead-volume shift fitted to it each "
+        "explain a part, differently on small and large amplitudes."
     )
 
     @classmethod
     def in_words(cls, params: dict) -> str:
         """The fitted hypothesis in words."""
-        return (f"the position sensor reads {params['x0']:+.3g} mm at the piston's true mid-stroke (a zero "
-                f"offset of the LVDT)")
+        return (f"the crank arm stands {params['phi0']:+.3g} deg off the perpendicular at the piston's "
+                f"mid-stroke (its lever is r cos(theta {params['phi0']:+.3g} deg))")
 
-    @staticmethod
-    def position_reading(x, x0):
-        return x + x0
+    @classmethod
+    def apply(cls, values, slots):
+        slots["piston_offset"] = slots["radius"] * math.sin(math.radians(values["phi0"]))

@@ -1,8 +1,8 @@
-"""proposed_pair_crank_offset_supply_line_loss: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/snapA/work/pair_crank_offset+supply_line_loss/campaign.
+"""proposed_pair_crank_offset_supply_line_loss: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/ow2/work/pair_crank_offset+supply_line_loss/campaign.
 
 The supply line loses 12.5 bar at 25 LPM before the valve (growing with the square of the flow).
-dp_25 = 12.5 bar (95 % CI 12.46 to 12.54)
-Residual against what does not repeat: 5.89x -> 1.1x.
+dp_25 = 12.5 bar (95 % CI 12.47 to 12.53)
+Residual against what does not repeat: 5.89x -> 1.06x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math
@@ -15,10 +15,10 @@ class ProposedPairCrankOffsetSupplyLineLoss(Effect):
     title = "pressure loss in the supply line between the regulated supply and the valve"
     valve_side = True  # flow through the metering lands: a meter in line A (and the bench's) reads it
     params = (
-        Param("dp_25", "bar", 12.5009, (0.0, 150.0),
+        Param("dp_25", "bar", 12.501, (0.0, 150.0),
               "pressure lost between the supply's gauge and the valve's pressure port at 25 LPM (a long or thin "
               "hose, a filter, a check valve; assumed range: up to the supply itself)",
-              typical=(6.25047, 25.0019), log_scale=True, si=1.0e5),
+              typical=(6.25049, 25.002), log_scale=True, si=1.0e5),
     )
     main_param = "dp_25"
     explanation = (

@@ -1,4 +1,4 @@
-"""proposed_pair_current_lag_turbulent_leakage: a term proposed by ehas diagnose for /tmp/snapA/work/pair_current_lag+turbulent_leakage/campaign.
+"""proposed_pair_current_lag_turbulent_leakage: a term proposed by ehas diagnose for /tmp/ow2/work/pair_current_lag+turbulent_leakage/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_int·(-(p_A - p_B), +(p_A - p_B))   with c_int = 7.998e-13 m^3/s/Pa (95 % CI 6.645e-13 to 9.352e-13)
 
