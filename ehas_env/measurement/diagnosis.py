@@ -544,14 +544,16 @@ def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cu
 
 
 def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held: list, kept: tuple, null: Fit, prev_val,
-                      base: dict, hyps: list, step: "Step", steps: list, say) -> tuple:
+                      base: dict, hyps: list, step: "Step", steps: list, say, lost: list | None = None) -> tuple:
     """A library effect was kept (``kept``: effect, Fit, simulation of every run, validation cost, on top of
     ``base`` whose fit is ``null`` and validation cost ``prev_val``): each structural hypothesis that declares it
     may be mistaken for that effect (``Effect.mistaken_for``) is fitted in its place.  The best one that is
     sane, fits the same on separate groups of runs (:func:`stands_in`) and removes :data:`RIVAL_SHARE` of what
     the effect leaves of the validation residual above the noise (1 noise variance) replaces it (the effect's ``step`` says
-    it stood in for the hypothesis).  Without validation data the fit's cost is compared.  Returns what is
-    kept, as ``kept``."""
+    it stood in for the hypothesis).  Without validation data the fit's cost is compared.  A sane rival that
+    lost on the validation data alone is appended to ``lost`` as (effect, hypothesis): another effect the
+    campaign still misses may be what made it lose (:func:`diagnose_open` tries it again later).  Returns what
+    is kept, as ``kept``."""
     effect, f, sims, val = kept
     rivals = [h for h in hyps if effect in get_effect(h).mistaken_for and h not in base]
     if not rivals:
@@ -576,6 +578,8 @@ def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held: list, ke
                    f"({score:.4g} vs {own:.4g} noise variances; {need:.4g} needed)")
         if why is None:
             why = stands_in(rep, g, h)
+        elif lost is not None and why.startswith("does not do better"):
+            lost.append((effect, h))
         words = get_effect(h).in_words(g.model.effects[h]) + "; "
         fval = (full.fit_table([x if i in held_idx else None for i, x in enumerate(gs)]).overall
                 if held_idx else None)
@@ -869,6 +873,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     hyps = [h for h in hypothesis_effects() if h not in base and (candidates is None or h not in candidates)]
     pool = candidates
     structural = False
+    lost_rivals = []  # (library effect kept, hypothesis that lost to it on the validation data alone)
+    swap = None  # the state before a lost rival was put in its effect's place (the branch's way back)
     quiet = False  # the structural hypotheses are tried on a campaign the library explains (a structured rest)
     before_hyp = None
     while len(rounds) < MAX_ROUNDS:
@@ -932,7 +938,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                 kept = (effect, f, sims, val)
                 if hypotheses and get_effect(effect).kind != "hypothesis":
                     kept = _rival_hypotheses(rep, full, parts, held, kept, d.null, cur_val, base, hyps, step,
-                                             steps, say)
+                                             steps, say, lost_rivals)
                 break
         if kept is not None:
             effect, f, sims, val = kept
@@ -949,6 +955,25 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         if kept is not None and stack:
             continue
         g = grade(blocks_of(full, cur_sims, COST_SIGNALS))
+        if structural and kept is None and swap is None and g["verdict"] != "explained":
+            # nothing more found: a hypothesis that lost to a kept library effect may have lost because of what
+            # the campaign still misses; put it in the effect's place and search again on top of it (the
+            # branch is kept only when it ends better on the validation data)
+            pending = [(e, h) for e, h in lost_rivals if e in base and h not in base]
+            if pending:
+                e_lib, h = pending[0]
+                swap = (e_lib, h, current, cur_sims, cur_val, {k: dict(v) for k, v in base.items()}, len(steps))
+                rest = {k: dict(v) for k, v in base.items() if k != e_lib}
+                f = fit_candidate(rep, h, fit_null(rep, rest), rest)
+                sims = full.simulate(f.model)
+                val = _parts_cost(full, sims, parts)
+                steps.append(Step(h, True, get_effect(h).in_words(f.model.effects[h]) + f"; put in place of {e_lib} "
+                                  "to search again on top of it", f, f.cost, val, None))
+                say(f"  {h}: put in place of {e_lib}, searching the hypotheses again on top of it")
+                current, cur_sims, cur_val = f, sims, val
+                base = {k: dict(v) for k, v in f.model.effects.items()}
+                pool = [n for n in hyps if n != h]
+                continue
         if structural or not hypotheses or not hyps or \
                 (g["verdict"] == "explained" and g["residual_x_noise"] <= QUIET_HYPOTHESES_X):
             break
@@ -958,6 +983,27 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             "trying the structural hypotheses" if quiet else
             "the library leaves the campaign unexplained: trying the structural hypotheses")
         structural, pool = True, hyps
+    if swap is not None:
+        e_lib, h, s_cur, s_sims, s_val, s_base, n_steps = swap
+        now, was = (cur_val, s_val) if cur_val is not None and s_val is not None else (current.cost, s_cur.cost)
+        better = now < was * (1.0 - VAL_GAIN)
+        if better:
+            for st in steps[:n_steps]:
+                if st.effect == e_lib and st.kept:
+                    st.kept = False
+                    st.reason = (f"stands in for {h} ({get_effect(h).title}): with {h} in its place the search "
+                                 f"found more, and the residual fell to {now:.4g} noise variances "
+                                 f"(with {e_lib}: {was:.4g})")
+            say(f"  {e_lib}: dropped (stands in for {h}: the search on top of {h} ends better on the validation data)")
+        else:  # back to the model before the branch, the branch's steps said as tried
+            tried = steps[n_steps:]
+            steps[n_steps:] = [Step(h, False, f"tried in place of {e_lib} with the hypotheses searched again on top "
+                                    f"of it ({', '.join(st.effect for st in tried[1:] if st.kept) or 'nothing kept'}"
+                                    f"): the residual {now:.4g} noise variances, not better than "
+                                    f"{was:.4g} with {e_lib}", tried[0].fit, tried[0].cost_train,
+                                    tried[0].cost_val, None)]
+            say(f"  {h} in place of {e_lib}: not better on the validation data; {e_lib} stays")
+            current, cur_sims, cur_val, base = s_cur, s_sims, s_val, s_base
     # the final model on all data
     final = current
     sims_all = cur_sims
