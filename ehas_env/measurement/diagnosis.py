@@ -564,11 +564,7 @@ def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held: list, ke
     best = None
     for h in rivals:
         say(f"  {h}: fitted in place of {effect} (it may be mistaken for it)")
-        g = fit_candidate(rep, h, null, base)
-        why = sanity(g, h)
-        if why and "end of its range" in why:
-            g = _widen(rep, g, h)
-            why = sanity(g, h)
+        g, why = _sane(rep, fit_candidate(rep, h, null, base), h)
         gs = full.simulate(g.model)
         gval = _parts_cost(full, gs, parts)
         score = gval if on_val else g.cost
@@ -626,6 +622,16 @@ def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
                 ests.setdefault(fp.name, []).append((v, ci[(fp.effect, fp.name)], fp.end(v) is not None))
     ok, why = agree(ests)
     return None if ok else why
+
+
+def _sane(rep: Replayer, f: Fit, effect: str) -> tuple[Fit, str | None]:
+    """The fit of ``effect`` and why it is not sane (None when it is): :func:`sanity`, after refitting with a
+    range it ran into widened (:func:`_widen`)."""
+    why = sanity(f, effect)
+    if why and "end of its range" in why:
+        f = _widen(rep, f, effect)
+        why = sanity(f, effect)
+    return f, why
 
 
 def _widen(rep: Replayer, f: Fit, effect: str) -> Fit:
@@ -903,10 +909,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             if effect in judged:
                 continue
             judged.add(effect)
-            why = sanity(f, effect)
-            if why and "end of its range" in why:
-                f = _widen(rep, f, effect)
-                why = sanity(f, effect)
+            f, why = _sane(rep, f, effect)
             sims = full.simulate(f.model)
             val = _parts_cost(full, sims, parts)
             held_idx = [i for i, c in enumerate(full.cases) if c.run.name in held]

@@ -258,13 +258,7 @@ class ModelSource:
                 a(f"    ds[{k}] = 0.0")
             a(f"    if P[I_EFFECTS_ON] != 0.0 and {self._on(cls)}:")
             if "state_rates" in cls.terms():
-                call = self._call(cls, "state_rates")
-                if len(ks) == 1:
-                    a(f"        ds[{ks[0]}] = {call}")
-                else:
-                    a(f"        _r = {call}")
-                    for j, k in enumerate(ks):
-                        a(f"        ds[{k}] = _r[{j}]")
+                L.extend(self._state_rates(cls, ks))
             a(f"        i = {self._call(cls, 'coil_current')}")
         a("    return i")
         a("")
@@ -384,15 +378,16 @@ class ModelSource:
                 a(f"    ds[{k}] = 0.0")
             if "state_rates" in cls.terms():
                 a(f"    if {self._on(cls)}:")
-                call = self._call(cls, "state_rates")
-                if len(ks) == 1:
-                    a(f"        ds[{ks[0]}] = {call}")
-                else:
-                    a(f"        _r = {call}")
-                    for j, k in enumerate(ks):
-                        a(f"        ds[{k}] = _r[{j}]")
+                L.extend(self._state_rates(cls, ks))
         a("")
         return "\n".join(L) + "\n"
+
+    def _state_rates(self, cls, ks: list) -> list:
+        """Lines (inside an ``if`` of the effect's on-flag) writing the rates of ``cls``'s states ``ks`` into ds."""
+        call = self._call(cls, "state_rates")
+        if len(ks) == 1:
+            return [f"        ds[{ks[0]}] = {call}"]
+        return [f"        _r = {call}"] + [f"        ds[{k}] = _r[{j}]" for j, k in enumerate(ks)]
 
 
 def build_model(effects=None, laws=(), inline: bool = True):
