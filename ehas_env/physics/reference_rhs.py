@@ -20,63 +20,57 @@ def _root(dp: float, half_drop: float) -> float:
     return math.copysign(math.sqrt(abs(dp) / half_drop), dp)
 
 
+def _term(name: str, place: str, p: dict, ctx: dict):
+    """The value of effect ``name``'s term at ``place``: each argument one of its parameters or constants (from
+    ``p``), a quantity or its own state (from ``ctx``), or a baseline slot (from ``p``)."""
+    cls = REGISTRY[name]
+    own = {q.name for q in cls.params + cls.constants}
+    kwargs = {}
+    for arg in cls.term_args(place):
+        if arg in own:
+            kwargs[arg] = p[f"{name}.{arg}"]
+        elif arg in ctx:
+            kwargs[arg] = ctx[arg]
+        elif f"{name}.{arg}" in ctx:
+            kwargs[arg] = ctx[f"{name}.{arg}"]
+        else:
+            kwargs[arg] = p[arg]
+    return getattr(cls, place)(**kwargs)
+
+
 def _terms(place: str, p: dict, ctx: dict) -> list:
     """Values of the terms at ``place`` of every effect that is on, in name order."""
-    out = []
-    for name in sorted(n for n in REGISTRY if p.get(f"{n}.on")):
-        cls = REGISTRY[name]
-        if place not in cls.terms():
-            continue
-        own = {q.name for q in cls.params + cls.constants}
-        kwargs = {}
-        for arg in cls.term_args(place):
-            if arg in own:
-                kwargs[arg] = p[f"{name}.{arg}"]
-            elif arg in ctx:
-                kwargs[arg] = ctx[arg]
-            elif f"{name}.{arg}" in ctx:
-                kwargs[arg] = ctx[f"{name}.{arg}"]
-            else:
-                kwargs[arg] = p[arg]
-        out.append((name, getattr(cls, place)(**kwargs)))
-    return out
+    return [(name, _term(name, place, p, ctx)) for name in sorted(n for n in REGISTRY if p.get(f"{n}.on"))
+            if place in REGISTRY[name].terms()]
+
+
+def _chain(place: str, p: dict, on_only: bool = True) -> list:
+    """Names of the effects with a term at ``place`` (those on, or all), in chain order."""
+    return sorted((n for n in REGISTRY if (p.get(f"{n}.on") or not on_only) and place in REGISTRY[n].terms()),
+                  key=lambda n: (REGISTRY[n].chain_order, n))
 
 
 def valve_current(i_cmd: float, p: dict) -> float:
     """Amplifier clip, then the effects of the current chain in their order."""
     i = min(max(i_cmd, -p["i_max"]), p["i_max"])
-    chain = sorted((n for n in REGISTRY if p.get(f"{n}.on") and "valve_current" in REGISTRY[n].terms()),
-                   key=lambda n: (REGISTRY[n].chain_order, n))
-    for name in chain:
-        cls = REGISTRY[name]
-        kwargs = {a: (i if a == "i" else p.get(f"{name}.{a}", p.get(a))) for a in cls.term_args("valve_current")}
-        i = cls.valve_current(**kwargs)
+    for name in _chain("valve_current", p):
+        i = _term(name, "valve_current", p, {"i": i})
     return i
 
 
 def coil_current(state: dict, i: float, p: dict) -> tuple[float, dict]:
     """The current the torque motor acts on, and the rates of the coil effects' states (by ``effect.state``)."""
     rates = {}
-    chain = sorted((n for n in REGISTRY if "coil_current" in REGISTRY[n].terms()),
-                   key=lambda n: (REGISTRY[n].chain_order, n))
-    for name in chain:
-        cls = REGISTRY[name]
-        keys = [f"{name}.{st[0]}" for st in cls.states]
+    for name in _chain("coil_current", p, on_only=False):
+        keys = [f"{name}.{st[0]}" for st in REGISTRY[name].states]
         rates.update(dict.fromkeys(keys, 0.0))
         if not p.get(f"{name}.on"):
             continue
-
-        def value(arg):
-            if arg == "i":
-                return i
-            if f"{name}.{arg}" in state:
-                return state[f"{name}.{arg}"]
-            return p.get(f"{name}.{arg}", p.get(arg))
-
-        if "state_rates" in cls.terms():
-            val = cls.state_rates(**{a: value(a) for a in cls.term_args("state_rates")})
+        ctx = {**state, "i": i}
+        if "state_rates" in REGISTRY[name].terms():
+            val = _term(name, "state_rates", p, ctx)
             rates.update(zip(keys, list(val) if len(keys) > 1 else [val]))
-        i = cls.coil_current(**{a: value(a) for a in cls.term_args("coil_current")})
+        i = _term(name, "coil_current", p, ctx)
     return i, rates
 
 
@@ -152,7 +146,7 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
         keys = [f"{name}.{st[0]}" for st in cls.states]
         rates = [0.0] * len(keys)
         if p.get(f"{name}.on") and "state_rates" in cls.terms():
-            val = dict(_terms("state_rates", {**p, **{f"{n}.on": 0.0 for n in REGISTRY if n != name}}, ctx))[name]
+            val = _term(name, "state_rates", p, ctx)
             rates = list(val) if len(keys) > 1 else [val]
         d.update(zip(keys, rates))
     return d
