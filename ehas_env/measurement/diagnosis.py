@@ -543,7 +543,18 @@ def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cu
     return current, sims, cur_val
 
 
-def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held: list, kept: tuple, null: Fit, prev_val,
+def _held_table(full: Replayer, sims: list, held_idx: list):
+    """The fit table of ``sims`` on the held-out runs (indices ``held_idx``), or None when none is held out."""
+    return full.fit_table([x if i in held_idx else None for i, x in enumerate(sims)]) if held_idx else None
+
+
+def _held_fit(full: Replayer, sims: list, held_idx: list) -> float | None:
+    """Overall fit % of ``sims`` on the held-out runs, or None when none is held out."""
+    t = _held_table(full, sims, held_idx)
+    return None if t is None else t.overall
+
+
+def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list, kept: tuple, null: Fit, prev_val,
                       base: dict, hyps: list, step: "Step", steps: list, say, lost: list | None = None) -> tuple:
     """A library effect was kept (``kept``: effect, Fit, simulation of every run, validation cost, on top of
     ``base`` whose fit is ``null`` and validation cost ``prev_val``): each structural hypothesis that declares it
@@ -558,7 +569,6 @@ def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held: list, ke
     rivals = [h for h in hyps if effect in get_effect(h).mistaken_for and h not in base]
     if not rivals:
         return kept
-    held_idx = [i for i, c in enumerate(full.cases) if c.run.name in held]
     on_val = val is not None and prev_val is not None
     own = val if on_val else f.cost
     best = None
@@ -569,19 +579,17 @@ def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held: list, ke
         gval = _parts_cost(full, gs, parts)
         score = gval if on_val else g.cost
         need = own - RIVAL_SHARE * max(own - 1.0, 0.0)  # a tenth of what the effect leaves above the noise
-        if why is None and not score < need:
+        if why is None and not score < need:  # sane, and lost on the data alone
             why = (f"does not do better than {effect} on the {'validation' if on_val else 'fitted'} data "
                    f"({score:.4g} vs {own:.4g} noise variances; {need:.4g} needed)")
+            if lost is not None:
+                lost.append((effect, h))
         if why is None:
             why = stands_in(rep, g, h)
-        elif lost is not None and why.startswith("does not do better"):
-            lost.append((effect, h))
         words = get_effect(h).in_words(g.model.effects[h]) + "; "
-        fval = (full.fit_table([x if i in held_idx else None for i, x in enumerate(gs)]).overall
-                if held_idx else None)
         s = Step(h, False, words + (why or f"does better than {effect} on the validation data ({score:.4g} vs "
                                            f"{own:.4g} noise variances), sane, fits the same on separate groups "
-                                           "of runs"), g, g.cost, gval, fval)
+                                           "of runs"), g, g.cost, gval, _held_fit(full, gs, held_idx))
         steps.append(s)
         say(f"  {h}: {'better' if why is None else 'not kept'} ({s.reason})")
         if why is None and (best is None or score < best[0]):
@@ -862,6 +870,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     train_c = windowed(Campaign(campaign.path, train_runs), window_s)
     rep = Replayer(train_c, model=model)  # model: a model file's rig (docs/model-file.md), default the book's
     full = Replayer(campaign, model=rep.model)
+    held_idx = [i for i, c in enumerate(full.cases) if c.run.name in held]
     parts = {}
     for i, case in enumerate(full.cases):
         if case.run.name in held:
@@ -912,9 +921,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             f, why = _sane(rep, f, effect)
             sims = full.simulate(f.model)
             val = _parts_cost(full, sims, parts)
-            held_idx = [i for i, c in enumerate(full.cases) if c.run.name in held]
-            fval = (full.fit_table([s if i in held_idx else None for i, s in enumerate(sims)]).overall
-                    if held_idx else None)
+            fval = _held_fit(full, sims, held_idx)
             if why is None and val is not None and cur_val is not None and val > cur_val * (1.0 - VAL_GAIN):
                 why = (f"does not lower the residual of the validation data enough ({cur_val:.3g} -> {val:.3g} "
                        "noise variances)")
@@ -940,7 +947,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             if why is None:
                 kept = (effect, f, sims, val)
                 if hypotheses and get_effect(effect).kind != "hypothesis":
-                    kept = _rival_hypotheses(rep, full, parts, held, kept, d.null, cur_val, base, hyps, step,
+                    kept = _rival_hypotheses(rep, full, parts, held_idx, kept, d.null, cur_val, base, hyps, step,
                                              steps, say, lost_rivals)
                 break
         if kept is not None:
@@ -1019,16 +1026,12 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             run_costs[case.run.name] = c
     fol = follows_of(full, sims_all)
     ci = confidence(rep, final) if final.free else {}
-    held_idx = [i for i, c in enumerate(full.cases) if c.run.name in held]
-
-    def table_on(sims, idx):
-        return full.fit_table([s if i in idx else None for i, s in enumerate(sims)]) if idx else None
 
     validation = {"holdout": held, "fit_window_s": window_s,
                   "residual_x_noise_before_hypotheses": before_hyp,
                   "fit_runs": [r.name for r in train_runs],
                   "residual_x_noise_validation": None if cur_val is None else round(cur_val, 3)}
-    tb, tf = table_on(baseline_all, held_idx), table_on(sims_all, held_idx)
+    tb, tf = _held_table(full, baseline_all, held_idx), _held_table(full, sims_all, held_idx)
     if tb is not None:
         validation["holdout_fit_percent_baseline"] = round(tb.overall, 2)
         validation["holdout_fit_percent_model"] = round(tf.overall, 2)
