@@ -186,3 +186,22 @@ def test_return_pressure_hypothesis_lowers_the_draining_flow():
     # qc < 0: A drains; q_a = qc sqrt(pa/half) < 0 shrinks -> a positive correction
     dqa, dqb = h.chamber_flows(qc=-1e-4, pa=40e5, pb=100e5, rated_drop=2 * half, p_t=10e5)
     assert dqb == 0.0 and dqa > 0.0
+
+
+def test_when_the_structural_hypotheses_are_tried():
+    """The trigger of the hypothesis search (diagnosis.hypotheses_trigger), each branch on a case built to cross it:
+    a clean-looking campaign is left alone; a structured rest in floors, one in sensor-noise variances only, and a
+    library effect that disagrees across groups of runs each start the search, judged in the measure that started
+    it (a disagreeing library effect: as on an unexplained campaign)."""
+    from ehas_env.measurement.diagnosis import QUIET_HYPOTHESES_X, QUIET_SENSOR_X, hypotheses_trigger
+
+    ok = {"verdict": "explained", "residual_x_noise": QUIET_HYPOTHESES_X - 0.01}
+    assert hypotheses_trigger(ok, QUIET_SENSOR_X - 0.01, []) is None
+    units, before, text = hypotheses_trigger(ok, QUIET_SENSOR_X + 0.01, [])
+    assert (units, before) == ("sensor", QUIET_SENSOR_X + 0.01) and "sensors' noise" in text
+    rest = {"verdict": "explained", "residual_x_noise": QUIET_HYPOTHESES_X + 0.01}
+    assert hypotheses_trigger(rest, 1.0, [])[:2] == ("floor", QUIET_HYPOTHESES_X + 0.01)
+    units, _, text = hypotheses_trigger(ok, 1.0, ["bulk_modulus"])
+    assert units is None and "bulk_modulus" in text and "separate groups" in text
+    bad = {"verdict": "unexplained", "residual_x_noise": 5.0}
+    assert hypotheses_trigger(bad, 9.0, [])[:2] == (None, 5.0)
