@@ -181,7 +181,10 @@ def residual_scatter(path, rep, sims_by_label: dict[str, list], signal: str, reg
         hi = max(axes[r, c].get_ylim()[1] for c in range(len(labels)))
         for c in range(len(labels)):
             axes[r, c].set_ylim(lo, hi)
-    axes[0, 0].legend(fontsize=7, markerscale=6, loc="best", title="run", title_fontsize=7)
+    # the runs' legend on the first panel that has points (a regressor some runs lack leaves a panel empty)
+    filled = next((ax for ax in axes.ravel() if ax.get_legend_handles_labels()[0]), None)
+    if filled is not None:
+        filled.legend(fontsize=7, markerscale=6, loc="best", title="run", title_fontsize=7)
     fig.suptitle(f"residual of {NAMES.get(signal, signal)} (measured - model) against its physical regressors, "
                  "closed-loop runs pooled", fontsize=9)
     return _save(plt, fig, path)
