@@ -1,4 +1,4 @@
-"""proposed_ool_lugre_friction_strong: dynamic (LuGre) seal friction with a presliding bristle state, found by ehas diagnose on /tmp/ow2/work/ool_lugre_friction_strong/campaign.
+"""proposed_ool_lugre_friction_strong: dynamic (LuGre) seal friction with a presliding bristle state, found by ehas diagnose on /tmp/ehas_open_world/ool_lugre_friction_strong/campaign.
 
 The seals' friction has a presliding state (LuGre): 451 N sliding, breakaway 1.1 x that, built up over 450 um of travel after a reversal, plus 297 N s/m viscous.
 Fc = 450.7 N (95 % CI 449.1 to 452.3)
