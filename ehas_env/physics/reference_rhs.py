@@ -58,19 +58,24 @@ def valve_current(i_cmd: float, p: dict) -> float:
     return i
 
 
+def _own_rates(name: str, p: dict, ctx: dict) -> dict:
+    """The rates of effect ``name``'s own states, by ``effect.state`` (0 while it is off)."""
+    cls = REGISTRY[name]
+    keys = [f"{name}.{st[0]}" for st in cls.states]
+    if not (p.get(f"{name}.on") and "state_rates" in cls.terms()):
+        return dict.fromkeys(keys, 0.0)
+    val = _term(name, "state_rates", p, ctx)
+    return dict(zip(keys, list(val) if len(keys) > 1 else [val]))
+
+
 def coil_current(state: dict, i: float, p: dict) -> tuple[float, dict]:
     """The current the torque motor acts on, and the rates of the coil effects' states (by ``effect.state``)."""
     rates = {}
     for name in _chain("coil_current", p, on_only=False):
-        keys = [f"{name}.{st[0]}" for st in REGISTRY[name].states]
-        rates.update(dict.fromkeys(keys, 0.0))
-        if not p.get(f"{name}.on"):
-            continue
         ctx = {**state, "i": i}
-        if "state_rates" in REGISTRY[name].terms():
-            val = _term(name, "state_rates", p, ctx)
-            rates.update(zip(keys, list(val) if len(keys) > 1 else [val]))
-        i = _term(name, "coil_current", p, ctx)
+        rates.update(_own_rates(name, p, ctx))
+        if p.get(f"{name}.on"):
+            i = _term(name, "coil_current", p, ctx)
     return i, rates
 
 
@@ -142,11 +147,5 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     d["pb"] = p["beta"] / (v0 - A * x) * (q_b + A * xd)
     d["ps"] = sum(v for _, v in _terms("supply_rate", p, ctx))
     for name in sorted(n for n in REGISTRY if REGISTRY[n].states and "coil_current" not in REGISTRY[n].terms()):
-        cls = REGISTRY[name]
-        keys = [f"{name}.{st[0]}" for st in cls.states]
-        rates = [0.0] * len(keys)
-        if p.get(f"{name}.on") and "state_rates" in cls.terms():
-            val = _term(name, "state_rates", p, ctx)
-            rates = list(val) if len(keys) > 1 else [val]
-        d.update(zip(keys, rates))
+        d.update(_own_rates(name, p, ctx))
     return d
