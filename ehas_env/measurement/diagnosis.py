@@ -1003,7 +1003,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                 why = stands_in(rep, f, effect)
                 if why is not None:
                     note += "stands in for something else: "
-                    if get_effect(effect).kind != "hypothesis":
+                    if get_effect(effect).kind != "hypothesis" and effect not in inconsistent:
                         inconsistent.append(effect)
             if get_effect(effect).kind == "hypothesis":
                 note = get_effect(effect).in_words(f.model.effects[effect]) + "; " + note
