@@ -21,6 +21,10 @@ import time
 from pathlib import Path
 
 
+#: the label of the baseline with beta and K refitted alone (``--fit``), in the tables and the JSON's ``recalibrated``
+RECALIBRATED = "baseline, beta/K recal."
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md)")
     parser.add_argument("--effects", default=None,
@@ -73,7 +77,10 @@ def run(args) -> int:
         base_model = load_model(args.model)
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
     status(f"{len(campaign.runs)} runs read from {campaign.path}", "compare")
-    rep = Replayer(campaign, model=base_model)
+    from ehas_env.simulation.compiled_model import names_hypothesis
+
+    # one compiled model for the baseline and the effects: with the structural hypotheses when one is named
+    rep = Replayer(campaign, model=base_model, hypotheses=names_hypothesis(requested))
     with working("replaying the campaign with the baseline model", "compare"):
         baseline_sims = rep.simulate(ModelSpec())
     tables = {"baseline": rep.fit_table(baseline_sims)}
@@ -95,8 +102,8 @@ def run(args) -> int:
                 f = (absolute.beta / fitted.model.beta) if r["param"] == "beta" else (absolute.K / fitted.model.K)
                 r.update(value=r["value"] * f, low=r["low"] * f, high=r["high"] * f)
         after_model = fitted.model
-        tables["baseline, beta/K recal."] = null.table
-        sims["baseline, beta/K recal."] = null.sims
+        tables[RECALIBRATED] = null.table
+        sims[RECALIBRATED] = null.sims
     elif requested:
         after_model = ModelSpec(effects=resolve_effects(requested))
     else:
@@ -170,7 +177,8 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
     dict
         ``before`` and ``after`` (each: ``residual_x_noise`` and ``verdict`` as the diagnosis defines them,
         ``residual_x_sensor_noise``, ``fit_percent`` overall, ``per_signal``, ``per_run``), ``residual_x_noise``
-        (after), ``fitted`` (value, ci95 [low, high], unit per parameter), ``command``, ``elapsed_s``.
+        (after), ``recalibrated`` (with ``--fit``: the baseline with beta and K refitted alone, the same keys as
+        ``before``), ``fitted`` (value, ci95 [low, high], unit per parameter), ``command``, ``elapsed_s``.
     """
     from ehas_env.measurement.replay import COST_SIGNALS
     from ehas_env.measurement.verdict import blocks_of, grade
@@ -186,9 +194,10 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
 
     before = side(next(iter(tables)))
     after = side(label_after) if label_after else before
+    recal = {"recalibrated": side(RECALIBRATED)} if RECALIBRATED in tables else {}
     return {"campaign": str(campaign_path), "command": command, "elapsed_s": round(elapsed_s, 1),
             "residual_x_noise": after["residual_x_noise"], "verdict": after["verdict"],
-            "before": before, "after": after,
+            "before": before, **recal, "after": after,
             "fitted": [{"effect": r["effect"], "param": r["param"], "value": r["value"],
                         "ci95": [r["low"], r["high"]], "unit": r["unit"]} for r in (ci or [])]}
 

@@ -682,7 +682,7 @@ def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
     ests: dict[str, list] = {}
     for g in groups:
         sub = Replayer(Campaign(rep.campaign.path, [rep.cases[i].run for i in g]), substeps=rep.substeps,
-                       model=rep.model)
+                       model=rep.model, hypotheses=rep.hypotheses)
         gf = fit(sub, free, start, f.model, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
         ci = confidence(sub, gf)
         rep.n_evals += sub.n_evals
@@ -930,8 +930,10 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     if not train_runs:
         raise ValueError("--holdout: every run is held out; nothing is left to fit")
     train_c = windowed(Campaign(campaign.path, train_runs), window_s)
-    rep = Replayer(train_c, model=model)  # model: a model file's rig (docs/model-file.md), default the book's
-    full = Replayer(campaign, model=rep.model)
+    # model: a model file's rig (docs/model-file.md), default the book's; one compiled model for every round,
+    # the structural hypotheses' included when they may be tried
+    rep = Replayer(train_c, model=model, hypotheses=hypotheses)
+    full = Replayer(campaign, model=rep.model, hypotheses=hypotheses)
     held_idx = [i for i, c in enumerate(full.cases) if c.run.name in held]
     parts = {}
     for i, case in enumerate(full.cases):

@@ -121,8 +121,7 @@ class _Case:
     dt: float  # simulation period (controller period for closed loop)
     n_sim: int
     resample: bool
-    out: np.ndarray
-    hist: np.ndarray
+    hist: np.ndarray  # its length: a replay's command history (each replay fills a copy of its own)
     gains: np.ndarray | None = None
     ref: np.ndarray | None = None
     sensor: np.ndarray | None = None
@@ -169,16 +168,26 @@ class Replayer:
         the model's own (``beta_model * beta / 1e9``, ``K_model * K / 1.2723``), so
         the recalibration ranges of the diagnosis hold around the model's numbers;
         :meth:`absolute` gives the numbers the plant runs.
+    hypotheses : bool
+        Replay on the compiled model that also holds the diagnosis' structural hypotheses
+        (:func:`ehas_env.simulation.compiled_model.current_model`), whatever effects a replay names: a
+        diagnosis that may try them compiles one model, not one without them and then one with them.
+    threads : int, optional
+        Replays run side by side on this many threads (default: one per core this process may use).
     """
 
-    def __init__(self, campaign: Campaign, substeps: int = 10, model=None):
+    def __init__(self, campaign: Campaign, substeps: int = 10, model=None, hypotheses: bool = False,
+                 threads: int | None = None):
         from ehas_env.simulation.model_file import as_model
 
         self.campaign = campaign
         self.substeps = substeps
         self.model = as_model(model)
+        self.hypotheses = bool(hypotheses)
+        self.threads = threads
         self.cases = [self._case(r) for r in campaign.runs]
         self.n_evals = 0
+        self._threads = None
 
     @property
     def runs(self) -> list[Run]:
@@ -197,13 +206,13 @@ class Replayer:
             gains = np.zeros(N_GAINS)
             gains[:7] = [ctrl[k] for k in ("Kp", "Ki", "Kv", "Ka", "Kj", "Kdp", "dp_hp")]
             hist = np.zeros(KN.history_length(TAU_MAX, dt) + 2)
-            case = _Case(run, signals, measured, {}, dt, n_sim, resample, np.zeros((n_sim, KN.N_OUT)), hist,
+            case = _Case(run, signals, measured, {}, dt, n_sim, resample, hist,
                          gains=gains, ref=reference_of(run).kernel_vector(), zeros=np.zeros(n_sim),
                          theta0=float(run.columns["theta_deg"][0]))
         else:
             signals = VALVE_SIGNALS
             measured = {"flow_lpm": run.columns["flow_lpm"]}
-            case = _Case(run, signals, measured, {}, run.dt, run.n, False, np.zeros((run.n, 3)), hist,
+            case = _Case(run, signals, measured, {}, run.dt, run.n, False, hist,
                          cmd=np.ascontiguousarray(run.columns["current_mA"], dtype=float))
         case.noise = {s: max(noise_level(y), NOISE_FLOOR[s]) for s, y in measured.items()}
         window = run.meta.get("window") or {}
@@ -219,10 +228,10 @@ class Replayer:
         if self.model is not None:  # the model file's rig, its effects with the spec's (docs/model-file.md)
             m = self.absolute(model)
             return Plant(disc_sets=sets, effects=model.effects, model=self.model, dt=dt or run.dt,
-                         substeps=self.substeps,
+                         substeps=self.substeps, hypotheses=self.hypotheses,
                          rig=self.model.rig.replace(beta=m.beta, K=m.K, supply=run.meta["supply_bar"] * BAR))
         return Plant(disc_sets=sets, effects=model.effects, rig=model.rig(run.meta["supply_bar"]),
-                     dt=dt or run.dt, substeps=self.substeps)
+                     dt=dt or run.dt, substeps=self.substeps, hypotheses=self.hypotheses)
 
     def compiled(self, model: ModelSpec, run: Run, dt: float | None = None):
         """(compiled model module, parameter vector, plant) that ``model`` runs on for this run.
@@ -283,68 +292,65 @@ class Replayer:
         Closed-loop entries also hold ``omega_deg_s`` (model's crank rate), useful
         as a regressor.  Entries not simulated are None.
         """
-        self.n_evals += 1
-        out = [None] * len(self.cases)
-        for i, case in enumerate(self.cases):
-            if runs is not None and i not in runs:
-                continue
-            out[i] = self._simulate_case(model, case)
-        return out
+        return self.simulate_many([model], runs)[0]
 
-    def simulate_many(self, models: list[ModelSpec]) -> list[list[dict[str, np.ndarray]]]:
-        """:meth:`simulate` for several models at once, the closed-loop runs in parallel threads."""
+    def simulate_many(self, models: list[ModelSpec], runs=None) -> list[list[dict[str, np.ndarray] | None]]:
+        """:meth:`simulate` for several models at once: every (model, run) replay side by side on the cores.
+
+        The compiled drivers release the GIL, so Python threads run them in parallel (a ``prange`` driver
+        did this before and cost a compile of its own, 4 s of a first diagnosis).
+        """
         self.n_evals += len(models)
-        cl = [i for i, c in enumerate(self.cases) if c.run.kind == "closed_loop"]
-        jobs = [(m, i) for m in range(len(models)) for i in cl]
+        jobs = [(m, i) for m in range(len(models)) for i in range(len(self.cases)) if runs is None or i in runs]
+        # the plants (and a first compiled model) are made here, one after the other; only the compiled runs go
+        # to the threads
+        ready = [self._prepare(models[m], self.cases[i]) for m, i in jobs]
+        # a driver's first call compiles it (or loads it from numba's cache): that one runs here, where Ctrl-C
+        # stops it, not in a thread the interpreter would wait for at exit
+        first = {}
+        for k, job in enumerate(ready):
+            fn = job[1].closed_loop if job[3] is not None else job[1].run_valve_test
+            if not fn.signatures:
+                first.setdefault(id(fn), k)
+        sims = {k: self._run_case(ready[k]) for k in first.values()}
+        rest = [k for k in range(len(ready)) if k not in sims]
+        runner = self._pool().map if len(rest) > 1 else map
+        sims.update(zip(rest, runner(self._run_case, [ready[k] for k in rest])))
         results = [[None] * len(self.cases) for _ in models]
-        if jobs:
-            nmax = max(self.cases[i].n_sim for _, i in jobs)
-            J = len(jobs)
-            model = self.compiled(models[0], self.cases[cl[0]].run)[0]
-            S0 = np.empty((J, model.N_STATES))
-            P = np.empty((J, model.N_SLOTS))
-            gains = np.empty((J, N_GAINS))
-            refs = np.empty((J, 4))
-            dts = np.empty(J)
-            sensors = np.empty((J, 4))
-            lengths = np.empty(J, dtype=np.int64)
-            hl = max(self.cases[i].hist.size for _, i in jobs)
-            for j, (m, i) in enumerate(jobs):
-                case = self.cases[i]
-                mod, Pj, plant = self.compiled(models[m], case.run, case.dt)
-                if mod is not model:
-                    raise ValueError("simulate_many: models with and without proposed terms go in separate calls")
-                S0[j] = self.initial_state(mod, plant, case.theta0)
-                P[j] = Pj
-                gains[j] = case.gains
-                refs[j] = case.ref
-                dts[j] = case.dt
-                sensors[j] = (0.0, 0.0, 0.0, plant.rig.i_max)
-                lengths[j] = case.n_sim
-            outs = np.zeros((J, nmax, KN.N_OUT))
-            laws = np.full(J, RigController.law_id(), dtype=np.int64)
-            model.closed_loop_jobs(S0, P, laws, gains, refs, dts, self.substeps, np.zeros((J, hl)), np.zeros(nmax),
-                                   sensors, outs, lengths)
-            for j, (m, i) in enumerate(jobs):
-                results[m][i] = self._closed_loop_signals(self.cases[i], outs[j, :lengths[j]])
-        for m, model in enumerate(models):
-            for i, case in enumerate(self.cases):
-                if case.run.kind != "closed_loop":
-                    results[m][i] = self._simulate_case(model, case)
+        for k, (m, i) in enumerate(jobs):
+            results[m][i] = sims[k]
         return results
 
-    def _simulate_case(self, model: ModelSpec, case: _Case) -> dict[str, np.ndarray]:
-        run = case.run
-        mod, P, plant = self.compiled(model, run, case.dt)
-        if run.kind == "valve_open_loop":
-            mod.run_valve_test(P, case.cmd, case.dt, self.substeps, run.meta["supply_bar"] * BAR, case.hist, case.out)
-            return {"flow_lpm": case.out[:, 0] / LPM}
-        s = self.initial_state(mod, plant, case.theta0)
-        sensor = np.array([0.0, 0.0, 0.0, plant.rig.i_max])
-        o = case.out
+    def _pool(self):
+        """The threads replays run on (``threads``, or one per core this process may use), made on first use."""
+        if self._threads is None:
+            import os
+            from concurrent.futures import ThreadPoolExecutor
+
+            cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+            self._threads = ThreadPoolExecutor(max_workers=max(1, self.threads or cores),
+                                               thread_name_prefix="ehas-replay")
+        return self._threads
+
+    def _prepare(self, model: ModelSpec, case: _Case) -> tuple:
+        """What one replay of ``case`` with ``model`` needs: its compiled model, parameters, initial state and
+        buffers of its own (replays run side by side: :meth:`simulate_many`)."""
+        mod, P, plant = self.compiled(model, case.run, case.dt)
+        if case.run.kind == "valve_open_loop":
+            return case, mod, P, None, None, np.zeros((case.run.n, 3))
+        return (case, mod, P, self.initial_state(mod, plant, case.theta0), plant.rig.i_max,
+                np.zeros((case.n_sim, KN.N_OUT)))
+
+    def _run_case(self, job: tuple) -> dict[str, np.ndarray]:
+        """Runs one replay :meth:`_prepare` made ready (the compiled drivers release the GIL)."""
+        case, mod, P, s, i_max, out = job
+        hist = np.zeros(case.hist.size)
+        if s is None:
+            mod.run_valve_test(P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out)
+            return {"flow_lpm": out[:, 0] / LPM}
         mod.closed_loop(s, P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
-                                case.hist, case.zeros, sensor, 0, 0, np.zeros(6), o)
-        return self._closed_loop_signals(case, o)
+                        hist, case.zeros, np.array([0.0, 0.0, 0.0, i_max]), 0, 0, np.zeros(6), out)
+        return self._closed_loop_signals(case, out)
 
     def _closed_loop_signals(self, case: _Case, o: np.ndarray) -> dict[str, np.ndarray]:
         run = case.run

@@ -46,6 +46,7 @@ import os
 import re
 import sys
 import textwrap
+import threading
 from pathlib import Path
 
 from ehas_env.physics import baseline, layout
@@ -390,6 +391,9 @@ class ModelSource:
         return [f"        _r = {call}"] + [f"        ds[{k}] = _r[{j}]" for j, k in enumerate(ks)]
 
 
+_BUILD_LOCK = threading.RLock()
+
+
 def build_model(effects=None, laws=(), inline: bool = True):
     """The compiled model module of ``effects`` and the controller ``laws``.
 
@@ -411,6 +415,11 @@ def build_model(effects=None, laws=(), inline: bool = True):
     module
         The generated model module.
     """
+    with _BUILD_LOCK:  # a second thread must not take a module the first is still writing or importing
+        return _build_model(effects, laws, inline)
+
+
+def _build_model(effects, laws, inline: bool):
     from ehas_env.physics.effects import REGISTRY
 
     effects = list(REGISTRY.values()) if effects is None else list(effects)

@@ -195,7 +195,8 @@ def bench_flow(qc, supply, scale, P):
     return qa
 
 
-@njit(cache=True)
+# nogil: replays of a campaign run side by side in Python threads (ehas_env.measurement.replay)
+@njit(cache=True, nogil=True)
 def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
     """Valve alone, control ports joined through the flow meter (rated test).
 

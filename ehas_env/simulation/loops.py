@@ -17,7 +17,7 @@ largest |P_A - P_B| (bar), stroke end touched (1/0).
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ehas_env.physics.layout import *  # noqa: F401,F403  (for readers: the names below come from the model)
 
@@ -68,7 +68,8 @@ METRICS = ("rms_error_pct", "peak_error_pct", "max_current_mA", "saturation_frac
 REF_SINE, REF_STEP = 0, 1
 
 
-@njit(cache=True)
+# nogil: replays of a campaign run side by side in Python threads (ehas_env.measurement.replay)
+@njit(cache=True, nogil=True)
 def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, k1, metrics, out):
     """One closed-loop run of ``len(noise)`` periods with the compiled law number ``law``.
 
@@ -141,15 +142,6 @@ def closed_loop_batch(S0, P, laws, G, R, kinds, dt, nsub, hist_len, noise, lengt
         o = out[c, :lengths[c]] if out.shape[1] > 0 else out[c]
         closed_loop(s, P[c], laws[c], G[c], R[c], kinds[c], dt, nsub, hist, noise[c, :lengths[c]], sensor[c],
                     win[c, 0], win[c, 1], metrics[c], o)
-
-
-@njit(cache=True, parallel=True)
-def closed_loop_jobs(S0, P, laws, G, R, dts, nsub, hists, zeros, sensors, outs, lengths):
-    """closed_loop runs side by side (rows spread over the cores), each with its own period dts[j]."""
-    for j in prange(S0.shape[0]):
-        n = lengths[j]
-        closed_loop(S0[j], P[j], laws[j], G[j], R[j], REF_SINE, dts[j], nsub, hists[j], zeros[:n], sensors[j], 0, 0,
-                    np.zeros(6), outs[j, :n])
 
 
 @njit(cache=True)

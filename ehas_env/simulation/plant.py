@@ -188,13 +188,17 @@ class Plant:
         set, valve, effects and effects path.  ``rig``, ``inertia``, ``valve`` and
         ``white_box`` given as well override the model's; ``effects`` are added to
         the model's (same name: the values given here win).
+    hypotheses : bool
+        Run on the compiled model that also holds the diagnosis' structural hypotheses, even when no
+        effect names one (a diagnosis compiles that one model for all its rounds).  A plant that names a
+        hypothesis runs on it anyway.
     """
 
     VALVES = ("grey_box", "white_box")
 
     def __init__(self, disc_sets: int = 3, effects=None, *, inertia: float | None = None, rig: RigParams | None = None,
                  sensors: Sensors | None = None, dt: float = 1.0e-3, substeps: int = 10, seed: int | None = None,
-                 valve: str = "grey_box", white_box=None, effects_path=None, model=None):
+                 valve: str = "grey_box", white_box=None, effects_path=None, model=None, hypotheses: bool = False):
         from ehas_env.physics.effects import load_effects_path
 
         _check_effects_path(effects_path)
@@ -239,7 +243,7 @@ class Plant:
         # every registered effect, so every resolved effect is in it (the diagnosis' structural hypotheses only
         # when one is used); the quick-to-compile build (no inlining): a plant replays, fits and runs single
         # simulations, where the compile, not the step, is the wait
-        self._model = current_model(inline=False, hypotheses=names_hypothesis(self.effects))
+        self._model = current_model(inline=False, hypotheses=bool(hypotheses) or names_hypothesis(self.effects))
         self._P = self._param_vector()
         self._hist_len = K.history_length(TAU_MAX, self.dt)
 

@@ -107,14 +107,35 @@ def test_noise_level_estimator_recovers_white_noise_on_smooth_signals():
 
 
 def test_batch_and_serial_replays_agree():
+    """Replays side by side on threads (each in buffers of its own) give, bit for bit, what one thread gives
+    one replay at a time, for several models at once and for each alone."""
     camp, truth = campaign(HIDDEN, seed=25, duration=0.8)
-    rep = Replayer(camp)
+    rep = Replayer(camp, threads=3)
+    one = Replayer(camp, threads=1)
     models = [ModelSpec(effects={"coulomb_friction": {"Fc": f}}) for f in (150.0, 450.0)] + [true_model(truth)]
     batch = rep.simulate_many(models)
+    assert len(batch) == 3 and all(len(b) == len(camp.runs) for b in batch)
     for m, b in zip(models, batch):
-        for s_b, s_s in zip(b, rep.simulate(m)):
+        for s_b, s_s in zip(b, one.simulate(m)):
             for k in s_s:
                 np.testing.assert_array_equal(s_b[k], s_s[k])
+    # the models differ: a mixed-up buffer would make two of them equal
+    assert not np.array_equal(batch[0][0]["current_mA"], batch[1][0]["current_mA"])
+
+
+def test_a_diagnosis_replays_every_model_on_the_one_with_the_structural_hypotheses():
+    """With ``hypotheses=True`` the baseline, a library effect and a structural hypothesis run on one compiled
+    model (a diagnosis compiles one, not one without the hypotheses and one with them); without, the baseline
+    runs on the library's model, which has no hypothesis."""
+    camp, _ = campaign(HIDDEN, seed=27, duration=0.5)
+    run = camp.runs[0]
+    rep = Replayer(camp, hypotheses=True)
+    mod = rep.compiled(ModelSpec(), run)[0]
+    assert "hyp_rod_area" in mod.EFFECTS
+    for effects in ({"coulomb_friction": {"Fc": 200.0}}, {"hyp_rod_area": {"d_area": 0.1}}):
+        assert rep.compiled(ModelSpec(effects=effects), run)[0] is mod
+    lib = Replayer(camp).compiled(ModelSpec(), run)[0]
+    assert lib is not mod and not any(n.startswith("hyp_") for n in lib.EFFECTS)
 
 
 def test_a_proposed_term_at_zero_changes_nothing_when_the_extended_model_has_more_states():
