@@ -322,15 +322,21 @@ class Replayer:
         return results
 
     def _pool(self):
-        """The threads replays run on (``threads``, or one per core this process may use), made on first use."""
-        if self._threads is None:
-            import os
+        """The threads replays run on (``threads``, or one per core this process may use), made on first use
+        (and again in a forked child: the parent's threads are not there)."""
+        import os
+
+        if self._threads is None or self._threads[0] != os.getpid():
             from concurrent.futures import ThreadPoolExecutor
 
             cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-            self._threads = ThreadPoolExecutor(max_workers=max(1, self.threads or cores),
-                                               thread_name_prefix="ehas-replay")
-        return self._threads
+            self._threads = (os.getpid(), ThreadPoolExecutor(max_workers=max(1, self.threads or cores),
+                                                             thread_name_prefix="ehas-replay"))
+        return self._threads[1]
+
+    def __getstate__(self):
+        """A replayer sent to another process leaves its threads behind (it makes its own there)."""
+        return {**self.__dict__, "_threads": None}
 
     def _prepare(self, model: ModelSpec, case: _Case) -> tuple:
         """What one replay of ``case`` with ``model`` needs: its compiled model, parameters, initial state and

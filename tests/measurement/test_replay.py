@@ -7,6 +7,8 @@ definition in measurements.md (NRMSE, mean over runs, then over signals).
 """
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 
@@ -121,6 +123,9 @@ def test_batch_and_serial_replays_agree():
                 np.testing.assert_array_equal(s_b[k], s_s[k])
     # the models differ: a mixed-up buffer would make two of them equal
     assert not np.array_equal(batch[0][0]["current_mA"], batch[1][0]["current_mA"])
+    # a replayer sent to another process (pickled) leaves its threads behind and makes its own there
+    for s_p, s_b in zip(pickle.loads(pickle.dumps(rep)).simulate(models[0]), batch[0]):
+        np.testing.assert_array_equal(s_p["flow_lpm"], s_b["flow_lpm"])
 
 
 def test_a_diagnosis_replays_every_model_on_the_one_with_the_structural_hypotheses():
