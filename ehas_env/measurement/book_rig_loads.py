@@ -30,7 +30,6 @@ Regenerate ``results/book_loads/`` with::
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import math
 import sys
@@ -197,7 +196,7 @@ def plot(res: dict, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ehas_env.output.files import atomic_write_bytes
+    from ehas_env.output.plots import save_figure
 
     best = res["ranking"][0]
     labels = [f"{t['amplitude_deg']:g} deg, {t['freq_hz']:g} Hz\n{t['disc_sets']} disc sets" for t in res["tests"]]
@@ -218,11 +217,8 @@ def plot(res: dict, path: Path) -> Path:
                  f"model's force balance with {best}" + (f" ({fp})" if fp else "") + " fitted", fontsize=9)
     ax.legend(fontsize=8, loc="upper left")
     ax.grid(axis="y", alpha=0.3)
-    buf = io.BytesIO()
     fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    return atomic_write_bytes(path, buf.getvalue())
+    return save_figure(fig, path)
 
 
 def main(argv=None) -> int:

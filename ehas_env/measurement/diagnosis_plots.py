@@ -12,12 +12,11 @@ Every function writes one PNG atomically and returns its path.
 """
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import numpy as np
 
-from ehas_env.output.files import atomic_write_bytes
+from ehas_env.output.plots import save_figure
 from ehas_env.measurement.replay import UNITS
 
 MEASURED = dict(color="black", lw=1.6, alpha=0.45, label="measured")
@@ -51,12 +50,10 @@ def _figure(nrows, ncols=1, size=(9.0, 2.2)):
 
 
 def _save(plt, fig, path) -> Path:
-    buf = io.BytesIO()
+    """Lay ``fig`` out (unless it placed its axes itself) and write it as one PNG, atomically."""
     if not getattr(fig, "_ehas_layout", False):
         fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    return atomic_write_bytes(path, buf.getvalue())
+    return save_figure(fig, path)
 
 
 def overlay_signals(case) -> list[str]:
