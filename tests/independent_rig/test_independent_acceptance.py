@@ -68,3 +68,19 @@ def test_an_orifice_leak_and_a_bristle_friction_of_the_other_engine_are_named(tm
     assert rec["kept"] == [effect], rec["kept"]
     truth = rec["effects"][truth_effect][truth_param]
     assert rec["kept_params"][effect][param] == pytest.approx(truth, rel=0.1)
+
+
+def test_a_missed_effect_counts_as_right_only_when_the_data_do_not_resolve_it():
+    """The acceptance's resolution rule on built records: a missed effect is forgiven only when its oracle fit was
+    below resolution; a wrong kind named is never forgiven; a right record stays right."""
+    right = {"judge": {"right_kind": True, "missed": [], "wrong": []}}
+    missed = {"judge": {"right_kind": False, "missed": ["lvdt_offset"], "wrong": []}}
+    wrong = {"judge": {"right_kind": False, "missed": ["lvdt_offset"], "wrong": ["coulomb_friction"]}}
+    assert acceptance.right_kind_resolved(right)
+    assert not acceptance.right_kind_resolved(missed)  # no oracle run: not forgiven
+    missed["resolution"] = {"lvdt_offset": {"below_resolution": False}}
+    assert not acceptance.right_kind_resolved(missed)
+    missed["resolution"] = {"lvdt_offset": {"below_resolution": True}}
+    assert acceptance.right_kind_resolved(missed)
+    wrong["resolution"] = {"lvdt_offset": {"below_resolution": True}}
+    assert not acceptance.right_kind_resolved(wrong)
