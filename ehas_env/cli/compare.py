@@ -51,6 +51,7 @@ def run(args) -> int:
     from ehas_env.physics.effects import parse_spec, resolve_effects
     from ehas_env.measurement.replay import ModelSpec, Replayer, format_fit_tables
     from ehas_env.output.progress import status, working
+    from ehas_env.simulation.compiled_model import names_hypothesis
 
     from ehas_env.output.outputs import OutputSet, check_file, check_not_input
 
@@ -77,8 +78,6 @@ def run(args) -> int:
         base_model = load_model(args.model)
     campaign = read_campaign(args.campaign, columns=parse_column_map(args.columns))
     status(f"{len(campaign.runs)} runs read from {campaign.path}", "compare")
-    from ehas_env.simulation.compiled_model import names_hypothesis
-
     # one compiled model for the baseline and the effects: with the structural hypotheses when one is named
     rep = Replayer(campaign, model=base_model, hypotheses=names_hypothesis(requested))
     with working("replaying the campaign with the baseline model", "compare"):

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -41,6 +42,7 @@ from ehas_env.physics.effects import resolve_effects
 from ehas_env.simulation.metrics import fit_percent
 from ehas_env.simulation.plant import TAU_MAX, Plant, RigController
 from ehas_env.physics.rig import BAR, BULK_MODULUS, LPM, VALVE_K, RigParams
+from ehas_env.ranges import check_field
 
 DEFAULT_DOC_PLAN = ((2, 15.0, 2.0),)  # a tiny plan for doctests
 
@@ -121,14 +123,33 @@ class _Case:
     dt: float  # simulation period (controller period for closed loop)
     n_sim: int
     resample: bool
-    hist: np.ndarray  # its length: a replay's command history (each replay fills a copy of its own)
     gains: np.ndarray | None = None
     ref: np.ndarray | None = None
-    sensor: np.ndarray | None = None
     zeros: np.ndarray | None = None
     theta0: float = 0.0
     cmd: np.ndarray | None = None
     skip: int = 0  # leading samples left out of cost and fit (the warm-up of a window cut from a valve run)
+
+    @property
+    def hist_len(self) -> int:
+        """Length of a replay's command history at this run's simulation period (each replay has its own)."""
+        return KN.history_length(TAU_MAX, self.dt) + 2
+
+
+class _Job(NamedTuple):
+    """One replay made ready by :meth:`Replayer._prepare`: everything its compiled driver needs."""
+
+    case: _Case
+    mod: object  # the compiled model module
+    P: np.ndarray
+    s0: np.ndarray | None  # initial state (closed loop); None for a valve run
+    i_max: float
+    out: np.ndarray
+
+    @property
+    def driver(self):
+        """The compiled function that runs it: the closed loop, or the valve bench."""
+        return self.mod.run_valve_test if self.s0 is None else self.mod.closed_loop
 
 
 @dataclass
@@ -173,7 +194,7 @@ class Replayer:
         (:func:`ehas_env.simulation.compiled_model.current_model`), whatever effects a replay names: a
         diagnosis that may try them compiles one model, not one without them and then one with them.
     threads : int, optional
-        Replays run side by side on this many threads (default: one per core this process may use).
+        Replays run side by side on this many threads, 1 to 1024 (default: one per core this process may use).
     """
 
     def __init__(self, campaign: Campaign, substeps: int = 10, model=None, hypotheses: bool = False,
@@ -184,10 +205,10 @@ class Replayer:
         self.substeps = substeps
         self.model = as_model(model)
         self.hypotheses = bool(hypotheses)
-        self.threads = threads
+        self.threads = None if threads is None else check_field("workers", threads, "threads")
         self.cases = [self._case(r) for r in campaign.runs]
         self.n_evals = 0
-        self._threads = None
+        self._executor = None  # (pid, ThreadPoolExecutor) of :meth:`_pool`
 
     @property
     def runs(self) -> list[Run]:
@@ -195,7 +216,6 @@ class Replayer:
 
     # -- setup ------------------------------------------------------------------------------
     def _case(self, run: Run) -> _Case:
-        hist = np.zeros(KN.history_length(TAU_MAX, run.dt) + 2)
         if run.kind == "closed_loop":
             signals = tuple(s for s in CL_SIGNALS if s in run.columns)
             measured = {s: run.columns[s] for s in signals}
@@ -205,14 +225,13 @@ class Replayer:
             n_sim = run.n if not resample else int(math.ceil(run.duration / dt)) + 1
             gains = np.zeros(N_GAINS)
             gains[:7] = [ctrl[k] for k in ("Kp", "Ki", "Kv", "Ka", "Kj", "Kdp", "dp_hp")]
-            hist = np.zeros(KN.history_length(TAU_MAX, dt) + 2)
-            case = _Case(run, signals, measured, {}, dt, n_sim, resample, hist,
+            case = _Case(run, signals, measured, {}, dt, n_sim, resample,
                          gains=gains, ref=reference_of(run).kernel_vector(), zeros=np.zeros(n_sim),
                          theta0=float(run.columns["theta_deg"][0]))
         else:
             signals = VALVE_SIGNALS
             measured = {"flow_lpm": run.columns["flow_lpm"]}
-            case = _Case(run, signals, measured, {}, run.dt, run.n, False, hist,
+            case = _Case(run, signals, measured, {}, run.dt, run.n, False,
                          cmd=np.ascontiguousarray(run.columns["current_mA"], dtype=float))
         case.noise = {s: max(noise_level(y), NOISE_FLOOR[s]) for s, y in measured.items()}
         window = run.meta.get("window") or {}
@@ -309,9 +328,8 @@ class Replayer:
         # stops it, not in a thread the interpreter would wait for at exit
         first = {}
         for k, job in enumerate(ready):
-            fn = job[1].closed_loop if job[3] is not None else job[1].run_valve_test
-            if not fn.signatures:
-                first.setdefault(id(fn), k)
+            if not job.driver.signatures:
+                first.setdefault(id(job.driver), k)
         sims = {k: self._run_case(ready[k]) for k in first.values()}
         rest = [k for k in range(len(ready)) if k not in sims]
         runner = self._pool().map if len(rest) > 1 else map
@@ -326,36 +344,36 @@ class Replayer:
         (and again in a forked child: the parent's threads are not there)."""
         import os
 
-        if self._threads is None or self._threads[0] != os.getpid():
+        if self._executor is None or self._executor[0] != os.getpid():
             from concurrent.futures import ThreadPoolExecutor
 
             cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-            self._threads = (os.getpid(), ThreadPoolExecutor(max_workers=max(1, self.threads or cores),
-                                                             thread_name_prefix="ehas-replay"))
-        return self._threads[1]
+            self._executor = (os.getpid(), ThreadPoolExecutor(max_workers=self.threads or cores,
+                                                              thread_name_prefix="ehas-replay"))
+        return self._executor[1]
 
     def __getstate__(self):
         """A replayer sent to another process leaves its threads behind (it makes its own there)."""
-        return {**self.__dict__, "_threads": None}
+        return {**self.__dict__, "_executor": None}
 
-    def _prepare(self, model: ModelSpec, case: _Case) -> tuple:
+    def _prepare(self, model: ModelSpec, case: _Case) -> _Job:
         """What one replay of ``case`` with ``model`` needs: its compiled model, parameters, initial state and
         buffers of its own (replays run side by side: :meth:`simulate_many`)."""
         mod, P, plant = self.compiled(model, case.run, case.dt)
         if case.run.kind == "valve_open_loop":
-            return case, mod, P, None, None, np.zeros((case.run.n, 3))
-        return (case, mod, P, self.initial_state(mod, plant, case.theta0), plant.rig.i_max,
-                np.zeros((case.n_sim, KN.N_OUT)))
+            return _Job(case, mod, P, None, plant.rig.i_max, np.zeros((case.run.n, 3)))
+        return _Job(case, mod, P, self.initial_state(mod, plant, case.theta0), plant.rig.i_max,
+                    np.zeros((case.n_sim, KN.N_OUT)))
 
-    def _run_case(self, job: tuple) -> dict[str, np.ndarray]:
+    def _run_case(self, job: _Job) -> dict[str, np.ndarray]:
         """Runs one replay :meth:`_prepare` made ready (the compiled drivers release the GIL)."""
-        case, mod, P, s, i_max, out = job
-        hist = np.zeros(case.hist.size)
-        if s is None:
-            mod.run_valve_test(P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out)
+        case, out = job.case, job.out
+        hist = np.zeros(case.hist_len)
+        if job.s0 is None:
+            job.driver(job.P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out)
             return {"flow_lpm": out[:, 0] / LPM}
-        mod.closed_loop(s, P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
-                        hist, case.zeros, np.array([0.0, 0.0, 0.0, i_max]), 0, 0, np.zeros(6), out)
+        job.driver(job.s0, job.P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
+                   hist, case.zeros, np.array([0.0, 0.0, 0.0, job.i_max]), 0, 0, np.zeros(6), out)
         return self._closed_loop_signals(case, out)
 
     def _closed_loop_signals(self, case: _Case, o: np.ndarray) -> dict[str, np.ndarray]:
