@@ -223,7 +223,7 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
     if rec["judge"]["missed"] and not rec["judge"]["wrong"]:
         t1 = time.time()
         try:
-            rec["resolution"] = resolution_check(case, rec, camp, mopt, wdir, log=log)
+            rec["resolution"] = resolution_check(rec, camp, mopt, wdir, log=log)
         except RuntimeError as e:
             rec["resolution_error"] = str(e)
         rec["steps"]["resolution_s"] = round(time.time() - t1, 1)
@@ -239,7 +239,7 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
 RESOLVE_SHARE = 0.5
 
 
-def resolution_check(case: dict, rec: dict, camp: Path, mopt: list, wdir: Path, log=print) -> dict:
+def resolution_check(rec: dict, camp: Path, mopt: list, wdir: Path, log=print) -> dict:
     """For each true effect no named item matches (``rec["judge"]["missed"]``): could the data have told it?
 
     The oracle: every effect of ehas whose kinds meet the missed effect's accepted kinds (:data:`LIBRARY_KIND`) is
@@ -248,9 +248,12 @@ def resolution_check(case: dict, rec: dict, camp: Path, mopt: list, wdir: Path, 
     *below resolution* when no such H removes :data:`RESOLVE_SHARE` of the residual's excess over 1, in the
     verdict's floors nor in sensor-noise variances: the diagnosis could not have kept it by its own rule, and
     naming nothing for it is the honest answer.  Several effects missed, each below resolution alone, are fitted
-    together too (the best H of each): when they remove that share together, none is below resolution.  Returns ``{effect: {"below_resolution", "reference", "tried"}}``.
+    together too (the best H of each): when they remove that share together, none is below resolution.
+
+    Returns ``{effect: {"below_resolution", "reference", "tried"}}``.
     """
     kept = list(rec.get("kept") or [])
+    ref = {}
 
     def compare(effects: list, tag: str):
         out = wdir / f"oracle_{tag}.json"
@@ -259,47 +262,43 @@ def resolution_check(case: dict, rec: dict, camp: Path, mopt: list, wdir: Path, 
         code, stdout, stderr, wall = _run(cmd, log=wdir / f"oracle_{tag}.log")
         if code != 0 or not out.exists():
             raise RuntimeError(f"oracle compare {effects} exited {code}: {(stderr or stdout).strip()[-200:]}")
-        doc = json.loads(out.read_text())
-        return doc, shlex.join(cmd), wall
+        return json.loads(out.read_text()), shlex.join(cmd), wall
 
     def measures(side: dict) -> dict:
         return {"floors": side["residual_x_noise"], "sensor": side["residual_x_sensor_noise"]}
 
-    ref = None
+    def oracle(added: list, tag: str) -> dict:
+        """``added`` fitted on top of ``kept``: the residual after and the share of the reference's excess removed
+        (the reference, made on the first call, is what was kept fitted alone, or the recalibrated baseline)."""
+        doc, cmd, wall = compare(kept + added, tag)
+        if not ref:
+            if kept:
+                rdoc, rcmd, _ = compare(kept, "kept")
+                ref.update(model=kept, command=rcmd, **measures(rdoc["after"]))
+            else:
+                ref.update(model=["recalibrated baseline"], command=cmd, **measures(doc["recalibrated"]))
+        after = measures(doc["after"])
+        share = {u: ((ref[u] - after[u]) / (ref[u] - 1.0) if ref[u] > 1.0 else 0.0) for u in after}
+        log(f"    oracle {' + '.join(added)} on top of {kept or 'the recalibrated baseline'}: floors "
+            f"{ref['floors']:.3g} -> {after['floors']:.3g}, sensor {ref['sensor']:.3g} -> {after['sensor']:.3g}")
+        return {"effect": " + ".join(added), "command": cmd, "after": after, "share_removed": share,
+                "fitted": [f for f in doc.get("fitted", []) if f["effect"] in added], "wall_s": round(wall, 1)}
+
+    def resolved(t: dict) -> bool:
+        return max(t["share_removed"].values()) >= RESOLVE_SHARE
+
     out = {}
     for missed in rec["judge"]["missed"]:
         kinds = set(ALL[missed].accepted_kinds)
-        oracles = sorted(n for n, k in LIBRARY_KIND.items() if k & kinds and n not in kept)
-        tried = []
-        for h in oracles:
-            doc, cmd, wall = compare(kept + [h], h)
-            if ref is None:
-                if kept:
-                    rdoc, rcmd, _ = compare(kept, "kept")
-                    ref = {"model": kept, "command": rcmd, **measures(rdoc["after"])}
-                else:
-                    ref = {"model": ["recalibrated baseline"], "command": cmd, **measures(doc["recalibrated"])}
-            after = measures(doc["after"])
-            share = {u: ((ref[u] - after[u]) / (ref[u] - 1.0) if ref[u] > 1.0 else 0.0) for u in after}
-            tried.append({"effect": h, "command": cmd, "after": after, "share_removed": share,
-                          "fitted": [f for f in doc.get("fitted", []) if f["effect"] == h], "wall_s": round(wall, 1)})
-            log(f"    oracle {h} on top of {kept or 'the recalibrated baseline'}: floors {ref['floors']:.3g} -> "
-                f"{after['floors']:.3g}, sensor {ref['sensor']:.3g} -> {after['sensor']:.3g}")
-        below = all(max(t["share_removed"].values()) < RESOLVE_SHARE for t in tried)
-        out[missed] = {"below_resolution": below, "reference": ref, "tried": tried}
+        tried = [oracle([h], h) for h in sorted(n for n, k in LIBRARY_KIND.items() if k & kinds and n not in kept)]
+        out[missed] = {"below_resolution": not any(resolved(t) for t in tried), "reference": ref, "tried": tried}
     if len(out) > 1 and all(v["below_resolution"] for v in out.values()):
         # each alone is below resolution: the best of each together may still be resolved (then none is below)
         best = [max(v["tried"], key=lambda t: max(t["share_removed"].values()))["effect"] for v in out.values()]
-        doc, cmd, wall = compare(kept + best, "together")
-        after = measures(doc["after"])
-        share = {u: ((ref[u] - after[u]) / (ref[u] - 1.0) if ref[u] > 1.0 else 0.0) for u in after}
-        log(f"    oracle {' + '.join(best)} together: floors {ref['floors']:.3g} -> {after['floors']:.3g}, "
-            f"sensor {ref['sensor']:.3g} -> {after['sensor']:.3g}")
-        together = {"effect": " + ".join(best), "command": cmd, "after": after, "share_removed": share,
-                    "fitted": [f for f in doc.get("fitted", []) if f["effect"] in best], "wall_s": round(wall, 1)}
+        together = oracle(best, "together")
         for v in out.values():
             v["tried"].append(together)
-            v["below_resolution"] = max(share.values()) < RESOLVE_SHARE
+            v["below_resolution"] = not resolved(together)
     return out
 
 
