@@ -9,6 +9,8 @@ the drivers, the environments' build) and in a fresh model cache, it times as wh
    (library model cached): the user's first replay;
 3. the same command again (everything cached);
 
+beside numba's own floor in a new process: importing it, and calling one cached one-line function;
+
 and, unless ``--no-diagnose``, the user's loop on a fresh 5-run campaign (3 s runs) from a rig with a hidden
 torsion spring of 800 N m/rad (a user effect the diagnosis is not given), in an empty model cache (every compile
 included): ``ehas diagnose CAMP --write-effect DIR/found.py``, then the ``next:`` compare it prints, run as
@@ -43,6 +45,38 @@ def _timed(cmd, env, cwd=None) -> tuple[float, float, str]:
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), out
+
+
+#: numba's own floor, beside the cached rows: a new process that loads one cached one-line function pays the
+#: imports of Python, numpy and numba and the set-up of numba's CPU target, whatever the function
+_FLOOR_SCRIPT = """import numpy as np
+import numba
+
+
+@numba.njit(cache=True)
+def total(x):
+    return x.sum()
+
+
+total(np.ones(3))
+"""
+
+
+def _floor_rows(tmp: Path) -> list:
+    """Rows for numba itself in a new process: importing it, and calling one cached one-line function."""
+    script = tmp / "numba_floor.py"
+    script.write_text(_FLOOR_SCRIPT)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "cache-numba-floor")}
+    print("compile_bench: numba's floor (import; one cached one-line function) ...", file=sys.stderr, flush=True)
+    subprocess.run([sys.executable, str(script)], env=env, check=True)  # compiles and caches it
+    rows = []
+    for what, cmd in (("numba alone: `import numpy, numba` (no function)", [sys.executable, "-c", "import numpy, numba"]),
+                      ("numba alone: one cached one-line `@njit` function, called once (the floor of any cached run)",
+                       [sys.executable, str(script)])):
+        load0 = os.getloadavg()[0]
+        wall, cpu, _ = _timed(cmd, env)
+        rows.append(("-", what, wall, cpu, load0, os.getloadavg()[0]))
+    return rows
 
 
 def _diagnose_rows(ehas, tmp: Path) -> list:
@@ -101,6 +135,7 @@ def main(argv=None) -> int:
         print("compile_bench: writing a 5-run campaign (2 s runs) ...", file=sys.stderr, flush=True)
         subprocess.run(ehas + ["simulate-campaign", "--duration", "2", "--seed", "1", "--out", str(camp)], env=env0,
                        check=True, stdout=subprocess.DEVNULL)
+        rows += _floor_rows(tmp)
         for k, build in enumerate(builds):
             env = {**os.environ, "EHAS_BUILD": build, "EHAS_CACHE_DIR": str(tmp / f"cache-{build}")}
             fx = tmp / f"fx-{build}"
@@ -125,7 +160,8 @@ def main(argv=None) -> int:
             "process: the compare rows on a 5-run campaign (2 s runs) in a fresh model cache per build, the diagnose "
             "rows on a 5-run campaign (3 s runs) with a hidden 800 N m/rad torsion spring in an empty model cache; CPU = user + system time of "
             "the process, the figure a quiet machine's wall time approaches; load = 1-min load average before / "
-            "after (above the core count, other processes shared the machine).", "",
+            "after (above the core count, other processes shared the machine). The rows of build `-` time numba "
+            "itself in a new process, the floor under every cached row.", "",
             "| build | step | wall s | CPU s | load |", "|---|---|---:|---:|---|"]
     for build, what, wall, cpu, l0, l1 in rows:
         text.append(f"| {build} | {what} | {wall:.1f} | {cpu:.1f} | {l0:.1f} / {l1:.1f} |")

@@ -178,6 +178,8 @@ def run(args) -> int:
         h = res.hypothesis_json()
         print()
         print(f"structural hypothesis kept: {h['effect']} ({h['words']})")
+        for other in [n for n in res.model.effects if n != hyp and get_effect(n).kind == "hypothesis"]:
+            print(f"  kept with it: {other} ({get_effect(other).in_words(res.model.effects[other])})")
         if args.write_effect:
             from ehas_env.measurement.hypothesis_file import write_hypothesis
 

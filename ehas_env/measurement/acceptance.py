@@ -272,6 +272,7 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
                "beta": truth["beta"], "K": truth["K"], "verdict": res.verdict,
                "residual_x_noise": res.residual_x_noise, "residual_x_sensor_noise": round(res.cost_all, 3),
                "kept": list(res.model.effects), "hypothesis": res.hypothesis_json(),
+               "kept_params": {n: dict(v) for n, v in res.model.effects.items()},
                "follows": (u or {}).get("follows", list(doc["follows"]["follows"]))[:3],
                "proposal": p and p["equation"], "where": p and p["where"],
                "terms": p and [{k: t[k] for k in ("place", "form", "value", "unit", "ci95")} for t in p["terms"]],

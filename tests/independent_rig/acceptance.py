@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import shlex
@@ -235,8 +236,43 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
 #: a missed effect is below what the data resolve when no effect of its kinds, fitted by hand on top of what the
 #: diagnosis kept, removes this share of the residual's excess over 1 (in the verdict's floors, nor in sensor-noise
 #: variances): the share a structural hypothesis must remove to be kept on an explained campaign
-#: (ehas_env.measurement.diagnosis.QUIET_HYPOTHESIS_SHARE, the rule the diagnosis itself applies)
+#: (ehas_env.measurement.diagnosis.QUIET_HYPOTHESIS_SHARE, the rule the diagnosis itself applies) ...
 RESOLVE_SHARE = 0.5
+#: ... or when, removing it, the fit does not clear the evidence every effect must show to be kept: the score
+#: 10 log10(J_before / J_after) in sensor-noise variances, less RESOLVE_PENALTY_DB per fitted parameter, of at
+#: least RESOLVE_SCORE_DB (ehas_env.measurement.fitting.MIN_SCORE and PENALTY_PER_PARAM); effects fitted together
+#: must clear it together, and each on top of the others fitted alone (the rule of diagnosis._pair_hypotheses)
+RESOLVE_SCORE_DB = 0.3
+RESOLVE_PENALTY_DB = 0.2
+
+
+def oracle_score(before: float, after: float, n_params: int) -> float:
+    """The diagnosis' score of a fit that took the residual from ``before`` to ``after`` sensor-noise variances
+    with ``n_params`` parameters: dB of residual removed, less :data:`RESOLVE_PENALTY_DB` per parameter."""
+    return 10.0 * math.log10(before / after) - RESOLVE_PENALTY_DB * n_params
+
+
+def oracle_resolves(t: dict, ref: dict, alone: list = ()) -> bool:
+    """Whether the oracle fit ``t`` (one record of :func:`resolution_check`'s ``tried``) shows what the
+    diagnosis asks of an effect it keeps: it removes :data:`RESOLVE_SHARE` of the excess of the reference
+    ``ref`` (in floors or sensor-noise variances) and scores :data:`RESOLVE_SCORE_DB` on top of it; fitted
+    together with others, each scores that on top of the others fitted ``alone`` (their own oracle records).
+
+    Examples
+    --------
+    >>> ref = {"floors": 1.094, "sensor": 1.338}
+    >>> pair = {"share_removed": {"floors": 0.59, "sensor": 0.51}, "after": {"sensor": 1.164}, "fitted": [1, 2]}
+    >>> oracle_resolves(pair, ref)  # 0.60 dB removed, 0.40 dB of penalty
+    False
+    >>> oracle_resolves({**pair, "after": {"sensor": 1.05}}, ref)
+    True
+    """
+    if max(t["share_removed"].values()) < RESOLVE_SHARE:
+        return False
+    if oracle_score(ref["sensor"], t["after"]["sensor"], len(t["fitted"])) < RESOLVE_SCORE_DB:
+        return False
+    return all(oracle_score(a["after"]["sensor"], t["after"]["sensor"], len(t["fitted"]) - len(a["fitted"]))
+               >= RESOLVE_SCORE_DB for a in alone)
 
 
 def resolution_check(rec: dict, camp: Path, mopt: list, wdir: Path, log=print) -> dict:
@@ -245,10 +281,12 @@ def resolution_check(rec: dict, camp: Path, mopt: list, wdir: Path, log=print) -
     The oracle: every effect of ehas whose kinds meet the missed effect's accepted kinds (:data:`LIBRARY_KIND`) is
     fitted by hand on top of what the diagnosis kept (``ehas compare CAMP --effects KEPT,H --fit --json``),
     against the same with what was kept alone (the recalibrated baseline when nothing was).  The effect is
-    *below resolution* when no such H removes :data:`RESOLVE_SHARE` of the residual's excess over 1, in the
-    verdict's floors nor in sensor-noise variances: the diagnosis could not have kept it by its own rule, and
-    naming nothing for it is the honest answer.  Several effects missed, each below resolution alone, are fitted
-    together too (the best H of each): when they remove that share together, none is below resolution.
+    *below resolution* when no such H shows what the diagnosis asks of an effect it keeps
+    (:func:`oracle_resolves`: it removes :data:`RESOLVE_SHARE` of the residual's excess over 1, in the verdict's
+    floors or in sensor-noise variances, and scores :data:`RESOLVE_SCORE_DB`): the diagnosis could not have kept
+    it by its own rules, and naming nothing for it is the honest answer.  Several effects missed, each below
+    resolution alone, are fitted together too (the best H of each, by the share removed): when together they
+    show it, each also on top of the other alone, none is below resolution.
 
     Returns ``{effect: {"below_resolution", "reference", "tried"}}``.
     """
@@ -284,21 +322,19 @@ def resolution_check(rec: dict, camp: Path, mopt: list, wdir: Path, log=print) -
         return {"effect": " + ".join(added), "command": cmd, "after": after, "share_removed": share,
                 "fitted": [f for f in doc.get("fitted", []) if f["effect"] in added], "wall_s": round(wall, 1)}
 
-    def resolved(t: dict) -> bool:
-        return max(t["share_removed"].values()) >= RESOLVE_SHARE
-
     out = {}
     for missed in rec["judge"]["missed"]:
         kinds = set(ALL[missed].accepted_kinds)
         tried = [oracle([h], h) for h in sorted(n for n, k in LIBRARY_KIND.items() if k & kinds and n not in kept)]
-        out[missed] = {"below_resolution": not any(resolved(t) for t in tried), "reference": ref, "tried": tried}
+        out[missed] = {"below_resolution": not any(oracle_resolves(t, ref) for t in tried), "reference": ref,
+                       "tried": tried}
     if len(out) > 1 and all(v["below_resolution"] for v in out.values()):
         # each alone is below resolution: the best of each together may still be resolved (then none is below)
-        best = [max(v["tried"], key=lambda t: max(t["share_removed"].values()))["effect"] for v in out.values()]
-        together = oracle(best, "together")
+        best = [max(v["tried"], key=lambda t: max(t["share_removed"].values())) for v in out.values()]
+        together = oracle([t["effect"] for t in best], "together")
         for v in out.values():
             v["tried"].append(together)
-            v["below_resolution"] = not resolved(together)
+            v["below_resolution"] = not oracle_resolves(together, ref, best)
     return out
 
 
@@ -498,17 +534,22 @@ def readme(recs: list[dict], summ: dict, caps: dict, command: str) -> str:
           "has.  A clean campaign is right when nothing is named.", "",
           "Below resolution: for a hidden effect nothing named matches, every effect of ehas of its accepted kinds "
           "is fitted by hand on top of what the diagnosis kept (`ehas compare CAMP --effects KEPT,H --fit --json`, "
-          "against `--effects KEPT`, or the recalibrated baseline when nothing was kept).  When none removes "
-          f"{RESOLVE_SHARE:.0%} of the residual's excess over 1 (in the verdict's floors, nor in sensor-noise "
-          "variances; the share the diagnosis asks of a structural hypothesis on an explained campaign), the data "
-          "do not resolve it and naming nothing for it is counted right (nothing of a wrong kind may be named).  Two "
-          "missed effects, each below resolution alone, are also fitted together (the best of each); when together "
-          "they remove that share, neither counts as below resolution.", ""]
+          "against `--effects KEPT`, or the recalibrated baseline when nothing was kept).  It is resolved when an "
+          "oracle shows what the diagnosis asks of every effect it keeps: it removes "
+          f"{RESOLVE_SHARE:.0%} of the residual's excess over 1 (in the verdict's floors or in sensor-noise "
+          "variances; the share the diagnosis asks of a structural hypothesis on an explained campaign) and its "
+          f"score, 10 log10(J before / J after) in sensor-noise variances less {RESOLVE_PENALTY_DB:g} dB per fitted "
+          f"parameter, is at least {RESOLVE_SCORE_DB:g} dB (the diagnosis' bar for beating the noise).  When no "
+          "oracle does, the data do not resolve it and naming nothing for it is counted right (nothing of a wrong "
+          "kind may be named).  Two missed effects, each below resolution alone, are also fitted together (the best "
+          "of each by the share removed); when together they clear both bars, and each scores the bar on top of the "
+          "other fitted alone, neither counts as below resolution.", ""]
     below = [r for r in recs if r.get("resolution")]
     if below:
         L += ["| case | hidden effect missed | reference (kept) | floors | sensor | fitted by hand | floors after | "
-              "sensor after | share of the excess removed (floors / sensor) | below resolution |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+              "sensor after | share of the excess removed (floors / sensor) | score dB (after the penalty) | "
+              "below resolution |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in below:
             for m, v in r["resolution"].items():
                 ref = v["reference"]
@@ -518,7 +559,9 @@ def readme(recs: list[dict], summ: dict, caps: dict, command: str) -> str:
                     L.append(f"| {r['id']} | {m} | {' + '.join(ref['model'])} | {ref['floors']:.4g} | "
                              f"{ref['sensor']:.4g} | {t['effect']}: {fit} | {t['after']['floors']:.4g} | "
                              f"{t['after']['sensor']:.4g} | {100 * t['share_removed']['floors']:.0f} % / "
-                             f"{100 * t['share_removed']['sensor']:.0f} % | {_fmt(v['below_resolution'])} |")
+                             f"{100 * t['share_removed']['sensor']:.0f} % | "
+                             f"{oracle_score(ref['sensor'], t['after']['sensor'], len(t['fitted'])):.2f} | "
+                             f"{_fmt(v['below_resolution'])} |")
         L.append("")
     L += ["## Every campaign", "",
           "| case | rig | hidden | verdict | residual before | named (kinds) | right kind | residual after "

@@ -84,3 +84,25 @@ def test_a_missed_effect_counts_as_right_only_when_the_data_do_not_resolve_it():
     assert acceptance.right_kind_resolved(missed)
     wrong["resolution"] = {"lvdt_offset": {"below_resolution": True}}
     assert not acceptance.right_kind_resolved(wrong)
+
+
+def test_an_oracle_resolves_an_effect_only_with_the_share_and_the_score_the_diagnosis_asks():
+    """The resolution bar is the diagnosis' own: the share of the excess removed, and the score (dB less 0.2 dB per
+    parameter, at least 0.3 dB); fitted together, each effect must score on top of the other fitted alone."""
+    ref = {"floors": 1.2, "sensor": 1.5}
+
+    def rec(floors, sensor, n):
+        return {"after": {"floors": floors, "sensor": sensor}, "fitted": [{}] * n,
+                "share_removed": {"floors": (1.2 - floors) / 0.2, "sensor": (1.5 - sensor) / 0.5}}
+
+    assert acceptance.oracle_score(1.5, 1.5 / 10 ** 0.05, 1) == pytest.approx(0.3)
+    assert acceptance.oracle_resolves(rec(1.05, 1.2, 1), ref)  # 75 % of the excess, 0.77 dB
+    assert not acceptance.oracle_resolves(rec(1.15, 1.4, 1), ref)  # 25 %: too small a share
+    # half the excess in floors but hardly anything in the cost: 0.13 dB - 0.2 dB
+    assert not acceptance.oracle_resolves(rec(1.1, 1.455, 1), ref)
+    # the same share and score spread over eight parameters: 0.77 - 1.6 dB
+    assert not acceptance.oracle_resolves(rec(1.05, 1.2, 8), ref)
+    pair, a, b = rec(1.04, 1.1, 2), rec(1.12, 1.3, 1), rec(1.1, 1.25, 1)
+    # each on top of the other alone: 1.3 -> 1.1 scores 0.53 dB, 1.25 -> 1.1 0.36 dB ...
+    assert acceptance.oracle_resolves(pair, ref, [a, b])
+    assert not acceptance.oracle_resolves(pair, ref, [a, rec(1.05, 1.12, 1)])  # ... 1.12 -> 1.1: -0.12 dB
