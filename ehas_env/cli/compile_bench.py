@@ -70,7 +70,8 @@ def _floor_rows(tmp: Path) -> list:
     print("compile_bench: numba's floor (import; one cached one-line function) ...", file=sys.stderr, flush=True)
     subprocess.run([sys.executable, str(script)], env=env, check=True)  # compiles and caches it
     rows = []
-    for what, cmd in (("numba alone: `import numpy, numba` (no function)", [sys.executable, "-c", "import numpy, numba"]),
+    for what, cmd in (("numba alone: `import numpy, numba` (no function)",
+                       [sys.executable, "-c", "import numpy, numba"]),
                       ("numba alone: one cached one-line `@njit` function, called once (the floor of any cached run)",
                        [sys.executable, str(script)])):
         load0 = os.getloadavg()[0]

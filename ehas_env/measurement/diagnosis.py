@@ -18,7 +18,7 @@ limit cycle or joint knocks cannot be matched sample by sample does not swamp
 the others); J ~ 1 means "explained down to the sensor noise".  It is
 minimised by iteratively reweighted least squares.  A candidate's score is the
 reduction of J in decibels, 10 log10(J_null / J_candidate), less
-:data:`PENALTY_PER_PARAM` dB per fitted parameter of the effect (so an effect
+:data:`~ehas_env.measurement.fitting.PENALTY_PER_PARAM` dB per fitted parameter of the effect (so an effect
 with more parameters must explain clearly more to rank higher: Stribeck
 friction over Coulomb friction only when the breakaway peak is really there; a
 Stribeck fit without one, Fs <= :data:`DEGENERATE_STRIBECK` Fc, hands its fit to
@@ -51,8 +51,8 @@ from ehas_env.measurement import proposal as P
 from ehas_env.measurement.campaign import Campaign
 from ehas_env.measurement.keeping import agree, run_groups
 from ehas_env.measurement.fitting import (
-    MIN_GAIN, MIN_SCORE, PENALTY_PER_PARAM, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _unit, _value_of,
-    confidence, fit, own_params, recal_params, reopens_baseline, start_value)
+    MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _unit, _value_of,
+    beats_noise, confidence, fit, own_params, recal_params, reopens_baseline, score_db, start_value)
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
 from ehas_env.measurement.residuals import evidence_text, follows as follows_of
 from ehas_env.measurement.verdict import blocks_of, grade
@@ -361,11 +361,9 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
     entries = []
     for n, f in fits.items():
         k = len(get_effect(n).params)
-        gain = null.cost - f.cost
-        score = 10.0 * math.log10(null.cost / f.cost) - PENALTY_PER_PARAM * k
-        beats = score >= MIN_SCORE and gain >= MIN_GAIN
         entries.append(Entry(effect=n, params=dict(f.model.effects.get(n, {})), fit_percent=f.table.overall,
-                             score=score, evidence="", cost=f.cost, beats_noise=beats, fit=f))
+                             score=score_db(null.cost, f.cost, k), evidence="", cost=f.cost,
+                             beats_noise=beats_noise(null.cost, f.cost, k), fit=f))
     entries.sort(key=lambda e: e.score, reverse=True)
     for e in entries:
         e.evidence = evidence_text(rep, null, e)
@@ -452,6 +450,12 @@ def _quiet_measure(full: Replayer, sims: list, units: str) -> float:
     if units == "floor":
         return grade(blocks_of(full, sims, COST_SIGNALS))["residual_x_noise"]
     return full.log_cost(sims)
+
+
+def _share_needed(before: float) -> float:
+    """The residual a hypothesis kept on an explained campaign must reach: :data:`QUIET_HYPOTHESIS_SHARE` of the
+    excess of ``before`` over 1 removed (in the measure that started the search)."""
+    return before - QUIET_HYPOTHESIS_SHARE * (before - 1.0)
 
 
 def hypotheses_trigger(g: dict, sensor_x: float, inconsistent: list) -> tuple | None:
@@ -706,12 +710,12 @@ def _pair_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list,
     h1, h2, f = best
     pair = f"{h1} + {h2}"
     k = {h: len(get_effect(h).params) for h in (h1, h2)}
-    score = 10.0 * math.log10(d.null.cost / f.cost) - PENALTY_PER_PARAM * (k[h1] + k[h2])
     why = None
-    if score < MIN_SCORE or d.null.cost - f.cost < MIN_GAIN:
-        why = f"together they do not beat the noise ({score:.2f} dB after the penalty; {MIN_SCORE:g} dB needed)"
+    if not beats_noise(d.null.cost, f.cost, k[h1] + k[h2]):
+        why = (f"together they do not beat the noise ({score_db(d.null.cost, f.cost, k[h1] + k[h2]):.2f} dB after "
+               f"the penalty; {MIN_SCORE:g} dB needed)")
     for h, other in ((h1, h2), (h2, h1)):
-        own = 10.0 * math.log10(single[other].cost / f.cost) - PENALTY_PER_PARAM * k[h]
+        own = score_db(single[other].cost, f.cost, k[h])
         if why is None and own < MIN_SCORE:
             why = f"{h} does not earn its parameters on top of {other} ({own:.2f} dB; {MIN_SCORE:g} dB needed)"
     for h in (h1, h2):
@@ -724,7 +728,7 @@ def _pair_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list,
                f"{val:.3g} noise variances)")
     x = _quiet_measure(full, sims, units)
     if why is None:
-        need = before - QUIET_HYPOTHESIS_SHARE * (before - 1.0)
+        need = _share_needed(before)
         if x > need:
             why = (f"together they remove too little of the structured rest ({before:.3g} -> {x:.3g} x "
                    f"{QUIET_UNITS[units]}, {need:.3g} needed)")
@@ -1078,7 +1082,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                 # the campaign was explained without it: it must remove a good share of the structured rest, in
                 # the measure that made the search start
                 x = _quiet_measure(full, sims, quiet)
-                need = before_hyp - QUIET_HYPOTHESIS_SHARE * (before_hyp - 1.0)
+                need = _share_needed(before_hyp)
                 if x > need:
                     why = (f"the campaign is explained without it ({before_hyp:.3g} x {QUIET_UNITS[quiet]}); it "
                            f"removes too little of the structured rest ({before_hyp:.3g} -> {x:.3g}, {need:.3g} "

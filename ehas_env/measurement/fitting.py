@@ -37,6 +37,24 @@ SKIP_MARGIN = 0.002  # a scan must beat the null model by this fraction to be fi
 SCREEN_NFEV = 8  # least-squares steps per parameter when screening a candidate
 MAX_NFEV = 15  # ... when refining one (each step also costs one replay per parameter)
 
+
+def score_db(before: float, after: float, n_params: int) -> float:
+    """A candidate's score: the cost it removes, ``10 log10(before / after)`` dB, less :data:`PENALTY_PER_PARAM`
+    per fitted parameter.
+
+    Examples
+    --------
+    >>> round(score_db(2.0, 1.0, 1), 2)
+    2.81
+    """
+    return 10.0 * math.log10(before / after) - PENALTY_PER_PARAM * n_params
+
+
+def beats_noise(before: float, after: float, n_params: int) -> bool:
+    """Whether a fit that took the cost from ``before`` to ``after`` with ``n_params`` parameters beats the noise:
+    it scores :data:`MIN_SCORE` (:func:`score_db`) and removes :data:`MIN_GAIN` noise variances per sample."""
+    return score_db(before, after, n_params) >= MIN_SCORE and before - after >= MIN_GAIN
+
 #: FreeParam.effect of a proposed term's coefficient (ehas_env.measurement.proposal_terms)
 TERM = "proposal"
 
