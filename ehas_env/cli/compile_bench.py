@@ -7,9 +7,11 @@ the drivers, the environments' build) and in a fresh model cache, it times as wh
 1. ``ehas compare CAMP``: the library's model, first run (compile included) -- once per machine;
 2. ``ehas compare CAMP --effects-path FX --effects NAME`` with an effect file this cache has never seen
    (library model cached): the user's first replay;
-3. the same command again (everything cached);
+3. the same command again (everything cached), and again with numba's own BLAS probe
+   (``EHAS_NUMBA_BLAS_PROBE=import``, :mod:`ehas_env.physics.numba_start`): median of ``REPEATS`` runs;
 
-beside numba's own floor in a new process: importing it, and calling one cached one-line function;
+beside numba's own floor in a new process: importing it, and calling one cached one-line function (with
+numba's BLAS probe and with the one ehas answers);
 
 and, unless ``--no-diagnose``, the user's loop on a fresh 5-run campaign (3 s runs) from a rig with a hidden
 torsion spring of 800 N m/rad (a user effect the diagnosis is not given), in an empty model cache (every compile
@@ -62,20 +64,39 @@ total(np.ones(3))
 """
 
 
+#: runs of every row that can be repeated (the cached ones and the floor): their median is reported
+REPEATS = 5
+
+
+def _timed_median(cmd, env, n: int = REPEATS) -> tuple[float, float]:
+    """Median wall and CPU seconds of ``n`` runs of the process ``cmd``."""
+    import statistics
+
+    runs = [_timed(cmd, env)[:2] for _ in range(n)]
+    return statistics.median(w for w, _ in runs), statistics.median(c for _, c in runs)
+
+
 def _floor_rows(tmp: Path) -> list:
-    """Rows for numba itself in a new process: importing it, and calling one cached one-line function."""
+    """Rows for numba itself in a new process: importing it, and calling one cached one-line function (with
+    numba's own BLAS probe, and with the probe ehas answers, :mod:`ehas_env.physics.numba_start`)."""
     script = tmp / "numba_floor.py"
     script.write_text(_FLOOR_SCRIPT)
+    probed = tmp / "numba_floor_probed.py"
+    probed.write_text("from ehas_env.physics.numba_start import answer_blas_probe\n\nanswer_blas_probe()\n"
+                      + _FLOOR_SCRIPT)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "cache-numba-floor")}
     print("compile_bench: numba's floor (import; one cached one-line function) ...", file=sys.stderr, flush=True)
-    subprocess.run([sys.executable, str(script)], env=env, check=True)  # compiles and caches it
+    for s in (script, probed):
+        subprocess.run([sys.executable, str(s)], env=env, check=True)  # compiles and caches it
     rows = []
     for what, cmd in (("numba alone: `import numpy, numba` (no function)",
                        [sys.executable, "-c", "import numpy, numba"]),
                       ("numba alone: one cached one-line `@njit` function, called once (the floor of any cached run)",
-                       [sys.executable, str(script)])):
+                       [sys.executable, str(script)]),
+                      ("the same, numba's BLAS probe answered without importing scipy.linalg (as ehas does)",
+                       [sys.executable, str(probed)])):
         load0 = os.getloadavg()[0]
-        wall, cpu, _ = _timed(cmd, env)
+        wall, cpu = _timed_median(cmd, env)
         rows.append(("-", what, wall, cpu, load0, os.getloadavg()[0]))
     return rows
 
@@ -146,11 +167,17 @@ def main(argv=None) -> int:
                      ("new user effect, first replay", ehas + ["compare", str(camp), "--effects-path", str(fx),
                                                                "--effects", f"bench_spring_{k}"]),
                      ("same command again (cached)", ehas + ["compare", str(camp), "--effects-path", str(fx),
-                                                            "--effects", f"bench_spring_{k}"])]
+                                                            "--effects", f"bench_spring_{k}"]),
+                     ("same command again, numba's own BLAS probe (`EHAS_NUMBA_BLAS_PROBE=import`)",
+                      ["env", "EHAS_NUMBA_BLAS_PROBE=import"] + ehas + [
+                          "compare", str(camp), "--effects-path", str(fx), "--effects", f"bench_spring_{k}"])]
             for what, cmd in steps:
                 print(f"compile_bench: {build} build: {what} ...", file=sys.stderr, flush=True)
                 load0 = os.getloadavg()[0]
-                wall, cpu, _ = _timed(cmd, env)
+                if what.startswith("same command again"):   # cached: repeatable, the median of REPEATS runs
+                    wall, cpu = _timed_median(cmd, env)
+                else:
+                    wall, cpu, _ = _timed(cmd, env)
                 rows.append((build, what, wall, cpu, load0, os.getloadavg()[0]))
         if not args.no_diagnose:
             rows += _diagnose_rows(ehas, tmp)
@@ -162,7 +189,8 @@ def main(argv=None) -> int:
             "rows on a 5-run campaign (3 s runs) with a hidden 800 N m/rad torsion spring in an empty model cache; CPU = user + system time of "
             "the process, the figure a quiet machine's wall time approaches; load = 1-min load average before / "
             "after (above the core count, other processes shared the machine). The rows of build `-` time numba "
-            "itself in a new process, the floor under every cached row.", "",
+            f"itself in a new process, the floor under every cached row. The cached rows and the floor are the "
+            f"median of {REPEATS} runs each, the other rows one run (a first compile happens once).", "",
             "| build | step | wall s | CPU s | load |", "|---|---|---:|---:|---|"]
     for build, what, wall, cpu, l0, l1 in rows:
         text.append(f"| {build} | {what} | {wall:.1f} | {cpu:.1f} | {l0:.1f} / {l1:.1f} |")

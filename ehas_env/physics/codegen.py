@@ -421,7 +421,9 @@ def build_model(effects=None, laws=(), inline: bool = True):
 
 def _build_model(effects, laws, inline: bool):
     from ehas_env.physics.effects import REGISTRY
+    from ehas_env.physics.numba_start import answer_blas_probe
 
+    answer_blas_probe()  # before the model's first compiled call: numba's start without importing scipy.linalg
     effects = list(REGISTRY.values()) if effects is None else list(effects)
     laws = list(laws)
     # the same classes and laws give the same text: skip regenerating it (every Plant asks for its model)

@@ -49,6 +49,19 @@ def reference_point(ref, t):
 
 
 @njit(cache=True, inline="always")
+def reference_series(ref, t):
+    """:func:`reference_point` at every time of the array t, shape (4, len(t)): one call for a whole log."""
+    out = np.empty((4, t.shape[0]))
+    for k in range(t.shape[0]):
+        r, rd, rdd, rddd = reference_point(ref, t[k])
+        out[0, k] = r
+        out[1, k] = rd
+        out[2, k] = rdd
+        out[3, k] = rddd
+    return out
+
+
+@njit(cache=True, inline="always")
 def quantize(x, lsb):
     """x rounded to a multiple of lsb (no rounding for lsb <= 0): an ADC or DAC."""
     if lsb <= 0.0:

@@ -51,12 +51,11 @@ class SineReference:
         """theta_ref and its first three derivatives (deg, deg/s^k), shape (4,) or (4, len(t))."""
         from ehas_env.simulation.compiled_model import current_model
 
-        reference_point = current_model(inline=False).reference_point  # a few calls: the quick-compile build
+        reference_series = current_model(inline=False).reference_series  # the quick-compile build
 
-        vec = self.kernel_vector()
         scalar = np.ndim(t) == 0
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        out = np.array([reference_point(vec, float(tk)) for tk in t]).T
+        t = np.ascontiguousarray(np.atleast_1d(np.asarray(t, dtype=float)))
+        out = reference_series(self.kernel_vector(), t)
         return out[:, 0] if scalar else out
 
     @property

@@ -207,3 +207,28 @@ def test_a_format_is_one_file_in_one_folder(runs, tmp_path, monkeypatch):
         (folder / f"{name}.json").write_text(json.dumps(meta))
     assert_same_campaign(read_campaign(write_campaign(tmp_path / "csv", runs)), read_campaign(folder))
     sys.modules.pop("ehas_env.measurement.formats.whitespace", None)
+
+
+def test_a_csv_of_numbers_reads_the_same_as_pythons_csv_and_float_cell_by_cell(tmp_path):
+    """The all-at-once reading of a numbers-only file against the standard library's csv module and float(),
+    on cells written every way a logger writes them; a single empty cell takes the careful path, same numbers."""
+    import csv as std_csv
+
+    from ehas_env.measurement.formats import csv as csv_format
+
+    rng = np.random.default_rng(7)
+    x = rng.normal(0, 1e3, size=(3000, 4)) * 10.0 ** rng.integers(-6, 6, size=(3000, 4))
+    styles = [lambda v: f"{v:.10g}", lambda v: f"{v:e}", lambda v: f" {v:.3f}", lambda v: f"{round(v)}"]
+    rows = [[styles[(i + j) % 4](v) for j, v in enumerate(r)] for i, r in enumerate(x)]
+    for name, body in (("numbers.csv", rows), ("one_empty.csv", [r if i != 1234 else [r[0], "", *r[2:]]
+                                                               for i, r in enumerate(rows)])):
+        f = tmp_path / name
+        f.write_text("t,a,b,c\n" + "\n".join(",".join(r) for r in body) + "\n")
+        table = csv_format.read(f, lambda names: names)
+        at_once = csv_format._numbers_at_once(f.read_text().splitlines()[1:], ",", 4, [0, 1, 2, 3])
+        assert (at_once is None) == (name == "one_empty.csv")     # which path read it
+        with f.open(newline="") as fh:
+            ref = list(std_csv.reader(fh))[1:]
+        for j, col in enumerate(("t", "a", "b", "c")):
+            expected = np.array([float(r[j]) if r[j].strip() else np.nan for r in ref])
+            np.testing.assert_array_equal(table.columns[col], expected)

@@ -51,6 +51,23 @@ def _separator(header: str, path: Path) -> str:
     return found[0]
 
 
+def _numbers_at_once(body: list, sep: str, width: int, index: list):
+    """The ``index`` columns of the rows ``body`` through numpy's number parser, all cells in one call.
+
+    A logger's file is usually nothing but numbers, and this reads it 10-20x faster than cell by cell (a 30 s
+    run at 1 kHz: 30 000 rows). None when any row or cell needs the careful reading below: a row with another
+    number of cells, an empty, quoted or text cell, a NaN or an infinity -- that reading accepts or names it
+    with its line, and its numbers are the same (numpy parses a cell as Python's ``float`` does).
+    """
+    if any(line.count(sep) != width - 1 for line in body):
+        return None
+    try:
+        data = np.array(sep.join(body).split(sep)).reshape(len(body), width)[:, index].astype(float)
+    except ValueError:
+        return None
+    return data if np.isfinite(data).all() else None
+
+
 def read(path: Path, keep, group=None) -> Table:
     """The columns ``keep`` chooses of a CSV run file (see the package docstring)."""
     text = _read_text(path)
@@ -71,6 +88,9 @@ def read(path: Path, keep, group=None) -> Table:
     wanted = list(keep(list(raw)))
     index = [raw.index(c) for c in wanted]
     width = len(raw)
+    data = _numbers_at_once(lines[1:], sep, width, index) if not decimal_comma else None
+    if data is not None:
+        return Table(columns={name: data[:, jj] for jj, name in enumerate(wanted)}, names=raw, line_offset=2)
     data = np.empty((len(lines) - 1, len(index)))
     for k, line in enumerate(lines[1:]):
         cells = line.split(sep)
