@@ -78,6 +78,9 @@ def test_simulate_runs_the_model(rig, capsys):
     np.testing.assert_allclose(data["load_kN"], 9e-4 * (data["p_a_bar"] - data["p_b_bar"]) * 1e2, atol=2e-3)
 
 
+# slow: a model file's rig compiles its own fast-step build for the benchmark (about 1 min on 2 cores);
+# test_diagnose_on_the_model_finds_the_hidden_friction keeps the model rig in the default run
+@pytest.mark.slow
 def test_tune_and_bench_on_the_model(rig, capsys):
     d, path = rig
     ctrl = d / "ctrl" / "model_based_7.json"
@@ -131,6 +134,9 @@ def test_diagnose_on_the_model_finds_the_hidden_friction(rig, campaigns, capsys,
     assert top["effect"] == "coulomb_friction" and top["params"]["Fc"] == pytest.approx(400, rel=0.15)
 
 
+# slow: trains on the model rig's own compiled environment (about 1 min on 2 cores); training itself is
+# in the default run (tests/train)
+@pytest.mark.slow
 def test_train_smoke_on_the_model(rig, tmp_path, monkeypatch, capsys):
     pytest.importorskip("stable_baselines3")
     from ehas_env.env import batch_kernel as bk

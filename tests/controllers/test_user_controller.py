@@ -115,6 +115,9 @@ def test_user_controller_is_the_learned_agents_base_in_evaluation_on_the_quick_b
     _learned_agents_base_in_evaluation(pd)
 
 
+# slow: `ehas bench` compiles the fast-step build with a new law (about 1.5 min on 2 cores);
+# test_user_controller_runs_in_the_benchmark runs the same file in the benchmark in the default run
+@pytest.mark.slow
 def test_bench_command_takes_a_controller_file(pd, tmp_path):
     from ehas_env.cli.main import main
 

@@ -53,7 +53,8 @@ def compare_with_singles(n_envs, steps, parallel, seed=3, **kw):
     return worst, ends
 
 
-@pytest.mark.parametrize("parallel", [False, True])
+# parallel=True compiles the prange kernel (about 2 min on 2 cores): slow; the serial loop is the default
+@pytest.mark.parametrize("parallel", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_batch_equals_single_environments(parallel):
     worst, ends = compare_with_singles(4, 2500, parallel, **SETTINGS)
     assert ends >= 4  # episodes ended and were reset along the way

@@ -124,6 +124,9 @@ def test_an_effect_that_would_do_nothing_is_refused(tmp_path, capsys, body, mess
     assert len(err.splitlines()) == 1 and "typo.py" in err and message in err, err
 
 
+# slow: the benchmark compiles the fast-step build of a new effect set (about 2.5 min on 2 cores); the quick
+# build takes the same file in test_plant_uses_a_user_effect_file and the environment test below
+@pytest.mark.slow
 def test_bench_and_diagnose_take_the_effect_from_its_folder(spring_dir, tmp_path, capsys):
     """bench puts the user's effect in its robustness table; diagnose finds it hidden in a campaign."""
     import json
