@@ -163,21 +163,17 @@ def main(argv=None) -> int:
             fx = tmp / f"fx-{build}"
             fx.mkdir()
             (fx / "bench_spring.py").write_text(spring_effect(f"bench_spring_{k}", f"BenchSpring{k}"))
-            steps = [("library model, first run (once per machine)", ehas + ["compare", str(camp)]),
-                     ("new user effect, first replay", ehas + ["compare", str(camp), "--effects-path", str(fx),
-                                                               "--effects", f"bench_spring_{k}"]),
-                     ("same command again (cached)", ehas + ["compare", str(camp), "--effects-path", str(fx),
-                                                            "--effects", f"bench_spring_{k}"]),
-                     ("same command again, numba's own BLAS probe (`EHAS_NUMBA_BLAS_PROBE=import`)",
-                      ["env", "EHAS_NUMBA_BLAS_PROBE=import"] + ehas + [
-                          "compare", str(camp), "--effects-path", str(fx), "--effects", f"bench_spring_{k}"])]
-            for what, cmd in steps:
+            with_effect = ehas + ["compare", str(camp), "--effects-path", str(fx), "--effects", f"bench_spring_{k}"]
+            # (row, command, environment, repeated: a cached run can be repeated, the median of REPEATS is given)
+            steps = [("library model, first run (once per machine)", ehas + ["compare", str(camp)], env, False),
+                     ("new user effect, first replay", with_effect, env, False),
+                     ("same command again (cached)", with_effect, env, True),
+                     ("same command again, numba's own BLAS probe (`EHAS_NUMBA_BLAS_PROBE=import`)", with_effect,
+                      {**env, "EHAS_NUMBA_BLAS_PROBE": "import"}, True)]
+            for what, cmd, step_env, repeated in steps:
                 print(f"compile_bench: {build} build: {what} ...", file=sys.stderr, flush=True)
                 load0 = os.getloadavg()[0]
-                if what.startswith("same command again"):   # cached: repeatable, the median of REPEATS runs
-                    wall, cpu = _timed_median(cmd, env)
-                else:
-                    wall, cpu, _ = _timed(cmd, env)
+                wall, cpu = _timed_median(cmd, step_env) if repeated else _timed(cmd, step_env)[:2]
                 rows.append((build, what, wall, cpu, load0, os.getloadavg()[0]))
         if not args.no_diagnose:
             rows += _diagnose_rows(ehas, tmp)

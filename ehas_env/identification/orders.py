@@ -283,10 +283,7 @@ def _black_box_row(structure, n, nk, est_data, data, validation, k0, offsets, pr
         e_crit["predict_fit_percent"] = float(fit_percent(
             est_data.y, m.predict(est_data.u - u0, est_data.y - y0, predict_k) + y0))
     # an unstable plant can look finite over one record (its input gain fitted to almost nothing): listed, never chosen
-    # (the state matrix's eigenvalues, or the roots of A F: a transfer function would cancel a pole whose input
-    # gain was fitted to zero)
-    poles = np.linalg.eigvals(m.A) if np.ndim(m.A) == 2 else np.roots(np.convolve(m.A, m.F))
-    stable = bool(np.all(np.abs(poles) < 1.0))
+    stable = bool(np.all(np.abs(m.poles()) < 1.0))
     return OrderRow(poles=n, zeros=0, p=p, estimation=e_crit, validation=v_crit, est=m, y_val=y_val,
                     structure=structure,
                     usable=stable and bool(np.all(np.isfinite(y_val)) and np.isfinite(v_crit["BIC"])))

@@ -251,6 +251,10 @@ class PolyEstimate:
         y = np.asarray(y, float)
         return y - lfilter(self.noise_impulse(int(k)), [1.0], self.innovations(u, y))
 
+    def poles(self) -> np.ndarray:
+        """The plant's poles, the roots of ``A F`` in z (those a transfer function of a zero B would cancel too)."""
+        return np.roots(np.convolve(self.A, self.F))
+
     def tf(self):
         """``B / (A F)`` with the input delay, as a discrete-time ``control.TransferFunction`` (sample time dt)."""
         return _tf_q(self._b(), np.convolve(self.A, self.F), self.dt)
@@ -458,6 +462,10 @@ class SSEstimate:
     def label(self) -> str:
         return f"SS [{self.A.shape[0]}]"
 
+    def poles(self) -> np.ndarray:
+        """The plant's poles, the eigenvalues of A (those a transfer function of a zero B would cancel too)."""
+        return np.linalg.eigvals(self.A)
+
     def ss(self):
         """The plant ``(A, B, C, D)`` as a discrete-time ``control.StateSpace`` (sample time dt)."""
         import control
@@ -502,13 +510,13 @@ class SSEstimate:
     def to_json_dict(self) -> dict:
         return {"structure": "ss", "orders": self.orders, "dt": self.dt,
                 "matrices": {k: np.atleast_2d(getattr(self, k)).tolist() for k in ("A", "B", "C", "D", "K")},
-                "poles": [[float(p.real), float(p.imag)] for p in np.linalg.eigvals(self.A)],
+                "poles": [[float(p.real), float(p.imag)] for p in self.poles()],
                 "singular_values": [float(v) for v in self.singular_values],
                 "block_rows": self.block_rows, "noise_variance": float(self.noise_variance),
                 "fit_percent": float(self.fit_percent), "method": "N4SID (nfoursid), B by least squares, D = 0"}
 
     def summary(self) -> str:
-        poles = ", ".join(f"{p:.5g}" for p in np.linalg.eigvals(self.A))
+        poles = ", ".join(f"{p:.5g}" for p in self.poles())
         return (f"{self.label} (discrete time, dt = {self.dt:g} s, N4SID with {self.block_rows} block rows):\n"
                 f"  poles (z): {poles}\n  singular values: "
                 f"{', '.join(f'{v:.4g}' for v in self.singular_values[:8])}\n"

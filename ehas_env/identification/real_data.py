@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import io
 import shlex
 import sys
 from dataclasses import dataclass
@@ -81,8 +82,7 @@ def load_dryer(path=DATA):
     """
     from ehas_env.identification.fit import IdData
 
-    _checked_bytes(path, SHA256, "dryer.dat")
-    a = np.loadtxt(path)
+    a = np.loadtxt(io.BytesIO(_checked_bytes(path, SHA256, "dryer.dat")))  # the bytes whose hash was checked
     n = a.shape[0]
     return IdData(t=np.arange(n) * DT, u=a[:, 0], y=a[:, 1], dt=DT, input_name="heater_V",
                   output_name="thermocouple_V", source="dryer.dat (DaISy)")
@@ -99,8 +99,8 @@ def load_cascaded_tanks(path=TANKS):
     """
     from ehas_env.identification.fit import IdData
 
-    _checked_bytes(path, TANKS_SHA256, "Cascaded Tanks dataBenchmark.csv")
-    a = np.genfromtxt(path, delimiter=",", skip_header=1, usecols=(0, 1, 2, 3))
+    a = np.genfromtxt(io.BytesIO(_checked_bytes(path, TANKS_SHA256, "Cascaded Tanks dataBenchmark.csv")),
+                      delimiter=",", skip_header=1, usecols=(0, 1, 2, 3))
     t = np.arange(a.shape[0]) * TANKS_DT
     est = IdData(t=t, u=a[:, 0], y=a[:, 2], dt=TANKS_DT, input_name="pump_V", output_name="level_V",
                  source="Cascaded Tanks estimation record (uEst, yEst)")

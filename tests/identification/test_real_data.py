@@ -59,8 +59,7 @@ def test_the_tanks_report_states_the_best_free_run_fit_beside_every_published_ba
     assert m, "the best structure's line is missing"
     label, fit, rmse = m.group(1), float(m.group(2)), float(m.group(3))
     # invariant: NRMSE fit % and RMS error are the same residual, fit = 100 (1 - |e| / |y - mean y|)
-    _, test = RD.load_cascaded_tanks()
-    est, _ = RD.load_cascaded_tanks()
+    est, test = RD.load_cascaded_tanks()
     y = test.y - est.y.mean()
     assert rmse == pytest.approx((1 - fit / 100) * np.sqrt(np.mean((y - y.mean()) ** 2)), rel=2e-3)
     assert f"**this project: {label}**" in tanks_report
