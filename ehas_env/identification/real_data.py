@@ -337,6 +337,13 @@ def main(argv=None) -> int:
                         help="which public record (default: dryer)")
     parser.add_argument("--out", help="write the markdown here (default: print it)")
     args = parser.parse_args(argv)
+    if args.out:
+        from ehas_env.output.outputs import OutputError, check_file
+
+        try:  # before the fits: a folder, a path under a file or an unwritable folder is refused now
+            check_file(args.out, "--out", overwrite=True, suffix=".md")
+        except OutputError as exc:
+            parser.error(str(exc))
     text = run(args.out, args.record)
     print(text if not args.out else f"wrote {args.out}")
     return 0

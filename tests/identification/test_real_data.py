@@ -80,3 +80,14 @@ def test_an_unstable_black_box_row_is_flagged_unstable_and_not_usable():
     (row,) = table.rows
     assert np.max(np.abs(np.linalg.eigvals(row.est.A))) > 1.0
     assert not row.usable and "(unstable)" in table.markdown()
+
+
+def test_a_bad_out_is_refused_before_the_fits(tmp_path, capsys):
+    for bad in (tmp_path, tmp_path / "x.txt", tmp_path / "no" / "x.md"):
+        (tmp_path / "no").write_text("a file, not a folder")
+        with pytest.raises(SystemExit) as exc:
+            RD.main(["--record", "cascaded_tanks", "--out", str(bad)])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert "--out" in err and "Traceback" not in err
+    assert not list(tmp_path.glob("*.md"))
