@@ -341,7 +341,8 @@ def check_measurement(measurement: dict, who: str) -> None:
 CONTROLLER_TYPES: dict[str, Callable[[dict], Controller]] = {}
 LOADERS: dict[str, Callable | str] = {}
 #: modules imported before loading so that they can register their types/loaders
-PLUGIN_MODULES: list[str] = ["ehas_controllers.piff", "ehas_train.agent"]  # ehas_train.agent: learned agents
+PLUGIN_MODULES: list[str] = ["ehas_controllers.piff", "ehas_controllers.ilc", "ehas_controllers.harmonic",
+                               "ehas_train.agent"]  # ehas_train.agent: learned agents
 
 
 def register_type(name: str):

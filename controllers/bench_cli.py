@@ -41,6 +41,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ehas_env.ranges import number
 
     parser.add_argument("--cycles", type=number("--cycles", "reference periods", 2, 100, lo_open=True), default=5.0, help="reference periods per run, first excluded (default 5)")
+    parser.add_argument("--long-test", type=number("--long-test", "reference cycles", 7, 1000, integer=True), nargs="?", const=30.0,
+                        default=None, metavar="N",
+                        help="also run the long test: N reference cycles from rest per condition (default 30), "
+                             "steady-state rms %% over the last 5, cycles to settle, worst cycle; writes OUT/long_test/")
+    parser.add_argument("--long-test-only", action="store_true",
+                        help="with --long-test: skip the 4-cycle benchmark (its files in OUT are left as they are)")
+    parser.add_argument("--long-test-robustness", action="store_true",
+                        help="with --long-test: also run each learning controller on plants with +-30%% on beta, K "
+                             "and friction (18 conditions each); writes long_test_robustness.csv")
+    parser.add_argument("--sensors", action="store_true",
+                        help="with --long-test: the plant's sensor layer on (LVDT noise 0.01 deg, 16-bit ADC, 12-bit "
+                             "DAC; ehas_env.simulation.sensors); the long test then writes OUT/long_test_sensors/ "
+                             "(with --model: OUT/long_test_model[_sensors]/)")
     parser.add_argument("--no-robustness", action="store_true", help="skip the robustness table (13 x 63 runs per controller)")
     parser.add_argument("--no-book", action="store_true", help="leave the book's baseline gains out")
     parser.add_argument("--retune", action="store_true", help="with no files: re-run the tuners even if their files exist")
@@ -76,6 +89,11 @@ def default_controllers(out: Path, retune: bool, progress: bool) -> list:
     return ctrls
 
 
+def _long_dir(args) -> str:
+    """The long test's folder in --out: long_test, with _model (--model) and _sensors (--sensors)."""
+    return "long_test" + ("_model" if args.model else "") + ("_sensors" if args.sensors else "")
+
+
 def run(args) -> int:
     from ehas_env.simulation.executors import executor_from_args
 
@@ -89,10 +107,18 @@ def run(args) -> int:
     from . import base
 
     base.LOAD_OPTIONS["allow_pickle"] = bool(getattr(args, "allow_pickle", False))
+    if (args.long_test_only or args.sensors or args.long_test_robustness) and args.long_test is None:
+        raise ValueError("--long-test-only, --long-test-robustness and --sensors go with --long-test [N]")
     out = Path(args.out)
     plant_kw = plant_kwargs_from_model(args.model)
     # the output set, checked before any work: the benchmark's files in --out (other files there are left alone)
-    outputs = OutputSet(out, "--out", overwrite=args.overwrite, members=BENCH_FILES, last=("benchmark.md",))
+    outputs = (None if args.long_test is not None and args.long_test_only else
+               OutputSet(out, "--out", overwrite=args.overwrite, members=BENCH_FILES, last=("benchmark.md",)))
+    if args.long_test is not None:  # checked before any work, as the benchmark's own files
+        from .long_test import LONG_FILES
+
+        OutputSet(out / _long_dir(args), "--out", overwrite=args.overwrite,
+                  members=LONG_FILES, last=("long_test.md",))
     executor = executor_from_args(args)
     controllers = [] if args.no_book else [PIFF.book()]
     if args.controllers:
@@ -111,7 +137,39 @@ def run(args) -> int:
     for flag in ("no_robustness", "no_book"):
         if getattr(args, flag):
             parts.append("--" + flag.replace("_", "-"))
+    if args.long_test is not None:
+        parts += ["--long-test"] + ([] if args.long_test == 30 else [f"{args.long_test:g}"])
+        parts += [flag for flag, on in (("--long-test-only", args.long_test_only), ("--sensors", args.sensors),
+                                        ("--long-test-robustness", args.long_test_robustness)) if on]
     command = " ".join(shlex.quote(p) for p in parts)
+    if args.long_test is not None:
+        from .long_test import LONG_FILES, run_long_test
+
+        long_out = out / _long_dir(args)
+        long_set = OutputSet(long_out, "--out", overwrite=args.overwrite, members=LONG_FILES, last=("long_test.md",))
+        long_kw = dict(plant_kw)
+        label = "book rig" if not args.model else f"model {args.model}"
+        if args.sensors:
+            from ehas_env.simulation.sensors import Sensors
+
+            long_kw["sensors"] = Sensors()
+            label += ", sensor layer on"
+        with long_set as tmp:
+            long_res = run_long_test(controllers, tmp, cycles=int(args.long_test), plant_kwargs=long_kw,
+                                     command=command, progress=not args.no_progress, plant_label=label,
+                                     robustness=args.long_test_robustness)
+        print(f"long test ({int(args.long_test)} cycles, steady state = last 5; {label}):")
+        print(f"{'controller':<34} {'mean steady rms %':>17} {'worst steady rms %':>18} {'mean settle':>11} "
+              f"{'flags':>5}")
+        for name, s in long_res["summary"].items():
+            print(f"{name:<34} {s['mean_steady_rms_pct']:>17.4f} {s['worst_steady_rms_pct']:>18.4f} "
+                  f"{s['mean_settle_cycles']:>11.1f} {s['transient_flags']:>5d}")
+        for r in long_res["robustness"]:
+            print(f"robustness {r['controller']} on {r['plant']}: mean steady rms {r['mean_steady_rms_pct']:.4f} %, "
+                  f"{r['divergent']} divergent of {r['conditions']}")
+        print(f"wrote {long_out / 'long_test.csv'}, {long_out / 'long_test.md'} and heatmaps")
+        if args.long_test_only:
+            return 0
     with outputs as tmp:
         res = run_benchmark(controllers, tmp, cycles=args.cycles, plant_kwargs=plant_kw,
                             robustness=not args.no_robustness, command=command, progress=not args.no_progress,

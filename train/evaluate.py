@@ -46,6 +46,10 @@ DESIGN_POINT = (7, 3.0, 30.0)  # disc sets, Hz, deg: the rig's design point (doc
 #: what an agent folder's metrics.json is, for the errors of the file reader
 METRICS_FILE = "the metrics written by ehas train (metrics.json)"
 WORSE_TOL = 0.05  # points of rms % error: a learned controller counts as worse than a classical one beyond this
+#: where the learned-vs-classical standing is published from now on (the long test, docs/learning-control.md)
+LONG_TEST_NOTE = ("These are 4-cycle figures against fixed-gain classical controllers. The standing of learned against "
+                  "classical controllers is the long test's (30 cycles from rest, the controllers that learn the cycle "
+                  "included): `results/long_test/learned/learned_long_test.md` (`python -m ehas_train.long_test`).")
 
 
 def grid_conditions() -> list[tuple[int, float, float]]:
@@ -63,7 +67,7 @@ def book_conditions() -> list[tuple[tuple[int, float, float], float]]:
 
 # -- batched evaluation through the environment ----------------------------------
 def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: float = DEFAULT_CYCLES,
-                    progress: bool = False) -> list[dict]:
+                    progress: bool = False, long_test: int | None = None) -> list[dict]:
     """Metrics of ``policy`` on ``conditions`` in ``cfg``'s environment (batched per disc-set count).
 
     Parameters
@@ -79,6 +83,13 @@ def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: fl
         The residual base (the agent's resolved ``[env] controller``).
     cycles : float
         Reference periods per run.
+    progress : bool
+        Show a progress bar over the disc-set groups.
+    long_test : int, optional
+        Run the long-test protocol instead: ``long_test`` whole reference cycles from rest, each
+        row adding the figures of :func:`ehas_env.simulation.long_test.long_test_metrics`
+        (``steady_rms_pct`` over the last five cycles, ``settle_cycles``, ``worst_cycle_pct``, ...)
+        computed from the environment's error at every step.
 
     Returns
     -------
@@ -90,6 +101,8 @@ def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: fl
 
     E.register_ehas()
     kw = {k: v for k, v in cfg.env_kwargs.items() if k not in ("disc_sets", "amplitude_deg", "freq_hz", "randomise")}
+    if long_test is not None:  # N whole cycles: a hundredth of a period more (>= 3 samples at 1 kHz, 3 Hz)
+        cycles = float(long_test) + 0.01
     kw.update(cycles=cycles)
     base = E.classical_controller(controller_desc) if cfg.residual else None
     scale = cfg.action_scale_mA / E.RATED_CURRENT_MA
@@ -124,6 +137,7 @@ def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: fl
         k = 0
         action = np.zeros((m, 1), np.float32)
         last = last0
+        trace = []  # (t, theta_ref - theta) of every step, for the long test
         while live.any():
             if k % cfg.action_repeat == 0:
                 action = np.clip(np.asarray(policy(obs), np.float32).reshape(m, 1), -1.0, 1.0) * np.float32(scale)
@@ -132,6 +146,9 @@ def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: fl
                 applied = action * np.asarray(E.authority(cfg.action_shape, last, n), np.float32)[:, None]
             obs, _, term, trunc, info = venv.step(applied)
             last = info
+            if long_test is not None:
+                trace.append((np.array(info["t"], dtype=float),  # the metric's error: on the physical angle
+                              np.asarray(info["theta_ref_deg"], dtype=float) - np.asarray(info["theta_deg"], dtype=float)))
             cur = np.abs(info["current_mA"])
             dp = np.abs(info["p_a_bar"] - info["p_b_bar"])
             idx = np.flatnonzero(live)
@@ -146,6 +163,21 @@ def evaluate_policy(cfg, policy, conditions, *, controller_desc=None, cycles: fl
                 live[i] = False
             k += 1
         venv.close()
+        if long_test is not None:
+            from ehas_env.simulation.long_test import long_test_metrics
+
+            ts = np.array([tr[0] for tr in trace])
+            es = np.array([tr[1] for tr in trace])
+            for i, (_, f, a) in enumerate(conds):
+                steps = int(stats["nstep"][i])
+                t_i, e_i = ts[:steps, i], es[:steps, i]
+                try:
+                    final[i].update(long_test_metrics(t_i, e_i, np.zeros_like(e_i), a, f))
+                except ValueError:  # ended early (stroke end): scored by what it ran, never settled
+                    r_i = final[i]["rms_error_pct"]
+                    final[i].update({"cycles": int(t_i[-1] * f), "cycle_rms_pct": [], "steady_rms_pct": r_i,
+                                     "steady_peak_pct": final[i]["peak_error_pct"], "settle_cycles": long_test + 1,
+                                     "worst_cycle_pct": r_i, "worst_cycle": 0})
         for i, (_, f, a) in enumerate(conds):
             # the start (t = 0, at rest, P_A = P_B) carries no current and no load difference
             rows[(n, f, a)] = {"disc_sets": n, "freq_hz": f, "amplitude_deg": a, **final[i],
@@ -398,6 +430,7 @@ def _markdown(blocks, summaries, command, cycles) -> str:
               f"at 30°/3 Hz/7 sets {sl.get('rms_30deg_3hz_7sets', float('nan')):.3f} % vs "
               f"{sc.get('rms_30deg_3hz_7sets', float('nan')):.3f} % "
               f"({'beats' if sl.get('rms_30deg_3hz_7sets', 1e9) < sc.get('rms_30deg_3hz_7sets', 0) else 'does NOT beat'} it).",
+              "", LONG_TEST_NOTE,
               "", "### Where the learned controllers lose", "",
               f"Conditions where each learned controller's rms % error is above the best classical ({best_c}):", ""]
         cref = {(r["disc_sets"], r["freq_hz"], r["amplitude_deg"]): r["rms_error_pct"] for r in by_name[best_c]}

@@ -124,7 +124,10 @@ randomise          drawn at each reset from the env's RNG (seeded by
                    "viscous_friction": "typical"}}``
 =================  ==========================================================
 
-Constructor only: ``controller`` (residual mode), ``rate_penalty`` (0.01),
+Constructor only: ``long_test`` (N: the long-test protocol, docs/learning-control.md: episodes of N whole
+reference cycles, and at the episode's end ``info`` adds ``steady_rms_pct`` over the last five cycles,
+``settle_cycles``, ``worst_cycle_pct`` and ``cycle_rms_pct`` of :mod:`ehas_env.simulation.long_test`),
+``controller`` (residual mode), ``rate_penalty`` (0.01),
 ``termination_penalty`` (1.0), ``preview_ms`` ((10, 20, 50)), ``dt`` (1e-3 s),
 ``substeps`` (10), ``plant_kwargs`` (forwarded to ``Plant``: ``rig=``,
 ``inertia=``), ``model`` (a model file or ``PlantModel``: the rig, valve and
@@ -281,6 +284,9 @@ class TrackingEnv(gym.Env):
         A model file (its path, its JSON document or its
         :class:`~ehas_env.simulation.model_file.PlantModel`): the rig, valve and effects it describes
         (docs/model-file.md).
+    long_test : int, optional
+        The long-test protocol: episodes of ``long_test`` (7..1000) whole reference cycles (it sets
+        ``cycles``), and the final ``info`` adds the long test's figures (module docstring).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
@@ -289,8 +295,14 @@ class TrackingEnv(gym.Env):
                  effects=None, sensors=None, theta0_deg: float = 0.0, reference=None, randomise: dict | None = None,
                  controller=None, rate_penalty: float = 0.01, termination_penalty: float = 1.0,
                  preview_ms=(10.0, 20.0, 50.0), dt: float = 1.0e-3, substeps: int = 10, plant_kwargs: dict | None = None,
-                 render_mode: str | None = None, effects_path=None, model=None):
+                 render_mode: str | None = None, effects_path=None, model=None, long_test: int | None = None):
         from ehas_env.physics.effects import load_effects_path
+        from ehas_env.ranges import check_number
+
+        self._long = None if long_test is None else int(check_number(long_test, "long_test", "reference cycles", 7,
+                                                                     1000, integer=True))
+        if self._long is not None:  # N whole cycles: a hundredth of a period more
+            cycles = self._long + 0.01
 
         load_effects_path(effects_path)  # user effect files: registered before the model is built
         plant_kwargs = model_plant_kwargs(model, plant_kwargs)
@@ -319,6 +331,7 @@ class TrackingEnv(gym.Env):
         self._C[:] = C0
         self._model.single_reset(self._X, self._C, self._W, self._obs, self._raw)
         self._trace = None
+        self._long_trace = []
         self._frame_every = max(1, int(round(1.0 / (self.metadata["render_fps"] * self._st.dt))))
         self._renderer = None
 
@@ -358,6 +371,7 @@ class TrackingEnv(gym.Env):
                 self.render()
         info = self._info()
         info.update(copy.deepcopy(self._desc))  # users keep infos: never share the cached description
+        self._long_trace = []  # (t, theta_ref - theta) of each step, for the long test
         return self._obs.copy(), info
 
     def step(self, action):
@@ -395,6 +409,8 @@ class TrackingEnv(gym.Env):
         u_ext = self._external_act() if self._external else 0.0
         reward = self._model.single_step(self._X, self._C, self._W, a, u_ext, self._obs, self._raw)
         flags = int(self._X[bk.X_FLAGS])
+        if self._long is not None:
+            self._long_trace.append((self._raw[bk.R_T], self._raw[bk.R_REF] - self._raw[bk.R_THETA]))
         if self._trace is not None:
             self._trace.add(self._raw)
             if self.render_mode == "human" and int(self._X[bk.X_K]) % self._frame_every == 0:
@@ -455,6 +471,9 @@ class TrackingEnv(gym.Env):
     def _external_act(self) -> float:
         raw = self._raw
         meas = {key: float(raw[j]) for key, j in zip(_META_KEYS, _META_RAW)}
+        # the reference, as Plant's closed loop gives it (learning controllers index their cycle by the frequency)
+        meas["amplitude_deg"] = float(self._C[bk.C_AMP])
+        meas["freq_hz"] = float(self._desc["episode"]["freq_hz"])
         u = float(self.controller.act(meas))
         if not math.isfinite(u):
             raise ValueError(f"controller {type(self.controller).__name__} returned a non-finite current {u!r} "
@@ -470,6 +489,16 @@ class TrackingEnv(gym.Env):
         info = self._info()
         info.update(self.episode_metrics())
         info["episode_steps"] = int(self._X[bk.X_K])
+        if self._long is not None:
+            from ehas_env.simulation.long_test import long_test_metrics
+
+            tr = np.array(self._long_trace, dtype=float).reshape(-1, 2)
+            try:
+                info.update(long_test_metrics(tr[:, 0], tr[:, 1], np.zeros(len(tr)), self._C[bk.C_AMP],
+                                              self._desc["episode"]["freq_hz"]))
+                info["long_test_complete"] = True
+            except (ValueError, IndexError):  # ended before N cycles (stroke end)
+                info["long_test_complete"] = False
         if flags & bk.FLAG_NONFINITE:
             info["termination"] = "non_finite_state"
         elif flags & bk.FLAG_STROKE_END:

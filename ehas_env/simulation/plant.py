@@ -377,7 +377,8 @@ class Plant:
         ``act(measurement: dict) -> current mA`` called every ``dt`` with the keys
         ``t, theta_deg, theta_ref_deg, theta_ref_dot, theta_ref_ddot, theta_ref_dddot,
         p_a_bar, p_b_bar, p_s_bar`` (deg, deg/s, deg/s^2, deg/s^3, bar), plus the
-        reference's ``amplitude_deg`` (learned controllers normalise the error by it).
+        reference's ``amplitude_deg`` (learned controllers normalise the error by it) and ``freq_hz``
+        (learning controllers index their cycle table by it).
         The run lasts ``duration`` s, or ``cycles`` reference periods.  Numbers are checked against the
         ranges of ``ehas_env.ranges.FIELDS`` (docs/errors.md): amplitude in (0, 44.43) deg, frequency
         in (0, 50] Hz, cycles in (0, 10000], duration in (0, 600] s, theta0_deg in [-40, 40] deg.
@@ -470,6 +471,7 @@ class Plant:
             controller.reset()
         ref_vec = ref.kernel_vector()
         amp = float(ref.amplitude_deg)
+        freq = float(ref.freq_hz)  # learning controllers (ehas_controllers.ilc) index their cycle table by it
         for k in range(out.shape[0]):
             M.measure(s, self._P, out[k])
             t = k * self.dt
@@ -478,7 +480,7 @@ class Plant:
             out[k, K.O_SENSED] = th
             meas = {"t": t, "theta_deg": th, "theta_ref_deg": r, "theta_ref_dot": rd, "theta_ref_ddot": rdd,
                     "theta_ref_dddot": rddd, "p_a_bar": s[4] / BAR, "p_b_bar": s[5] / BAR, "p_s_bar": s[6] / BAR,
-                    "amplitude_deg": amp}
+                    "amplitude_deg": amp, "freq_hz": freq}
             raw = controller.act(meas)
             try:
                 u = float(raw)

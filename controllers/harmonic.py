@@ -1,0 +1,223 @@
+"""Amplitude/phase control: adaptive cancellation of the first k harmonics of the error, on a fixed-gain loop.
+
+What a commercial sine-test controller does on top of its servo loop: for each of
+the first ``harmonics`` multiples h of the reference frequency it keeps a complex
+current ``U_h`` (amplitude and phase, mA) and adds ``sum_h Re(U_h e^{j h w t})`` to the
+fixed-gain loop's output.  Once per cycle it measures the error's complex amplitude
+``E_h`` at each harmonic (from the cycle's error, :class:`~.learning.CycleTable`) and
+moves ``U_h`` to cancel it::
+
+    U_h <- U_h + gain * E_h / P_h
+
+``P_h`` is the response of the angle to a current at that harmonic with the loop
+closed, first the design model's (:func:`~.learning.process_sensitivity`), then
+**adapted** from what the rig showed: after a change ``dU_h`` the error changed by
+``dE_h = -P dU_h``, so ``-dE_h/dU_h`` measures ``P_h``; the estimate moves towards it by
+``adapt`` per cycle (0: the model is kept).  A measurement further than a factor 2
+from the current estimate (noise, a saturated cycle) is ignored.
+
+Before the run the condition ``|1 - gain P_h / P_h(model)| < 1`` is checked on the
+design model for every harmonic, as the ILC checks its own (:mod:`.ilc`), and a gain
+that fails it is refused with one line.
+"""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from .base import Controller, check_measurement, register_type
+from .learning import CycleTable, base_from_dict, base_to_dict, check_number, process_sensitivity, sub_object
+
+
+@register_type("harmonic")
+class HarmonicCanceller(Controller):
+    """Adaptive harmonic cancellation / amplitude-phase control (module docstring).
+
+    Parameters
+    ----------
+    base : PIFF or GainSchedule
+        The fixed-gain loop the harmonic currents are added to.
+    harmonics : int
+        Number of harmonics cancelled (1 = the fundamental alone: amplitude/phase control).
+    gain : float
+        Fraction of the estimated error cancelled per cycle, - ((0, 1] is monotonic on the model).
+    adapt : float
+        Weight of each cycle's measured response in the plant estimate, - (0: the model's is kept).
+    start_cycle : int
+        First cycle (0 = the fade-in cycle) whose error is acted on.
+    design_model : str, optional
+        Model file the first estimates come from; None: the book's model.
+    name : str
+        Label in tables and files.
+    """
+
+    kind = "classical"
+
+    def __init__(self, base, *, harmonics: int = 10, gain: float = 0.5, adapt: float = 0.3, start_cycle: int = 1,
+                 design_model: str | None = None, name: str = "harmonic"):
+        from .piff import GainSchedule, PIFF
+
+        who = "harmonic"
+        if not isinstance(base, (PIFF, GainSchedule)):
+            raise ValueError(f"{who}: base must be a PIFF or GainSchedule (a fixed-gain loop), got {type(base).__name__}")
+        self.base = base
+        self.harmonics = int(check_number(harmonics, "harmonics", 1, 50, who, integer=True))
+        self.gain = check_number(gain, "gain", 0.0, 10.0, who, lo_open=True)
+        self.adapt = check_number(adapt, "adapt", 0.0, 1.0, who)
+        self.start_cycle = int(check_number(start_cycle, "start_cycle", 0, 100, who, integer=True))
+        if design_model is not None and not (isinstance(design_model, str) and design_model.strip()):
+            raise ValueError(f"{who}: 'design_model' must be a model file's path or null, got {design_model!r}")
+        self.design_model = design_model
+        if not isinstance(name, str) or not name.strip():
+            raise ValueError(f"{who}: 'name' must be a non-empty text, got {name!r}")
+        self.name = name
+        self.disc_sets: int | None = None
+        self._loop = base if isinstance(base, PIFF) else None
+        self.reset()
+
+    def for_plant(self, disc_sets: int) -> "HarmonicCanceller":
+        """A fresh copy for a plant with ``disc_sets`` disc sets (the base loop's entry).
+
+        Parameters
+        ----------
+        disc_sets : int
+            Number of disc sets, 1..7.
+
+        Returns
+        -------
+        HarmonicCanceller
+            The copy.
+        """
+        new = copy.copy(self)
+        new._loop = copy.deepcopy(self.base.for_plant(disc_sets))
+        new.disc_sets = int(disc_sets)
+        new.reset()
+        return new
+
+    def design(self, amplitude_deg: float, freq_hz: float) -> np.ndarray:
+        """The model's P_h (deg/mA) at harmonics 1..k, after the convergence check.
+
+        Parameters
+        ----------
+        amplitude_deg, freq_hz : float
+            The reference (deg, Hz).
+
+        Returns
+        -------
+        ndarray of complex
+            P at h f, h = 1..``harmonics``.
+
+        Raises
+        ------
+        ValueError
+            One line, if ``|1 - gain|`` (the contraction on the design model) is not below 1, or no
+            plant was chosen.
+        """
+        if self.disc_sets is None or self._loop is None:
+            raise ValueError(f"harmonic '{self.name}': which plant? call for_plant(disc_sets) before running it")
+        w = 2 * np.pi * freq_hz * np.arange(1, self.harmonics + 1)
+        P = process_sensitivity(self._loop, self.disc_sets, amplitude_deg, freq_hz, w, self.design_model)
+        rho = float(np.max(np.abs(1.0 - self.gain * P / P)))
+        if not rho < 1.0:
+            raise ValueError(f"harmonic '{self.name}': gain {self.gain:g} fails the convergence condition on the "
+                             f"design model: |1 - gain| = {rho:.3g} >= 1; use a gain in (0, 1]")
+        return P
+
+    def reset(self) -> None:
+        if self._loop is not None:
+            self._loop.reset()
+        self._table = None
+
+    def act(self, measurement: dict) -> float:
+        """Current command, mA: the base loop's plus the harmonic currents at this phase.
+
+        Parameters
+        ----------
+        measurement : dict of str to float
+            :data:`~ehas_controllers.base.MEASUREMENT_KEYS` (s, deg, deg/s^k, bar) plus the
+            reference's ``amplitude_deg`` (deg) and ``freq_hz`` (Hz).
+
+        Returns
+        -------
+        float
+            The current in mA, clipped to the base loop's +-``i_max``.
+        """
+        m = measurement
+        if self._table is None:
+            self._start(m)
+        done = self._table.add(m["t"], m["theta_ref_deg"] - m["theta_deg"])
+        if done is not None and done[0] >= self.start_cycle:
+            self._learn(done[1])
+        x = (m["t"] * self._table.freq_hz) % 1.0
+        u = self._loop.act(m) + float(np.real(np.dot(self._U, np.exp(2j * np.pi * self._h * x))))
+        lim = self._loop.i_max
+        return min(max(u, -lim), lim)
+
+    def _start(self, m: dict) -> None:
+        if self._loop is None or self.disc_sets is None:
+            raise ValueError(f"harmonic '{self.name}': which plant? call for_plant(disc_sets) before running it")
+        check_measurement(m, "HarmonicCanceller")
+        if "freq_hz" not in m or "amplitude_deg" not in m:
+            raise ValueError("HarmonicCanceller.act: measurement has no 'freq_hz'/'amplitude_deg'; it needs the "
+                             "reference's period (Plant.simulate_closed_loop passes them)")
+        self._table = CycleTable(float(m["freq_hz"]), self._loop.rate_hz)
+        self._h = np.arange(1, self.harmonics + 1)
+        if self.harmonics > self._table.n // 2 - 1:
+            raise ValueError(f"harmonic '{self.name}': {self.harmonics} harmonics of {m['freq_hz']:g} Hz pass the "
+                             f"control rate's Nyquist frequency; use at most {self._table.n // 2 - 1}")
+        self.P = self.design(float(m["amplitude_deg"]), float(m["freq_hz"]))
+        self._U = np.zeros(self.harmonics, dtype=complex)
+        self._dU = None
+        self._E = None
+
+    def _learn(self, e: np.ndarray) -> None:
+        E = 2.0 * np.fft.rfft(e)[1:self.harmonics + 1] / self._table.n  # complex amplitudes, deg
+        if self.adapt > 0.0 and self._dU is not None and self._E is not None:
+            ok = np.abs(self._dU) > 1e-6
+            meas = np.where(ok, -(E - self._E) / np.where(ok, self._dU, 1.0), self.P)
+            ratio = np.abs(meas / self.P)
+            take = ok & (ratio < 2.0) & (ratio > 0.5) & (np.abs(np.angle(meas / self.P)) < np.pi / 3)
+            self.P = np.where(take, (1.0 - self.adapt) * self.P + self.adapt * meas, self.P)
+        self._dU = self.gain * E / self.P
+        self._U = self._U + self._dU
+        self._E = E
+
+    def to_dict(self) -> dict:
+        """JSON-able description; :meth:`from_dict` rebuilds the controller from it.
+
+        Returns
+        -------
+        dict
+            ``type`` ``"harmonic"``, ``kind``, ``name``, ``base`` (the fixed-gain loop), ``harmonics``,
+            ``gain``, ``adapt``, ``start_cycle``, ``design_model``.
+        """
+        return {"type": "harmonic", "kind": self.kind, "name": self.name, "base": base_to_dict(self.base),
+                "harmonics": self.harmonics, "gain": self.gain, "adapt": self.adapt,
+                "start_cycle": self.start_cycle, "design_model": self.design_model}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "HarmonicCanceller":
+        """Rebuild the controller from its JSON description (:meth:`to_dict`).
+
+        Parameters
+        ----------
+        data : dict
+            ``{"type": "harmonic", "base": {...}, "harmonics": k, "gain": ..., "adapt": ...}``.
+
+        Returns
+        -------
+        HarmonicCanceller
+            The controller.
+        """
+        if "base" not in data:
+            raise ValueError("harmonic: no 'base' field; expected \"base\": {\"type\": \"piff\" or \"schedule\", ...}")
+        allowed = ("type", "kind", "name", "base", "harmonics", "gain", "adapt", "start_cycle", "design_model",
+                   "format", "version", "command", "metrics", "notes", "mean_rms_error_pct")
+        sub_object({"harmonic": data}, "harmonic", allowed)
+        kw = {k: data[k] for k in ("harmonics", "gain", "adapt", "start_cycle", "design_model", "name") if k in data}
+        return cls(base_from_dict(data["base"], "harmonic"), **kw)
+
+    def __repr__(self) -> str:
+        return (f"HarmonicCanceller '{self.name}': {self.harmonics} harmonics, gain {self.gain:g}, adapt "
+                f"{self.adapt:g}, designed on {self.design_model or 'book model'}, on {self.base.name!r}")
