@@ -53,8 +53,14 @@ def run_name(sets: int, amp: float, freq: float) -> str:
     return f"cl_{s}_{amp:g}deg_{freq:g}hz".replace(".", "p")
 
 
+#: start time of a scheduled campaign's first run, and the time between runs (written as the sidecars' ``recorded``)
+SCHEDULE_START = "2026-11-27T08:00:00"
+SCHEDULE_STEP_MIN = 40.0
+
+
 def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", duration: float = DURATION,
-             plan=PLAN, perturb: bool = True, valve: bool = True, chain: Chain | None = None, progress=None):
+             plan=PLAN, perturb: bool = True, valve: bool = True, chain: Chain | None = None, progress=None,
+             schedule: dict | None = None):
     """Simulate a campaign in memory.
 
     Parameters
@@ -77,6 +83,12 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
         Measurement chain.
     progress : callable, optional
         ``progress(text)`` after each run.
+    schedule : dict, optional
+        Parameters that change from run to run (drift), one value per closed-loop run in recording order:
+        ``{"effects": {name: {param: [values in its unit]}}, "beta": [factors], "K": [factors]}`` (factors of
+        the rig's beta and K, after the perturbation).  The valve chirp, recorded last, takes the last run's.
+        With a schedule, each sidecar records its start time (``recorded``, ISO 8601; the runs
+        :data:`SCHEDULE_STEP_MIN` minutes apart).
 
     Returns
     -------
@@ -91,21 +103,30 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
     actual: Rig = base.with_(beta=base.beta * fb, K=base.K * fk)
     eff_si = to_si(effects or {})
     runs = []
-    for sets, amp, freq in plan:
+    nominal = actual
+    for k, (sets, amp, freq) in enumerate(plan):
         t0 = time.time()
+        actual, eff_si = _scheduled(nominal, effects, schedule, k)
         # the controller's gains are the nominal rig's (the engineer tuned on the model file), not the actual's
         cols, _, meta = closed_loop(actual, int(sets), float(amp), float(freq), duration, eff_si, chain, rng,
                                     gains=base.controller_gains())
         meta["notes"] = f"independent generator (tests/independent_rig), seed {seed}"
+        if schedule:
+            meta["recorded"] = _recorded(k)
         runs.append((run_name(sets, amp, freq), cols, meta))
         if progress:
             progress(f"{runs[-1][0]} {time.time() - t0:.1f} s")
     if valve:
         n = int(round(duration / DT))
         cmd = np.array([chain.dac(c) for c in chirp(n, *CHIRP)])
+        if schedule:
+            actual, eff_si = _scheduled(nominal, effects, schedule, len(plan) - 1)
         cols, meta = valve_bench(actual, cmd, BENCH_SUPPLY_BAR, eff_si, chain, rng)
         meta["notes"] = f"valve chirp {CHIRP[0]:g}-{CHIRP[1]:g} Hz, {CHIRP[2]:g} mA, flow bench (seed {seed})"
+        if schedule:
+            meta["recorded"] = _recorded(len(plan))
         runs.append(("valve_chirp", cols, meta))
+        actual = nominal
     truth = {"generator": "tests/independent_rig", "effects": effects or {},
              "kinds": {n: ALL[n].kind for n in (effects or {})},
              "rig": rig, "model_file": str(path.name) if path else None,
@@ -113,7 +134,28 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
              "duration_s": duration, "plan": [list(p) for p in plan], "chain": chain.to_dict()}
     # the gains the runs were given, for the controller's carry-over check
     truth["controller"] = base.controller_gains()
+    if schedule:
+        truth["schedule"] = schedule
     return runs, truth
+
+
+def _scheduled(rig: Rig, effects: dict | None, schedule: dict | None, k: int) -> tuple:
+    """The rig and the effects (SI) of closed-loop run ``k`` under ``schedule`` (see :func:`simulate`)."""
+    eff = {n: dict(p) for n, p in (effects or {}).items()}
+    if not schedule:
+        return rig, to_si(eff)
+    for name, params in (schedule.get("effects") or {}).items():
+        for pname, values in params.items():
+            eff.setdefault(name, {})[pname] = float(values[k])
+    fb = float(schedule["beta"][k]) if "beta" in schedule else 1.0
+    fk = float(schedule["K"][k]) if "K" in schedule else 1.0
+    return rig.with_(beta=rig.beta * fb, K=rig.K * fk), to_si(eff)
+
+
+def _recorded(k: int) -> str:
+    from datetime import datetime, timedelta
+
+    return (datetime.fromisoformat(SCHEDULE_START) + timedelta(minutes=SCHEDULE_STEP_MIN * k)).isoformat()
 
 
 def _fmt(x: float) -> str:

@@ -1,0 +1,404 @@
+"""Parameters that change between runs: fitted per run, tested, related to what the sidecars record (issue 33).
+
+A diagnosis fits one value of each parameter to the whole campaign.  A rig whose friction rises as it warms up,
+whose oil takes in air over a day, or whose valve wears, has parameters that differ from run to run; the one
+value then stands for none of them, and the check that an effect fits the same on two groups of runs
+(:mod:`ehas_env.measurement.keeping`) rejects it without saying which runs differ, by how much, or against what.
+This stage, run after the final model is chosen, says it:
+
+1. **Per run** (:func:`fit_per_run`): every fitted parameter of the final model (and the parameters of the best
+   effects judged but not kept: a parameter that changes between runs makes its effect fit differently on two
+   groups of runs, or fail on the validation runs) is refitted on each closed-loop run alone (its fit window),
+   from the campaign's values, with its cluster-robust 95 % interval (:func:`ehas_env.measurement.fitting.confidence`).
+2. **Differ beyond their intervals?** (:func:`differ`): the chi-square test of one common value against the per-run
+   values, each run's standard deviation its 95 % half-width / 1.96, never below the model-error floor of the
+   agreement rule (:data:`ehas_env.measurement.keeping.MODEL_ERROR_FLOOR`); estimates at the end of their fit range
+   are left out (no point estimate).  A parameter *drifts* when p < :data:`DRIFT_P`; or, when its values rise or
+   fall at every step of the recording order over at least :data:`TREND_RUNS` runs (a steady change in time), when
+   the same test with the floor lowered to :data:`TREND_FLOOR` gives p < :data:`DRIFT_P`.
+3. **Against what?** (:func:`relate`): Spearman's rank correlation of the per-run values with each quantity the
+   sidecars record (:func:`run_features`: recording order, from the optional sidecar key ``recorded``, an ISO 8601
+   start time, else the file order; disc sets; amplitude; frequency; supply pressure; the logged mean chamber
+   pressure).  The one of largest magnitude (at least :data:`FOLLOW_RHO`) is what the parameter follows; the size
+   is the ratio of a straight line through the per-run values (weighted by their intervals) from the first run to
+   the last, in that quantity's order.
+
+The JSON of the diagnosis (docs/measurement-format.md) holds ``per_run`` and ``drift``.
+
+Examples
+--------
+>>> p, chi2, dof = differ([100.0, 101.0, 99.0], [(95.0, 105.0), (96.0, 106.0), (94.0, 104.0)])
+>>> p > 0.5 and dof == 2
+True
+>>> differ([100.0, 180.0, 260.0], [(98.0, 102.0), (176.0, 184.0), (255.0, 265.0)])[0] < 1e-6
+True
+>>> r = relate([100.0, 180.0, 260.0], [(98.0, 102.0), (176.0, 184.0), (255.0, 265.0)],
+...            {"recording order": [1, 2, 3], "disc sets": [5, 1, 3]})
+>>> r["follows"], r["direction"], round(r["ratio_first_last"], 2)
+('recording order', 'rises', 2.6)
+"""
+from __future__ import annotations
+
+import math
+from datetime import datetime
+
+import numpy as np
+
+from ehas_env.measurement.campaign import Campaign
+from ehas_env.measurement.fitting import SCREEN_NFEV, Fit, FreeParam, _unit, _value_of, confidence, fit
+from ehas_env.measurement.keeping import MODEL_ERROR_FLOOR
+from ehas_env.measurement.replay import ModelSpec, Replayer
+
+#: per-run values differ beyond their intervals when the chi-square test of one common value gives p below this
+#: (several parameters are tested per campaign: a strict level keeps false alarms on clean campaigns rare)
+DRIFT_P = 1e-3
+#: a drifting parameter follows a recorded quantity when their rank correlation is at least this in magnitude
+FOLLOW_RHO = 0.8
+#: fewest runs with a point estimate a parameter needs for the test
+MIN_RUNS = 3
+#: a steady change in time: with at least TREND_RUNS runs whose values rise (or fall) at every step of the
+#: recording order, the per-run values are tested with the model-error floor lowered to TREND_FLOOR (a perfectly
+#: ordered sequence of 5 runs comes by chance once in 60; the model's own errors, which follow the runs' settings,
+#: not the time, rarely part per-run values by more than this: K per run on clean campaigns within 1 %)
+TREND_RUNS = 5
+TREND_FLOOR = 0.05
+#: the sidecar key of a run's start time (ISO 8601, e.g. "2026-11-27T09:30:00"); optional
+RECORDED_KEY = "recorded"
+
+
+def _label(fp: FreeParam) -> str:
+    return f"{fp.effect or 'baseline'}.{fp.name}"
+
+
+def _std(v: float, lo: float, hi: float, floor: float = MODEL_ERROR_FLOOR) -> float:
+    """Standard deviation of an estimate from its 95 % interval, at least the model-error floor's."""
+    half = max(0.5 * (hi - lo), floor * abs(v))
+    return max(half / 1.959964, 1e-300)
+
+
+def differ(values, intervals, floor: float = MODEL_ERROR_FLOOR) -> tuple[float, float, int]:
+    """The chi-square test of one common value against per-run estimates.
+
+    Parameters
+    ----------
+    values : sequence of float
+        One estimate per run.
+    intervals : sequence of (low, high)
+        Their 95 % intervals.
+    floor : float
+        Least 95 % half-width, relative to the estimate (the model-error floor).
+
+    Returns
+    -------
+    (p, chi2, dof)
+        p-value of "one common value", the statistic and its degrees of freedom (runs - 1).
+    """
+    from scipy.stats import chi2 as chi2_dist
+
+    v = np.asarray(values, dtype=float)
+    s = np.array([_std(x, lo, hi, floor) for x, (lo, hi) in zip(v, intervals)])
+    w = 1.0 / s**2
+    m = float(np.sum(w * v) / np.sum(w))
+    c = float(np.sum(w * (v - m) ** 2))
+    dof = len(v) - 1
+    return (float(chi2_dist.sf(c, dof)) if dof > 0 else 1.0), c, dof
+
+
+def relate(values, intervals, features: dict) -> dict:
+    """What per-run values follow among the recorded quantities, which way and by how much.
+
+    Parameters
+    ----------
+    values : sequence of float
+        One estimate per run.
+    intervals : sequence of (low, high)
+        Their 95 % intervals.
+    features : dict
+        {quantity: one value per run} (:func:`run_features`); constant ones are skipped.
+
+    Returns
+    -------
+    dict
+        ``follows`` (the quantity, or None when no rank correlation reaches :data:`FOLLOW_RHO`), ``rho``,
+        ``rho_p`` (its p-value), ``direction`` ("rises"/"falls" along it), ``first``, ``last`` (a straight line
+        through the values at the first and last run in that order), ``ratio_first_last`` (None when a sign
+        changes), ``correlations`` {quantity: rho}.
+    """
+    from scipy.stats import spearmanr
+
+    v = np.asarray(values, dtype=float)
+    s = np.array([_std(x, lo, hi) for x, (lo, hi) in zip(v, intervals)])
+    cors = {}
+    for name, x in features.items():
+        x = np.asarray(x, dtype=float)
+        if len(x) != len(v) or np.ptp(x) == 0.0 or np.ptp(v) == 0.0:
+            continue
+        r = spearmanr(x, v)
+        cors[name] = (float(r.statistic if hasattr(r, "statistic") else r[0]), float(r.pvalue if hasattr(r, "pvalue") else r[1]))
+    out = {"follows": None, "rho": None, "rho_p": None, "direction": None, "first": None, "last": None,
+           "ratio_first_last": None, "correlations": {k: round(c[0], 3) for k, c in cors.items()}}
+    if not cors:
+        return out
+    # the strongest; on a tie, the first listed (recording order before the run's settings)
+    best = max(cors, key=lambda k: (round(abs(cors[k][0]), 6), -list(features).index(k)))
+    rho, p = cors[best]
+    x = np.asarray(features[best], dtype=float)
+    # a straight line through the values in that quantity, weighted by their intervals
+    A = np.column_stack([np.ones_like(x), x]) / s[:, None]
+    a, b = np.linalg.lstsq(A, v / s, rcond=None)[0]
+    first, last = a + b * x.min(), a + b * x.max()
+    out.update(rho=round(rho, 3), rho_p=p, first=float(first), last=float(last),
+               direction="rises" if last > first else "falls",
+               ratio_first_last=float(last / first) if first * last > 0 else None)
+    if abs(rho) >= FOLLOW_RHO:
+        out["follows"] = best
+    return out
+
+
+def run_features(runs) -> tuple[dict, str]:
+    """The quantities each run's sidecar and log record: {quantity: one value per run}, and the order's name.
+
+    Parameters
+    ----------
+    runs : list of Run
+        Closed-loop runs.
+
+    Returns
+    -------
+    (dict, str)
+        ``recording order`` (by the sidecar's ``recorded`` start time when every run has one, else the file
+        order, named ``file order``), ``disc sets``, ``amplitude (deg)``, ``frequency (Hz)``, ``supply (bar)``,
+        ``mean chamber pressure (bar)`` (when both chamber pressures are logged); and the order's name.
+
+    Raises
+    ------
+    ValueError
+        A ``recorded`` value that is not an ISO 8601 date and time.
+    """
+    times = []
+    for r in runs:
+        t = r.meta.get(RECORDED_KEY)
+        if t is None:
+            times = None
+            break
+        try:
+            times.append(datetime.fromisoformat(str(t)).timestamp())
+        except ValueError:
+            raise ValueError(f"{r.name}.json: key '{RECORDED_KEY}' = {t!r}; expected the run's start time as an ISO "
+                             "8601 date and time, e.g. \"2026-11-27T09:30:00\"") from None
+    order_name = "recording order" if times is not None else "file order"
+    order = np.argsort(np.argsort(times, kind="stable")) + 1 if times is not None else np.arange(1, len(runs) + 1)
+    feats = {order_name: [float(o) for o in order],
+             "disc sets": [float(r.meta["disc_sets"]) for r in runs],
+             "amplitude (deg)": [float(r.meta["reference"]["amplitude_deg"]) for r in runs],
+             "frequency (Hz)": [float(r.meta["reference"]["freq_hz"]) for r in runs],
+             "supply (bar)": [float(r.meta["supply_bar"]) for r in runs]}
+    if all("p_a_bar" in r.columns and "p_b_bar" in r.columns for r in runs):
+        feats["mean chamber pressure (bar)"] = [float(np.mean(0.5 * (r.columns["p_a_bar"] + r.columns["p_b_bar"])))
+                                                for r in runs]
+    return feats, order_name
+
+
+def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreeParam]) -> list[dict]:
+    """Refit ``free`` on each run alone, from the values of ``fixed``, with 95 % intervals.
+
+    Parameters
+    ----------
+    rep : Replayer
+        Gives the compiled model (its ``model``, ``substeps``, ``hypotheses``); its ``n_evals`` counts the replays.
+    runs : list of Run
+        The runs (each its fit window, :func:`ehas_env.measurement.diagnosis.windowed`).
+    fixed : ModelSpec
+        The model (and the start values).
+    free : list of FreeParam
+        The parameters refitted.
+
+    Returns
+    -------
+    list of dict
+        Per run: ``run`` and {label: (value, (low, high), at_range_end)} under ``params``.
+    """
+    out = []
+    start = {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}
+    for run in runs:
+        sub = Replayer(Campaign(rep.campaign.path, [run]), substeps=rep.substeps, model=rep.model,
+                       hypotheses=rep.hypotheses)
+        f = fit(sub, free, start, fixed, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
+        ci = confidence(sub, f)
+        rep.n_evals += sub.n_evals
+        params = {}
+        for fp in free:
+            v = _value_of(f.model, fp)
+            params[_label(fp)] = (v, ci[(fp.effect, fp.name)], fp.end(v) is not None)
+        out.append({"run": run.name, "params": params})
+    return out
+
+
+def drift_of(per_run: list[dict], features: dict, units: dict) -> list[dict]:
+    """The parameters whose per-run values differ beyond their intervals, each related to the recorded quantities.
+
+    Parameters
+    ----------
+    per_run : list of dict
+        :func:`fit_per_run`'s result.
+    features : dict
+        :func:`run_features`' quantities (one value per run of ``per_run``).
+    units : dict
+        {label: unit}.
+
+    Returns
+    -------
+    list of dict
+        Per drifting parameter: ``parameter``, ``unit``, ``p_value``, ``chi2``, ``dof``, ``follows``, ``rho``,
+        ``direction``, ``first``, ``last``, ``ratio_first_last``, ``correlations``, ``text``.
+    """
+    out = []
+    labels = list(per_run[0]["params"]) if per_run else []
+    for lab in labels:
+        ests = [(i, *r["params"][lab]) for i, r in enumerate(per_run)]
+        inner = [(i, v, ci) for i, v, ci, pinned in ests if not pinned and all(map(math.isfinite, (v, *ci)))]
+        if len(inner) < MIN_RUNS:
+            continue
+        idx = [i for i, _, _ in inner]
+        vals = [v for _, v, _ in inner]
+        cis = [ci for _, _, ci in inner]
+        p, c, dof = differ(vals, cis)
+        steady = ordered(vals, [features[next(iter(features))][i] for i in idx]) if features else False
+        if p >= DRIFT_P and steady and len(vals) >= TREND_RUNS:
+            p, c, dof = differ(vals, cis, TREND_FLOOR)  # a steady change in time (see TREND_FLOOR)
+        if p >= DRIFT_P:
+            continue
+        rel = relate(vals, cis, {k: [x[i] for i in idx] for k, x in features.items()})
+        d = {"parameter": lab, "unit": units.get(lab, ""), "p_value": float(f"{p:.3g}"), "chi2": round(c, 2),
+             "dof": dof, **{k: rel[k] for k in ("follows", "rho", "direction", "correlations")},
+             "first": None if rel["first"] is None else float(f"{rel['first']:.4g}"),
+             "last": None if rel["last"] is None else float(f"{rel['last']:.4g}"),
+             "ratio_first_last": None if rel["ratio_first_last"] is None else round(rel["ratio_first_last"], 3),
+             "runs": [per_run[i]["run"] for i in idx]}
+        d["text"] = drift_text(d)
+        out.append(d)
+    return out
+
+
+def ordered(values, order) -> bool:
+    """Whether ``values`` rise at every step, or fall at every step, taken in ``order`` (no ties in it).
+
+    Examples
+    --------
+    >>> ordered([1.0, 3.0, 2.0], [1, 3, 2]), ordered([1.0, 3.0, 2.0], [1, 2, 3])
+    (True, False)
+    """
+    o = np.asarray(order, dtype=float)
+    if len(np.unique(o)) < len(o):
+        return False
+    d = np.diff(np.asarray(values, dtype=float)[np.argsort(o)])
+    return bool(np.all(d > 0) or np.all(d < 0))
+
+
+def drift_text(d: dict) -> str:
+    """One drifting parameter in words: "coulomb_friction.Fc rises 2.4x from the first run to the last, in
+    recording order (...)"."""
+    u = f" {d['unit']}" if d["unit"] and d["unit"] != "-" else ""
+    test = (f"per-run values differ beyond their 95 % intervals (chi-square {d['chi2']:.3g} on {d['dof']} degrees of "
+            f"freedom, p = {d['p_value']:.2g})")
+    if d["follows"] is None:
+        best = max(d["correlations"].items(), key=lambda kv: abs(kv[1]), default=(None, 0.0))
+        return (f"{d['parameter']} differs between runs but follows none of the recorded quantities (largest rank "
+                f"correlation {best[1]:+.2f}, with {best[0]}); {test}")
+    size = (f"{d['ratio_first_last']:.2g}x" if d["ratio_first_last"] is not None and d["ratio_first_last"] >= 1 else
+            f"to {d['ratio_first_last']:.2g}x" if d["ratio_first_last"] is not None else
+            f"by {d['last'] - d['first']:+.3g}{u}")
+    where = ("in recording order" if d["follows"] == "recording order" else
+             "in file order" if d["follows"] == "file order" else f"with {d['follows']}")
+    return (f"{d['parameter']} {d['direction']} {size} from the first run to the last, {where} ({d['first']:.4g} -> "
+            f"{d['last']:.4g}{u}; rank correlation {d['rho']:+.2f}); {test}")
+
+
+def per_run_stage(rep: Replayer, runs: list, windows: list, final: Fit, also: dict | None = None, *,
+                  say=None) -> dict:
+    """The stage of the diagnosis: per-run parameters and their drift, in the diagnosis JSON's terms.
+
+    Parameters
+    ----------
+    rep : Replayer
+        The diagnosis' fit replayer (its compiled model).
+    runs : list of Run
+        The campaign's closed-loop runs (held-out runs included), in file order.
+    windows : list of Run
+        The same runs cut to their fit windows (:func:`ehas_env.measurement.diagnosis.windowed`).
+    final : Fit
+        The final model, fitted: its free parameters are refitted per run.
+    also : dict, optional
+        {effect: Fit} of effects judged but not kept (they fitted differently on separate groups of runs, or failed
+        on the validation runs: what a parameter that changes from run to run does): each is refitted per run
+        too (its own parameters), added to the final model.
+    say : callable, optional
+        Progress text.
+
+    Returns
+    -------
+    dict
+        ``{"per_run": {"runs": [...], "order": str}, "drift": [...]}``; ``per_run`` None when fewer than
+        :data:`MIN_RUNS` closed-loop runs.
+    """
+    from ehas_env.measurement.fitting import own_params
+
+    say = say or (lambda msg: None)
+    if len(runs) < MIN_RUNS or not final.free:
+        return {"per_run": None, "drift": []}
+    feats, order = run_features(runs)
+    wins = list(windows)
+    say(f"fitting the model's {len(final.free)} parameters on each of {len(runs)} runs alone (drift between runs)")
+    groups = [(None, final.model, list(final.free))]
+    for effect, g in (also or {}).items():
+        fixed = ModelSpec(effects={**{n: dict(p) for n, p in final.model.effects.items()},
+                                   effect: dict(g.model.effects[effect])},
+                          beta=final.model.beta, K=final.model.K, terms=dict(final.model.terms))
+        groups.append((effect, fixed, own_params(effect)))
+    per, drift = [{"run": r.name, "params": {}} for r in runs], []
+    units = {}
+    for effect, fixed, free in groups:
+        if effect is not None:
+            say(f"  {effect} (judged, not kept): refitted on each run")
+        res = fit_per_run(rep, wins, fixed, free)
+        units.update({_label(fp): _unit(fp.effect, fp.name) for fp in free})
+        for row, r in zip(per, res):
+            row["params"].update({k: v for k, v in r["params"].items() if k not in row["params"]})
+        drift += [d for d in drift_of(res, feats, units) if d["parameter"] not in {x["parameter"] for x in drift}]
+    for d in drift:
+        say("  " + d["text"])
+    rows = []
+    for r, row in zip(runs, per):
+        rows.append({"run": row["run"], "recorded": r.meta.get(RECORDED_KEY),
+                     "params": {k: {"value": _r(v), "low": _r(ci[0]), "high": _r(ci[1]), "at_range_end": bool(pin)}
+                                for k, (v, ci, pin) in row["params"].items()}})
+    return {"per_run": {"order": order, "units": units, "runs": rows}, "drift": drift}
+
+
+def _r(v: float) -> float:
+    return float(f"{v:.4g}")
+
+
+def drift_lines(drift: list, per_run: dict | None) -> list[str]:
+    """The drift stage in words, for the console and the report: one line per drifting parameter, or that none
+    differs (empty when no per-run fit was made).
+
+    Parameters
+    ----------
+    drift : list of dict
+        The diagnosis' ``drift``.
+    per_run : dict or None
+        The diagnosis' ``per_run``.
+
+    Returns
+    -------
+    list of str
+    """
+    if per_run is None:
+        return []
+    n = len(per_run["runs"])
+    if not drift:
+        return [f"parameters per run ({n} closed-loop runs, each fitted alone): none differs between runs beyond its "
+                "95 % intervals"]
+    return [f"parameters per run ({n} closed-loop runs, each fitted alone, {per_run['order']}):"] + \
+        ["  " + d["text"] for d in drift]

@@ -1,0 +1,151 @@
+"""The diagnosis' honesty rules, each enforced here and nowhere else (issue 33).
+
+1. **No term that removes too little** (:func:`term_refused`): a proposed missing term is written or recommended
+   only when its refit removes at least :data:`TERM_SHARE` of the residual's excess over the noise (the residual
+   in the verdict's units, "x what does not repeat", on all data: 1 is noise).  Otherwise the diagnosis says where
+   the residual is and what it follows, and that no term was found.
+2. **No hypothesis that makes the all-data residual worse** (:func:`worse_than_bare`): the structural hypotheses
+   (and what was stacked on them) are kept only when the final model's all-data residual is not above the bare
+   model's, the model the library's effects gave before the hypotheses were tried.
+3. **A fit on a bound says so** (:func:`at_bounds`): every fitted parameter of a library effect that sits at the
+   end of its fit range (and so is no point estimate) is listed, with the range and whether that end is the
+   parameter's physical bound, in the JSON (``model.at_bound``, ``ranking[].at_bound``).
+
+Examples
+--------
+>>> share_removed(3.06, 3.06), share_removed(3.0, 2.0)
+(0.0, 0.5)
+>>> term_refused(3.34, 3.42) is not None, term_refused(3.0, 1.5) is None
+(True, True)
+>>> worse_than_bare(3.68, 3.89) is not None, worse_than_bare(3.68, 2.1) is None
+(True, True)
+"""
+from __future__ import annotations
+
+#: a proposed term must remove at least this share of the residual's excess over the noise (1 x what does not
+#: repeat) on all data to be written or recommended (issue 33: terms that took 3.06x to 3.06x were written)
+TERM_SHARE = 0.1
+#: a final model whose all-data residual exceeds the bare model's by more than this share (rounding of two
+#: simulations of one model) is worse than it
+WORSE_TOLERANCE = 1e-3
+
+
+def share_removed(before: float, after: float, floor: float = 1.0) -> float:
+    """The share of ``before``'s excess over ``floor`` that ``after`` removes (negative when it adds).
+
+    Parameters
+    ----------
+    before, after : float
+        Residuals before and after, in units of the floor (x what does not repeat).
+    floor : float
+        The residual of a model that explains everything (1: the noise).
+
+    Returns
+    -------
+    float
+        (before - after) / (before - floor); 0 when ``before`` is at or below the floor.
+    """
+    excess = before - floor
+    if excess <= 0.0:
+        return 0.0
+    return (before - after) / excess
+
+
+def term_refused(before: float, after: float) -> str | None:
+    """Why a proposed term may not be written or recommended (None when it may): its refit removes less than
+    :data:`TERM_SHARE` of the residual's excess over the noise.
+
+    Parameters
+    ----------
+    before, after : float
+        The all-data residual (x what does not repeat) of the final model without and with the term.
+
+    Returns
+    -------
+    str or None
+        The refusal in words, with the numbers.
+    """
+    s = share_removed(before, after)
+    if s >= TERM_SHARE:
+        return None
+    return (f"the best term of the dictionary, refitted in the full model, takes the residual from {before:.3g}x to "
+            f"{after:.3g}x noise on all data: it removes {100 * s:.0f} % of the excess over the noise, less than the "
+            f"{100 * TERM_SHARE:.0f} % a term must remove; no term was found")
+
+
+def worse_than_bare(bare: float, final: float) -> str | None:
+    """Why a model is worse than the bare model (None when it is not): its all-data residual is above the bare
+    model's (beyond :data:`WORSE_TOLERANCE`).
+
+    Parameters
+    ----------
+    bare, final : float
+        The all-data residuals (x what does not repeat) of the bare model and of the model with the hypotheses.
+
+    Returns
+    -------
+    str or None
+    """
+    if final <= bare * (1.0 + WORSE_TOLERANCE):
+        return None
+    return (f"makes the residual on all data worse than the model without the hypotheses ({bare:.3g}x -> "
+            f"{final:.3g}x what does not repeat)")
+
+
+def at_bounds(fit, effects=None) -> list[dict]:
+    """The fitted parameters of library effects that sit at an end of their fit range.
+
+    Parameters
+    ----------
+    fit : Fit
+        A fit (:class:`ehas_env.measurement.fitting.Fit`): its ``free`` parameters and ``model``.
+    effects : iterable of str, optional
+        Only these effects (default: every effect of the fit; the baseline's beta and K and proposed terms are
+        not library effects and are left out).
+
+    Returns
+    -------
+    list of dict
+        {effect, param, value, unit, end ("lower"/"upper"), range [lo, hi], physical_bound (bool), text}.
+    """
+    from ehas_env.measurement.fitting import TERM, _value_of
+    from ehas_env.physics.effects import get_effect
+
+    out = []
+    if fit is None:
+        return out
+    wanted = None if effects is None else set(effects)
+    for fp in fit.free:
+        if fp.effect in (None, TERM) or (wanted is not None and fp.effect not in wanted):
+            continue
+        if fp.effect not in fit.model.effects:
+            continue
+        v = _value_of(fit.model, fp)
+        end = fp.end(v)
+        if end is None:
+            continue
+        p = get_effect(fp.effect).param(fp.name)
+        bound = p.bounds[0] if end == "lower" else p.bounds[1]
+        physical = abs((fp.lo if end == "lower" else fp.hi) - bound) <= 1e-9 * max(abs(bound), 1e-300)
+        text = (f"{fp.effect}.{fp.name} = {v:.4g} {p.unit} sits at the {end} end of its fit range "
+                f"[{fp.lo:.4g}, {fp.hi:.4g}]" + (" (its physical bound)" if physical else "")
+                + ": no point estimate, the data ask for a value beyond it")
+        out.append({"effect": fp.effect, "param": fp.name, "value": float(f"{v:.4g}"), "unit": p.unit, "end": end,
+                    "range": [float(f"{fp.lo:.4g}"), float(f"{fp.hi:.4g}")], "physical_bound": bool(physical),
+                    "text": text})
+    return out
+
+
+def at_bound_lines(at_bound: list) -> list[str]:
+    """Honesty rule 3 in words, for the console and the report (empty when no fit sits on a bound).
+
+    Parameters
+    ----------
+    at_bound : list of dict
+        :func:`at_bounds`' entries.
+
+    Returns
+    -------
+    list of str
+    """
+    return ["  on a bound: " + b["text"] for b in at_bound]

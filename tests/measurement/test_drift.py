@@ -1,0 +1,192 @@
+"""Parameters that change between runs (ehas_env.measurement.drift, issue 33 item 3).
+
+* the statistics on tables of per-run estimates with known truth: a straight rise is found with its size and
+  what it follows; estimates scattered within their intervals raise no alarm (false-alarm rate at most the
+  test's level, over 2000 seeded tables);
+* the sidecars' recording order (``recorded``), and a bad value refused in one line;
+* end to end on campaigns of the independent generator (tests/independent_rig, which shares no code with the
+  package), whose Coulomb friction rises from run to run (a per-run schedule) or stays put: the drift stage names
+  the parameter, the direction and the size within 30 % on the first, and nothing on the second.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ehas_env.measurement import drift as DR
+from ehas_env.measurement.campaign import Campaign, validate_run
+
+#: recording order decorrelated from the settings (disc sets, amplitude, frequency): rank correlations 0.1-0.3
+PLAN = ((5, 20.0, 2.0), (1, 30.0, 1.0), (7, 10.0, 3.0), (3, 35.0, 1.5), (5, 25.0, 2.5))
+
+
+def test_a_steady_rise_is_found_with_its_size_and_order():
+    truth = np.linspace(200.0, 480.0, 5)
+    cis = [(v * 0.97, v * 1.03) for v in truth]
+    p, _, dof = DR.differ(truth, cis)
+    assert p < DR.DRIFT_P and dof == 4
+    feats = {"recording order": [1, 2, 3, 4, 5], "disc sets": [5, 1, 7, 3, 5], "frequency (Hz)": [2, 1, 3, 1.5, 2.5]}
+    r = DR.relate(truth, cis, feats)
+    assert r["follows"] == "recording order" and r["direction"] == "rises"
+    assert r["ratio_first_last"] == pytest.approx(2.4, rel=1e-6)
+    # the same values recorded in another order follow the quantity they rise with
+    r = DR.relate(truth[::-1], cis[::-1], {"recording order": [1, 2, 3, 4, 5], "amplitude (deg)": [35, 30, 25, 20, 10]})
+    assert r["follows"] == "recording order" and r["direction"] == "falls"
+    assert r["ratio_first_last"] == pytest.approx(1 / 2.4, rel=1e-6)
+    # no quantity follows a zig-zag
+    r = DR.relate([200.0, 480.0, 210.0, 470.0, 220.0], cis, {"recording order": [1, 2, 3, 4, 5]})
+    assert r["follows"] is None
+
+
+def test_estimates_within_their_intervals_raise_no_alarm():
+    """Per-run estimates drawn around one value with the spread their intervals state: a false alarm in 1000
+    parameters is the test's bar, so over 2000 seeded tables of 3 to 8 runs at most 6 (the 99.5 % point of the
+    Poisson count with mean 2) may be flagged."""
+    rng = np.random.default_rng(33)
+    flagged = 0
+    n = 2000
+    for _ in range(n):
+        k = int(rng.integers(3, 9))
+        half = rng.uniform(0.12, 0.4, k) * 300.0  # 95 % half-widths above the model-error floor
+        v = 300.0 + rng.standard_normal(k) * half / 1.959964
+        flagged += DR.differ(v, [(x - h, x + h) for x, h in zip(v, half)])[0] < DR.DRIFT_P
+    assert flagged <= 6, flagged
+
+
+def test_a_rise_of_35_percent_over_four_runs_is_flagged():
+    """A change the stage must see: 300 -> 405 N over four runs with tight intervals (each then counted at the 10 %
+    model-error floor): flagged (p = 2.5e-4; 1.3x over four runs, p = 2e-3, is within the floor), rising 1.35x in
+    recording order."""
+    v = [300.0, 335.0, 370.0, 405.0]
+    cis = [(x - 2.0, x + 2.0) for x in v]
+    assert DR.differ(v, cis)[0] < DR.DRIFT_P
+    out = DR.drift_of([{"run": f"r{i}", "params": {"c.Fc": (x, ci, False)}} for i, (x, ci) in enumerate(zip(v, cis))],
+                      {"recording order": [1, 2, 3, 4]}, {"c.Fc": "N"})
+    assert out[0]["ratio_first_last"] == pytest.approx(1.35) and out[0]["follows"] == "recording order"
+
+
+def _table(values):
+    return [{"run": f"r{i}", "params": {"valve_dynamics.K": (x, (x - 0.001, x + 0.001), False)}}
+            for i, x in enumerate(values)]
+
+
+def test_a_steady_change_in_time_is_seen_below_the_model_error_floor():
+    """Valve wear: K falling 1.0 -> 0.8x over five runs in recording order (the per-run fits of the independent
+    rig's campaign, seed 7: 1.282, 1.218, 1.154, 1.090, 1.026 LPM/mA) lies within the 10 % floor (p = 0.016) but
+    falls at every step in time: named, falling to 0.8x.  The same values in an order unrelated to the time (the
+    runs' settings) are not; nor are four runs (an ordered sequence of four comes by chance once in twelve)."""
+    k = [1.282, 1.218, 1.154, 1.090, 1.026]
+    assert DR.differ(k, [(x - 0.001, x + 0.001) for x in k])[0] > DR.DRIFT_P
+    (d,) = DR.drift_of(_table(k), {"recording order": [1, 2, 3, 4, 5]}, {"valve_dynamics.K": "LPM/mA"})
+    assert d["direction"] == "falls" and d["ratio_first_last"] == pytest.approx(0.8, rel=0.02)
+    assert DR.drift_of(_table(k), {"recording order": [2, 1, 3, 5, 4]}, {}) == []
+    assert DR.drift_of(_table(k[:4]), {"recording order": [1, 2, 3, 4]}, {}) == []
+    # model error of clean campaigns (K per run within 1 % there): 2 %, even when ordered in time, is no drift
+    assert DR.drift_of(_table([1.270, 1.277, 1.283, 1.290, 1.296]), {"recording order": [1, 2, 3, 4, 5]}, {}) == []
+
+
+def test_estimates_within_the_model_error_floor_raise_no_alarm():
+    """Tight intervals (noise only) and values 8 % apart: what two simulators of one rig differ by (the floor of the
+    agreement rule, keeping.MODEL_ERROR_FLOOR): no drift."""
+    v = [300.0, 312.0, 288.0, 306.0, 295.0]
+    assert DR.differ(v, [(x - 1.0, x + 1.0) for x in v])[0] > DR.DRIFT_P
+
+
+def _run(name, meta):
+    t = np.arange(0.0, 0.2, 1e-3)
+    ref = meta["reference"]["amplitude_deg"] * np.sin(2 * np.pi * meta["reference"]["freq_hz"] * t)
+    cols = {"t": t, "theta_deg": ref, "theta_ref_deg": ref, "current_mA": np.zeros_like(t)}
+    return validate_run(name, cols, meta)
+
+
+def _meta(sets, recorded=None):
+    m = {"kind": "closed_loop", "disc_sets": sets, "supply_bar": 220.0,
+         "reference": {"amplitude_deg": 20.0, "freq_hz": 2.0},
+         "controller": {"Kp": 1.0, "Ki": 2.0, "Kv": 0.0178, "Ka": 0.0002, "rate_hz": 1000.0}}
+    if recorded is not None:
+        m["recorded"] = recorded
+    return m
+
+
+def test_recording_order_from_the_sidecars():
+    runs = [_run("a", _meta(3, "2026-11-27T10:00:00")), _run("b", _meta(5, "2026-11-27T08:30:00")),
+            _run("c", _meta(1, "2026-11-27T09:15:00"))]
+    feats, order = DR.run_features(runs)
+    assert order == "recording order" and feats["recording order"] == [3.0, 1.0, 2.0]
+    assert feats["disc sets"] == [3.0, 5.0, 1.0]
+    # without a start time on every run, the file order (and it says so)
+    feats, order = DR.run_features([_run("a", _meta(3)), _run("b", _meta(5, "2026-11-27T08:30:00"))])
+    assert order == "file order" and feats["file order"] == [1.0, 2.0]
+    with pytest.raises(ValueError, match=r"^b\.json: key 'recorded' = 'yesterday'; expected .*ISO 8601"):
+        DR.run_features([_run("a", _meta(3, "2026-11-27T10:00:00")), _run("b", _meta(5, "yesterday"))])
+
+
+def _campaign(schedule, effects, seed, n_runs=4):
+    from tests.independent_rig.campaign import simulate
+
+    runs, truth = simulate(effects, seed=seed, duration=1.5, plan=PLAN[:n_runs], valve=False, schedule=schedule)
+    return Campaign(None, [validate_run(n, c, m) for n, c, m in runs]), truth
+
+
+def _stage(camp, start_fc):
+    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, windowed
+    from ehas_env.measurement.fitting import fit, own_params, recal_params
+    from ehas_env.measurement.replay import ModelSpec, Replayer
+
+    rep = Replayer(windowed(camp))
+    free = own_params("coulomb_friction") + recal_params({"coulomb_friction": {}})
+    fixed = ModelSpec(effects={"coulomb_friction": {"Fc": start_fc}})
+    final = fit(rep, free, {(fp.effect, fp.name): (start_fc if fp.effect else getattr(fixed, fp.name)) for fp in free},
+                fixed, max_nfev=6)
+    return DR.per_run_stage(rep, camp.runs, windowed(camp, FIT_WINDOW_S).runs, final)
+
+
+def test_friction_rising_run_by_run_is_named_with_its_size():
+    """Coulomb friction 200 -> 440 N over four runs, in recording order (2.2x): named, rising, within 30 %."""
+    fc = [200.0, 280.0, 360.0, 440.0]
+    camp, _ = _campaign({"effects": {"coulomb_friction": {"Fc": fc}}}, {"coulomb_friction": {"Fc": 200.0}}, 4)
+    out = _stage(camp, 300.0)
+    assert out["per_run"]["order"] == "recording order"
+    assert [r["run"] for r in out["per_run"]["runs"]] == [r.name for r in camp.runs]
+    d = {x["parameter"]: x for x in out["drift"]}
+    assert "coulomb_friction.Fc" in d, out["drift"]
+    x = d["coulomb_friction.Fc"]
+    assert x["follows"] == "recording order" and x["direction"] == "rises"
+    assert x["ratio_first_last"] - 1.0 == pytest.approx(fc[-1] / fc[0] - 1.0, rel=0.3)
+    assert "coulomb_friction.Fc rises" in x["text"] and "in recording order" in x["text"]
+
+
+def test_steady_friction_shows_no_drift():
+    camp, _ = _campaign({"effects": {"coulomb_friction": {"Fc": [350.0] * 4}}}, {"coulomb_friction": {"Fc": 350.0}}, 5)
+    out = _stage(camp, 300.0)
+    assert out["drift"] == [], out["drift"]
+    fc = [r["params"]["coulomb_friction.Fc"]["value"] for r in out["per_run"]["runs"]]
+    assert fc == pytest.approx([350.0] * 4, rel=0.15)
+
+
+@pytest.mark.slow  # ten campaigns, two per-run fits each: about 4 min on two cores
+def test_no_drift_on_ten_steady_campaigns():
+    """The false-alarm guard: ten seeded campaigns of the independent rig (five runs each, so that the steady-trend
+    test of drift.TREND_RUNS applies too) whose parameters do not change (Coulomb
+    friction 350 N, beta and K perturbed once per campaign), the friction refitted per run and viscous friction
+    (not there) refitted per run as an effect judged but not kept: no drift reported on any."""
+    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, windowed
+    from ehas_env.measurement.fitting import fit, own_params, recal_params
+    from ehas_env.measurement.replay import ModelSpec, Replayer
+
+    alarms = []
+    for seed in range(60, 70):
+        camp, _ = _campaign({"K": [1.0] * 5}, {"coulomb_friction": {"Fc": 350.0}}, seed, n_runs=5)
+        rep = Replayer(windowed(camp))
+        free = own_params("coulomb_friction") + recal_params({"coulomb_friction": {}})
+        fixed = ModelSpec(effects={"coulomb_friction": {"Fc": 330.0}})
+        start = {(fp.effect, fp.name): (330.0 if fp.effect else getattr(fixed, fp.name)) for fp in free}
+        final = fit(rep, free, start, fixed, max_nfev=6)
+        vfree = own_params("viscous_friction")
+        vfixed = ModelSpec(effects={**final.model.effects, "viscous_friction": {"b": 2000.0}}, beta=final.model.beta,
+                           K=final.model.K)
+        spurious = fit(rep, vfree, {("viscous_friction", "b"): 2000.0}, vfixed, max_nfev=4)
+        out = DR.per_run_stage(rep, camp.runs, windowed(camp, FIT_WINDOW_S).runs, final,
+                               {"viscous_friction": spurious})
+        alarms += [(seed, d["text"]) for d in out["drift"]]
+    assert alarms == [], alarms
