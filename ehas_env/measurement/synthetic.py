@@ -39,14 +39,18 @@ K_PERTURB = 0.01  # relative, +-: the identified K's fit uncertainty
 
 @dataclass(frozen=True)
 class RunPlan:
+    """One closed-loop run of a plan: disc sets, sine amplitude (deg), frequency (Hz), mean angle (deg)."""
+
     disc_sets: int
     amplitude_deg: float
     freq_hz: float
+    offset_deg: float = 0.0
 
     @property
     def name(self) -> str:
         sets = "1set" if self.disc_sets == 1 else f"{self.disc_sets}sets"
-        return f"cl_{sets}_{self.amplitude_deg:g}deg_{self.freq_hz:g}hz".replace(".", "p")
+        off = f"_off{self.offset_deg:g}deg".replace("-", "m") if self.offset_deg else ""
+        return f"cl_{sets}_{self.amplitude_deg:g}deg_{self.freq_hz:g}hz{off}".replace(".", "p")
 
 
 def chirp_current(n: int, dt: float, f0: float = CHIRP[0], f1: float = CHIRP[1], amp: float = CHIRP[2]):
@@ -74,8 +78,9 @@ def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, dur
         Perturb beta (+-5 %) and K (+-1 %) at random.
     duration : float
         Length of each run, s.
-    plan : sequence of (disc_sets, amplitude_deg, freq_hz)
-        The closed-loop runs.
+    plan : sequence of (disc_sets, amplitude_deg, freq_hz[, offset_deg])
+        The closed-loop runs; ``offset_deg`` (default 0) is the sine's mean angle,
+        |offset| + amplitude below the stroke end (44.43 deg).
     sensors : Sensors, optional
         Measurement chain (default: :class:`Sensors` defaults, noisy and quantized).
     valve : bool
@@ -97,6 +102,7 @@ def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, dur
     from ehas_env.physics.effects import resolve_effects
     from ehas_env.simulation.plant import Plant, RigController
     from ehas_env.physics.rig import BULK_MODULUS, VALVE_K, RigParams
+    from ehas_env.simulation.reference import SineReference
     from ehas_env.simulation.sensors import Sensors
 
     from ehas_env.simulation.model_file import as_model
@@ -111,11 +117,12 @@ def simulate_campaign(effects=None, *, seed: int = 0, perturb: bool = False, dur
     seeds = rng.integers(0, 2**31 - 1, size=len(plan) + 1)
     ctrl = model.controller() if model is not None else RigController.book()
     runs = []
-    for (sets, amp, freq), s in zip(plan, seeds):
-        p = RunPlan(int(sets), float(amp), float(freq))
+    for row, s in zip(plan, seeds):
+        p = RunPlan(*(int(row[0]), *(float(v) for v in row[1:])))
         plant = Plant(disc_sets=p.disc_sets, effects=effects, rig=base.replace(beta=beta, K=K), sensors=sensors,
                       seed=int(s), model=model)
-        res = plant.simulate_closed_loop(ctrl, amplitude_deg=p.amplitude_deg, freq_hz=p.freq_hz, duration=duration)
+        ref = SineReference(p.amplitude_deg, p.freq_hz, offset_deg=p.offset_deg)
+        res = plant.simulate_closed_loop(ctrl, reference=ref, duration=duration)
         meta = {"kind": "closed_loop", "disc_sets": p.disc_sets, "supply_bar": res.meta["supply_bar"],
                 "reference": res.meta["reference"], "controller": res.meta["controller"],
                 "notes": f"synthetic run (ehas simulate-campaign, seed {seed})"}

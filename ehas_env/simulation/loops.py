@@ -26,13 +26,16 @@ from ehas_env.physics.layout import *  # noqa: F401,F403  (for readers: the name
 def reference_point(ref, t):
     """theta_ref and its first three derivatives (deg, deg/s^k) at t.
 
-    ref = (amplitude deg, f Hz, phase rad[, ramp s]).  With a ramp time T > 0
-    the amplitude fades in with the smoothstep 10x^3 - 15x^4 + 6x^5, x = t/T, so
-    the command starts at rest: a rig operator never steps a heavy inertia to
-    full sine velocity at t = 0.
+    ref = (amplitude deg, f Hz, phase rad[, ramp s[, offset deg]]): the sine
+    offset + amplitude sin(2 pi f t + phase) about a mean angle ``offset``.  With a
+    ramp time T > 0 the whole command (mean angle and sine) fades in with the
+    smoothstep 10x^3 - 15x^4 + 6x^5, x = t/T, so the command starts at rest at
+    0: a rig operator never steps a heavy inertia to full sine velocity, or to
+    the mean angle, at t = 0.
     """
     amp, w, ph = ref[0], 2.0 * math.pi * ref[1], ref[2]
     T = ref[3] if ref.shape[0] > 3 else 0.0
+    off = ref[4] if ref.shape[0] > 4 else 0.0
     s, s1, s2, s3 = 1.0, 0.0, 0.0, 0.0
     if T > 0.0 and t < T:
         x = max(t, 0.0) / T
@@ -41,10 +44,10 @@ def reference_point(ref, t):
         s2 = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / (T * T)
         s3 = (60.0 - 360.0 * x + 360.0 * x * x) / (T * T * T)
     sn, cs = math.sin(w * t + ph), math.cos(w * t + ph)
-    r = amp * s * sn
-    rd = amp * (s1 * sn + s * w * cs)
-    rdd = amp * (s2 * sn + 2.0 * s1 * w * cs - s * w * w * sn)
-    rddd = amp * (s3 * sn + 3.0 * s2 * w * cs - 3.0 * s1 * w * w * sn - s * w * w * w * cs)
+    r = amp * s * sn + off * s
+    rd = amp * (s1 * sn + s * w * cs) + off * s1
+    rdd = amp * (s2 * sn + 2.0 * s1 * w * cs - s * w * w * sn) + off * s2
+    rddd = amp * (s3 * sn + 3.0 * s2 * w * cs - 3.0 * s1 * w * w * sn - s * w * w * w * cs) + off * s3
     return r, rd, rdd, rddd
 
 
@@ -86,7 +89,7 @@ REF_SINE, REF_STEP = 0, 1
 def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, k1, metrics, out):
     """One closed-loop run of ``len(noise)`` periods with the compiled law number ``law``.
 
-    ref: (amplitude deg, f Hz, phase rad, ramp s) for kind REF_SINE, or
+    ref: (amplitude deg, f Hz, phase rad, ramp s[, offset deg]) for kind REF_SINE, or
     (step deg, -, step time s, -) for REF_STEP; sensor = (theta ADC lsb deg,
     DAC lsb mA, LVDT gain error, output limit mA).  Writes ``metrics`` (see
     METRICS; error window [k0, k1)) and, when ``out`` has rows, the outputs of

@@ -32,8 +32,9 @@ RTOL = 1.0e-7
 ATOL = np.array([1e-10, 1e-8, 1e-12, 1e-10, 1e-2, 1e-2, 1e-8, 1e-11, 1e-9, 1e-12])
 
 
-def reference(t: float, amp: float, freq: float) -> tuple:
-    """(r, r', r'') in deg, deg/s, deg/s^2: the sine with its amplitude faded in over the first period."""
+def reference(t: float, amp: float, freq: float, offset: float = 0.0) -> tuple:
+    """(r, r', r'') in deg, deg/s, deg/s^2: the sine about the mean angle ``offset`` (the sidecar's
+    ``reference.offset_deg``, docs/measurement-format.md), mean angle and amplitude faded in over the first period."""
     w = 2.0 * math.pi * freq
     T = 1.0 / freq
     if t < T:
@@ -44,9 +45,9 @@ def reference(t: float, amp: float, freq: float) -> tuple:
     else:
         s, s1, s2 = 1.0, 0.0, 0.0
     sn, cs = math.sin(w * t), math.cos(w * t)
-    r = amp * s * sn
-    r1 = amp * (s1 * sn + s * w * cs)
-    r2 = amp * (s2 * sn + 2.0 * s1 * w * cs - s * w * w * sn)
+    r = amp * s * sn + offset * s
+    r1 = amp * (s1 * sn + s * w * cs) + offset * s1
+    r2 = amp * (s2 * sn + 2.0 * s1 * w * cs - s * w * w * sn) + offset * s2
     return r, r1, r2
 
 
@@ -107,7 +108,8 @@ class Run:
 
 
 def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, duration: float, effects_si: dict,
-                chain: Chain, rng: np.random.Generator, gains: dict | None = None, progress=None) -> tuple:
+                chain: Chain, rng: np.random.Generator, gains: dict | None = None, progress=None,
+                offset_deg: float = 0.0) -> tuple:
     """A closed-loop sine run.
 
     Parameters
@@ -130,6 +132,8 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
         The controller's gains (Kp, Ki, Kv, Ka; default: the book's carried over to ``rig``).
     progress : callable, optional
         Called with the fraction done every 500 periods.
+    offset_deg : float
+        The sine's mean angle, deg (0: centred on the stroke).
 
     Returns
     -------
@@ -153,7 +157,7 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
         t = k * DT
         th_true = model.lvdt_angle_deg(y)
         th = chain.angle(th_true, rig, rng)
-        r, r1, r2 = reference(t, amplitude_deg, freq_hz)
+        r, r1, r2 = reference(t, amplitude_deg, freq_hz, offset_deg)
         u = chain.dac(ctrl(r - th, r1, r2))
         cmds.append(u)
         out = model.outputs(y)
@@ -174,7 +178,8 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
     cols["p_s_bar"] = chain.pressure(np.full(n, rig.supply / BAR), rng)
     cols["load_kN"] = rig.area * (cols["p_a_bar"] - cols["p_b_bar"]) * BAR * 1e-3
     meta = {"kind": "closed_loop", "disc_sets": int(disc_sets), "supply_bar": rig.supply / BAR,
-            "reference": {"amplitude_deg": amplitude_deg, "freq_hz": freq_hz, "phase_rad": 0.0, "ramp_cycles": 1},
+            "reference": {"amplitude_deg": amplitude_deg, "freq_hz": freq_hz, "phase_rad": 0.0, "ramp_cycles": 1,
+                          **({"offset_deg": offset_deg} if offset_deg else {})},
             "controller": {k: float(v) for k, v in gains.items()}}
     return cols, true, meta
 

@@ -1,0 +1,434 @@
+"""Other explanations that fit a campaign as well as the one reported: what these logs cannot tell apart.
+
+A diagnosis keeps the first explanation that fits; from runs at one supply
+pressure, centred on the stroke, another physical explanation may fit the logs
+as well and predict a different rig under other conditions (issue 34): a
+compliant actuator mount and a softer oil both put a spring in series with the
+piston; air in the oil is a softer oil at one pressure; seal friction growing
+with the chamber pressures is a constant Coulomb force at one supply.
+
+:func:`find_alternatives` takes each effect of the final model, fits every
+effect it may be confused with (:func:`rivals_of`: the pairs of
+:data:`CONFUSABLE`, and the effects' own ``mistaken_for``) in its place on the
+same fit data (the rest of the model refitted with it), and compares the two on
+all the campaign's data (every run, whole length, held-out runs included) by
+the diagnosis' evidence score (:func:`~ehas_env.measurement.fitting.score_db`):
+the score difference is ``10 log10(J_alt / J_reported)`` dB less
+:data:`~ehas_env.measurement.fitting.PENALTY_PER_PARAM` per parameter the
+reported one has more.  Effects that were ranked in the same round as the
+reported one and beat the noise are compared the same way (their fits are on
+the same base; no new fit), unless one extends the other's law (its parameters
+include all of the other's: Stribeck friction's Fc, Fs, vs hold Coulomb
+friction's Fc), which is the same explanation with more freedom.
+
+**The rule for "within".** The score difference is a mean over the fit data; its
+own uncertainty is that of a paired comparison.  The residuals of both models
+are cut into the clusters the confidence intervals use
+(:data:`~ehas_env.measurement.fitting.CI_BLOCK_S` stretches of each run, all its
+signals together); in each cluster the difference ``d_c = 10 log10(e_alt /
+e_reported)`` of the mean squared noise-normalised residuals is taken.  The
+logs resolve a difference of ``max(2 SE, MIN_SCORE)`` dB with SE = std(d_c) /
+sqrt(clusters) (two standard errors: 95 %; never finer than
+:data:`~ehas_env.measurement.fitting.MIN_SCORE`, what a candidate must score to
+beat the noise at all).  An alternative whose score is not lower than the
+reported one's by more than that is *within*: listed under ``alternatives``,
+and the verdict says these logs cannot tell them apart.  One that is lower by
+more is *decided*: the verdict says by how many dB the data rule it out.
+
+Examples
+--------
+>>> sorted(rivals_of("bulk_modulus"))
+['hyp_entrained_air', 'hyp_load_compliance']
+>>> resolvable_db(np.array([0.1, -0.1, 0.2, 0.0]))
+0.3
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ehas_env.measurement.fitting import CI_BLOCK_S, MIN_SCORE, PENALTY_PER_PARAM, Fit, confidence, own_params
+from ehas_env.measurement.replay import COST_SIGNALS, Replayer
+from ehas_env.physics.effects import REGISTRY, get_effect
+
+#: pairs of effects that put the same signature into runs at one supply pressure, centred on the stroke, and why.
+#: (An effect file may also declare the library effects it can be mistaken for: ``Effect.mistaken_for``.)
+CONFUSABLE = {
+    frozenset({"bulk_modulus", "hyp_load_compliance"}):
+        "a softer oil and a compliant actuator mount or load path both put a spring in series with the piston; "
+        "at the chamber volumes of runs centred on the stroke their stiffness is alike (off centre the oil's "
+        "stiffness changes with the chamber volumes, the mount's does not)",
+    frozenset({"bulk_modulus", "hyp_entrained_air"}):
+        "air in the oil softens it most at low pressure; at one supply pressure the chambers stay near one "
+        "pressure and a constant softer oil fits as well (at another supply pressure the air's share changes)",
+    frozenset({"hyp_entrained_air", "hyp_load_compliance"}):
+        "air in the oil and a compliant mount both soften the actuator's spring (the air's share falls with the "
+        "pressure, the mount's spring does not)",
+    frozenset({"coulomb_friction", "hyp_pressure_friction"}):
+        "seal friction that grows with the chamber pressures is nearly constant at one supply pressure, where the "
+        "chambers sit near half the supply: a constant Coulomb force fits it (at another supply it changes)",
+    frozenset({"internal_leakage", "hyp_turbulent_leakage"}):
+        "a leak across the piston that grows with the square root of the pressure difference and a laminar one "
+        "fit alike over the one range of pressure differences of runs at one supply (at another supply they part)",
+    frozenset({"internal_leakage", "hyp_valve_underlap"}):
+        "a valve open at null and a leak across the piston both pass flow between the chambers near rest (the "
+        "valve bench shows the lap, which a piston leak does not reach)",
+    frozenset({"hyp_position_offset", "hyp_crank_offset"}):
+        "a zero offset of the position sensor and a crank set off its mid-stroke both shift the logged angle "
+        "against the piston; in centred runs both read as a constant shift (off centre the lever's length changes "
+        "with the crank offset, not with the sensor's)",
+    frozenset({"viscous_friction", "hyp_pressure_friction"}):
+        "seal friction that grows with the chamber pressures grows with the load, which grows with the speed on "
+        "an inertial load: a viscous force fits part of it (at another supply or disc set it does not)",
+}
+
+
+def rivals_of(effect: str) -> list[str]:
+    """The effects ``effect`` may be confused with (:data:`CONFUSABLE` and ``mistaken_for`` either way).
+
+    Parameters
+    ----------
+    effect : str
+        An effect of the registry.
+
+    Returns
+    -------
+    list of str
+        Registered effect names, sorted.
+    """
+    out = set()
+    for pair in CONFUSABLE:
+        if effect in pair:
+            out |= pair - {effect}
+    mine = REGISTRY.get(effect)
+    out |= set(getattr(mine, "mistaken_for", ()) or ())
+    out |= {n for n, c in REGISTRY.items() if effect in (getattr(c, "mistaken_for", ()) or ())}
+    out.discard(effect)
+    return sorted(n for n in out if n in REGISTRY)
+
+
+def why_confused(a: str, b: str) -> str:
+    """Why ``a`` and ``b`` can look alike (the reason of :data:`CONFUSABLE`, else the effect files' words)."""
+    reason = CONFUSABLE.get(frozenset({a, b}))
+    if reason:
+        return reason
+    return f"{get_effect(a).title} and {get_effect(b).title} leave the same signature in these runs"
+
+
+def resolvable_db(d: np.ndarray) -> float:
+    """The smallest score difference the logs resolve, dB: ``max(2 SE, MIN_SCORE)`` of the per-cluster differences.
+
+    Parameters
+    ----------
+    d : ndarray
+        The per-cluster score differences (dB), one per stretch of a run.
+
+    Returns
+    -------
+    float
+        dB.
+    """
+    d = np.asarray(d, dtype=float)
+    if d.size < 2:
+        return float("inf")
+    se = float(np.std(d, ddof=1)) / math.sqrt(d.size)
+    return max(2.0 * se, MIN_SCORE)
+
+
+def cluster_differences(rep: Replayer, sims_reported, sims_alt, block_s: float = CI_BLOCK_S) -> np.ndarray:
+    """Per cluster (a ``block_s`` stretch of one run, all its cost signals together) ``10 log10(e_alt /
+    e_reported)`` of the mean squared noise-normalised residuals.
+
+    Parameters
+    ----------
+    rep : Replayer
+        The campaign both models were fitted on.
+    sims_reported, sims_alt : list
+        The two models' simulations of its runs (:meth:`Replayer.simulate`).
+    block_s : float
+        Cluster length, s.
+
+    Returns
+    -------
+    ndarray
+        One difference (dB) per cluster.
+    """
+    out = []
+    for case, a, b in zip(rep.cases, sims_reported, sims_alt):
+        if a is None or b is None:
+            continue
+        k0 = case.skip
+        n = case.run.n - k0
+        m = max(int(round(block_s / case.run.dt)), 2)
+        for j in range(0, n - m // 2, m):
+            ea = eb = 0.0
+            for s in case.signals:
+                if s not in COST_SIGNALS:
+                    continue
+                y = case.measured[s][k0 + j:k0 + j + m]
+                ra = (y - a[s][k0 + j:k0 + j + m]) / case.noise[s]
+                rb = (y - b[s][k0 + j:k0 + j + m]) / case.noise[s]
+                ea += float(np.dot(ra, ra)) / ra.size
+                eb += float(np.dot(rb, rb)) / rb.size
+            if ea > 0.0 and eb > 0.0:
+                out.append(10.0 * math.log10(eb / ea))
+    return np.array(out)
+
+
+@dataclass
+class Alternative:
+    """Another explanation of a campaign, compared with the one reported.
+
+    Attributes
+    ----------
+    name : str
+        The effect fitted in place of ``in_place_of``.
+    in_place_of : str
+        The reported effect it replaces.
+    params : dict
+        Its fitted values (the effect's units).
+    ci95 : dict
+        Parameter -> [low, high], 95 % intervals (:func:`~ehas_env.measurement.fitting.confidence`).
+    score_difference_db : float
+        The reported explanation's score less this one's, dB (> 0: the reported one fits better).
+    resolvable_db : float
+        The smallest difference these logs resolve (the rule of the module's docstring), dB.
+    model : dict
+        The whole model with it: ``effects``, ``beta``, ``K`` (a :class:`ModelSpec`'s numbers).
+    reason : str
+        Why the two may look alike.
+    per_run_db : dict
+        Run -> ``10 log10(J_alt / J_reported)`` on that run (all runs, held-out ones included; J the mean over its
+        signals of the mean squared noise-normalised residual): where the logs separate them.
+    """
+
+    name: str
+    in_place_of: str
+    params: dict
+    ci95: dict
+    score_difference_db: float
+    resolvable_db: float
+    model: dict
+    reason: str
+    per_run_db: dict = field(default_factory=dict)
+    fit: Fit | None = field(default=None, repr=False)
+
+    @property
+    def within(self) -> bool:
+        """The logs cannot tell it from the reported one."""
+        return self.score_difference_db <= self.resolvable_db
+
+    def to_json(self) -> dict:
+        """The diagnosis JSON's entry (docs/measurement-format.md)."""
+        return {"name": self.name, "in_place_of": self.in_place_of, "title": get_effect(self.name).title,
+                "words": words(self.name, self.params),
+                "params": {k: _round(v) for k, v in self.params.items()},
+                "units": {p.name: p.unit for p in get_effect(self.name).params},
+                "ci95": {k: [_round(lo), _round(hi)] for k, (lo, hi) in self.ci95.items()},
+                "score_difference_db": round(self.score_difference_db, 2),
+                "resolvable_db": round(self.resolvable_db, 2), "within": self.within,
+                "model": self.model, "reason": self.reason,
+                "per_run_db": {k: round(v, 2) for k, v in self.per_run_db.items()}}
+
+
+def words(effect: str, params: dict) -> str:
+    """An effect with its values in words: the hypothesis' own sentence, else its title and values with units.
+
+    Parameters
+    ----------
+    effect : str
+        A registered effect.
+    params : dict
+        Its values.
+
+    Returns
+    -------
+    str
+    """
+    cls = get_effect(effect)
+    if hasattr(cls, "in_words"):
+        return cls.in_words(params)
+    units = {p.name: p.unit for p in cls.params}
+    return f"{cls.title}, " + ", ".join(f"{k} = {v:.4g} {units.get(k, '')}".rstrip() for k, v in params.items())
+
+
+def _round(v: float) -> float:
+    return float(f"{v:.4g}")
+
+
+def model_json(model) -> dict:
+    """A :class:`~ehas_env.measurement.replay.ModelSpec`'s numbers: ``effects``, ``beta``, ``K`` (what
+    ``ehas plan-test`` replays)."""
+    return {"effects": {n: {k: float(v) for k, v in p.items()} for n, p in model.effects.items()},
+            "beta": float(model.beta), "K": float(model.K)}
+
+
+def compare(rep: Replayer, reported: Fit, effect: str, alt: Fit, name: str, full: Replayer | None = None,
+            sims_full: tuple | None = None) -> Alternative:
+    """``alt`` (``name`` in place of ``effect``) against ``reported``, both fitted on ``rep``.
+
+    The evidence is all the campaign's data when ``full`` is given (every run, whole length, held-out runs
+    included: both models were fitted without them alike), else the fit data.
+
+    Parameters
+    ----------
+    rep : Replayer
+        The fit data.
+    reported, alt : Fit
+        The two fits (same runs, same base).
+    effect, name : str
+        The reported effect and the alternative.
+    full : Replayer, optional
+        Every run of the campaign.
+    sims_full : tuple, optional
+        (reported, alternative) simulations of ``full``'s runs (simulated here when not given).
+
+    Returns
+    -------
+    Alternative
+    """
+    n_rep = len(own_params(effect))
+    n_alt = len(own_params(name))
+    if full is None:
+        data, sr, sa, jr, ja = rep, reported.sims, alt.sims, reported.cost, alt.cost
+    else:
+        sr, sa = sims_full if sims_full is not None else (full.simulate(reported.model), full.simulate(alt.model))
+        data, jr, ja = full, full.log_cost(sr), full.log_cost(sa)
+    diff = 10.0 * math.log10(ja / jr) - PENALTY_PER_PARAM * (n_rep - n_alt)
+    d = cluster_differences(data, sr, sa)
+    ci = {n: v for (e, n), v in confidence(rep, alt).items() if e == name} if alt.free else {}
+    out = Alternative(name=name, in_place_of=effect, params=dict(alt.model.effects.get(name, {})), ci95=ci,
+                      score_difference_db=diff, resolvable_db=resolvable_db(d), model=model_json(alt.model),
+                      reason=why_confused(effect, name), fit=alt)
+    if full is not None:
+        out.per_run_db = per_run_db(full, sr, sa)
+    return out
+
+
+def find_alternatives(res, fit_null, fit_candidate, say=None) -> list[Alternative]:
+    """Every explanation that may stand for an effect of ``res``'s final model, fitted and compared.
+
+    Parameters
+    ----------
+    res : OpenDiagnosis
+        A diagnosis (:func:`ehas_env.measurement.diagnosis.diagnose_open`).
+    fit_null, fit_candidate : callable
+        The diagnosis' own fits (``fit_null(rep, base)``: the base recalibrated; ``fit_candidate(rep, effect,
+        null, base)``: an effect on top of it), passed in so that this module does not import the diagnosis
+        that calls it.
+    say : callable, optional
+        Called with one line of progress per alternative fitted.
+
+    Returns
+    -------
+    list of Alternative
+        Within and decided ones, best (smallest score difference) first.
+    """
+    say = say or (lambda msg: None)
+    rep = res.train
+    final = res.fit_train
+    effects = dict(final.model.effects)
+    out: dict[tuple, Alternative] = {}
+    for effect in effects:
+        rest = {n: dict(p) for n, p in effects.items() if n != effect}
+        rivals = [r for r in rivals_of(effect) if r not in effects]
+        null = None
+        for r in rivals:
+            if null is None:
+                null = fit_null(rep, rest)
+            say(f"alternatives: {r} fitted in place of {effect}")
+            alt = fit_candidate(rep, r, null, rest)
+            out[(effect, r)] = compare(rep, final, effect, alt, r, res.full,
+                                       (res.sims_all, res.full.simulate(alt.model)))
+    # effects ranked in the round that kept an effect, on the same base: no new fit
+    for d in res.rounds:
+        chosen = next((e for e in d.ranking if e.effect in effects and e.fit is not None), None)
+        if chosen is None:
+            continue
+        for e in d.ranking:
+            if e is chosen or not e.beats_noise or e.fit is None or e.effect in effects:
+                continue
+            if (chosen.effect, e.effect) in out or _extends(e.effect, chosen.effect):
+                continue
+            a = compare(rep, chosen.fit, chosen.effect, e.fit, e.effect, res.full)
+            a.model = model_json(_swapped(final.model, chosen.effect, e.effect, e.fit))
+            out[(chosen.effect, e.effect)] = a
+    return sorted(out.values(), key=lambda a: a.score_difference_db)
+
+
+def per_run_db(rep: Replayer, sims_reported, sims_alt) -> dict:
+    """Run -> ``10 log10(J_alt / J_reported)``, J the mean over the run's cost signals of the mean squared
+    noise-normalised residual (the measure ``ehas plan-test`` predicts a run's separation in).
+
+    Parameters
+    ----------
+    rep : Replayer
+        All runs.
+    sims_reported, sims_alt : list
+        The two models' simulations.
+
+    Returns
+    -------
+    dict
+    """
+    out = {}
+    for case, a, b in zip(rep.cases, sims_reported, sims_alt):
+        if a is None or b is None:
+            continue
+        k = case.skip
+        ja, jb = [], []
+        for s in case.signals:
+            if s in COST_SIGNALS:
+                ja.append(float(np.mean(((case.measured[s][k:] - a[s][k:]) / case.noise[s]) ** 2)))
+                jb.append(float(np.mean(((case.measured[s][k:] - b[s][k:]) / case.noise[s]) ** 2)))
+        if ja and np.mean(ja) > 0.0:
+            out[case.run.name] = 10.0 * math.log10(float(np.mean(jb)) / float(np.mean(ja)))
+    return out
+
+
+def _extends(a: str, b: str) -> bool:
+    """Whether one effect extends the other's law (its parameters include all of the other's, as Stribeck friction's
+    Fc, Fs, vs hold Coulomb friction's Fc): the same explanation with more freedom, not another one."""
+    pa, pb = {p.name for p in get_effect(a).params}, {p.name for p in get_effect(b).params}
+    return pa >= pb or pb >= pa
+
+
+def _swapped(model, effect: str, name: str, f: Fit):
+    """``model`` with ``effect`` replaced by ``name`` at its values in ``f`` (beta, K from ``f``)."""
+    from ehas_env.measurement.replay import ModelSpec
+
+    eff = {n: dict(p) for n, p in model.effects.items() if n != effect}
+    eff[name] = dict(f.model.effects[name])
+    return ModelSpec(effects=eff, beta=f.model.beta, K=f.model.K)
+
+
+def alternatives_text(alts: list[Alternative], reported: dict) -> str:
+    """The verdict's words about the alternatives: which these logs cannot tell apart, which they rule out by how
+    much.
+
+    Parameters
+    ----------
+    alts : list of Alternative
+        From :func:`find_alternatives`.
+    reported : dict
+        The final model's effects {name: {param: value}}.
+
+    Returns
+    -------
+    str
+        Empty when there is nothing to compare.
+    """
+    lines = []
+    for a in alts:
+        rep_words = words(a.in_place_of, reported.get(a.in_place_of, {}))
+        alt_words = words(a.name, a.params)
+        if a.within:
+            lines.append(f"these logs cannot tell apart {a.in_place_of} ({rep_words}) and {a.name} ({alt_words}): "
+                         f"score difference {a.score_difference_db:+.2f} dB, within the {a.resolvable_db:.2f} dB "
+                         f"they resolve; {a.reason}. `ehas plan-test` designs the runs that decide.")
+        else:
+            lines.append(f"{a.name} ({alt_words}) in place of {a.in_place_of}: ruled out by these logs, "
+                         f"{a.score_difference_db:.2f} dB worse (they resolve {a.resolvable_db:.2f} dB)")
+    return "\n".join(lines)

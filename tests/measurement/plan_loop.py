@@ -1,0 +1,235 @@
+"""Closing the loop on the independent generator: diagnose, plan the runs that decide, log them, diagnose again.
+
+For each case a campaign is simulated by the independent generator
+(``tests/independent_rig``: it shares no code with ehas) with one hidden effect
+whose signature another explanation shares in a standard campaign (one supply,
+centred runs).  Then, with ehas's own commands as a user runs them:
+
+1. ``ehas diagnose CAMP --json first.json``: is the truth among the explanations listed (the one reported, or
+   an alternative the logs cannot tell from it)?
+2. ``ehas plan-test first.json --out plan.json``: the runs that separate them;
+3. the plan's runs are simulated by the generator with the truth and added to the campaign folder;
+4. ``ehas diagnose CAMP --json second.json``: does it name the truth now?  And the separation each planned run
+   realised (``per_run_db`` of the pair in the second diagnosis) against what the plan predicted.
+
+Run from the repository's root::
+
+    python -m tests.measurement.plan_loop [--work DIR] [--cases NAME,...]
+
+Each case's result is kept in ``results/test_plans/cases/NAME.json`` as it
+finishes (a rerun skips finished cases: ``--redo`` redoes them); the table is
+``results/test_plans/README.md``.  Hours of CPU on two cores: the generator
+integrates every run with an adaptive solver.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "results" / "test_plans"
+
+#: name -> (place of the model, generator effect, its values, the ehas names that are the truth)
+CASES = {
+    "air": ("fluid", "entrained_air", {"eps": 10.0}, ("hyp_entrained_air",)),
+    "mount": ("mechanics", "load_compliance", {"k": 25000.0}, ("hyp_load_compliance",)),
+    "coulomb": ("mechanics (friction)", "coulomb_friction", {"Fc": 600.0}, ("coulomb_friction",)),
+    "coil_lag": ("valve", "current_lag", {"T": 6.0}, ("hyp_coil_lag",)),
+    "lvdt_zero": ("sensors", "lvdt_offset", {"x0": 1.0}, ("hyp_position_offset",)),
+    "orifice_leak": ("leakage", "turbulent_leakage", {"q100": 1.2}, ("hyp_turbulent_leakage",)),
+}
+
+
+def _listed(doc: dict) -> list[str]:
+    """The explanations a diagnosis lists: the reported model's effects and the alternatives within."""
+    return list(doc["reported_model"]["effects"]) + [a["name"] for a in doc.get("alternatives", [])]
+
+
+def _ehas(argv: list[str]) -> int:
+    from ehas_env.cli.main import main
+
+    return main(argv)
+
+
+def add_plan_runs(camp: Path, plan: dict, effects: dict, seed: int) -> list[str]:
+    """Simulate the plan's runs with the generator and the truth, and write them into the campaign folder."""
+    from tests.independent_rig.campaign import COLUMNS, _fmt, rig_named
+    from tests.independent_rig.effects import to_si
+    from tests.independent_rig.sensors import Chain
+    from tests.independent_rig.simulate import DT, chirp, closed_loop, valve_bench
+
+    truth = json.loads((camp / "truth.json").read_text())
+    base, _ = rig_named(truth.get("rig", "book"))
+    rig = base.with_(beta=truth["beta_Pa"], K=truth["K_lpm_per_mA"] * 1e-3 / 60.0)
+    chain = Chain()
+    rng = np.random.default_rng(seed + 1000)
+    eff = to_si(effects)
+    names = []
+    for r in plan["runs"]:
+        if r["kind"] == "closed_loop":
+            ref = r["reference"]
+            gains = {**base.controller_gains(), **{k: r["controller"][k] for k in ("Kp", "Ki", "Kv", "Ka")}}
+            cols, _, meta = closed_loop(rig.with_(supply=r["supply_bar"] * 1e5), r["disc_sets"], ref["amplitude_deg"],
+                                        ref["freq_hz"], r["duration_s"], eff, chain, rng, gains=gains,
+                                        offset_deg=ref.get("offset_deg", 0.0))
+        else:
+            ex = r["excitation"]
+            n = int(round(r["duration_s"] / DT))
+            cmd = np.array([chain.dac(c) for c in chirp(n, ex["f0_hz"], ex["f1_hz"], ex["amplitude_mA"])])
+            cols, meta = valve_bench(rig, cmd, r["supply_bar"], eff, chain, rng)
+        meta["notes"] = "planned run (ehas plan-test), simulated by the independent generator"
+        names_ = [c for c in COLUMNS if c in cols]
+        data = np.column_stack([np.asarray(cols[c], float) for c in names_])
+        lines = [",".join(names_)] + [",".join(_fmt(v) for v in row) for row in data]
+        (camp / f"{r['name']}.csv").write_text("\n".join(lines) + "\n")
+        (camp / f"{r['name']}.json").write_text(json.dumps({"format": "ehas-run", "version": 1, **meta}, indent=1))
+        names.append(r["name"])
+    return names
+
+
+def realised(second: dict, a: str, b: str, runs: list[str]) -> float | None:
+    """The separation of a and b the planned runs realised in the second diagnosis: ``10 log10`` of the mean over the
+    runs of ``J_other / J_reported`` (the measure the plan predicts), None when the pair is not compared there."""
+    for e in second.get("alternatives", []) + second.get("ruled_out", []):
+        if {e["name"], e["in_place_of"]} == {a, b}:
+            vals = [e["per_run_db"][r] for r in runs if r in e.get("per_run_db", {})]
+            if vals:
+                return 10.0 * math.log10(float(np.mean([10.0 ** (v / 10.0) for v in vals])))
+    return None
+
+
+def run_case(name: str, work: Path, seed: int) -> dict:
+    from tests.independent_rig.campaign import simulate, write
+
+    place, gen_effect, values, truth_names = CASES[name]
+    folder = work / name
+    folder.mkdir(parents=True, exist_ok=True)
+    camp = folder / "camp"
+    t0 = time.time()
+    if not (camp / "truth.json").exists():
+        runs, truth = simulate({gen_effect: values}, seed=seed, progress=lambda s: print(f"  [{name}] {s}",
+                                                                                       flush=True))
+        write(camp, runs, truth, overwrite=True)
+    first, second, plan_path = folder / "first.json", folder / "second.json", folder / "plan.json"
+    for p in (first, second, plan_path):
+        p.unlink(missing_ok=True)
+    for p in camp.glob("plan_*"):
+        p.unlink()
+    assert _ehas(["diagnose", str(camp), "--json", str(first), "--quiet"]) == 0
+    d1 = json.loads(first.read_text())
+    listed1 = _listed(d1)
+    assert _ehas(["plan-test", str(first), "--out", str(plan_path)]) == 0
+    plan = json.loads(plan_path.read_text())
+    added = add_plan_runs(camp, plan, {gen_effect: values}, seed) if plan["runs"] else []
+    d2 = None
+    if added:
+        assert _ehas(["diagnose", str(camp), "--json", str(second), "--quiet"]) == 0
+        d2 = json.loads(second.read_text())
+    pairs = []
+    for s in plan["separates"]:
+        pairs.append({"a": s["a"], "b": s["b"], "predicted_db": s["predicted_db"],
+                      "realised_db": None if d2 is None else realised(d2, s["a"], s["b"], added)})
+    named2 = list(d2["reported_model"]["effects"]) if d2 else []
+    left2 = [a["name"] for a in d2.get("alternatives", [])] if d2 else []
+    return {"case": name, "place": place, "truth": {gen_effect: values}, "truth_is": list(truth_names),
+            "first": {"reported": list(d1["reported_model"]["effects"]), "verdict": d1["verdict"],
+                      "alternatives": [a["name"] for a in d1.get("alternatives", [])],
+                      "ruled_out": [a["name"] for a in d1.get("ruled_out", [])]},
+            "truth_listed_first": any(t in listed1 for t in truth_names),
+            "plan": [r["name"] for r in plan["runs"]], "pairs": pairs,
+            "second": None if d2 is None else {"reported": named2, "verdict": d2["verdict"],
+                                                "alternatives": [a["name"] for a in d2.get("alternatives", [])]},
+            "truth_named_second": (any(t in named2 for t in truth_names) and not any(t in left2 for t in truth_names)
+                                   and not left2) if d2 else None,
+            "elapsed_s": round(time.time() - t0, 1), "seed": seed}
+
+
+def table(results: list[dict]) -> str:
+    lines = ["# Closing the loop: diagnose, plan the runs that decide, diagnose again", "",
+             "Regenerate with (from the repository's root; hours of CPU on two cores):", "",
+             "    python -m tests.measurement.plan_loop", "",
+             "Each case: a campaign of the independent generator (tests/independent_rig, no shared code) with one "
+             "hidden effect; `ehas diagnose --json`, `ehas plan-test`, the plan's runs simulated by the generator "
+             "with the truth and added, `ehas diagnose` again (tests/measurement/plan_loop.py; "
+             "docs/measurement-format.md, 'The test plan').", "",
+             "| case | place | truth | first: reported | first: alternatives (within) | first: ruled out | "
+             "truth listed | planned runs | predicted dB | realised dB | second: reported | truth named |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        pred = ", ".join(f"{p['predicted_db']:.1f}" for p in r["pairs"]) or "-"
+        real = ", ".join("-" if p["realised_db"] is None else f"{p['realised_db']:.1f}" for p in r["pairs"]) or "-"
+        truth = ", ".join(f"{n} {v}" for n, v in r["truth"].items())
+        sec = r["second"]
+        lines.append(f"| {r['case']} | {r['place']} | {truth} | {', '.join(r['first']['reported']) or 'none'} | "
+                     f"{', '.join(r['first']['alternatives']) or 'none'} | {', '.join(r['first']['ruled_out']) or 'none'} | "
+                     f"{'yes' if r['truth_listed_first'] else 'no'} "
+                     f"| {', '.join(r['plan']) or 'none'} | {pred} | {real} | "
+                     f"{', '.join(sec['reported']) or 'none' if sec else '-'} | "
+                     f"{_named(r)} |")
+    n = len(results)
+    if n:
+        listed = sum(r["truth_listed_first"] for r in results)
+        planned = [r for r in results if r["plan"]]
+        named = sum(_named(r) == "yes" for r in planned)
+        decided = [r["case"] for r in results if not r["plan"]]
+        agree = [abs(p["predicted_db"] - p["realised_db"]) <= 3.0 for r in results for p in r["pairs"]
+                 if p["realised_db"] is not None]
+        lines += ["", f"Truth among the listed explanations in the first diagnosis: {listed} of {n}. Cases with a "
+                      f"plan: {len(planned)}; the second diagnosis names the truth (reported, no alternative left "
+                      f"within) in {named} of them. Predicted and realised separation within 3 dB: {sum(agree)} of "
+                      f"{len(agree)} pairs."
+                      + (f" Decided by the first diagnosis already (no alternative within, nothing to plan): "
+                         f"{', '.join(decided)}." if decided else "")]
+    return "\n".join(lines) + "\n"
+
+
+def _named(r: dict) -> str:
+    """The second diagnosis' answer: the truth reported and nothing left within, reported with alternatives left,
+    or not reported."""
+    if r["second"] is None:
+        return "no plan needed"
+    if not r["truth_named_second"]:
+        return "no"
+    left = r["second"]["alternatives"]
+    return "yes" if not left else f"reported, but {', '.join(left)} still within"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="close the loop of ehas plan-test on the independent generator")
+    ap.add_argument("--work", default="/tmp/ehas_test_plans", help="folder for the campaigns and diagnoses")
+    ap.add_argument("--cases", default=",".join(CASES), help="cases to run, comma-separated: " + ", ".join(CASES))
+    ap.add_argument("--redo", action="store_true", help="redo cases already finished")
+    a = ap.parse_args(argv)
+    work = Path(a.work)
+    (OUT / "cases").mkdir(parents=True, exist_ok=True)
+    names = [c.strip() for c in a.cases.split(",") if c.strip()]
+    bad = [c for c in names if c not in CASES]
+    if bad:
+        print(f"plan_loop: error: unknown case {bad[0]!r}; cases: {', '.join(CASES)}", file=sys.stderr)
+        return 2
+    from ehas_env.output.files import atomic_write_text
+
+    for k, name in enumerate(names):
+        path = OUT / "cases" / f"{name}.json"
+        if path.exists() and not a.redo:
+            print(f"[plan_loop] {name}: done before ({path})", flush=True)
+            continue
+        print(f"[plan_loop] {name}: simulating, diagnosing, planning, diagnosing again", flush=True)
+        res = run_case(name, work, seed=100 + list(CASES).index(name))
+        atomic_write_text(path, json.dumps(res, indent=1) + "\n")
+        print(f"[plan_loop] {name}: {json.dumps(res)}", flush=True)
+    results = [json.loads((OUT / "cases" / f"{n}.json").read_text()) for n in CASES
+               if (OUT / "cases" / f"{n}.json").exists()]
+    atomic_write_text(OUT / "README.md", table(results))
+    print(table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
