@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.physics import layout as K
-from ehas_env.simulation.compiled_model import current_model
+from ehas_env.simulation.compiled_model import current_model, names_hypothesis
 from ehas_env.simulation.control_laws import N_GAINS, compiled_form
 from ehas_env.simulation.loops import METRICS, REF_SINE, REF_STEP
 from ehas_env.simulation.metrics import percent_errors
@@ -137,7 +137,9 @@ class Batch:
         # a benchmark grid is a hot loop: the inlined build (fast step, long compile); a handful of conditions (the
         # demo's 7 rig tests, a tuner's check) runs in milliseconds on either, so there the compile is the wait and
         # the plants' quick build serves.  Both builds share the plants' parameter layout and give the same numbers.
-        self.model = current_model(inline=len(self.conditions) >= FAST_STEP_MIN_CONDITIONS)
+        # a plant with a structural hypothesis (a model file's hyp_rod_area) runs on the model that holds them
+        self.model = current_model(inline=len(self.conditions) >= FAST_STEP_MIN_CONDITIONS,
+                                   hypotheses=any(names_hypothesis(p.effects) for p in self.plants))
         if any(p.model.SLOTS != self.model.SLOTS for p in self.plants):
             raise ValueError("Batch: every plant must run on the same compiled model")
         self.hist_len = K.history_length(TAU_MAX, self.dt)

@@ -288,12 +288,12 @@ def run(args) -> int:
         result = {"num": num_arr.tolist(), "den": den_arr.tolist()}
         if len(den) == 3:
             so = ID.second_order_parameters(num_arr, den_arr)
-            print(f"K = {so['K']:.4f}, wn = {so['wn']:.2f} rad/s ({so['wn'] / (2 * math.pi):.2f} Hz), "
-                  f"zeta = {so['zeta']:.3f}")
+            print(f"K = {so['K']:.4f} (output unit per input unit), wn = {so['wn']:.2f} rad/s "
+                  f"({so['wn'] / (2 * math.pi):.2f} Hz), zeta = {so['zeta']:.3f}")
             result.update(so)
         else:
             result.update({"K": ID.dc_gain(num_arr, den_arr), "wn": None, "zeta": None})
-        print(f"poles: {', '.join(f'{p:.4g}' for p in np.roots(den_arr))}")
+        print(f"poles: {', '.join(f'{p:.4g}' for p in np.roots(den_arr))} rad/s")
         if args.run is None:
             result["fit_percent"] = None
             if args.json:
@@ -477,7 +477,8 @@ def _run_black_box(args, command: str, outputs) -> int:
     fit = ID.fit_percent(data.y, y_sim)
     print(m.summary())
     if args.offsets != "none":
-        print(f"  offsets (the run's means, removed before the fit): input {u0:.6g}, output {y0:.6g}")
+        print(f"  offsets (the run's means, removed before the fit): input {u0:.6g} "
+              f"{ID.signal_unit(data.input_name)}, output {y0:.6g} {ID.signal_unit(data.output_name)}")
     ra = ID.residual_analysis(m.residuals, data.u - u0, max_lag=min(args.max_lag, data.n - 1))
     print(f"  {ra.verdict()} (one-step prediction errors)")
     loop = checks.closed_loop_evidence(ra, checks.sidecar_of(args.run))

@@ -552,21 +552,22 @@ class TFEstimate:
                  f"  num = [{', '.join(f'{v:.8g}' for v in self.num)}]",
                  f"  den = [{', '.join(f'{v:.8g}' for v in self.den)}]"]
         so = self.second_order()
+        u_in, u_out = signal_unit(self.data.input_name), signal_unit(self.data.output_name)
         if so:
-            lines.append(f"  K = {so['K']:.4f}, wn = {so['wn']:.2f} rad/s ({so['wn'] / (2 * math.pi):.2f} Hz), "
-                         f"zeta = {so['zeta']:.3f}")
+            lines.append(f"  K = {so['K']:.4f} {u_out}/{u_in}, wn = {so['wn']:.2f} rad/s "
+                         f"({so['wn'] / (2 * math.pi):.2f} Hz), zeta = {so['zeta']:.3f}")
         else:
-            lines.append(f"  DC gain = {dc_gain(self.num, self.den):.6g}")
+            lines.append(f"  DC gain = {dc_gain(self.num, self.den):.6g} {u_out}/{u_in}")
         if self.n_zeros:
-            lines.append(f"  zeros: {', '.join(f'{z:.4g}' for z in self.zeros())}")
-        lines.append(f"  poles: {', '.join(f'{p:.4g}' for p in self.poles())}")
+            lines.append(f"  zeros: {', '.join(f'{z:.4g}' for z in self.zeros())} rad/s")
+        lines.append(f"  poles: {', '.join(f'{p:.4g}' for p in self.poles())} rad/s")
         if self.delay_s or "delay" in self.estimated:
             lines.append(f"  input delay = {1e3 * self.delay_s:.4g} ms" + (" (estimated)" if "delay" in self.estimated
                                                                          else ""))
         if "input_offset" in self.estimated or "output_offset" in self.estimated:
-            lines.append(f"  offsets: input {self.data.input_name} = {self.input_offset:.6g}, output "
-                         f"{self.data.output_name} = {self.output_offset:.6g} (estimated; the model: y - output = "
-                         "G (u - input))")
+            lines.append(f"  offsets: input {self.data.input_name} = {self.input_offset:.6g} {u_in}, output "
+                         f"{self.data.output_name} = {self.output_offset:.6g} {u_out} (estimated; the model: "
+                         "y - output = G (u - input))")
         lines.append(f"  fit = {self.fit_percent:.2f} % (NRMSE, as MATLAB compare)")
         if self.data.interpolated:
             lines.append(f"  interpolated missing samples: {self.data.interpolated}")
@@ -586,6 +587,28 @@ def format_poly(c: np.ndarray, var: str = "s") -> str:
         p = n - k
         terms.append(f"{v:.6g}" + ("" if p == 0 else f" {var}" if p == 1 else f" {var}^{p}"))
     return " + ".join(terms).replace("+ -", "- ")
+
+
+#: unit words at the end of a signal's name (``flow_lpm``, ``current_mA``, ``p_a_bar``), as printed
+_UNIT_SUFFIX = {"ma": "mA", "a": "A", "lpm": "LPM", "deg": "deg", "rad": "rad", "bar": "bar", "pa": "Pa", "kn": "kN",
+                "n": "N", "s": "s", "ms": "ms", "v": "V", "mv": "mV", "m": "m", "mm": "mm"}
+
+
+def signal_unit(name: str) -> str:
+    """The unit a signal's name ends in (``flow_lpm`` -> ``LPM``, ``current_mA`` -> ``mA``), else the name itself.
+
+    Parameters
+    ----------
+    name : str
+        A run file's column name.
+
+    Returns
+    -------
+    str
+        The unit, or ``name`` when the name states none (a gain is then printed as ``y/u``).
+    """
+    suffix = str(name).rpartition("_")[2].lower()
+    return _UNIT_SUFFIX.get(suffix, str(name)) if "_" in str(name) else str(name)
 
 
 def dc_gain(num, den) -> float:

@@ -87,6 +87,7 @@ class Uncertainty:
     p: int
     z: float = Z95
     _ci: dict = field(default=None, repr=False)
+    units: dict = field(default_factory=dict)  # name -> unit, for the printed intervals
 
     @property
     def se(self) -> np.ndarray:
@@ -127,7 +128,8 @@ class Uncertainty:
         rows += [(k, v, s) for k, v, s in zip(self.names, self.values, self.se) if not k.startswith("x0")]
         for k, v, s in rows:
             rel = f" ({100 * self.z * s / abs(v):.2g} %)" if v else ""
-            lines.append(f"    {k:>14s} = {v:.6g} +- {self.z * s:.3g}{rel}")
+            unit = f" {self.units[k]}" if self.units.get(k) else ""
+            lines.append(f"    {k:>14s} = {v:.6g} +- {self.z * s:.3g}{unit}{rel}")
         return "\n".join(lines)
 
 
@@ -280,7 +282,43 @@ def covariance(est, coloured: str = "auto") -> Uncertainty:
         cov = 0.5 * (cov + cov.T)
     derived = _derived(est, cov)
     return Uncertainty(names=names, values=values, cov=cov, derived=derived, noise_std=math.sqrt(sigma2),
-                       method=method, lags=L, n=N, p=p)
+                       method=method, lags=L, n=N, p=p, units=parameter_units(est, names))
+
+
+def parameter_units(est, names) -> dict:
+    """name -> unit of each parameter and derived quantity of an estimate (the signals' units from their names).
+
+    ``a{k}`` multiplies s^k in a monic denominator of degree n: 1/s^(n-k); ``b{k}`` the same, times the
+    gain's unit (output per input); K is output per input, wn rad/s, zeta none.
+
+    Parameters
+    ----------
+    est : TFEstimate
+        The estimate (its data's input and output names carry the units).
+    names : list of str
+        Parameter names (:func:`parameter_names`).
+
+    Returns
+    -------
+    dict
+        name -> unit text ("" for a number without unit).
+    """
+    from ehas_env.identification.fit import signal_unit
+
+    u_in, u_out = signal_unit(est.data.input_name), signal_unit(est.data.output_name)
+    gain = f"{u_out}/{u_in}"
+    n = est.n_poles
+
+    def per_s(k):
+        return "" if k == 0 else "1/s" if k == 1 else f"1/s^{k}"
+
+    out = {"K": gain, "wn": "rad/s", "zeta": "", "delay_s": "s", "input_offset": u_in, "output_offset": u_out}
+    for name in names:
+        if name[:1] in "ab" and name[1:].isdigit():
+            k = n - int(name[1:])
+            s_k = "s" if k == 1 else f"s^{k}"
+            out[name] = per_s(k) if name[0] == "a" else (f"{u_out}/({u_in} {s_k})" if k else gain)
+    return out
 
 
 def _derived(est, cov: np.ndarray) -> dict:

@@ -248,8 +248,9 @@ def model_from(free: list[FreeParam], values: dict, fixed: ModelSpec | None = No
 
 
 def scan_values(fp: FreeParam) -> list[float]:
-    """Values of a parameter tried before fitting: log- or linearly spaced over its fit range;
-    a signed parameter (null bias) gets both signs of log-spaced magnitudes."""
+    """Values of a parameter tried before fitting: log- or linearly spaced over its fit range (the effect's
+    ``scan_points`` of them, else ``SCAN_POINTS``); a signed parameter (null bias) gets both signs of
+    log-spaced magnitudes."""
     if fp.effect == TERM:  # a proposed term's coefficient: both signs, magnitudes over three decades
         mags = np.geomspace(1e-3 * fp.hi, fp.hi, 5)
         return sorted([float(-m) for m in mags] + [float(m) for m in mags])
@@ -258,9 +259,10 @@ def scan_values(fp: FreeParam) -> list[float]:
         small = max(min(abs(x) for x in p.typical) / 4.0, 1e-3 * fp.hi) if p.typical else 1e-3 * fp.hi
         mags = np.geomspace(small, fp.hi, (SCAN_POINTS + 3) // 2)
         return sorted([float(-m) for m in mags] + [float(m) for m in mags])
+    n = (fp.effect is not None and get_effect(fp.effect).scan_points) or SCAN_POINTS  # the effect may ask more
     if fp.log:
-        return [float(v) for v in np.geomspace(fp.lo, fp.hi, SCAN_POINTS)]
-    return [float(v) for v in np.linspace(fp.lo, fp.hi, SCAN_POINTS)]
+        return [float(v) for v in np.geomspace(fp.lo, fp.hi, n)]
+    return [float(v) for v in np.linspace(fp.lo, fp.hi, n)]
 
 
 def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | None = None, *,
@@ -355,7 +357,8 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float | None
     ``block_s`` stretches of each run (all its signals together): it holds when the residual is
     coloured and correlated across signals, and when part of it is model error rather than noise.
     Intervals use Student's t with (clusters - parameters) degrees of freedom; log-scaled
-    parameters get multiplicative intervals.
+    parameters get multiplicative intervals.  A side the data do not bound is ``inf`` (``-inf``, or 0 for a
+    log-scaled number): :func:`interval`.
     """
     from scipy.stats import t as student
 
@@ -406,12 +409,7 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float | None
     out = {}
     for fp, ui, si in zip(free, u, sd):
         v = fp.value(ui)
-        if fp.log:
-            L = math.log(fp.hi) - math.log(fp.lo)
-            lo, hi = v * math.exp(-tq * si * L), v * math.exp(tq * si * L)
-        else:
-            d = tq * si * (fp.hi - fp.lo)
-            lo, hi = v - d, v + d
+        lo, hi = interval(fp, v, float(si), tq)
         if (fp.effect, fp.name) in STAIRCASE:
             # the model resolves this number only to a stair (the delay to the integrator's sub-step): values
             # within one stair of the fit simulate alike, so the data cannot place the truth closer than that
@@ -422,6 +420,42 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float | None
             lo, hi = max(lo, blo), min(hi, bhi)
         out[(fp.effect, fp.name)] = (float(lo), float(hi))
     return out
+
+
+def interval(fp: FreeParam, value: float, sd_u: float, tq: float) -> tuple[float, float]:
+    """The interval ``value`` +- ``tq`` standard deviations of a fitted number, in its own unit.
+
+    Parameters
+    ----------
+    fp : FreeParam
+        The fitted number: its standard deviation is in u (its fit range mapped to [0, 1]), so a
+        log-scaled number gets a multiplicative interval.
+    value : float
+        The fitted value, in the number's unit.
+    sd_u : float
+        Its standard deviation in u (infinite or NaN: the data do not determine it).
+    tq : float
+        Student's t quantile of the interval's level.
+
+    Returns
+    -------
+    (low, high) : tuple of float
+        The bounds in the number's unit.  A number the data bound so loosely that a bound leaves the
+        floating-point range is unbounded on that side: ``high`` is ``inf``, ``low`` is ``-inf`` (or 0
+        for a log-scaled, positive number); callers print and store such a bound as "unbounded".
+    """
+    half = tq * sd_u  # in u
+    if not math.isfinite(half):
+        return (0.0 if fp.log else -math.inf), math.inf
+    if fp.log:
+        e = half * (math.log(fp.hi) - math.log(fp.lo))
+        try:
+            hi = value * math.exp(e)
+        except OverflowError:  # a poorly determined number: e beyond ~709
+            hi = math.inf
+        return value * math.exp(-e), hi  # exp(-e) underflows to 0.0 quietly
+    d = half * (fp.hi - fp.lo)
+    return value - d, value + d
 
 
 def _value_of(model: ModelSpec, fp: FreeParam) -> float:

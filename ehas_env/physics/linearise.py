@@ -60,12 +60,82 @@ class Linearisation:
 
 
 def operating_state(plant, theta_deg: float = 0.0, load_bar: float = 0.0, flow_lpm: float = 0.0) -> np.ndarray:
-    """At rest at ``theta_deg`` with P_A - P_B = ``load_bar`` around Ps/2, valve no-load flow ``flow_lpm``."""
+    """At rest at ``theta_deg`` with P_A - P_B = ``load_bar`` around Ps/2, valve no-load flow ``flow_lpm``.
+
+    With equal piston areas that is the operating point.  When the chambers' areas differ (a
+    single-rod actuator, ``hyp_rod_area``, a user effect), Ps/2 in both chambers pushes the piston:
+    the pressures are trimmed instead to the piston force ``A load_bar`` and to the share of the
+    valve flow the two areas take (:func:`_trim_pressures`).
+    """
     s = plant.initial_state(theta_deg)
     ps = plant.rig.supply
     s[4], s[5] = 0.5 * (ps + load_bar * 1e5), 0.5 * (ps - load_bar * 1e5)
     s[2] = flow_lpm * 1e-3 / 60.0
+    _trim_pressures(plant, s, load_bar * 1e5)
     return s
+
+
+def _trim_pressures(plant, s: np.ndarray, load: float) -> None:
+    """Set (pa, pb) of ``s`` for a plant whose B-side piston area is ``r`` times the A side's (r != 1).
+
+    ``r`` is read from the model's own right-hand side (how the piston's acceleration changes with
+    each chamber pressure).  The pressures then satisfy ``pa - r pb = load`` (Pa: the piston force
+    over the A-side area) and keep both chambers steady with the piston moving at the speed of the
+    valve's flow into A: at a no-load flow of zero, in the limit of a small flow (the pressures a
+    critically lapped valve settles at; for equal areas both give Ps/2 +- load/2).
+    """
+    m = plant.model
+    P = plant.param_vector
+    names = list(m.STATE_NAMES)
+    i_cur = m.valve_current(0.0, P)
+    ds = np.zeros(m.N_STATES)
+
+    def rates(x):
+        m.derivatives(x, i_cur, P, ds)
+        return ds.copy()
+
+    ia, ib = names.index("pa"), names.index("pb")
+    push = names.index("vp") if "vp" in names and _two_body(m, plant) else names.index("omega")
+    h = 1e-3 * plant.rig.supply
+    sp, sm = s.copy(), s.copy()
+    sp[ia] += h
+    sm[ib] += h
+    base = rates(s)[push]
+    da, db = rates(sp)[push] - base, rates(sm)[push] - base
+    if da == 0.0 or not math.isfinite(da / db) or abs(-db / da - 1.0) < 1e-9:
+        return  # equal areas (or no piston force): Ps/2 +- load/2 is the operating point
+    r = -db / da
+    rig = plant.rig
+    x = s.copy()
+    if x[2] == 0.0:
+        x[2] = 1e-6  # m^3/s (0.06 LPM): a small flow, for the pressures' limit only
+    lever = rig.radius * math.cos(x[0])
+
+    def steady(pb):
+        # the chambers' rates with pa = load + r pb and the piston at the speed of the flow into A
+        x[ia], x[ib] = load + r * pb, pb
+        q_a = m.land_flows(x[2], x[ia], x[ib], x[names.index("ps")], rig.rated_drop)[0]
+        x[names.index("omega")] = q_a / (rig.area * lever)
+        if push != names.index("omega"):
+            x[push] = lever * x[names.index("omega")]
+        return rates(x)[ib]
+
+    lo, hi = max(0.0, -load / r) + 1e-9 * rig.supply, min(rig.supply, (rig.supply - load) / r) - 1e-9 * rig.supply
+    f_lo, f_hi = steady(lo), steady(hi)
+    if not (lo < hi and f_lo * f_hi < 0.0):
+        raise ValueError(f"no operating point with P_A - {r:.3g} P_B = {load / 1e5:g} bar within the supply "
+                         f"({rig.supply / 1e5:g} bar): the piston areas' ratio and the load do not fit this rig")
+    for _ in range(100):  # bisection: the B chamber's rate is monotonic in its pressure
+        mid = 0.5 * (lo + hi)
+        f_mid = steady(mid)
+        if (f_mid < 0.0) == (f_lo < 0.0):
+            lo, f_lo = mid, f_mid
+        else:
+            hi = mid
+        if hi - lo < 1e-9 * rig.supply:
+            break
+    pb = 0.5 * (lo + hi)
+    s[ia], s[ib] = load + r * pb, pb
 
 
 def jacobian(plant, s0: np.ndarray, current_mA: float = 0.0, *, keep_nonsmooth: bool = False,

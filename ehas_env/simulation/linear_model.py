@@ -33,6 +33,10 @@ import numpy as np
 from ehas_env.physics.rig import BAR, LPM
 
 
+#: LPM: the valve flow at which a rate "at null flow" is taken when null flow has none (unequal piston areas)
+SMALL_FLOW_LPM = 1e-3
+
+
 class LinearPlant:
     """Small-signal model of the rig around an operating point.
 
@@ -72,6 +76,7 @@ class LinearPlant:
         self.pade_order = int(pade_order)
         self.delay = 0.5 / self.rate_hz + s["tau"]  # s: zero-order hold + transport delay
         lin = linearise(plant, theta_deg=theta_deg, load_bar=load_bar, flow_lpm=abs(flow_lpm))
+        self.operating_point = {"theta_deg": theta_deg, "load_bar": load_bar, "flow_lpm": abs(flow_lpm)}
         self.lin = lin
         self.A, self.B, self.states = _load_pressure_coordinates(lin)
         self.C = np.zeros((2, len(self.states)))
@@ -84,9 +89,23 @@ class LinearPlant:
 
     @property
     def velocity_gain(self) -> float:
-        """Steady crank rate per valve current, deg/s per mA (the crank free: theta's own terms left out)."""
+        """Steady crank rate per valve current, deg/s per mA (the crank free: theta's own terms left out).
+
+        With unequal piston areas at null flow (the pressure sum kept, a critically lapped valve
+        without leakage: no flow-pressure coefficient) the linear model has no steady rate; the
+        rate is then the limit of a small flow (``SMALL_FLOW_LPM``), where the chamber pressures
+        share the valve flow as the two areas take it.
+        """
         keep = [j for j, n in enumerate(self.states) if n != "theta"]
-        x = np.linalg.solve(self.A[np.ix_(keep, keep)], -self.B[keep, 0])
+        try:
+            x = np.linalg.solve(self.A[np.ix_(keep, keep)], -self.B[keep, 0])
+        except np.linalg.LinAlgError:
+            if self.operating_point["flow_lpm"] > 0.0 or "p_sum" not in self.states:
+                raise
+            small = LinearPlant(self.plant, theta_deg=self.operating_point["theta_deg"],
+                                load_bar=self.operating_point["load_bar"], flow_lpm=SMALL_FLOW_LPM,
+                                rate_hz=self.rate_hz, pade_order=0)
+            return small.velocity_gain
         return math.degrees(float(x[keep.index(self.states.index("omega"))]))
 
     def _hydraulic_pair(self) -> complex:

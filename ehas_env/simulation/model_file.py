@@ -126,6 +126,8 @@ FIELD_BY_PATH = {f.path: f for f in FIELDS}
 FIELD_BY_KEY = {f.key: f for f in FIELDS}
 TOP_KEYS = ("format", "version", "kind", "name", "description", "rig", "valve", "effects", "user_effects",
             "effects_path", "units", "calibration", "provenance")
+#: the top-level keys of a version-1 file (the book's rig with a recalibrated beta and K)
+V1_KEYS = ("format", "version", "baseline", "effects", "effects_path", "units", "calibration", "provenance")
 
 
 @dataclass(frozen=True)
@@ -492,6 +494,10 @@ def parse_model(doc, where: str) -> PlantModel:
         return _parse_v1(doc, where)
     if type(version) is not int or version != VERSION:
         raise ValueError(f"{where}: key 'version' = {version!r}; this ehas reads model-file versions 1 and {VERSION}")
+    if "baseline" in doc:  # version 1's block: the label and the content disagree
+        raise ValueError(f"{where}: 'baseline' is a version-1 field, but the file says \"version\": {VERSION}; a "
+                         "version-2 file gives beta as rig.bulk_modulus_Pa and K as valve.K_lpm_per_mA "
+                         "(docs/model-file.md)")
     _no_unknown(doc, TOP_KEYS, where, "")
     kind = doc.get("kind", KIND)
     if kind != KIND:
@@ -544,6 +550,12 @@ def parse_model(doc, where: str) -> PlantModel:
 
 
 def _parse_v1(doc, where: str) -> PlantModel:
+    newer = [k for k in doc if k in TOP_KEYS and k not in V1_KEYS]
+    if newer:  # a version-2 file labelled 1 would read as the book's rig: its rig and valve silently dropped
+        raise ValueError(f"{where}: '{newer[0]}' is a version-{VERSION} field, but the file says \"version\": 1 "
+                         f"(version 1 holds only {', '.join(V1_KEYS)}); set \"version\": {VERSION} "
+                         "(docs/model-file.md)")
+    _no_unknown(doc, V1_KEYS, where, "")
     base = doc.get("baseline", {})
     if not isinstance(base, dict):
         raise ValueError(f"{where}: baseline must be an object with beta_Pa and K_lpm_per_mA")
@@ -594,13 +606,22 @@ def _flat(obj, key: str, where: str) -> dict:
     return dict(obj)
 
 
-#: the calibration block's known keys and what they hold (others must be plain values)
+#: the calibration block's keys (docs/model-file.md) and what they hold (runs, ci95: plain values)
 _CAL_NUMBERS = ("fit_percent_before", "fit_percent_after")
 _CAL_TEXTS = ("campaign", "command")
+CALIBRATION_KEYS = ("campaign", "runs", "fit_percent_before", "fit_percent_after", "command", "ci95")
 
 
 def _calibration(cal, where: str) -> dict:
     cal = _flat(cal, "calibration", where)
+    for k in cal:
+        if k not in CALIBRATION_KEYS:  # a misspelt key would silently mean "not recorded"
+            import difflib
+
+            close = difflib.get_close_matches(k, CALIBRATION_KEYS, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise ValueError(f"{where}: calibration.{k} is not a calibration field{hint} (allowed: "
+                             f"{', '.join(CALIBRATION_KEYS)}; docs/model-file.md)")
     for k in _CAL_NUMBERS:
         if k in cal:
             v = cal[k]

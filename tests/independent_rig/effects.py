@@ -192,7 +192,18 @@ LIBRARY = {e.name: e for e in (
                "docs/reference-model.md §4", "Q_leak = C_leak (P_A - P_B)", accept=("leakage/flow",), library=True),
 )}
 
-ALL = {**OUT_OF_LIBRARY, **LIBRARY}
+#: library effects re-implemented here for a single check of their fit, outside the acceptance set (cases.py)
+CHECKS = {e.name: e for e in (
+    EffectSpec("backlash", "compliance",
+               (P("delta", "mm", 1e-3, (0.1, 0.3), "half the total play 2 delta of the rod-crank joint"),),
+               "docs/reference-model.md §5 and its table of constants (k_joint, c_joint, m_min)",
+               "piston (5 kg) and crank are two bodies joined through a dead zone of width 2 delta: the joint "
+               "pushes with k (gap - delta) + c gap' beyond +delta, k (gap + delta) + c gap' below -delta, nothing "
+               "inside (k 2e7 N/m, c 3e3 N s/m); the LVDT reads the piston",
+               accept=("compliance",), library=True),
+)}
+
+ALL = {**OUT_OF_LIBRARY, **LIBRARY, **CHECKS}
 
 
 def to_si(effects: dict) -> dict:

@@ -11,8 +11,8 @@ states at rest):
  4    pa        chamber A pressure, Pa
  5    pb        chamber B pressure, Pa
  6    iv        valve coil current, mA (``current_lag`` only)
- 7    xp        piston position, m (``load_compliance`` only)
- 8    vp        piston velocity, m/s (``load_compliance`` only)
+ 7    xp        piston position, m (``load_compliance`` or ``backlash`` only)
+ 8    vp        piston velocity, m/s (``load_compliance`` or ``backlash`` only)
  9    z         LuGre bristle deflection, m (``lugre_friction`` only)
 ====  ========  ============================================================
 
@@ -36,6 +36,7 @@ COMPLIANCE_DAMPING = 0.2  # damping ratio of the compliant load path (assumed)
 LUGRE = {"ratio": 1.6, "vs": 5.0e-3, "sigma0": 1.0e6, "sigma1": 1.0e3, "sigma2": 300.0}  # assumed (Canudas 1995)
 UNBALANCE_PHASE = math.pi / 3.0  # rad: the discs' centre of mass 60 deg from the bottom at mid-stroke
 LINE_LOSS_REF_FLOW = 20.0 * LPM  # flow at which supply_line_loss's dp is given
+JOINT_K, JOINT_C = 2.0e7, 3.0e3  # N/m, N s/m: contact of the joint with play (docs/reference-model.md, backlash)
 
 
 def _root(z: float) -> float:
@@ -68,6 +69,8 @@ class RigModel:
         self.eps = e.get("entrained_air", {}).get("eps", 0.0)
         self.k_c = e.get("load_compliance", {}).get("k", 0.0)
         self.c_c = 2.0 * COMPLIANCE_DAMPING * math.sqrt(self.k_c * PISTON_MASS) if self.k_c else 0.0
+        self.play = e.get("backlash", {}).get("delta", 0.0)  # m: half the joint's total play
+        self.two_body = bool(self.k_c or self.play)
         self.unbalance = e.get("crank_unbalance", {}).get("G", 0.0)
         self.lugre_fc = e.get("lugre_friction", {}).get("Fc", 0.0)
         self.dir_gain = e.get("valve_direction_gain", {}).get("g", 0.0)
@@ -95,7 +98,7 @@ class RigModel:
 
     def piston(self, y) -> tuple:
         """(x, v) of the piston, m and m/s."""
-        if self.k_c:
+        if self.two_body:
             return y[7], y[8]
         r = self.rig.radius
         return self.crank_x(y[0]), r * math.cos(y[0] + self.phi0) * y[1]
@@ -197,9 +200,14 @@ class RigModel:
             torque -= self.drag * omega * abs(omega)
         lever = rig.radius * math.cos(theta + self.phi0)
         dy[0] = omega
-        if self.k_c:
+        if self.two_body:
             xc = self.crank_x(theta)
-            f_rod = self.k_c * (xp - xc) + self.c_c * (vp - lever * omega)
+            gap, gap_rate = xp - xc, vp - lever * omega
+            if self.play:  # contact only beyond the play
+                f_rod = (JOINT_K * (gap - self.play) + JOINT_C * gap_rate if gap > self.play else
+                         JOINT_K * (gap + self.play) + JOINT_C * gap_rate if gap < -self.play else 0.0)
+            else:
+                f_rod = self.k_c * gap + self.c_c * gap_rate
             dy[7] = vp
             dy[8] = (f - f_rod) / PISTON_MASS
             dy[1] = (f_rod * lever + torque) / self.inertia
@@ -228,7 +236,7 @@ class RigModel:
         if abs(x) > rig.half_stroke:
             hit = True
             lim = math.copysign(rig.half_stroke, x)
-            if self.k_c:
+            if self.two_body:
                 y[7] = lim
                 y[8] = 0.0 if y[8] * lim > 0 else y[8]
             else:

@@ -16,6 +16,10 @@ class Backlash(Effect):
     )
     smooth = False
     main_param = "delta"
+    # the cost's valley around the play is about +-25 % wide (the knock's timing moves with delta): the default
+    # 7-point scan over 2.5e-5..2e-3 m (x2.1 apart) can step over it and leave the fit at its lower end;
+    # 31 points are x1.16 apart, two or more inside the valley
+    scan_points = 31
     explanation = (
         "A worn pin or rod eye leaves play of total width 2 delta between the rod and the crank. At each "
         "reversal the piston crosses the play unloaded before it picks up the crank again, with a knock. "

@@ -225,6 +225,10 @@ class Effect:
     #: bench's meter with the ports joined), not only in the chambers.  Such a term may use the valve's
     #: quantities only (:data:`VALVE_SIDE_QUANTITIES`).
     valve_side: ClassVar[bool] = False
+    #: values of the main parameter the diagnosis' scan tries before it fits (0: the fit's default,
+    #: ehas_env.measurement.fitting.SCAN_POINTS): a cost whose valley is narrower than the default scan's
+    #: spacing (the play of a joint) needs a finer scan, or the fit starts beside the valley
+    scan_points: ClassVar[int] = 0
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -308,6 +312,9 @@ class Effect:
                              f"({', '.join(own) or 'it has none'})")
         if not cls.main_param and own:
             cls.main_param = own[0]  # documented default: the first parameter
+        if type(cls.scan_points) is not int or not 0 <= cls.scan_points <= 200:
+            raise ValueError(f"{who}: scan_points must be an integer in [0, 200] (0: the fit's default), got "
+                             f"{cls.scan_points!r}")
         for flag in ("smooth", "valve_side"):
             if not isinstance(getattr(cls, flag), bool):
                 raise ValueError(f"{who}: {flag} must be True or False, got {getattr(cls, flag)!r}")
@@ -656,11 +663,57 @@ def effect_slots(name: str, values: dict[str, float] | None) -> dict[str, float]
     return out
 
 
+def closest_effects(word: str, n: int = 3) -> list[str]:
+    """The 1-``n`` registered effect names closest to ``word`` (a typo), or [] when none is close.
+
+    A name is close as a whole (``coulomb_fricton``) or by one of its words (``frictoin``: the
+    frictions, closest whole names first).
+
+    Parameters
+    ----------
+    word : str
+        What the user typed.
+    n : int
+        At most this many names.
+
+    Returns
+    -------
+    list of str
+        Effect names, the closest first.
+    """
+    import difflib
+
+    names = sorted(REGISTRY)
+    close = difflib.get_close_matches(word, names, n=n, cutoff=0.6)
+    if close:
+        return close
+    parts = {part for name in names for part in name.split("_") if len(part) > 2}
+    near = set(difflib.get_close_matches(word, sorted(parts), n=n, cutoff=0.75))
+    hits = [name for name in names if near & set(name.split("_"))]
+    return sorted(hits, key=lambda c: -difflib.SequenceMatcher(None, word, c).ratio())[:n]
+
+
 def get_effect(name: str) -> type[Effect]:
-    """The effect class registered as ``name`` (ValueError naming the choices otherwise)."""
+    """The effect class registered as ``name`` (ValueError naming the choices otherwise).
+
+    Parameters
+    ----------
+    name : str
+        An effect's name.
+
+    Returns
+    -------
+    type
+        Its :class:`Effect` subclass.  An unknown name is a ValueError naming the 1-3 closest names
+        (a typo), or every name when none is close.
+    """
     try:
         return REGISTRY[name]
-    except KeyError:
+    except (KeyError, TypeError):
+        close = closest_effects(str(name))
+        if close:
+            raise ValueError(f"unknown effect '{name}'; did you mean {' or '.join(repr(c) for c in close)}? "
+                             f"(ehas effects lists all {len(REGISTRY)})") from None
         raise ValueError(f"unknown effect '{name}'; known effects: {', '.join(sorted(REGISTRY))}") from None
 
 

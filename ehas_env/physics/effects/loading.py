@@ -29,7 +29,12 @@ def _files(path: Path) -> list[Path]:
         return [path]
     if not path.is_dir():
         raise ValueError(f"effects path {path} does not exist (expected a folder of effect .py files)")
-    return sorted(p for p in path.glob("*.py") if not p.name.startswith("_"))
+    try:  # not Path.glob: it lists a folder it cannot read as empty
+        names = os.listdir(path)
+    except OSError as exc:
+        raise ValueError(f"effects path {path}: the folder cannot be read ({exc.strerror or exc}); its effect "
+                         "files would be missing") from None
+    return sorted(path / n for n in names if n.endswith(".py") and not n.startswith("_") and (path / n).is_file())
 
 
 def load_effect_file(path) -> None:
@@ -80,8 +85,12 @@ def trusted_folders() -> list[Path]:
     """
     import json
 
-    f = Path(os.environ.get(TRUST_ENV) or Path.home() / ".config" / "ehas" / "trusted_effects.json")
+    named = os.environ.get(TRUST_ENV, "")
+    f = Path(named or Path.home() / ".config" / "ehas" / "trusted_effects.json")
     if not f.is_file():
+        if named:  # the user named a trust list: one that is not there is not an empty one
+            raise ValueError(f"{TRUST_ENV} names {f}, which {'is a folder' if f.is_dir() else 'does not exist'}; "
+                             "expected the trust list JSON file (docs/model-file.md), or unset the variable")
         return []
     try:
         doc = json.loads(f.read_text(encoding="utf-8"))
@@ -92,13 +101,17 @@ def trusted_folders() -> list[Path]:
                                                              for p in doc["folders"])):
         raise ValueError(f'trust list {f}: expected {{"format": "ehas-trusted-effects", "version": 1, "folders": '
                          '["/absolute/folder", ...]}} (docs/model-file.md)')
+    missing = [p for p in doc["folders"] if not Path(p).is_dir()]
+    if missing:
+        raise ValueError(f"trust list {f}: folder {missing[0]} does not exist (or is not a folder); correct or remove "
+                         "it (docs/model-file.md)")
     return [Path(p) for p in doc["folders"]]
 
 
 def load_trusted(sha256: str) -> bool:
     """Load the effect file of the trust list whose text has this SHA-256; False when none has."""
     for folder in trusted_folders():
-        for f in (_files(folder) if folder.is_dir() else []):
+        for f in _files(folder):
             try:
                 if hashlib.sha256(f.read_bytes()).hexdigest() == sha256:
                     load_effect_file(f)
@@ -127,9 +140,19 @@ def load_effects_path(paths) -> None:
 
 
 def load_external_effects() -> None:
-    """Effects named by ``EHAS_EFFECTS_PATH`` and the ``ehas.effects`` entry points (at package import)."""
+    """Effects named by ``EHAS_EFFECTS_PATH`` and the ``ehas.effects`` entry points (at package import).
+
+    A trust list named by ``EHAS_TRUSTED_EFFECTS`` is checked here too (it exists, it is a trust list, its
+    folders exist): a variable naming a missing path is one error line, not a silently empty list.
+    """
+    if os.environ.get(TRUST_ENV):
+        trusted_folders()
     for p in [p for p in os.environ.get(ENV_VAR, "").split(os.pathsep) if p]:
-        for f in _files(Path(p)):
+        try:
+            files = _files(Path(p))
+        except ValueError as exc:  # name the variable: the user may not remember setting it
+            raise ValueError(f"{ENV_VAR}: {exc}") from None
+        for f in files:
             load_effect_file(f)
     from importlib.metadata import entry_points
 
