@@ -15,6 +15,7 @@ The campaign is validated completely before anything is computed or written.
 from __future__ import annotations
 
 import argparse
+import math
 import shlex
 import sys
 import time
@@ -99,7 +100,8 @@ def run(args) -> int:
         for r in ci:  # beta and K as the plant runs them (a --model rig scales them)
             if r["effect"] == "baseline":
                 f = (absolute.beta / fitted.model.beta) if r["param"] == "beta" else (absolute.K / fitted.model.K)
-                r.update(value=r["value"] * f, low=r["low"] * f, high=r["high"] * f)
+                r.update(value=r["value"] * f, low=None if r["low"] is None else r["low"] * f,
+                         high=None if r["high"] is None else r["high"] * f)
         after_model = fitted.model
         tables[RECALIBRATED] = null.table
         sims[RECALIBRATED] = null.sims
@@ -148,10 +150,46 @@ def run(args) -> int:
 
         doc = comparison_doc(rep, sims, tables, label_after, ci, campaign.path, command,
                              time.perf_counter() - t0)
+        doc["next"] = next_step(args, campaign.path)
         atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
         print(f"json: {args.json}")
+    print("next: " + next_step(args, campaign.path))
     print(f"elapsed {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def next_step(args, campaign_path) -> str:
+    """The command to run after this comparison, runnable as printed.
+
+    The baseline alone (or a ``--model`` validated): ``ehas diagnose`` finds what the model misses.
+    Effects named without ``--fit``: the same comparison calibrating them.  Calibrated without
+    ``--save-model``: the same, saving the model file.  A model file saved: ``ehas tune`` on it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        This command's arguments.
+    campaign_path : str or Path
+        The campaign compared.
+
+    Returns
+    -------
+    str
+        One shell command line.
+    """
+    q = shlex.quote
+    if args.save_model and (args.fit or not args.effects):
+        return f"ehas tune --method model --model {q(str(args.save_model))}"
+    keep = [f"--effects-path {q(str(p))}" for p in (getattr(args, "effects_path", None) or [])]
+    if getattr(args, "model", None):
+        keep.append(f"--model {q(str(args.model))}")
+    if getattr(args, "columns", None):
+        keep.append(f"--columns {q(args.columns)}")
+    if not args.effects:
+        return " ".join(["ehas diagnose", q(str(campaign_path)), *keep])
+    return " ".join(["ehas compare", q(str(campaign_path)), *keep, f"--effects {q(args.effects)}", "--fit",
+                     f"--save-model {q(str(args.save_model or 'model.json'))}"] + (["--overwrite"] if args.save_model
+                                                                                  else []))
 
 
 def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path, command: str,
@@ -243,8 +281,10 @@ def fit_intervals(rep, fitted) -> list[dict]:
     for fp in fitted.free:
         if (fp.effect, fp.name) in ci:
             lo, hi = ci[(fp.effect, fp.name)]
+            # a side the data do not bound (inf: fitting.interval) is null in JSON, "unbounded" in print
             rows.append({"effect": fp.effect or "baseline", "param": fp.name, "value": float(_value_of(fitted.model, fp)),
-                         "low": float(lo), "high": float(hi), "unit": _unit(fp.effect, fp.name)})
+                         "low": float(lo) if math.isfinite(lo) else None,
+                         "high": float(hi) if math.isfinite(hi) else None, "unit": _unit(fp.effect, fp.name)})
     return rows
 
 
@@ -259,12 +299,20 @@ def describe_model(model, fitted: bool = True, ci: list | None = None) -> str:
         s = f"{k} = {v:{fmt}} {unit}"
         if (effect, k) in band:
             lo, hi = band[(effect, k)]
-            s += f" (95 % CI {lo:{fmt}} to {hi:{fmt}})"
+            s += (f" (95 % CI {'unbounded' if lo is None else format(lo, fmt)} to "
+                  f"{'unbounded' if hi is None else format(hi, fmt)})")
         return s
 
+    from ehas_env.measurement.model_difference import replaced_slots
+
+    # a baseline number an effect of the model sets itself is not in force: named as replaced, not as a value
+    by = {slot: n for n in model.effects for slot in replaced_slots(n)}
+
+    def base(k, v, unit, fmt=".4g"):
+        return f"{k} replaced by {by[k]}" if k in by else num("baseline", k, v, unit, fmt)
+
     how = "fitted" if fitted else "as given"
-    lines = [f"model ({how}): baseline {num('baseline', 'beta', model.beta, 'Pa')}, "
-             f"{num('baseline', 'K', model.K, 'LPM/mA', '.5g')}"]
+    lines = [f"model ({how}): baseline {base('beta', model.beta, 'Pa')}, {base('K', model.K, 'LPM/mA', '.5g')}"]
     for n, ps in model.effects.items():
         cls = get_effect(n)
         vals = ", ".join(num(n, k, v, cls.param(k).unit) for k, v in ps.items())
@@ -339,7 +387,7 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
               "Fit % is the NRMSE fit, 100 (1 - |y - y_model| / |y - mean(y)|); signals whose measured "
               "variation is at their noise level (a regulated supply) are left out of it.", "",
               fit_markdown({base_label: tables[base_label]}), "",
-              "Residual signatures (measured - model; `x noise` is the residual RMS over the signal's "
+              "Residual signatures (measured - model; `RMS/noise` is the residual RMS over the signal's "
               "estimated noise level, `non-white` the share of autocorrelation lags outside the 99 % band "
               "of white noise):", "", "```", where_it_fails(rep, sims[ref_label], ref_label), "```", ""]
     sig = signatures(rep, sims[ref_label])
@@ -409,8 +457,8 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
                               signals=_worst_signals(case, sims[shown[-1]][worst_run]))
             lines += [f"![overlay after]({p.name})", "",
                       f"*{case.run.name}: measured (grey), baseline (red, dashed) and the model with the added "
-                      "effects (blue); residuals in the signal's units below each; right: the same zoom window, "
-                      "where the baseline failed most.*", ""]
+                      "effects (blue); residuals in the signal's units below each; right: zoom on the stretch where "
+                      "the model with the added effects fails most in this run.*", ""]
         for i, case in enumerate(rep.cases):
             if case.run.kind == "valve_open_loop":
                 p = plots.valve_overlay(out / f"valve_{case.run.name}.png", case, {l: sims[l][i] for l in shown})

@@ -1,6 +1,7 @@
 """``ehas demo``: the main job on embedded defaults.
 
-Writes ``results/demo/`` (or ``--out``): the book's sizing summary, a simulated
+Writes ``ehas-demo/`` in the current folder (or ``--out``; the repository's
+committed ``results/demo/`` is ``ehas demo --out results/demo``): the book's sizing summary, a simulated
 run of the design point (+-30 deg, 3 Hz, 7 disc sets) with its plot, and - where
 those parts are installed - the tuned controller's benchmark on the book's rig
 conditions and a diagnosis of a campaign with a hidden effect.  Its
@@ -15,6 +16,9 @@ import io
 import time
 from pathlib import Path
 
+#: where ``ehas demo`` writes unless told: the current folder, never the repository's committed results
+DEFAULT_OUT = "ehas-demo"
+
 # (title, module, function): sections contributed by the other parts of the
 # project; each function takes the output folder and returns markdown.
 SECTIONS = (
@@ -24,7 +28,9 @@ SECTIONS = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", default="results/demo", help="output folder (default results/demo)")
+    parser.add_argument("--out", default=DEFAULT_OUT,
+                        help=f"output folder (default {DEFAULT_OUT}/ in the current folder; the repository's committed "
+                             "demo is --out results/demo)")
     parser.add_argument("--quick", action="store_true", help="only the sizing and the design-point run")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace a non-empty --out that is not an earlier demo (an earlier demo is replaced anyway)")
@@ -129,7 +135,9 @@ def _runnable_regenerate(body: str) -> str:
 def _run(args, out: Path) -> None:
     from ehas_env.output.files import atomic_write_text
 
-    parts = ["# ehas demo", "", "Regenerate with `ehas demo" + (f" --out {args.out}" if args.out != "results/demo" else "") + "`.", ""]
+    regen = "ehas demo" + (" --quick" if args.quick else "") + (f" --out {args.out}" if args.out != DEFAULT_OUT else "")
+    parts = ["# ehas demo", "", f"Regenerate with `{regen}` (this folder as a whole; the commands of each section "
+             "below regenerate its part).", ""]
     plan = [("Sizing (book chapter 1)", sizing_section), ("Design point, simulated", design_point_section)]
     if not args.quick:
         for title, module_name, func in SECTIONS:

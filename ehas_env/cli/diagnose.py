@@ -40,9 +40,16 @@ DIAGNOSE_CPU_S_PER_KSAMPLE = (3.0, 12.0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md)")
+    parser.add_argument("campaign", metavar="CAMPAIGN_DIR", nargs="+",
+                        help="folder of RUN.csv + RUN.json pairs (docs/measurement-format.md); several folders, in "
+                             "the order recorded: each diagnosed, then a health trend (the parameters per campaign "
+                             "with their intervals, and which changed)")
     parser.add_argument("--json", default=None, metavar="FILE", help="write the diagnosis as JSON (docs/measurement-format.md)")
-    parser.add_argument("--out", default=None, metavar="DIR", help="folder for report.md and plots")
+    parser.add_argument("--out", default=None, metavar="DIR",
+                        help="folder for report.md, its plots and diagnosis.json (the JSON of --json)")
+    parser.add_argument("--html", action="store_true",
+                        help="also write DIR/report.html (needs --out): one self-contained page to open offline, "
+                             "as ehas report DIR writes it")
     parser.add_argument("--with", dest="with_effects", default=None, metavar="NAME[,NAME...]",
                         help="effects already added (fitted with each candidate): find the next one")
     parser.add_argument("--stack", action="store_true",
@@ -73,11 +80,57 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
+    camps = args.campaign if isinstance(args.campaign, (list, tuple)) else [args.campaign]
+    if len(camps) > 1:
+        return run_trend(args, list(camps))
+    args.campaign = camps[0]
+    return run_one(args)
+
+
+def run_trend(args, camps: list) -> int:
+    """``ehas diagnose CAMP1 CAMP2 ...``: each campaign diagnosed as alone (its JSON kept), then the health trend
+    (:func:`ehas_env.measurement.health.trend`); ``--json`` writes {"campaigns": [each diagnosis JSON], "trend"}."""
+    import copy
+
+    from ehas_env.measurement.health import trend, trend_text
+    from ehas_env.output.files import atomic_write_text
+    from ehas_env.output.outputs import check_file, check_not_input
+
+    for flag, v in (("--out", args.out), ("--write-effect", args.write_effect)):
+        if v:
+            raise ValueError(f"{flag}: one campaign at a time (several campaign folders give a health trend; "
+                             f"diagnose a campaign alone for {flag})")
+    if len(set(map(str, camps))) < len(camps):
+        raise ValueError("CAMPAIGN_DIR: a folder is named twice; name each campaign once, in the order recorded")
+    if args.json:
+        check_not_input(args.json, "--json", camps)
+        check_file(args.json, "--json", overwrite=args.overwrite)
+    from ehas_env.measurement.campaign import parse_column_map, read_campaign
+
+    for c in camps:  # every folder read (and refused, one line) before any work
+        read_campaign(c, columns=parse_column_map(args.columns))
+    docs = []  # each campaign's diagnosis JSON (run_one appends it to doc_sink)
+    for k, c in enumerate(camps):
+        print(f"=== campaign {k + 1} of {len(camps)}: {c} ===")
+        sub = copy.copy(args)
+        sub.campaign, sub.json, sub.doc_sink = c, None, docs
+        run_one(sub)
+        print()
+    t = trend([(str(c), d["model"]["ci95"]) for c, d in zip(camps, docs)])
+    print(trend_text(t))
+    if args.json:
+        atomic_write_text(args.json, json.dumps({"campaigns": docs, "trend": t}, indent=2) + "\n")
+        print(f"json: {args.json}")
+    return 0
+
+
+def run_one(args) -> int:
     from ehas_env.measurement.campaign import parse_column_map, read_campaign
     from ehas_env.measurement.diagnosis import FIT_WINDOW_S, diagnose_open, resolve_candidates
     from ehas_env.physics.effects import get_effect, parse_spec
     from ehas_env.measurement.replay import format_fit_tables
     from ehas_env.measurement.residuals import follows_text, where_it_fails
+    from ehas_env.measurement.verdict import figure_text
     from ehas_env.output.outputs import OutputSet, check_file, check_not_input
 
     t0 = time.perf_counter()
@@ -103,6 +156,8 @@ def run(args) -> int:
         check_file(args.json, "--json", overwrite=args.overwrite)
     if args.out:
         check_not_input(args.out, "--out", [args.campaign])
+    elif getattr(args, "html", False):
+        raise ValueError("--html writes DIR/report.html: give --out DIR as well")
     if args.write_effect:
         check_not_input(args.write_effect, "--write-effect", [args.campaign])
         we = Path(args.write_effect)
@@ -152,12 +207,13 @@ def run(args) -> int:
     print(where_it_fails(res.full, res.baseline_all, "baseline" + (" + " + " + ".join(base) if base else "")))
     print()
     for d in res.rounds:
-        print(_ranking_text(d))
+        print(_ranking_text(d, res.train))
         print()
     print(_stack_text(res))
     print()
     tables = {"baseline": res.full.fit_table(res.baseline_all), "final model": res.full.fit_table(res.sims_all)}
-    print(format_fit_tables(tables).split("\n\nfit % per run")[0])
+    print(format_fit_tables(tables).split("\n\nfit % per run")[0].replace(
+        "fit % (NRMSE) per signal, mean over runs", "fit % (NRMSE) per signal, baseline vs final model, mean over runs", 1))
     print()
     print(_model_text(res))
     print()
@@ -165,14 +221,19 @@ def run(args) -> int:
     print()
     print(follows_text(res.follows, "final model"))
     print()
-    print(f"verdict: {res.verdict}")
+    print(f"verdict: {res.verdict}, residual {figure_text(res.residual_x_noise)}")
     if res.unexplained is not None:
         print(res.unexplained["text"])
     else:
-        print(f"the final model explains the campaign: residual {res.residual_x_noise:.2f}x what does not repeat from "
-              f"cycle to cycle (sensor noise, disturbances; explained up to {res.grade['thresholds']['explained']:g}x), "
-              f"{res.cost_all:.2f}x the sensor-noise variance")
-    written = None
+        print(f"the final model explains the campaign: its residual is {figure_text(res.residual_x_noise)} from "
+              f"cycle to cycle (sensor noise, disturbances; explained up to {res.grade['thresholds']['explained']:g}x)")
+    if res.alternatives:  # what these logs cannot tell apart (ehas_env.measurement.alternatives)
+        from ehas_env.measurement.alternatives import alternatives_text
+
+        print(alternatives_text(res.alternatives, res.model.effects))
+    for line in _findings_lines(res):  # per-run drift, disturbances, fits on a bound (issue 33)
+        print(line)
+    written = next_line = None
     hyp = res.hypothesis
     if hyp is not None:
         h = res.hypothesis_json()
@@ -188,8 +249,9 @@ def run(args) -> int:
                                        before=h.get("residual_x_noise_before"), after=res.residual_x_noise)
             name = Path(args.write_effect).stem
             print(f"effect file: {args.write_effect}")
-            print("next: " + next_command(args, campaign.path, [n for n in res.model.effects if n != hyp] + [name],
-                                          extra_path=Path(args.write_effect).parent))
+            next_line = next_command(args, campaign.path, [n for n in res.model.effects if n != hyp] + [name],
+                                     extra_path=Path(args.write_effect).parent)
+            print("next: " + next_line)
     elif res.proposal is not None:
         p = res.proposal
         print()
@@ -204,21 +266,27 @@ def run(args) -> int:
             written = write_effect(args.write_effect, p, origin=str(campaign.path))
             name = Path(args.write_effect).stem
             print(f"effect file: {args.write_effect}")
-            print("next: " + next_command(args, campaign.path, list(res.model.effects) + [name],
-                                          extra_path=Path(args.write_effect).parent))
+            next_line = next_command(args, campaign.path, list(res.model.effects) + [name],
+                                     extra_path=Path(args.write_effect).parent)
+            print("next: " + next_line)
     elif args.write_effect:
         print("no effect file written: " + ("the campaign is explained" if res.unexplained is None else
                                             "no term of the dictionary lowers the residual"))
-    if res.model.effects and written is None and hyp is None:
-        print("next: " + next_command(args, campaign.path, list(res.model.effects)) + " --save-model model.json")
+    if next_line is None and res.model.effects:  # the model's effects (a kept hypothesis is a registered effect)
+        next_line = next_command(args, campaign.path, list(res.model.effects))
+        print("next: " + next_line)
     elapsed = time.perf_counter() - t0
     print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
 
     command = "ehas diagnose " + " ".join(shlex.quote(a) for a in _argv())
-    if args.json:
-        from ehas_env.output.files import atomic_write_text
+    from ehas_env.output.files import atomic_write_text
 
-        doc = diagnosis_doc(res, campaign.path, elapsed, effect_file=args.write_effect if written else None)
+    doc = diagnosis_doc(res, campaign.path, elapsed, effect_file=args.write_effect if written else None)
+    if next_line:
+        doc["next"] = next_line
+    if getattr(args, "doc_sink", None) is not None:  # several campaigns: the health trend collects each JSON
+        args.doc_sink.append(doc)
+    if args.json:
         atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
         print(f"json: {args.json}")
     if outputs is not None:
@@ -236,19 +304,37 @@ def run(args) -> int:
                                 after_model=model, fitted=True, diagnosis=first, title="Diagnosis")
             extra = ["## 6. Stacking, confidence and validation", "", "```", _stack_text(res), "",
                      _model_text(res), "", _validation_text(res), "```", "",
-                     "## 7. Verdict and what is left", "", f"**{res.verdict}**", "",
-                     res.unexplained["text"] if res.unexplained else
-                     f"Residual {res.residual_x_noise:.2f}x what does not repeat from cycle to cycle: explained.", "",
+                     "## 7. Verdict and what is left", "",
+                     f"**{res.verdict}**: residual {figure_text(res.residual_x_noise)} from cycle to cycle.", "",
+                     "![verdict](verdict.png)", "",
+                     res.unexplained["text"] if res.unexplained else "", "",
                      "```", follows_text(res.follows, "final model"), "```", ""]
+            if _findings_lines(res):
+                extra += ["```", *_findings_lines(res), "```", ""]
+            if res.alternatives:
+                from ehas_env.measurement.alternatives import alternatives_text
+
+                extra += ["### What these logs cannot tell apart", "",
+                          alternatives_text(res.alternatives, res.model.effects).replace("\n", "\n\n"), ""]
             if res.proposal is not None:
                 extra += ["## 8. The missing term, proposed", "", "```", res.proposal.equation(), "```", "",
                           f"Fit on all data {res.proposal.validation['fit_percent_all_before']:.1f} % -> "
                           f"{res.proposal.validation['fit_percent_all_after']:.1f} %; residual "
                           f"{res.proposal.validation['residual_x_noise_all_before']:.3g}x -> "
                           f"{res.proposal.validation['residual_x_noise_all_after']:.3g}x noise.", ""]
+            from ehas_env.measurement.diagnosis import COST_SIGNALS
+            from ehas_env.measurement.diagnosis_plots import verdict_bars
+            from ehas_env.measurement.verdict import blocks_of
+
+            verdict_bars(tmp / "verdict.png", blocks_of(res.full, res.sims_all, COST_SIGNALS), res.grade)
             with open(path, "a") as fh:
                 fh.write("\n".join(extra) + "\n")
-        print(f"report: {Path(args.out) / path.name}")
+            atomic_write_text(tmp / "diagnosis.json", json.dumps(doc, indent=2) + "\n")
+            if getattr(args, "html", False):
+                from ehas_env.cli.report import build_page
+
+                build_page(doc, tmp, command=f"ehas report {shlex.quote(str(args.out))}").write(tmp / "report.html")
+        print(f"report: {Path(args.out) / path.name}" + (f", {Path(args.out) / 'report.html'}" if args.html else ""))
     return 0
 
 
@@ -269,8 +355,14 @@ def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dic
     Returns
     -------
     dict
+        :meth:`OpenDiagnosis.to_json` with ``model.difference`` (the model as a difference from the book's rig),
+        ``campaign``, ``effect_file``, ``next`` (the next command, when the model has effects and no file was
+        written) and ``elapsed_s``.
     """
+    from ehas_env.measurement.model_difference import model_difference
+
     doc = res.to_json()
+    doc["model"]["difference"] = model_difference(doc["model"])
     doc["campaign"] = str(campaign_path)
     if effect_file is not None and doc.get("hypothesis"):
         doc["hypothesis"]["effect_file"] = str(effect_file)
@@ -278,13 +370,35 @@ def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dic
     elif effect_file is not None and doc.get("unexplained") and doc["unexplained"].get("proposal"):
         doc["unexplained"]["proposal"]["effect_file"] = str(effect_file)
         doc["effect_file"] = str(effect_file)
+    if doc["model"]["effects"] and effect_file is None:
+        # the comparison that saves the calibrated model (run() replaces it with the one it prints, which keeps
+        # the command line's --effects-path, --model and --columns)
+        doc["next"] = next_command(argparse.Namespace(), campaign_path, list(doc["model"]["effects"]))
     doc["elapsed_s"] = round(elapsed_s, 1)
     return doc
 
 
 def next_command(args, campaign_path, effects: list[str], extra_path=None) -> str:
     """The ``ehas compare`` command that adds ``effects`` to the campaign, runnable as printed: it keeps every
-    ``--effects-path`` given, the written effect file's folder, ``--model`` and ``--columns``."""
+    ``--effects-path`` given, the written effect file's folder, ``--model`` and ``--columns``, and always saves
+    the calibrated model (``--save-model model.json``, the file ``ehas tune``/``bench --model`` take).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The diagnose command's arguments (``effects_path``, ``model``, ``columns`` are kept).
+    campaign_path : str or Path
+        The campaign diagnosed.
+    effects : list of str
+        The effects of the final model (and the written effect's name).
+    extra_path : str or Path, optional
+        The folder of a written effect file, added to ``--effects-path``.
+
+    Returns
+    -------
+    str
+        One shell command line.
+    """
     q = shlex.quote
     parts = ["ehas compare", q(str(campaign_path))]
     paths = [str(p) for p in (getattr(args, "effects_path", None) or [])]
@@ -295,8 +409,20 @@ def next_command(args, campaign_path, effects: list[str], extra_path=None) -> st
         parts.append(f"--model {q(str(args.model))}")
     if getattr(args, "columns", None):
         parts.append(f"--columns {q(args.columns)}")
-    parts += [f"--effects {q(','.join(effects))}", "--fit", "--out compare", "--json compare.json"]
+    # the calibrated model file is what a user tunes and benchmarks on (--model): always offered
+    parts += [f"--effects {q(','.join(effects))}", "--fit", "--out compare", "--json compare.json",
+              "--save-model model.json"]
     return " ".join(parts)
+
+
+def _findings_lines(res) -> list[str]:
+    """Parameters that differ between runs, disturbances, and fitted parameters on a bound, in words."""
+    from ehas_env.measurement.disturbances import disturbance_lines
+    from ehas_env.measurement.drift import drift_lines
+    from ehas_env.measurement.honesty import at_bound_lines, at_bounds
+
+    return (drift_lines(res.drift, res.per_run) + disturbance_lines(res.disturbances)
+            + at_bound_lines(at_bounds(res.fit_train, res.model.effects)))
 
 
 def _stack_text(res) -> str:
@@ -309,29 +435,27 @@ def _stack_text(res) -> str:
 
 
 def _model_text(res) -> str:
-    from ehas_env.measurement.fitting import _unit, _value_of
+    """The final model, once: what differs from the book's rig, engineering units, 95 % intervals."""
+    from ehas_env.measurement.model_difference import difference_text, model_difference
 
-    lines = ["final model, fitted values with 95 % confidence intervals (cluster-robust, on the fit data)"]
-    for fp in res.fit_train.free:
-        key = (fp.effect, fp.name)
-        v = _value_of(res.model, fp)
-        lo, hi = res.ci.get(key, (float("nan"), float("nan")))
-        lines.append(f"  {(fp.effect or 'baseline') + '.' + fp.name:<28}{v:>12.5g}  [{lo:.5g}, {hi:.5g}] {_unit(*key)}")
-    if len(lines) == 1:
-        lines.append("  nothing fitted")
-    return "\n".join(lines)
+    return difference_text(model_difference(res.to_json()["model"]))
 
 
 def _validation_text(res) -> str:
+    """Held-out runs: fit % and the noise figure of the final model on them alone."""
+    from ehas_env.measurement.diagnosis import COST_SIGNALS
+    from ehas_env.measurement.verdict import figure_text, noise_figure
+
     v = res.validation
     lines = [f"validation: fitted on {', '.join(v['fit_runs'])} (first {v['fit_window_s']:g} s of closed-loop runs)"]
     if v["holdout"]:
+        held = set(v["holdout"])
+        sims = [s if c.run.name in held else None for c, s in zip(res.full.cases, res.sims_all)]
         lines.append(f"  held out: {', '.join(v['holdout'])}; fit % baseline {v['holdout_fit_percent_baseline']:.1f} -> "
-                     f"model {v['holdout_fit_percent_model']:.1f}")
+                     f"model {v['holdout_fit_percent_model']:.1f}; final model's residual on them "
+                     f"{figure_text(noise_figure(res.full, sims, COST_SIGNALS))}")
     else:
         lines.append("  no run held out (fewer than 4 runs, or --holdout none)")
-    if v["residual_x_noise_validation"] is not None:
-        lines.append(f"  residual on the validation data: {v['residual_x_noise_validation']:.3g}x noise variance")
     return "\n".join(lines)
 
 
@@ -340,12 +464,16 @@ def _argv() -> list[str]:
     return argv[1:] if argv and argv[0] == "diagnose" else argv
 
 
-def _ranking_text(d) -> str:
+def _ranking_text(d, rep) -> str:
+    """One round's ranking; the recalibrated baseline's residual as the noise figure on the fit data ``rep``."""
     from ehas_env.cli.compare import _params_text
+    from ehas_env.measurement.diagnosis import COST_SIGNALS
+    from ehas_env.measurement.verdict import figure_text, noise_figure
 
     base = f" on top of {', '.join(d.base_effects)}" if d.base_effects else ""
-    lines = [f"which effect is missing{base} (recalibrated baseline: fit {d.null.table.overall:.1f} %, residual "
-             f"{d.null.cost:.2f}x noise variance)",
+    lines = [f"which effect is missing{base} (recalibrated baseline{base.replace(' on top of', ' +')}: fit "
+             f"{d.null.table.overall:.1f} %, residual {figure_text(noise_figure(rep, d.null.sims, COST_SIGNALS))} "
+             "on the fit data)",
              f"{'rank':<5}{'effect':<20}{'score dB':>9}{'fit %':>8}  {'beats noise':<12}fitted"]
     for i, e in enumerate(d.ranking):
         lines.append(f"{i + 1:<5}{e.effect:<20}{e.score:>9.2f}{e.fit_percent:>8.1f}  {'yes' if e.beats_noise else 'no':<12}"
@@ -404,6 +532,11 @@ def demo_section(outdir: Path) -> str:
                                 "fit_percent_after": round(d.top.fit.table.overall, 2)})
     write_report(diag_dir, rep, sims, tables, campaign=campaign, command=diag_cmd, after_label=label,
                  after_model=model, fitted=True, diagnosis=d, title="Diagnosis")
+    from ehas_env.measurement.diagnosis import COST_SIGNALS
+    from ehas_env.measurement.diagnosis_plots import verdict_bars
+    from ehas_env.measurement.verdict import blocks_of, figure_text
+
+    verdict_bars(diag_dir / "verdict.png", blocks_of(res.full, res.sims_all, COST_SIGNALS), res.grade)
     from ehas_env.cli.compare import _params_text
 
     hidden = ", ".join(f"{n} ({_params_text(n, p)})" for n, p in truth["effects"].items())
@@ -415,7 +548,9 @@ def demo_section(outdir: Path) -> str:
              "| rank | effect | fitted | score dB | fit % |", "|---|---|---|---|---|"]
     for i, e in enumerate(d.ranking[:4]):
         lines.append(f"| {i + 1} | {e.effect} | {_params_text(e.effect, e.params)} | {e.score:.2f} | {e.fit_percent:.1f} |")
-    lines += ["", f"Diagnosis: **{d.found}**. Evidence: {d.top.evidence}.", ""]
+    lines += ["", f"Diagnosis: **{d.found}**. Evidence: {d.top.evidence}.", "",
+              f"Verdict: **{res.verdict}**, residual {figure_text(res.residual_x_noise)} from cycle to cycle "
+              f"(`diagnosis/verdict.png`: per run and signal).", ""]
     if model is not None:
         lines += [f"Adding it: overall fit {d.baseline.table.overall:.1f} % -> {d.top.fit.table.overall:.1f} % "
                   f"(baseline -> calibrated model, saved as `{outdir / 'model.json'}` for `--model`).", ""]

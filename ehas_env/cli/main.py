@@ -199,6 +199,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "simulate-campaign": ("ehas_env.cli.campaign", "generate a synthetic measurement campaign"),
     "compare": ("ehas_env.cli.compare", "compare the model with a measurement campaign"),
     "diagnose": ("ehas_env.cli.diagnose", "find which physical effect the model is missing"),
+    "plan-test": ("ehas_env.cli.plan_test", "design the runs that tell apart the explanations a diagnosis lists"),
+    "report": ("ehas_env.cli.report", "one self-contained HTML page of a diagnosis or comparison folder"),
     "train": ("ehas_train.train_cli", "train a learned controller with stable-baselines3"),
     "model": ("ehas_env.cli.model", "read, write and compare model files: the plant as one file (docs/model-file.md)"),
 }
@@ -213,7 +215,67 @@ class Parser(argparse.ArgumentParser):
         if m and any(m.group(2).startswith(name) for name in m.group(1).split("/")):
             message = m.group(2)
         message = " ".join(message.split())
+        # "invalid choice: 'diagnos' (choose from 'demo', ...)": the closest choices first
+        m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)$", message)
+        if m:
+            hint = did_you_mean(m.group(1), re.findall(r"'([^']*)'", m.group(2)) or m.group(2).split(", "))
+            if hint:
+                message = f"{message[:m.end(1) + 1]}; {hint} {message[m.end(1) + 2:]}"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def did_you_mean(word: str, choices) -> str:
+    """``did you mean 'x'?`` (or ``'x' or 'y'``) naming the 1-3 ``choices`` closest to ``word``; "" when none is close.
+
+    Parameters
+    ----------
+    word : str
+        What the user typed.
+    choices : iterable of str
+        What is allowed.
+
+    Returns
+    -------
+    str
+        The hint, or an empty string.
+    """
+    import difflib
+
+    choices = [str(c) for c in choices]
+    close = difflib.get_close_matches(word, choices, n=3, cutoff=0.6)
+    if not close and word.startswith("--"):  # an option: compare the words without the dashes too
+        bare = {c[2:]: c for c in choices if c.startswith("--")}
+        close = [bare[c] for c in difflib.get_close_matches(word[2:], list(bare), n=3, cutoff=0.6)]
+    if not close:
+        return ""
+    return "did you mean " + " or ".join(f"'{c}'" for c in close) + "?"
+
+
+def _unknown_options(parser, args, extra: list[str]) -> str:
+    """The one-line error for options (or words) no parser of the command took, with the closest options."""
+    sub = _subparser(parser, args.command) if args.command else parser
+    options = [o for a in _all_actions(sub, args) for o in a.option_strings]
+    parts = []
+    for word in extra:
+        hint = did_you_mean(word.split("=", 1)[0], options) if word.startswith("-") else ""
+        parts.append(f"{word} ({hint})" if hint else word)
+    what = "argument" if len(extra) == 1 else "arguments"
+    return f"unrecognized {what}: {', '.join(parts)}"
+
+
+def _subparser(parser, command: str):
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[command]
+
+
+def _all_actions(sub, args) -> list:
+    """The actions of ``sub`` and of the nested command chosen in it (``ehas model show``)."""
+    out = list(sub._actions)
+    for a in sub._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            chosen = getattr(args, a.dest, None)
+            if chosen in a.choices:
+                out += _all_actions(a.choices[chosen], args)
+    return out
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
@@ -345,9 +407,13 @@ def _main(argv, program: bool = False) -> int:
     first = next((w for w in words if not w.startswith("-")), None)
     parser = build_parser(first if first in COMMANDS else None)
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
     except SystemExit as exc:  # argparse's usage error (status 2) or --help/--version (0): a status, not an exit
         return exc.code if isinstance(exc.code, int) else 2
+    if extra:  # what argparse's parse_args refuses, with the command's closest options
+        prog = f"ehas {args.command}" if args.command else "ehas"
+        print(f"{prog}: error: {_unknown_options(parser, args, extra)} (see {prog} --help)", file=sys.stderr)
+        return 2
     if args.command is None:
         parser.print_help()
         return 0

@@ -49,9 +49,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="folder (or .py file) of your own effect files the model needs (loaded first; the file "
                             "records their names and SHA-256, never the code or the folder); repeatable")
     new.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
-    diff = sub.add_parser("diff", help="the fields in which two model files differ (exit status 1 when they do)")
+    diff = sub.add_parser("diff", help="the fields in which two model files differ (exit status 1 when they do); "
+                                       "with one file: what it changes from the book's rig, with 95 % intervals")
     diff.add_argument("a", metavar="A")
-    diff.add_argument("b", metavar="B")
+    diff.add_argument("b", metavar="B", nargs="?", default=None)
     diff.add_argument("--effects-path", action="append", default=None, metavar="DIR",
                       help="folder (or .py file) of your own effect files the models need; repeatable")
 
@@ -70,6 +71,39 @@ def _given(value, name: str):
     return value
 
 
+def book_difference(model) -> tuple[list[str], bool]:
+    """Lines saying what a model file changes from the book's rig: the recalibrated numbers and the effects with
+    their units and 95 % intervals (the diagnosis' model difference), then any other field of the rig.
+
+    Parameters
+    ----------
+    model : ehas_env.simulation.model_file.PlantModel
+        A loaded model file.
+
+    Returns
+    -------
+    lines : list of str
+        A heading and one line per difference ("nothing" when the model is the book's rig).
+    differs : bool
+        Whether the model differs from the book's rig.
+    """
+    from ehas_env.measurement.model_difference import difference_text, model_difference
+    from ehas_env.simulation import model_file as mf
+
+    doc = {"effects": model.effects, "beta": model.value(mf.FIELD_BY_KEY["bulk_modulus_Pa"]),
+           "K": model.value(mf.FIELD_BY_KEY["K_lpm_per_mA"]),
+           "ci95": (model.calibration or {}).get("ci95") or []}
+    own = {"rig.bulk_modulus_Pa", "valve.K_lpm_per_mA"}
+    rest = [ln for ln in mf.diff_models(mf.PlantModel(), model)
+            if not ln.startswith(("name:", "effects.", "user_effects.", "calibration:", "provenance:"))
+            and ln.split(":")[0] not in own]
+    rows = model_difference(doc)
+    text = difference_text(rows, title=model.label).splitlines()
+    if rest and not rows:
+        text.pop()  # the "nothing" line
+    return text + ["  " + ln for ln in rest], bool(rows or rest)
+
+
 def run(args) -> int:
     from ehas_env.simulation import model_file as mf
 
@@ -84,6 +118,10 @@ def run(args) -> int:
         else:
             print(m.summary())
         return 0
+    if args.action == "diff" and args.b is None:
+        lines, differs = book_difference(mf.load_model(args.a))
+        print("\n".join(lines))
+        return 1 if differs else 0
     if args.action == "diff":
         a, b = mf.load_model(args.a), mf.load_model(args.b)
         lines = mf.diff_models(a, b)

@@ -152,7 +152,8 @@ class Run:
         if self.kind == "closed_loop":
             ref = m["reference"]
             sets = "1 set" if m["disc_sets"] == 1 else f"{m['disc_sets']} sets"
-            return f"{sets}, {ref['amplitude_deg']:g} deg, {ref['freq_hz']:g} Hz"
+            off = f" about {ref['offset_deg']:+g} deg" if ref.get("offset_deg") else ""
+            return f"{sets}, {ref['amplitude_deg']:g} deg{off}, {ref['freq_hz']:g} Hz"
         return f"valve, {m['supply_bar']:g} bar"
 
 
@@ -395,7 +396,8 @@ def read_run(path, columns: dict[str, str] | None = None) -> Run:
                             "saying what the run was (kind, supply_bar, disc_sets, reference, controller)")
     meta = read_sidecar(json_path)
     cols, ignored, used, line_offset = read_data(path, columns)
-    run = validate_run(path.stem, cols, meta, where=str(path), line_offset=line_offset, path=path)
+    run = validate_run(path.stem, cols, meta, where=str(path), line_offset=line_offset, path=path,
+                       file_columns=[used.get(c, c) for c in cols] + ignored)
     run.ignored_columns = ignored
     run.column_map = used
     return run
@@ -551,10 +553,11 @@ def check_units(cols: dict, meta: dict, dt: float | None, where: str) -> None:
     if meta.get("kind") == "closed_loop":
         amp = meta["reference"]["amplitude_deg"]
         f = meta["reference"]["freq_hz"]
+        reach = amp + abs(meta["reference"].get("offset_deg", 0.0))  # the largest |angle| the sine asks
         for c in ("theta_deg", "theta_ref_deg"):
             th = peak(c)
-            if th is not None and amp >= 2.0 and 0.4 < math.degrees(th) / amp < 2.5:
-                refuse(c, f"peak {th:.4g}, where the sidecar's amplitude is {amp:g} deg; {th:.4g} rad = "
+            if th is not None and amp >= 2.0 and 0.4 < math.degrees(th) / reach < 2.5:
+                refuse(c, f"peak {th:.4g}, where the sidecar's sine reaches {reach:g} deg; {th:.4g} rad = "
                           f"{math.degrees(th):.3g} deg: the angle looks logged in rad, not deg (multiply by 180/pi)")
             lim = math.degrees(THETA_STROKE_END)
             if th is not None and th > 1.1 * lim:
@@ -600,12 +603,14 @@ def check_units(cols: dict, meta: dict, dt: float | None, where: str) -> None:
 
 
 def validate_run(name: str, columns: dict, meta, *, where: str | None = None, line_offset: int = 0,
-                 path: Path | None = None) -> Run:
+                 path: Path | None = None, file_columns: list[str] | None = None) -> Run:
     """Validate one run's columns and sidecar; fill short gaps.
 
     ``line_offset`` converts a sample index into a file line number (2 for a CSV
     with its header on line 1); 0 names samples instead of lines.  ``path`` is
     the data file the run was read from (None for a run built in memory).
+    ``file_columns`` are the data file's column names as the logger wrote them
+    (a missing column's error names them and the ``--columns`` that maps one).
     """
     where = where or name
     if not isinstance(columns, dict):
@@ -623,8 +628,8 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
 
     missing = [c for c in REQUIRED[kind] if c not in columns]
     if missing:
-        raise CampaignError(f"{where}: required column '{missing[0]}' is missing; a {kind} run needs "
-                            f"{', '.join(REQUIRED[kind])}")
+        raise CampaignError(_missing_column(where, kind, missing[0], list(columns) if file_columns is None
+                                            else file_columns, "run" if file_columns is None else "file"))
     cols = {c: _column_values(v, c, where) for c, v in columns.items()}
     lengths = {c: v.size for c, v in cols.items()}
     if len(set(lengths.values())) > 1:
@@ -676,6 +681,21 @@ def validate_run(name: str, columns: dict, meta, *, where: str | None = None, li
     return run
 
 
+def _missing_column(where: str, kind: str, missing: str, found: list[str], holder: str = "file") -> str:
+    """The error for a required column that is not there: what the run needs, what the file has, and the
+    ``--columns`` mapping that reads a column of another name (the closest one, when one is close)."""
+    import difflib
+
+    others = [c for c in found if c not in COLUMNS]
+    close = difflib.get_close_matches(missing.lower(), [c.lower() for c in others], n=1, cutoff=0.5)
+    old = next((c for c in others if c.lower() == close[0]), None) if close else None
+    maps = (f"--columns {missing}={old} reads '{old}' as '{missing}' ({COLUMNS[missing]})" if old else
+            f"--columns {missing}=NAME reads the {holder}'s column NAME as '{missing}' ({COLUMNS[missing]})")
+    have = ", ".join(found) if found else "none"
+    return (f"{where}: required column '{missing}' is missing; a {kind} run needs {', '.join(REQUIRED[kind])}; "
+            f"the {holder}'s columns: {have}; {maps}")
+
+
 def _column_values(values, name: str, where: str) -> np.ndarray:
     """A column as a 1-D float array (NaN or None: a missing sample), or CampaignError (the readers' one check)."""
     try:
@@ -705,7 +725,7 @@ def _check_reference(run: Run, where: str, at) -> None:
         raise CampaignError(
             f"{where}, {at(k)}: theta_ref_deg = {logged[k]:.4g} deg, but the sidecar's reference (amplitude_deg "
             f"{r['amplitude_deg']:g}, freq_hz {r['freq_hz']:g}, phase_rad {r['phase_rad']:g}, ramp_cycles "
-            f"{r['ramp_cycles']:g}) gives {model[k]:.4g} deg at t - t0 = {run.t[k] - run.t[0]:.4g} s; the sidecar must "
+            f"{r['ramp_cycles']:g}, offset_deg {r.get('offset_deg', 0.0):g}) gives {model[k]:.4g} deg at t - t0 = {run.t[k] - run.t[0]:.4g} s; the sidecar must "
             "describe the reference the controller followed")
 
 
@@ -714,7 +734,8 @@ def reference_of(run: Run):
     from ehas_env.simulation.reference import SineReference
 
     r = run.meta["reference"]
-    return SineReference(r["amplitude_deg"], r["freq_hz"], phase=r["phase_rad"], ramp_cycles=r["ramp_cycles"])
+    return SineReference(r["amplitude_deg"], r["freq_hz"], phase=r["phase_rad"], ramp_cycles=r["ramp_cycles"],
+                         offset_deg=r.get("offset_deg", 0.0))
 
 
 def _number(obj: dict, key: str, where: str, what: str, *, lo=None, hi=None, lo_open=False, default=None,
@@ -784,6 +805,11 @@ def validate_meta(meta, where: str = "sidecar") -> dict:
         "ramp_cycles": _number(ref, "ramp_cycles", w, "the fade-in length in reference periods, >= 0", lo=0.0,
                                default=0.0),
     }
+    if "offset_deg" in ref:  # the sine's mean angle: the sine stays inside the stroke ends
+        amp = out["reference"]["amplitude_deg"]
+        out["reference"]["offset_deg"] = _number(
+            ref, "offset_deg", w, f"the sine's mean angle in deg, with |offset_deg| + amplitude_deg ({amp:g}) below "
+            f"the stroke end ({lim:.2f})", lo=-(lim - amp) + 1e-9, hi=lim - amp - 1e-9)
     ctrl = meta.get("controller")
     if not isinstance(ctrl, dict):
         raise CampaignError(f"{where}: key 'controller' is {'missing' if ctrl is None else repr(ctrl)}; expected the "

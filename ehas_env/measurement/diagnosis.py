@@ -50,6 +50,9 @@ import numpy as np
 from ehas_env.measurement import proposal as P
 from ehas_env.measurement.campaign import Campaign
 from ehas_env.measurement.keeping import agree, run_groups
+from ehas_env.measurement.disturbances import disturbances as disturbances_of
+from ehas_env.measurement.drift import per_run_stage
+from ehas_env.measurement.honesty import at_bounds, term_refused, worse_than_bare
 from ehas_env.measurement.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _unit, _value_of,
     beats_noise, confidence, fit, own_params, recal_params, reopens_baseline, score_db, start_value)
@@ -77,7 +80,9 @@ class Entry:
 
     def to_json(self) -> dict:
         return {"effect": self.effect, "params": {k: _round(v) for k, v in self.params.items()},
-                "fit_percent": round(self.fit_percent, 2), "score": round(self.score, 2), "evidence": self.evidence}
+                "fit_percent": round(self.fit_percent, 2), "score": round(self.score, 2), "evidence": self.evidence,
+                # honesty rule 3: a parameter at the end of its fit range says so
+                "at_bound": at_bounds(self.fit, [self.effect]) if self.effect != "none" else []}
 
 
 def _round(v: float) -> float:
@@ -331,7 +336,9 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(names) + min(REFINE_TOP, len(names)), desc="diagnose", unit="fit")
+        # one bar per stage, each total known before it is shown: the refinements' count is known only after
+        # the screening (a single bar's total changed mid-run, 13/16 -> 13/14)
+        bar = tqdm(total=len(names), desc="diagnose: screening", unit="fit")
     # nested effects after the effects they extend (warm starts)
     names.sort(key=lambda n: n in NESTED)
     for n in names:
@@ -343,8 +350,8 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
     # after beta and K have been refitted with each)
     near = [n for n in helpful if 10.0 * math.log10(fits[n].cost / fits[helpful[0]].cost) <= REFINE_WITHIN_DB]
     if bar:
-        bar.total = len(names) + len(near[:REFINE_TOP])
-        bar.refresh()
+        bar.close()
+        bar = tqdm(total=len(near[:REFINE_TOP]), desc="diagnose: refining", unit="fit") if near[:REFINE_TOP] else None
     for n in near[:REFINE_TOP]:
         fits[n] = refine_candidate(rep, n, fits[n], null, base_effects)
         if bar:
@@ -422,6 +429,53 @@ WARMUP_S = 0.15  # ... each simulated from this much earlier (left out of the co
 VAL_GAIN = 0.02  # a stacked effect must lower the validation residual by at least this share
 RIVAL_SHARE = 0.1  # a hypothesis replaces a library effect it may be mistaken for when it removes this share of
 # what the effect leaves of the validation residual above the noise (equal within that: the library's effect stays)
+
+
+def lowers_validation(before: float, after: float, strict: bool = False) -> bool:
+    """Whether ``after`` lowers the validation residual ``before`` by at least :data:`VAL_GAIN` of it (the gate
+    of every stacked effect; ``strict``: by more than that).
+
+    Parameters
+    ----------
+    before, after : float
+        Validation residuals (noise variances).
+    strict : bool
+        Ask for more than the share, not at least it.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> lowers_validation(2.0, 1.95), lowers_validation(2.0, 1.9)
+    (False, True)
+    """
+    limit = before * (1.0 - VAL_GAIN)
+    return after < limit if strict else after <= limit
+
+
+def rival_needs(own: float) -> float:
+    """The validation residual a hypothesis must beat to replace a library effect that leaves ``own``: the
+    effect's residual less :data:`RIVAL_SHARE` of its excess over the noise (1 noise variance).
+
+    Parameters
+    ----------
+    own : float
+        The library effect's validation residual, noise variances.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> rival_needs(3.0)
+    2.8
+    """
+    return own - RIVAL_SHARE * max(own - 1.0, 0.0)
+
+
 #: the structural hypotheses are tried also when the library explains the campaign but leaves more than this many
 #: times what does not repeat (clean campaigns of two simulators, 56 campaigns on three rigs: up to 1.07); a
 #: hypothesis kept there must remove this share of the residual's excess over the floor (a small structural
@@ -605,7 +659,7 @@ def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cu
         g = fit(rep, free, {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}, fixed)
         gs = full.simulate(g.model)
         val = _parts_cost(full, gs, parts)
-        if val is not None and cur_val is not None and val <= cur_val * (1.0 + VAL_GAIN):
+        if val is not None and cur_val is not None and not lowers_validation(val, cur_val):
             step.kept = False
             step.reason = (f"stands in for {hyp} ({get_effect(hyp).title}): without it the validation residual is "
                            f"{val:.3g} noise variances, with it {cur_val:.3g}")
@@ -649,7 +703,7 @@ def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list
         gs = full.simulate(g.model)
         gval = _parts_cost(full, gs, parts)
         score = gval if on_val else g.cost
-        need = own - RIVAL_SHARE * max(own - 1.0, 0.0)  # a tenth of what the effect leaves above the noise
+        need = rival_needs(own)  # a tenth of what the effect leaves above the noise
         if why is None and not score < need:  # sane, and lost on the data alone
             why = (f"does not do better than {effect} on the {'validation' if on_val else 'fitted'} data "
                    f"({score:.4g} vs {own:.4g} noise variances; {need:.4g} needed)")
@@ -723,7 +777,7 @@ def _pair_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list,
             f, why = _sane(rep, f, h)
     sims = full.simulate(f.model)
     val = _parts_cost(full, sims, parts)
-    if why is None and val is not None and prev_val is not None and val > prev_val * (1.0 - VAL_GAIN):
+    if why is None and val is not None and prev_val is not None and not lowers_validation(prev_val, val):
         why = (f"together they do not lower the residual of the validation data enough ({prev_val:.3g} -> "
                f"{val:.3g} noise variances)")
     x = _quiet_measure(full, sims, units)
@@ -852,7 +906,11 @@ class OpenDiagnosis:
     follows: dict
     ci: dict
     proposal: object = None
+    alternatives: list = field(default_factory=list)  # other explanations, compared (ehas_env.measurement.alternatives)
     validation: dict = field(default_factory=dict)
+    per_run: dict | None = None  # parameters fitted on each run alone (ehas_env.measurement.drift)
+    drift: list = field(default_factory=list)  # parameters that differ between runs, related to the sidecars
+    disturbances: list = field(default_factory=list)  # residual lines at no harmonic of the test frequency
     grade: dict = field(default_factory=dict)
     elapsed_s: float = 0.0
     n_evals: int = 0
@@ -913,7 +971,8 @@ class OpenDiagnosis:
                         "ci95": [{"effect": e or "baseline", "param": n, "value": _round(rig_scale(e, n) * _value_of(self.model, fp)),
                                   "low": _round(rig_scale(e, n) * lo), "high": _round(rig_scale(e, n) * hi), "unit": _unit(e, n)}
                                  for fp in self.fit_train.free for (e, n), (lo, hi) in self.ci.items()
-                                 if (fp.effect, fp.name) == (e, n)]}
+                                 if (fp.effect, fp.name) == (e, n)],
+                        "at_bound": at_bounds(self.fit_train, self.model.effects)}  # honesty rule 3
         doc["stack"] = [{"effect": s.effect, "kept": s.kept, "reason": s.reason,
                          "params": {k: _round(v) for k, v in (s.fit.model.effects.get(s.effect, {}) if s.fit else {}).items()},
                          "residual_x_noise_fit": round(s.cost_train, 3),
@@ -924,6 +983,15 @@ class OpenDiagnosis:
         doc["hypothesis"] = self.hypothesis_json()
         doc["follows"] = self.follows
         doc["unexplained"] = self.unexplained
+        # what these logs cannot tell apart from the model reported, and what they rule out (issue 34)
+        doc["reported_model"] = {"effects": {n: {k: float(v) for k, v in p.items()} for n, p in self.model.effects.items()},
+                                 "beta": float(self.model.beta), "K": float(self.model.K),
+                                 "rig_model": None if self.full.model is None else self.full.model.label}
+        doc["alternatives"] = [a.to_json() for a in self.alternatives if a.within]
+        doc["ruled_out"] = [a.to_json() for a in self.alternatives if not a.within]
+        doc["per_run"] = self.per_run
+        doc["drift"] = self.drift
+        doc["disturbances"] = self.disturbances
         return doc
 
 
@@ -946,7 +1014,8 @@ def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
 
 def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | None = None, holdout=None,
                   stack: bool = True, propose: bool = True, hypotheses: bool = True, window_s: float = FIT_WINDOW_S,
-                  progress: bool = False, log=None, model=None) -> OpenDiagnosis:
+                  progress: bool = False, log=None, model=None,
+                  alternatives: bool = True, per_run: bool = True) -> OpenDiagnosis:
     """The open-world diagnosis: the best model of the library, then whether it explains the campaign.
 
     1. Runs named by ``holdout`` (default :func:`default_holdout`) are kept out of the fit; the others are
@@ -988,6 +1057,12 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         Called with one line of progress text per step.
     model : PlantModel or str, optional
         A model file's rig to diagnose on (docs/model-file.md; default the book's rig).
+    per_run : bool
+        Fit the final model's parameters on each closed-loop run alone and report those that differ between runs
+        (:func:`ehas_env.measurement.drift.per_run_stage`).
+    alternatives : bool
+        Fit the explanations each effect of the final model may be confused with in its place and list those
+        these logs cannot tell apart (:func:`ehas_env.measurement.alternatives.find_alternatives`).
 
     Returns
     -------
@@ -1044,6 +1119,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     hyp_because = None  # why the structural hypotheses were tried (hypotheses_trigger) ...
     before_floor = None  # ... and the residual in floors then
     paired = False  # the pair of hypotheses was tried (once, on a quiet campaign where no single one passed)
+    bare = None  # the model before the structural hypotheses were tried (model, sims, validation cost, base, steps)
     while len(rounds) < MAX_ROUNDS:
         if pool is not None and not [n for n in pool if n not in base]:
             break  # every hypothesis is in the model
@@ -1075,7 +1151,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
             sims = full.simulate(f.model)
             val = _parts_cost(full, sims, parts)
             fval = _held_fit(full, sims, held_idx)
-            if why is None and val is not None and cur_val is not None and val > cur_val * (1.0 - VAL_GAIN):
+            if why is None and val is not None and cur_val is not None and not lowers_validation(cur_val, val):
                 why = (f"does not lower the residual of the validation data enough ({cur_val:.3g} -> {val:.3g} "
                        "noise variances)")
             if why is None and quiet and get_effect(effect).kind == "hypothesis":
@@ -1155,10 +1231,12 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         before_floor = g["residual_x_noise"]
         say(hyp_because)
         structural, pool = True, hyps
+        # the bare model, before the hypotheses: honesty rule 2 compares the final model with it on all data
+        bare = (current, cur_sims, cur_val, {k: dict(v) for k, v in base.items()}, [(st.kept, st.reason) for st in steps])
     if swap is not None:
         e_lib, h, s_cur, s_sims, s_val, s_base, n_steps = swap
         now, was = (cur_val, s_val) if cur_val is not None and s_val is not None else (current.cost, s_cur.cost)
-        better = now < was * (1.0 - VAL_GAIN)
+        better = lowers_validation(was, now, strict=True)
         if better:
             for st in steps[:n_steps]:
                 if st.effect == e_lib and st.kept:
@@ -1176,6 +1254,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                                     tried[0].cost_val, None)]
             say(f"  {h} in place of {e_lib}: not better on the validation data; {e_lib} stays")
             current, cur_sims, cur_val, base = s_cur, s_sims, s_val, s_base
+    if bare is not None:
+        current, cur_sims, cur_val, base = keep_no_worse(full, bare, (current, cur_sims, cur_val, base), steps, say)
     # the final model on all data
     final = current
     sims_all = cur_sims
@@ -1187,7 +1267,12 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         if c is not None:
             run_costs[case.run.name] = c
     fol = follows_of(full, sims_all)
+    dist = disturbances_of(full, sims_all)  # lines at no harmonic of the test (ehas_env.measurement.disturbances)
     ci = confidence(rep, final) if final.free else {}
+    # per-run parameters and their drift (ehas_env.measurement.drift)
+    cl = [r for r in campaign.runs if r.kind == "closed_loop"]
+    drift = per_run_stage(rep, cl, windowed(Campaign(campaign.path, cl), window_s).runs, final,
+                          not_kept(steps, final), say=say) if per_run else {"per_run": None, "drift": []}
 
     validation = {"holdout": held, "fit_window_s": window_s,
                   "residual_x_noise_before_hypotheses": before_floor,
@@ -1203,7 +1288,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     result = OpenDiagnosis(first=rounds[0], rounds=rounds, steps=steps, model=final.model, fit_train=final,
                            sims_all=sims_all, baseline_all=baseline_all, full=full, train=rep, holdout=held,
                            cost_all=cost_all, run_costs=run_costs, unexplained=None, follows=fol, ci=ci,
-                           validation=validation, grade=grade(blocks_of(full, sims_all, COST_SIGNALS)))
+                           validation=validation, grade=grade(blocks_of(full, sims_all, COST_SIGNALS)),
+                           per_run=drift["per_run"], drift=drift["drift"], disturbances=dist)
     if result.verdict != "explained":
         where = sorted(((k, v["x_noise"]) for k, v in fol["signals"].items()), key=lambda kv: kv[1], reverse=True)
         g = result.grade
@@ -1220,24 +1306,139 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         # of effect that may not be there
         if propose and result.verdict == "unexplained":
             say("proposing the missing term")
-            prop = P.propose(rep, final, confidence=confidence)
+            prop, ps, refused = propose_stage(rep, full, final, sims_all, parts, cur_val, g, say)
             if prop is not None:
-                ps = full.simulate(prop.fit.model)
-                val_after = _parts_cost(full, ps, parts)
-                prop.validation = {"residual_x_noise_all_before": g["residual_x_noise"],
-                                   "residual_x_noise_all_after": grade(blocks_of(full, ps, COST_SIGNALS))["residual_x_noise"],
-                                   "fit_percent_all_before": round(full.fit_table(sims_all).overall, 2),
-                                   "fit_percent_all_after": round(full.fit_table(ps).overall, 2),
-                                   "residual_x_noise_validation_before": None if cur_val is None else round(cur_val, 3),
-                                   "residual_x_noise_validation_after": None if val_after is None else round(val_after, 3)}
-                result.proposal = prop
-                result.proposal_sims = ps
+                result.proposal, result.proposal_sims = prop, ps
                 unexplained["proposal"] = prop.to_json()
+            if refused is not None:  # honesty rule 1 (ehas_env.measurement.honesty): neither written nor recommended
+                unexplained["no_term"] = refused
         unexplained["text"] = unexplained_text(result, unexplained)
         result.unexplained = unexplained
+    if alternatives and result.model.effects:
+        from ehas_env.measurement.alternatives import find_alternatives
+
+        result.alternatives = find_alternatives(result, fit_null, fit_candidate, say)
     result.elapsed_s = _time.perf_counter() - t0
     result.n_evals = rep.n_evals + full.n_evals
     return result
+
+
+def propose_stage(rep: Replayer, full: Replayer, final: Fit, sims_all: list, parts: dict, cur_val, g: dict,
+                  say) -> tuple:
+    """The missing term (:func:`ehas_env.measurement.proposal.propose`), judged on all data and by honesty rule 1
+    (:func:`ehas_env.measurement.honesty.term_refused`).
+
+    Parameters
+    ----------
+    rep, full : Replayer
+        The fit data and every run.
+    final : Fit
+        The final model (on the fit data); ``sims_all`` its simulation of every run.
+    sims_all : list
+        The final model on every run.
+    parts : dict
+        The validation samples ({case index: first sample}).
+    cur_val : float or None
+        The final model's validation residual.
+    g : dict
+        The final model's grade on all data.
+    say : callable
+        Progress text.
+
+    Returns
+    -------
+    (Proposal or None, sims or None, str or None)
+        The proposal kept (with its ``validation`` numbers) and its simulation of every run, or None; and why a
+        term found was refused (None when none was, or none was found).
+    """
+    prop = P.propose(rep, final, confidence=confidence)
+    if prop is None:
+        return None, None, None
+    ps = full.simulate(prop.fit.model)
+    val_after = _parts_cost(full, ps, parts)
+    prop.validation = {"residual_x_noise_all_before": g["residual_x_noise"],
+                       "residual_x_noise_all_after": grade(blocks_of(full, ps, COST_SIGNALS))["residual_x_noise"],
+                       "fit_percent_all_before": round(full.fit_table(sims_all).overall, 2),
+                       "fit_percent_all_after": round(full.fit_table(ps).overall, 2),
+                       "residual_x_noise_validation_before": None if cur_val is None else round(cur_val, 3),
+                       "residual_x_noise_validation_after": None if val_after is None else round(val_after, 3)}
+    refused = term_refused(prop.validation["residual_x_noise_all_before"], prop.validation["residual_x_noise_all_after"])
+    if refused is not None:
+        say(f"  no term proposed: {refused}")
+        return None, None, refused
+    return prop, ps, None
+
+
+#: effects judged but not kept that the per-run stage refits run by run (the first judged: the best ranked)
+PER_RUN_NOT_KEPT = 3
+
+
+def not_kept(steps: list, final: Fit) -> dict:
+    """The effects judged but not kept (not in the final model), at most :data:`PER_RUN_NOT_KEPT`, first judged
+    first: {effect: its Fit}.  A parameter that changes from run to run makes its effect fit differently on
+    separate groups of runs, or fail on the validation runs; refitted run by run
+    (:func:`ehas_env.measurement.drift.per_run_stage`), it shows.
+
+    Parameters
+    ----------
+    steps : list of Step
+        Every step judged.
+    final : Fit
+        The final model.
+
+    Returns
+    -------
+    dict
+    """
+    out = {}
+    for st in steps:
+        if len(out) >= PER_RUN_NOT_KEPT:
+            break
+        if not st.kept and st.fit is not None and st.effect not in final.model.effects and st.effect not in out \
+                and st.effect in st.fit.model.effects:
+            out[st.effect] = st.fit
+    return out
+
+
+def keep_no_worse(full: Replayer, bare: tuple, now: tuple, steps: list, say) -> tuple:
+    """Honesty rule 2 (:func:`ehas_env.measurement.honesty.worse_than_bare`): when the model the structural
+    hypotheses led to (``now``: Fit, simulation of every run, validation cost, base effects) leaves a worse
+    all-data residual than the ``bare`` model the library gave before them (the same, and every step's
+    (kept, reason) then), the bare model is restored and every step kept since is said not kept, with why.
+
+    Parameters
+    ----------
+    full : Replayer
+        Every run, full length.
+    bare, now : tuple
+        (Fit, sims, validation cost, base effects[, steps' (kept, reason)]).
+    steps : list of Step
+        Every step judged (changed in place when the bare model is restored).
+    say : callable
+        Progress text.
+
+    Returns
+    -------
+    tuple
+        The model kept: (Fit, sims, validation cost, base effects).
+    """
+    b_fit, b_sims, b_val, b_base, flags = bare
+    n_fit, n_sims, n_val, n_base = now
+    if n_fit is b_fit:
+        return now
+    x_bare = grade(blocks_of(full, b_sims, COST_SIGNALS))["residual_x_noise"]
+    x_now = grade(blocks_of(full, n_sims, COST_SIGNALS))["residual_x_noise"]
+    why = worse_than_bare(x_bare, x_now)
+    if why is None:
+        return now
+    for st in steps[len(flags):]:
+        if st.kept:
+            st.kept = False
+            st.reason += f"; not kept in the end: with the effects kept since the hypotheses were tried, it {why}"
+    for st, (kept, reason) in zip(steps, flags):
+        st.kept, st.reason = kept, reason
+    say(f"  the hypotheses kept {why}: back to the model without them")
+    return b_fit, b_sims, b_val, b_base
 
 
 def unexplained_text(res: OpenDiagnosis, u: dict) -> str:
@@ -1259,6 +1460,12 @@ def unexplained_text(res: OpenDiagnosis, u: dict) -> str:
     if res.verdict != "unexplained":
         text += (" No term is proposed at this level: a residual this small may come from the numerics of two "
                  "simulators of one rig as much as from physics.")
+    if res.disturbances:
+        text += " Disturbances: " + "; ".join(d["text"] for d in res.disturbances[:3]) + "."
+    if res.drift:
+        text += " Parameters that differ between runs: " + "; ".join(d["text"] for d in res.drift) + "."
+    if u.get("no_term"):
+        text += f" No term is proposed: {u['no_term']}."
     if p:
         text += (f" Proposed missing term at {', '.join(p['where'])}: {p['equation']}; residual "
                  f"{p['residual_x_noise_before']:.2f}x -> {p['residual_x_noise_after']:.2f}x noise on the fit data.")

@@ -6,7 +6,10 @@
   regressors (the signature of the missing effect), before and after;
 * :func:`hysteresis`: load vs velocity loops, measured and modelled (friction
   shows as a step at zero velocity, viscous friction as a tilt, mass as a
-  loop that opens with acceleration).
+  loop that opens with acceleration);
+* :func:`verdict_bars`: the verdict's noise figure per run and signal against
+  its thresholds, the overall figure in the title (and in the PNG's
+  ``Description`` text chunk).
 
 Every function writes one PNG atomically and returns its path.
 """
@@ -68,17 +71,34 @@ def overlay_signals(case) -> list[str]:
 
 
 def failure_window(case, sim: dict, signals, width_s: float) -> tuple[float, float]:
-    """(t0, t1) of the stretch, ``width_s`` long, where the model's residuals are largest in noise units."""
+    """(t0, t1) of the stretch, ``width_s`` long, where the model's residuals are largest in noise units.
+
+    The whole run is searched (the ramp-in included: a model that fails most there fails most there), so the
+    zoom's title "where the model fails most" holds for the run shown.
+
+    Parameters
+    ----------
+    case : Case
+        One run of a replayer (measured signals, noise levels, sample times).
+    sim : dict
+        The model's simulated signals of that run.
+    signals : iterable of str
+        The signals whose noise-normalised residual energies are summed.
+    width_s : float
+        Length of the window, s.
+
+    Returns
+    -------
+    tuple of float
+        (t0, t1), s from the run's start.
+    """
     t = case.run.t - case.run.t[0]
     e = np.zeros(t.size)
     for s in signals:
         e += ((case.measured[s] - sim[s]) / max(case.noise[s], 1e-12)) ** 2
-    ref = case.run.meta.get("reference")
-    start = 1.0 / ref["freq_hz"] if ref else 0.0  # leave out the warm-up cycle
-    n = max(int(round(width_s / case.run.dt)), 1)
+    n = min(max(int(round(width_s / case.run.dt)), 1), t.size)
     energy = np.convolve(e, np.ones(n), mode="valid")
-    k0 = int(np.searchsorted(t, start))
-    k = k0 + int(np.argmax(energy[k0:])) if energy.size > k0 else 0
+    k = int(np.argmax(energy)) if energy.size else 0
     return float(t[k]), float(t[min(k + n, t.size - 1)])
 
 
@@ -86,11 +106,13 @@ def overlay(path, case, models: dict[str, dict], signals=None, window_s: float |
     """Measured and modelled signals of one run with their residuals (in the signal's units), whole run and zoom.
 
     ``models`` maps a label (``baseline``, ``+ coulomb_friction``) to that model's
-    simulated signals of this run; the first is the one whose failure picks the
-    zoom window (``window_s`` long, default one reference period or 0.5 s).
-    Left column: the whole run; right column: the window where that model's
-    residuals are largest (shaded on the left).  Each signal has its residual
-    panel underneath, with the band of +-2 noise levels in grey.
+    simulated signals of this run; the last is the model the figure is about
+    (the only one in a "before" figure, the final model in an "after" figure),
+    and its failure in this run picks the zoom window (``window_s`` long,
+    default one reference period or 0.5 s).  Left column: the whole run; right
+    column: the window where that model's residuals in this run are largest
+    (shaded on the left), its title naming the model.  Each signal has its
+    residual panel underneath, with the band of +-2 noise levels in grey.
     """
     from matplotlib.gridspec import GridSpec
 
@@ -99,8 +121,8 @@ def overlay(path, case, models: dict[str, dict], signals=None, window_s: float |
     t = run.t - run.t[0]
     ref = run.meta.get("reference")
     width = window_s or (min(1.0 / ref["freq_hz"], 1.0) if ref else 0.5)
-    first = next(iter(models.values()))
-    w0, w1 = failure_window(case, first, signals, width)
+    judged = list(models)[-1]
+    w0, w1 = failure_window(case, models[judged], signals, width)
     zoom = (t >= w0) & (t <= w1)
     import matplotlib
 
@@ -133,7 +155,7 @@ def overlay(path, case, models: dict[str, dict], signals=None, window_s: float |
                 axr.set_ylabel(f"residual [{unit}]", fontsize=8)
             if k == 0:
                 ax.set_title("whole run (gold: the zoom window)" if col == 0 else
-                             f"zoom: where the {next(iter(models))} model fails most, t = {w0:.2f}-{w1:.2f} s",
+                             f"zoom: where the {judged} model fails most in this run, t = {w0:.2f}-{w1:.2f} s",
                              fontsize=9)
             ax.tick_params(labelbottom=False, labelsize=8)
             axr.tick_params(labelsize=8, labelbottom=(k == len(signals) - 1))
@@ -288,3 +310,49 @@ def valve_overlay(path, case, models: dict[str, dict], window_s: float = 0.4) ->
     fig.subplots_adjust(left=0.07, right=0.99, top=0.86, bottom=0.08)
     fig._ehas_layout = True
     return _save(plt, fig, path)
+
+
+def verdict_bars(path, blocks, grading: dict, label: str = "final model") -> Path:
+    """The verdict as a figure: each run and signal's residual in what does not repeat, against the thresholds.
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG to write.
+    blocks : list of ehas_env.measurement.verdict.Block
+        Every run and judged signal of the model (:func:`ehas_env.measurement.verdict.blocks_of`).
+    grading : dict
+        :func:`ehas_env.measurement.verdict.grade` of those blocks (the verdict, its figure, thresholds).
+    label : str
+        What the model is called.
+
+    Returns
+    -------
+    Path
+    """
+    from ehas_env.measurement.verdict import FIGURE_KEY, figure_text
+
+    text = f"{label}: {grading['verdict']}, residual {figure_text(grading[FIGURE_KEY])}"
+    t = grading["thresholds"]
+    names = [f"{b.run} {b.signal}" for b in blocks]
+    xs = np.array([b.x for b in blocks], dtype=float)
+    plt, fig, axes = _figure(1, size=(9.0, 0.8 + 0.22 * max(len(blocks), 4)))
+    ax = axes[0, 0]
+    colors = ["tab:green" if v <= t["block_explained"] else "tab:orange" if v <= t["block_unexplained"] else "tab:red"
+              for v in xs]
+    ax.barh(np.arange(len(xs)), np.maximum(xs, 1e-3), color=colors)
+    ax.set_yticks(np.arange(len(xs)))
+    ax.set_yticklabels(names, fontsize=7)
+    ax.invert_yaxis()
+    ax.set_xscale("log")
+    for v, st, what in ((t["explained"], "-.", "explained up to (overall)"),
+                        (t["block_explained"], ":", "explained up to (one run and signal)"),
+                        (t["block_unexplained"], "--", "unexplained above (one run and signal)")):
+        ax.axvline(v, color="0.4", ls=st, lw=1.0, label=f"{what}: {v:g}x")
+    ax.axvline(grading[FIGURE_KEY], color="k", lw=1.4, label=f"overall: {figure_text(grading[FIGURE_KEY])}")
+    ax.set_xlabel("residual / what does not repeat from cycle to cycle (1 = nothing structured left)", fontsize=8)
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title(text, fontsize=10)
+    ax.grid(alpha=0.25, axis="x")
+    fig.tight_layout()
+    return save_figure(fig, path, metadata={"Description": text})

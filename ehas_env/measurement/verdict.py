@@ -61,6 +61,53 @@ VERDICT_RUN_X = 2.5
 
 VERDICTS = ("explained", "small structured residual", "unexplained")
 
+#: THE noise figure of a diagnosis (the one its verdict is graded on): a model's residual energy over every run
+#: and judged signal in units of what does not repeat from cycle to cycle (:func:`overall_x`).  Its key in the
+#: diagnosis and comparison JSON, and the words every console line, report, figure and HTML page print it with
+#: (:func:`figure_text`); docs/measurement-format.md defines it under this name.
+FIGURE_KEY = "residual_x_noise"
+FIGURE_WORDS = "x what does not repeat"
+
+
+def figure_text(x: float) -> str:
+    """The noise figure as every output prints it (two decimals, :data:`FIGURE_WORDS`).
+
+    Parameters
+    ----------
+    x : float
+        The figure (:data:`FIGURE_KEY` of a diagnosis JSON).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> figure_text(1.056)
+    '1.06x what does not repeat'
+    """
+    return f"{x:.2f}{FIGURE_WORDS}"
+
+
+def noise_figure(rep, sims, signals) -> float:
+    """The noise figure of a model's simulation of a campaign (runs left None are not judged).
+
+    Parameters
+    ----------
+    rep : Replayer
+        The campaign's replayer.
+    sims : list
+        The model's simulated runs (None: a run not judged, e.g. not held out).
+    signals : iterable of str
+        The signals judged (the diagnosis' ``COST_SIGNALS``).
+
+    Returns
+    -------
+    float
+        :data:`FIGURE_KEY` as :func:`grade` reports it (rounded to 3 decimals).
+    """
+    return grade(blocks_of(rep, sims, signals))[FIGURE_KEY]
+
 
 def cycles(y: np.ndarray, dt: float, freq_hz: float, start_s: float) -> np.ndarray | None:
     """``y`` resampled on a common phase grid, one row per whole cycle from ``start_s`` (None: < MIN_CYCLES).
@@ -214,7 +261,7 @@ def grade(blocks: list[Block]) -> dict:
         verdict = VERDICTS[2]
     else:
         verdict = VERDICTS[1]
-    return {"verdict": verdict, "residual_x_noise": round(x, 3),
+    return {"verdict": verdict, FIGURE_KEY: round(x, 3),
             "structured_db": round(10.0 * math.log10(s), 2) if s > 0 else None,
             "worst": None if worst is None else {"run": worst.run, "signal": worst.signal,
                                                   "residual_x_noise": round(wx, 3), "periodic": worst.periodic},

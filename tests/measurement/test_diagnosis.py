@@ -131,7 +131,8 @@ def test_diagnose_cli_writes_the_json_of_the_spec(viscous_dir, tmp_path, capsys)
                                                            abs=0.01)
     assert [e["effect"] for e in doc["ranking"]][0] == "viscous_friction"
     for e in doc["ranking"]:
-        assert set(e) == {"effect", "params", "fit_percent", "score", "evidence"} and e["evidence"]
+        assert set(e) == {"effect", "params", "fit_percent", "score", "evidence", "at_bound"} and e["evidence"]
+        assert isinstance(e["at_bound"], list)  # honesty rule 3: fits on the end of their range (docs)
     scores = [e["score"] for e in doc["ranking"]]
     assert scores == sorted(scores, reverse=True)
     assert doc["ranking"][0]["params"]["b"] == pytest.approx(3700.0, rel=0.1)

@@ -1,0 +1,136 @@
+"""One self-contained HTML page: headings, paragraphs, tables, preformatted text and PNG figures.
+
+The page opens offline: its style is inline, every figure is embedded as a
+``data:image/png;base64`` URI, and it carries no script and no reference to
+the network.  Text is escaped (``html.escape``), so nothing in a report's data
+becomes markup.  The page is written with the project's atomic writer.
+
+Examples
+--------
+>>> page = Page("Diagnosis")
+>>> page.heading("Verdict")
+>>> page.paragraph("explained", id="verdict")
+>>> "<h2>Verdict</h2>" in page.html() and "<script" not in page.html()
+True
+"""
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+
+#: inline style (no external sheet, no font from the network)
+STYLE = ("body{font-family:sans-serif;max-width:70em;margin:1.5em auto;padding:0 1em;color:#222}"
+         "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;padding:.2em .5em;"
+         "text-align:left;vertical-align:top;font-size:90%}th{background:#eee}"
+         "pre{background:#f6f6f6;padding:.6em;overflow-x:auto;font-size:85%}img{max-width:100%}"
+         ".figure{font-size:110%;font-weight:bold}")
+
+
+class Page:
+    """An HTML page built section by section.
+
+    Parameters
+    ----------
+    title : str
+        The page's title (also its first heading).
+    """
+
+    def __init__(self, title: str):
+        self.title = title
+        self.parts: list[str] = [f"<h1>{html.escape(title)}</h1>"]
+
+    def heading(self, text: str) -> None:
+        """Add a section heading.
+
+        Parameters
+        ----------
+        text : str
+            The heading's words.
+        """
+        self.parts.append(f"<h2>{html.escape(text)}</h2>")
+
+    def paragraph(self, text: str, id: str | None = None, cls: str | None = None, data: dict | None = None) -> None:
+        """Add a paragraph of plain text.
+
+        Parameters
+        ----------
+        text : str
+            Its words (escaped).
+        id, cls : str, optional
+            The element's ``id`` and ``class`` attributes.
+        data : dict, optional
+            ``data-*`` attributes (name -> value), e.g. a number a test reads back.
+        """
+        attrs = "".join(f' {k}="{html.escape(str(v))}"' for k, v in (("id", id), ("class", cls)) if v)
+        attrs += "".join(f' data-{html.escape(k)}="{html.escape(str(v))}"' for k, v in (data or {}).items())
+        self.parts.append(f"<p{attrs}>{html.escape(text)}</p>")
+
+    def pre(self, text: str) -> None:
+        """Add preformatted text (console output, an equation).
+
+        Parameters
+        ----------
+        text : str
+            The text (escaped).
+        """
+        self.parts.append(f"<pre>{html.escape(text)}</pre>")
+
+    def table(self, header: list[str], rows: list[list]) -> None:
+        """Add a table.
+
+        Parameters
+        ----------
+        header : list of str
+            Column headings.
+        rows : list of list
+            Cells, shown with ``str`` (None as an empty cell).
+        """
+        def cell(v):
+            return "" if v is None else html.escape(str(v))
+
+        head = "".join(f"<th>{cell(h)}</th>" for h in header)
+        body = "".join("<tr>" + "".join(f"<td>{cell(v)}</td>" for v in r) + "</tr>" for r in rows)
+        self.parts.append(f"<table><tr>{head}</tr>{body}</table>")
+
+    def figure(self, png: Path, caption: str = "") -> None:
+        """Embed a PNG file as a base64 data URI (the page needs no file beside it).
+
+        Parameters
+        ----------
+        png : Path
+            The PNG file.
+        caption : str
+            Words under it (escaped); also the image's ``alt`` text.
+        """
+        data = base64.b64encode(Path(png).read_bytes()).decode("ascii")
+        alt = html.escape(caption or Path(png).stem)
+        self.parts.append(f'<figure><img alt="{alt}" src="data:image/png;base64,{data}">'
+                          f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+    def html(self) -> str:
+        """The whole page.
+
+        Returns
+        -------
+        str
+        """
+        return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+                f"<title>{html.escape(self.title)}</title><style>{STYLE}</style></head><body>\n"
+                + "\n".join(self.parts) + "\n</body></html>\n")
+
+    def write(self, path) -> Path:
+        """Write the page atomically (:func:`ehas_env.output.files.atomic_write_text`).
+
+        Parameters
+        ----------
+        path : str or Path
+            The ``.html`` file.
+
+        Returns
+        -------
+        Path
+        """
+        from ehas_env.output.files import atomic_write_text
+
+        return atomic_write_text(path, self.html())
