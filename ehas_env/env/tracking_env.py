@@ -151,7 +151,7 @@ from gymnasium import spaces
 from ehas_env.env import batch_kernel as bk
 from ehas_env.env import parts
 from ehas_env.physics import layout as K
-from ehas_env.simulation.compiled_model import current_model
+from ehas_env.simulation.compiled_model import fast_model_behind
 from ehas_env.simulation.control_laws import N_MEM, all_laws
 from ehas_env.simulation.plant import TAU_MAX
 
@@ -309,7 +309,6 @@ class TrackingEnv(gym.Env):
         self.observation_space = observation_space(self._st.n_obs)
         self.action_space = ACTION_SPACE
         hist = K.history_length(TAU_MAX, self._st.dt)
-        self._model = current_model()
         self._X = np.zeros(bk.x_length(hist))
         self._C = np.zeros(C0.size)
         self._W = np.zeros(bk.W_SHAPE)
@@ -317,6 +316,12 @@ class TrackingEnv(gym.Env):
         self._raw = np.zeros(bk.N_RAW)
         self._external = self._st.mode == bk.MODE_EXTERNAL
         self._C[:] = C0
+        # the fast-step build, or (its first time on this machine) the interpreted build while it compiles behind
+        arrays = (self._X, self._C, self._W)
+        self._builds = fast_model_behind({"single_reset": arrays + (self._obs, self._raw),
+                                          "single_step": arrays + (0.0, 0.0, self._obs, self._raw)},
+                                         "the environment's step", "inline, environment step")
+        self._model = self._builds.model
         self._model.single_reset(self._X, self._C, self._W, self._obs, self._raw)
         self._trace = None
         self._frame_every = max(1, int(round(1.0 / (self.metadata["render_fps"] * self._st.dt))))
@@ -350,6 +355,8 @@ class TrackingEnv(gym.Env):
         self._C[:] = C
         if self._external and callable(getattr(self.controller, "reset", None)):
             self.controller.reset()
+        if not self._builds.done or self._model is not self._builds.model:
+            self._model = self._builds.poll()
         self._model.single_reset(self._X, self._C, self._W, self._obs, self._raw)
         if self.render_mode is not None:
             self._trace = _Trace(int(round(2.0 / self._st.dt)) + 1)
@@ -393,6 +400,8 @@ class TrackingEnv(gym.Env):
         else:
             a = _action_value(action)
         u_ext = self._external_act() if self._external else 0.0
+        if not self._builds.done or self._model is not self._builds.model:
+            self._model = self._builds.poll()
         reward = self._model.single_step(self._X, self._C, self._W, a, u_ext, self._obs, self._raw)
         flags = int(self._X[bk.X_FLAGS])
         if self._trace is not None:
