@@ -446,6 +446,26 @@ class TrackingEnv(gym.Env):
         """The current episode's settings, length and metric window."""
         return copy.deepcopy(self._desc)
 
+    def wait_for_fast_step(self, timeout: float | None = None) -> bool:
+        """Wait until the step runs on the fast-step build (see :mod:`ehas_env.physics.compile_behind`).
+
+        The first time a set of effects and laws is used on a machine, the step runs on the interpreted
+        build (the same numbers, a slower step) while the fast one compiles in a background process; a
+        benchmark waits here before it times anything.
+
+        Parameters
+        ----------
+        timeout : float, optional
+            Seconds to wait at most (None: until it is).
+
+        Returns
+        -------
+        bool
+            True when the fast-step build is in use.
+        """
+        self._model = self._builds.wait(timeout)
+        return self._builds.done and self._model is self._builds.fast
+
     def episode_metrics(self) -> dict:
         """rms/peak % position error of the episode so far (see the module docstring).
 

@@ -420,6 +420,26 @@ class TrackingVectorEnv(VectorEnv):
             info[key] = val
             info["_" + key] = done.copy()
 
+    def wait_for_fast_step(self, timeout: float | None = None) -> bool:
+        """Wait until the step runs on the fast-step build (see :mod:`ehas_env.physics.compile_behind`).
+
+        The first time a set of effects and laws is used on a machine, the step runs on the interpreted
+        build (the same numbers, a slower step) while the fast one compiles in a background process; a
+        benchmark waits here before it times anything.
+
+        Parameters
+        ----------
+        timeout : float, optional
+            Seconds to wait at most (None: until it is).
+
+        Returns
+        -------
+        bool
+            True when the fast-step build is in use.
+        """
+        self._model = self._builds.wait(timeout)
+        return self._builds.done and self._model is self._builds.fast
+
     def episode_metrics(self, i: int) -> dict:
         """rms/peak % position error of environment ``i``'s episode so far.
 

@@ -541,7 +541,7 @@ def _load(name: str, text: str, fresh: list):
 
 #: measured CPU seconds to compile what a command first runs of each build (results/compile.md, compile_quiet.md)
 COMPILE_CPU_S = {"inline": 90.0, "quick": 16.0, "quick, library cached": 9.0,
-                 "inline, environment step": 32.0}
+                 "inline, environment step": 32.0, "inline, benchmark grid": 60.0}
 _WATCH = {"depth": 0, "start": 0.0, "name": "", "thread": None, "est": 0.0}
 HEARTBEAT_S = 10.0
 _FRESH: dict[str, tuple] = {}  # modules written by this process, not yet compiled: (build, their model's module)
@@ -555,7 +555,8 @@ def compile_estimate_s(build: str) -> float:
     build : {"inline", "quick", "quick, library cached", "inline, environment step"}
         The build (see :func:`build_model`); "quick, library cached": a new effect set whose library module
         numba already holds (only the effects' terms and the assembled model compile); "inline, environment
-        step": the inlined build's ``single_reset`` and ``single_step`` alone (what an environment compiles).
+        step": the inlined build's ``single_reset`` and ``single_step`` alone (what an environment compiles);
+        "inline, benchmark grid": its ``closed_loop_batch`` alone (what a benchmark grid compiles).
 
     Returns
     -------

@@ -1,4 +1,4 @@
-"""The fast-step build compiled behind the interpreted one: an environment's first step in seconds.
+"""The fast-step build compiled behind a quicker one: an environment's first step in seconds.
 
 The inlined build (:func:`ehas_env.physics.codegen.build_model`, ``inline=True``) steps fastest and takes
 the longest to compile (tens of seconds of CPU for a new set of effects).  :class:`FastBuildBehind` lets a
@@ -159,14 +159,16 @@ def _compile_all(module, calls: list) -> None:
 
 
 class FastBuildBehind:
-    """The interpreted build now, the inlined (fast-step) build as soon as a background process compiled it.
+    """A quicker build now, the inlined (fast-step) build as soon as a background process compiled it.
 
     Parameters
     ----------
     fast : module
         The inlined build (:func:`~ehas_env.physics.codegen.build_model` with ``inline=True``).
-    interpreted : module
-        The interpreted build of the same effects and laws (``interpreted=True``).
+    meanwhile : module
+        The build to run until then: the interpreted build of the same effects and laws (``interpreted=True``:
+        no compile, a slow step) or the quick build (``inline=False``: compiled in seconds, a step a few
+        times slower; what a benchmark grid runs meanwhile).
     calls : dict or list of (str, tuple)
         ``{entry point name: example arguments}`` or ``[(entry point name, example arguments), ...]`` (an
         entry point called with arguments of several types: one pair each): the functions the caller runs and
@@ -176,18 +178,21 @@ class FastBuildBehind:
         What runs on the build, for the messages ("the environment's step").
     estimate : str
         The key of :data:`~ehas_env.physics.codegen.COMPILE_CPU_S` whose figure the message's estimate scales.
+    meanwhile_name : str
+        How the messages call the ``meanwhile`` build.
 
     Attributes
     ----------
     model : module
-        The build to call now: ``fast`` when it is ready, else ``interpreted``; :meth:`poll` updates it.
+        The build to call now: ``fast`` when it is ready, else ``meanwhile``; :meth:`poll` updates it.
     """
 
-    def __init__(self, fast, interpreted, calls: dict, what: str = "the environment's step",
-                 estimate: str = "inline"):
+    def __init__(self, fast, meanwhile, calls, what: str = "the environment's step", estimate: str = "inline",
+                 meanwhile_name: str = "interpreted build (same numbers, slower step)"):
         self.fast = fast
+        self.meanwhile = meanwhile
+        self.meanwhile_name = meanwhile_name
         self.estimate = estimate
-        self.interpreted = interpreted
         self.what = what
         pairs = calls.items() if isinstance(calls, dict) else calls
         self._calls = [(e, tuple(_copy(a) for a in args)) for e, args in pairs]
@@ -202,7 +207,7 @@ class FastBuildBehind:
             self.model = fast  # numba loads it from its cache on the first call
             self.done = True
             return
-        self.model = interpreted
+        self.model = meanwhile
         self.done = False
         self._start()
 
@@ -211,7 +216,7 @@ class FastBuildBehind:
         lock = _beside(self._file, ".compiling")
         est = codegen.compile_estimate_s(self.estimate)
         if lock.exists() and _lock_alive(lock):
-            status(f"{self.what} runs on the interpreted build (same numbers, slower step) while another process "
+            status(f"{self.what} runs on the {self.meanwhile_name} while another process "
                    f"compiles its fast-step build (about {est:.0f} s at this machine's load); it switches when that "
                    "is done")
             return
@@ -238,7 +243,7 @@ class FastBuildBehind:
             self._give_up(f"could not start the background compile ({exc})")
             return
         os.close(fd)
-        status(f"{self.what} runs on the interpreted build (same numbers, slower step) while its fast-step build "
+        status(f"{self.what} runs on the {self.meanwhile_name} while its fast-step build "
                f"compiles in a background process (about {est:.0f} s at this machine's load; log {log}); it "
                "switches when that is done")
 
@@ -295,7 +300,7 @@ class FastBuildBehind:
         self.model = self.fast
         self.done = True
         status(f"{self.what} switched to the fast-step build ({time.monotonic() - self._t0:.0f} s after it started "
-               "on the interpreted one)")
+               f"on the {self.meanwhile_name.split(' (')[0]})")
         return self.model
 
     def wait(self, timeout: float | None = None):
@@ -334,8 +339,11 @@ def main(argv=None) -> int:
         0 when every entry point compiled, 1 otherwise.
     """
     import importlib.util
+    import signal
 
     module_file, args_file, lock_file = [Path(a) for a in (argv if argv is not None else sys.argv[1:])]
+    if argv is None:  # the background process: ended by its caller, it still removes its lock and arguments
+        signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
     try:
         with np.load(args_file, allow_pickle=False) as data:
             calls = _unpack_args(data)

@@ -51,7 +51,18 @@ def current_model(inline: bool = True, hypotheses: bool = False, interpreted: bo
 
 
 def forced_build() -> str:
-    """``$EHAS_BUILD``: "inline" or "quick" (one build for everything: benchmarks of the builds), or ""."""
+    """The build ``$EHAS_BUILD`` forces on everything (benchmarks of the builds).
+
+    Returns
+    -------
+    str
+        "inline", "quick" or "" (unset: each caller picks its build).
+
+    Raises
+    ------
+    ValueError
+        If ``EHAS_BUILD`` holds anything else.
+    """
     forced = os.environ.get("EHAS_BUILD", "")
     if forced not in ("", "inline", "quick"):
         raise ValueError(f"EHAS_BUILD must be 'inline' or 'quick' (or unset), got {forced!r}")
@@ -70,7 +81,7 @@ class _Ready:
     done = True
 
     def __init__(self, model):
-        self.model = model
+        self.model = self.fast = model
 
     def poll(self):
         return self.model
@@ -79,12 +90,12 @@ class _Ready:
         return self.model
 
 
-def fast_model_behind(calls: dict, what: str, estimate: str = "inline"):
-    """The fast-step build of :func:`current_model`, compiled behind the interpreted build on its first use.
+def fast_model_behind(calls, what: str, estimate: str = "inline", meanwhile: str = "interpreted"):
+    """The fast-step build of :func:`current_model`, compiled behind a quicker build on its first use.
 
     When the inlined build's entry points ``calls`` are already in numba's cache (or ``EHAS_BUILD`` forces a
     build, or ``EHAS_COMPILE_BEHIND=0``), that build is used at once; otherwise the caller starts on the
-    interpreted build (same numbers, no compile) while a background process compiles the inlined one
+    ``meanwhile`` build (same numbers) while a background process compiles the inlined one
     (:class:`ehas_env.physics.compile_behind.FastBuildBehind`).
 
     Parameters
@@ -95,6 +106,9 @@ def fast_model_behind(calls: dict, what: str, estimate: str = "inline"):
         What runs on it, for the messages.
     estimate : str
         Which measured compile time (``ehas_env.physics.codegen.COMPILE_CPU_S``) the message's estimate scales.
+    meanwhile : {"interpreted", "quick"}
+        The build run until the fast one is ready: the interpreted build (no compile; an environment's
+        step) or the quick build (compiled in seconds, a step a few times slower; a benchmark grid).
 
     Returns
     -------
@@ -106,6 +120,9 @@ def fast_model_behind(calls: dict, what: str, estimate: str = "inline"):
         return _Ready(fast)
     from ehas_env.physics.compile_behind import FastBuildBehind
 
+    if meanwhile == "quick":
+        return FastBuildBehind(fast, current_model(inline=False), calls, what, estimate,
+                               "quick-compile build (same numbers, compiled in seconds, a slower step)")
     return FastBuildBehind(fast, current_model(interpreted=True), calls, what, estimate)
 
 

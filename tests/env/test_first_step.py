@@ -220,3 +220,34 @@ def test_environment_starts_interpreted_from_an_empty_cache_switches_and_the_nex
     assert second["first"].startswith("ehas_model_") and "background" not in err2
     # the trajectory does not see the switch at step 100: the same numbers as the fast build all along
     np.testing.assert_array_equal(np.array(first["rows"]), np.array(second["rows"]))
+
+
+GRID = textwrap.dedent('''\
+    import json
+    import numpy as np
+    from ehas_controllers.batch_sim import Batch, grid
+    from ehas_env.simulation.compiled_model import current_model
+    from ehas_env.simulation.plant import RigController
+    batch = Batch(grid(disc_sets=(1, 3, 5, 7), freqs=(2.0, 3.0, 4.0)), cycles=3.0)
+    assert len(batch) >= 32, len(batch)
+    first = "quick" if batch.model is current_model(inline=False) else "fast"
+    gains = RigController.book().gains_vector()
+    m1 = batch.run(gains)
+    batch._builds.wait(timeout=1500)
+    m2 = batch.run(gains)
+    print(json.dumps({"first": first, "last": "fast" if batch.model is current_model() else "other",
+                      "m1": m1.tolist(), "m2": m2.tolist()}))
+    ''')
+
+
+@pytest.mark.slow  # a quick and a full fast-step compile of the grid's driver (about 70 s of CPU quiet)
+def test_a_benchmark_grid_runs_on_the_quick_build_while_the_fast_one_compiles_with_the_same_metrics(tmp_path):
+    env = {**os.environ, "EHAS_CACHE_DIR": str(tmp_path / "models")}
+    env.pop("EHAS_BUILD", None)
+    out = subprocess.run([sys.executable, "-c", GRID], capture_output=True, text=True, env=env, timeout=1800)
+    assert out.returncode == 0, out.stderr
+    import json
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    assert res["first"] == "quick" and res["last"] == "fast"
+    assert "quick-compile build" in out.stderr and "switched to the fast-step build" in out.stderr
+    np.testing.assert_array_equal(np.array(res["m1"]), np.array(res["m2"]))
