@@ -178,6 +178,12 @@ class Batch:
     def __len__(self) -> int:
         return len(self.conditions)
 
+    @property
+    def fast_step(self) -> bool:
+        """True when the grid runs on the fast-step build (False: the quick build -- a small batch's, or a large
+        one's while the fast-step build compiles in the background)."""
+        return self._builds is not None and self._builds.done and self.model is self._builds.fast
+
     def run(self, gains, *, i_max=None, dac_lsb=None, trace: bool = False, laws=None):
         """Metrics (len, 6) for gains (n,) shared or (len, n) per condition, n <= N_GAINS.
 

@@ -68,8 +68,8 @@ def _run(mode: str, cache: Path) -> dict:
     for line in out.stdout.splitlines():
         key, *vals = line.split()
         row[key] = vals
-    est = re.search(r"compiles in a background process \(about (\d+) s", out.stderr)
-    row["estimate"] = float(est.group(1)) if est else None
+    est = re.search(r"compiles in a background process \(about (\d+(?:-\d+)?) s", out.stderr)
+    row["estimate"] = est.group(1) if est else "?"
     return row
 
 
@@ -153,7 +153,7 @@ def main(argv=None) -> int:
         f"From an empty cache, stepping on: the environment switched to the fast-step build "
         f"{float(sw['switched'][0]):.1f} s after the process started, after {sw['switched'][1]} steps on the "
         f"interpreted build; the background compile took {bg_cpu:.1f} s of CPU; the message had estimated "
-        f"about {sw['estimate']:.0f} s at the load of that moment.",
+        f"about {sw['estimate']} s at the load of that moment.",
         "",
     ]
     atomic_write_text(out, "\n".join(lines))

@@ -158,6 +158,16 @@ def _compile_all(module, calls: list) -> None:
         getattr(module, entry).compile(tuple(typeof(a) for a in args))
 
 
+def _estimate(build: str) -> str:
+    """How long the background compile of ``build`` should take now, as a range: the quiet CPU figure
+    (:data:`~ehas_env.physics.codegen.COMPILE_CPU_S`) scaled by the square root of the run queue per core (the
+    project's compile estimate) up to the run queue per core itself (a process that gets its share of the cores
+    and no more: measured 347 s for 35.6 s of CPU at 10 runnable processes per core, results/first_step.md)."""
+    low = codegen.compile_estimate_s(build)
+    high = codegen.COMPILE_CPU_S[build] * codegen.load_scale() ** 2
+    return f"about {low:.0f} s" if high < 1.2 * low else f"about {low:.0f}-{high:.0f} s"
+
+
 class FastBuildBehind:
     """A quicker build now, the inlined (fast-step) build as soon as a background process compiled it.
 
@@ -214,10 +224,10 @@ class FastBuildBehind:
     # -- the background process -------------------------------------------
     def _start(self) -> None:
         lock = _beside(self._file, ".compiling")
-        est = codegen.compile_estimate_s(self.estimate)
+        est = _estimate(self.estimate)
         if lock.exists() and _lock_alive(lock):
             status(f"{self.what} runs on the {self.meanwhile_name} while another process "
-                   f"compiles its fast-step build (about {est:.0f} s at this machine's load); it switches when that "
+                   f"compiles its fast-step build ({est} at this machine's load); it switches when that "
                    "is done")
             return
         lock.unlink(missing_ok=True)
@@ -244,7 +254,7 @@ class FastBuildBehind:
             return
         os.close(fd)
         status(f"{self.what} runs on the {self.meanwhile_name} while its fast-step build "
-               f"compiles in a background process (about {est:.0f} s at this machine's load; log {log}); it "
+               f"compiles in a background process ({est} at this machine's load; log {log}); it "
                "switches when that is done")
 
     def _give_up(self, why: str) -> None:
@@ -317,12 +327,12 @@ class FastBuildBehind:
             The build in use afterwards.
         """
         end = None if timeout is None else time.monotonic() + timeout
-        while not self.done and (end is None or time.monotonic() < end):
+        while True:  # one look at least, even with timeout 0
             self._next = 0.0
             self.poll()
-            if not self.done:
-                time.sleep(0.05)
-        return self.model
+            if self.done or (end is not None and time.monotonic() >= end):
+                return self.model
+            time.sleep(0.05)
 
 
 def main(argv=None) -> int:
