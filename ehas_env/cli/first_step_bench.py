@@ -10,7 +10,8 @@ once:
 2. once more in an empty cache, stepping on until the environment switches to the fast-step build: the
    wall time to the switch, the background compile's own CPU time (its log) and the estimate the message
    printed;
-3. in that filled cache: the fast-step build from the first step on (``--runs`` processes).
+3. in that filled cache: the fast-step build from the first step on (``--runs`` processes);
+4. in one process, the steps per CPU-second of the fast-step and of the interpreted build.
 
 Wall time and CPU time (user + system of the timed process; the background compile is not in it) are
 reported with the load average, since the machine may be shared.
@@ -52,14 +53,38 @@ if proc is not None and proc.poll() is None:
 print(f"first_step {t1 - t0:.3f} {build}")
 """
 
+#: steps per CPU-second of the fast-step and the interpreted build, one process (a filled cache)
+SPEED = r"""
+import time
+import numpy as np
+from ehas_env.env.tracking_env import TrackingEnv
+from ehas_env.simulation.compiled_model import current_model
+for name, model in (("fast", current_model()), ("interpreted", current_model(interpreted=True))):
+    env = TrackingEnv()
+    env._builds.model = env._builds.fast = env._model = model
+    env._builds.done = True
+    env.reset(seed=0)
+    a = np.array([0.1], np.float32)
+    for _ in range(50):
+        env.step(a)
+    c0, n = time.process_time(), 0
+    while time.process_time() - c0 < 3.0:
+        for _ in range(100):
+            _, _, te, tr, _ = env.step(a)
+            if te or tr:
+                env.reset()
+        n += 100
+    print(f"speed_{name} {n / (time.process_time() - c0):.0f}")
+"""
 
-def _run(mode: str, cache: Path) -> dict:
+
+def _run(mode: str, cache: Path, script: str = SCRIPT) -> dict:
     env = {**os.environ, "EHAS_CACHE_DIR": str(cache)}
     env.pop("EHAS_BUILD", None)
     env.pop("EHAS_COMPILE_BEHIND", None)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", SCRIPT, mode], env=env, capture_output=True, text=True, timeout=3600)
+    out = subprocess.run([sys.executable, "-c", script, mode], env=env, capture_output=True, text=True, timeout=3600)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if out.returncode != 0:
@@ -126,6 +151,8 @@ def main(argv=None) -> int:
         for k in range(args.runs):
             status(f"first step in the filled cache, run {k + 1}/{args.runs} ...", "first_step_bench")
             warm.append(_run("first", cache))
+        status("steps per CPU-second of the two builds ...", "first_step_bench")
+        speed = _run("speed", cache, SPEED)
     load1 = _load()
     builds = {r["first_step"][1] for r in cold}
     warm_builds = {r["first_step"][1] for r in warm}
@@ -154,6 +181,10 @@ def main(argv=None) -> int:
         f"{float(sw['switched'][0]):.1f} s after the process started, after {sw['switched'][1]} steps on the "
         f"interpreted build; the background compile took {bg_cpu:.1f} s of CPU; the message had estimated "
         f"about {sw['estimate']} s at the load of that moment.",
+        "",
+        f"Steps per CPU-second of one environment (one process, the same 3 s of CPU each): fast-step build "
+        f"{float(speed['speed_fast'][0]):,.0f}, interpreted build {float(speed['speed_interpreted'][0]):,.0f} "
+        f"({float(speed['speed_fast'][0]) / float(speed['speed_interpreted'][0]):.0f} times fewer).",
         "",
     ]
     atomic_write_text(out, "\n".join(lines))

@@ -162,7 +162,7 @@ def _estimate(build: str) -> str:
     """How long the background compile of ``build`` should take now, as a range: the quiet CPU figure
     (:data:`~ehas_env.physics.codegen.COMPILE_CPU_S`) scaled by the square root of the run queue per core (the
     project's compile estimate) up to the run queue per core itself (a process that gets its share of the cores
-    and no more: measured 347 s for 35.6 s of CPU at 10 runnable processes per core, results/first_step.md)."""
+    and no more: measured 272 s for 36.2 s of CPU at 11 runnable processes per core, results/first_step.md)."""
     low = codegen.compile_estimate_s(build)
     high = codegen.COMPILE_CPU_S[build] * codegen.load_scale() ** 2
     return f"about {low:.0f} s" if high < 1.2 * low else f"about {low:.0f}-{high:.0f} s"
@@ -245,7 +245,8 @@ class FastBuildBehind:
             with open(log, "w") as out:
                 env = {**os.environ, "EHAS_QUIET_COMPILE": "1"}
                 self._proc = subprocess.Popen(
-                    [sys.executable, "-m", "ehas_env.physics.compile_behind", str(self._file), str(args), str(lock)], stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT, env=env)
+                    [sys.executable, "-m", "ehas_env.physics.compile_behind", str(self._file), str(args), str(lock)],
+                    stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT, env=env)
             os.write(fd, str(self._proc.pid).encode())
         except OSError as exc:
             os.close(fd)

@@ -79,7 +79,8 @@ def test_interpreted_build_steps_bit_for_bit_like_the_fast_build(case):
         assert info_a["termination"] == info_b["termination"] == "non_finite_state"
 
 
-@pytest.mark.parametrize("parallel", [False, True])
+# parallel=True compiles the prange kernel (about 2 min on 2 cores): slow, as in test_vector_env.py
+@pytest.mark.parametrize("parallel", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_interpreted_vector_env_steps_bit_for_bit_like_the_fast_build(parallel):
     from ehas_env.env.vector_env import TrackingVectorEnv
 
