@@ -43,6 +43,7 @@ from ehas_env.physics import codegen
 POLL_S = 0.25
 #: a ``.compiling`` file older than this is taken as left by a process that died (s)
 STALE_LOCK_S = 1800.0
+_OURS: set[int] = set()  # process ids of the background compiles this process started
 
 
 def ready_path(module_file: Path, entry: str) -> Path:
@@ -226,9 +227,13 @@ class FastBuildBehind:
         lock = _beside(self._file, ".compiling")
         est = _estimate(self.estimate)
         if lock.exists() and _lock_alive(lock):
-            status(f"{self.what} runs on the {self.meanwhile_name} while another process "
-                   f"compiles its fast-step build ({est} at this machine's load); it switches when that "
-                   "is done")
+            try:
+                ours = int(lock.read_text().strip() or "0") in _OURS
+            except (OSError, ValueError):
+                ours = False
+            who = "the background compile this process started" if ours else "another process"
+            status(f"{self.what} runs on the {self.meanwhile_name} while {who} compiles the fast-step build "
+                   f"({est} at this machine's load); it switches when that is done")
             return
         lock.unlink(missing_ok=True)
         try:
@@ -248,6 +253,7 @@ class FastBuildBehind:
                     [sys.executable, "-m", "ehas_env.physics.compile_behind", str(self._file), str(args), str(lock)],
                     stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT, env=env)
             os.write(fd, str(self._proc.pid).encode())
+            _OURS.add(self._proc.pid)
         except OSError as exc:
             os.close(fd)
             lock.unlink(missing_ok=True)

@@ -175,12 +175,13 @@ def test_a_failed_background_compile_falls_back_to_compiling_here(cache, capfd):
     assert not cb.is_ready(Path(fast.__file__), ["bump"])
 
 
-def test_a_second_caller_waits_for_the_running_compile_instead_of_starting_one(cache):
+def test_a_second_caller_waits_for_the_running_compile_instead_of_starting_one(cache, capfd):
     fast, interp = _tiny("5.0")
     calls = {"bump": (np.zeros(1), 1.0, 1, True)}
     first = cb.FastBuildBehind(fast, interp, calls, "first")
     second = cb.FastBuildBehind(fast, interp, calls, "second")
     assert first._proc is not None and second._proc is None and second.model is interp
+    assert "while the background compile this process started compiles" in capfd.readouterr().err
     assert second.wait(timeout=180) is fast  # it switches on the first one's markers
     first.wait(timeout=180)
 
