@@ -44,6 +44,7 @@ POLL_S = 0.25
 #: a ``.compiling`` file older than this is taken as left by a process that died (s)
 STALE_LOCK_S = 1800.0
 _OURS: set[int] = set()  # process ids of the background compiles this process started
+_TOLD: set[tuple] = set()  # (module file, process id) pairs a message already named: said once per process
 
 
 def ready_path(module_file: Path, entry: str) -> Path:
@@ -228,12 +229,14 @@ class FastBuildBehind:
         est = _estimate(self.estimate)
         if lock.exists() and _lock_alive(lock):
             try:
-                ours = int(lock.read_text().strip() or "0") in _OURS
+                pid = int(lock.read_text().strip() or "0")
             except (OSError, ValueError):
-                ours = False
-            who = "the background compile this process started" if ours else "another process"
-            status(f"{self.what} runs on the {self.meanwhile_name} while {who} compiles the fast-step build "
-                   f"({est} at this machine's load); it switches when that is done")
+                pid = 0
+            if pid in _OURS or (self._file, pid) in _TOLD:
+                return  # already said: environments made by the hundred (validation, evaluation) say it once
+            _TOLD.add((self._file, pid))
+            status(f"{self.what} runs on the {self.meanwhile_name} while another process compiles the fast-step "
+                   f"build ({est} at this machine's load); it switches when that is done")
             return
         lock.unlink(missing_ok=True)
         try:
@@ -316,6 +319,9 @@ class FastBuildBehind:
             return self.model
         self.model = self.fast
         self.done = True
+        if (self._file, "switched") in _TOLD:
+            return self.model
+        _TOLD.add((self._file, "switched"))
         status(f"{self.what} switched to the fast-step build ({time.monotonic() - self._t0:.0f} s after it started "
                f"on the {self.meanwhile_name.split(' (')[0]})")
         return self.model
