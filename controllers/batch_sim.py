@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.physics import layout as K
-from ehas_env.simulation.compiled_model import current_model, names_hypothesis
+from ehas_env.simulation.compiled_model import current_model, fast_model_behind, names_hypothesis
 from ehas_env.simulation.control_laws import N_GAINS, compiled_form
 from ehas_env.simulation.loops import METRICS, REF_SINE, REF_STEP
 from ehas_env.simulation.metrics import percent_errors
@@ -137,9 +137,10 @@ class Batch:
         # a benchmark grid is a hot loop: the inlined build (fast step, long compile); a handful of conditions (the
         # demo's 7 rig tests, a tuner's check) runs in milliseconds on either, so there the compile is the wait and
         # the plants' quick build serves.  Both builds share the plants' parameter layout and give the same numbers.
+        fast = len(self.conditions) >= FAST_STEP_MIN_CONDITIONS
         # a plant with a structural hypothesis (a model file's hyp_rod_area) runs on the model that holds them
-        self.model = current_model(inline=len(self.conditions) >= FAST_STEP_MIN_CONDITIONS,
-                                   hypotheses=any(names_hypothesis(p.effects) for p in self.plants))
+        hypotheses = any(names_hypothesis(p.effects) for p in self.plants)
+        self.model = current_model(inline=fast, hypotheses=hypotheses)
         if any(p.model.SLOTS != self.model.SLOTS for p in self.plants):
             raise ValueError("Batch: every plant must run on the same compiled model")
         self.hist_len = K.history_length(TAU_MAX, self.dt)
@@ -165,9 +166,25 @@ class Batch:
             rng = np.random.default_rng(p.seed)
             self.noise[j, : self.n_steps[j]] = p.sensors.theta_noise(int(self.n_steps[j]), rng)
         self.sensor = np.array([p.sensors.kernel_vector(p.rig.i_max) for p in self.plants])
+        # the grid's first time on this machine: the quick build (compiled in seconds) runs it while a background
+        # process compiles the inlined one; run() switches to it once it is loaded (the same numbers either way)
+        self._builds = None
+        if fast and not hypotheses:  # the background compile builds the model without the hypotheses
+            example = (self.S0, self.P, np.zeros(m, np.int64), np.zeros((m, N_GAINS)), self.R, self.kinds, self.dt,
+                       self.nsub, self.hist_len, self.noise, self.n_steps, self.sensor, self.win,
+                       np.zeros((m, N_METRICS)), np.zeros((m, 0, K.N_OUT)))
+            self._builds = fast_model_behind({"closed_loop_batch": example}, "the benchmark grid",
+                                             "inline, benchmark grid", meanwhile="quick")
+            self.model = self._builds.model
 
     def __len__(self) -> int:
         return len(self.conditions)
+
+    @property
+    def fast_step(self) -> bool:
+        """True when the grid runs on the fast-step build (False: the quick build -- a small batch's, or a large
+        one's while the fast-step build compiles in the background)."""
+        return self._builds is not None and self._builds.done and self.model is self._builds.fast
 
     def run(self, gains, *, i_max=None, dac_lsb=None, trace: bool = False, laws=None):
         """Metrics (len, 6) for gains (n,) shared or (len, n) per condition, n <= N_GAINS.
@@ -199,6 +216,8 @@ class Batch:
         metrics = np.zeros((m, N_METRICS))
         # without a trace each condition gets a (0, N_OUT) view: nothing is stored
         out = np.zeros((m, int(self.n_steps.max()) if trace else 0, K.N_OUT))
+        if self._builds is not None and (not self._builds.done or self.model is not self._builds.model):
+            self.model = self._builds.poll()
         self.model.closed_loop_batch(self.S0, self.P, law, Gp, self.R, self.kinds, self.dt, self.nsub, self.hist_len,
                                      self.noise, self.n_steps, sensor, self.win, metrics, out)
         from ehas_env.simulation.finite import check_metrics

@@ -175,7 +175,8 @@ def run(args) -> int:
                             robustness=not args.no_robustness, command=command, progress=not args.no_progress,
                             executor=executor)
     t = res["timing"]
-    print(f"63-condition grid for one controller: {t['best_s']:.2f} s (first run {t['first_s']:.2f} s; target < 10 s)")
+    print(f"63-condition grid for one controller: {t['best_s']:.2f} s on the {t.get('build', 'fast-step')} build "
+          f"(first run {t['first_s']:.2f} s; target < 10 s)")
     print(f"{'controller':<28} {'kind':<9} {'mean rms %':>10} {'worst rms %':>11} {'30/3/7 rms %':>12} {'stroke hits':>11} {'book beaten':>11}")
     for name, s in res["summary"].items():
         print(f"{name:<28} {s['kind']:<9} {s['mean_rms_error_pct']:>10.3f} {s['worst_rms_error_pct']:>11.3f} "

@@ -165,17 +165,24 @@ def time_grid(controller, *, cycles: float = DEFAULT_CYCLES, plant_kwargs: dict 
     """Wall time of the 63-condition grid for one controller (Batch set-up + run), s.
 
     ``first_s`` includes loading the compiled kernels in this process; ``best_s`` is
-    the best of ``repeats`` further runs.
+    the best of ``repeats`` further runs and ``build`` the build it ran on ("fast-step", or "quick" while the
+    fast-step build of a model new to this machine still compiles in the background).
     """
     t0 = time.perf_counter()
     evaluate_controller(controller, grid(), cycles=cycles, plant_kwargs=plant_kwargs)
     first = time.perf_counter() - t0
     times = []
+    fast = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        evaluate_controller(controller, grid(), cycles=cycles, plant_kwargs=plant_kwargs)
+        batch = Batch(grid(), cycles=cycles, plant_kwargs=plant_kwargs) if has_compiled_form(controller) else None
+        evaluate_controller(controller, grid(), cycles=cycles, plant_kwargs=plant_kwargs, batch=batch)
         times.append(time.perf_counter() - t0)
+        fast.append(batch is not None and batch.fast_step)
+    # the first time a model is used, its grids run on the quick build while the fast-step one compiles behind
+    build = "fast-step" if fast[int(np.argmin(times))] else "quick"
     return {"controller": getattr(controller, "name", "?"), "conditions": 63, "cycles": cycles, "first_s": first,
+            "build": build,
             "best_s": min(times), "mean_s": float(np.mean(times)), "target_s": GRID_TIME_TARGET_S,
             "simulated_s": float(sum(cycles / c.freq_hz for c in grid()))}
 
@@ -512,7 +519,10 @@ def _markdown(controllers, names, results, book, book_rows, robust, timing, summ
     L += ["", "## Timing", "",
           f"The 63-condition grid for one controller ({timing['controller']}), batched in one numba loop "
           f"({timing['simulated_s']:.0f} s of rig time at 1 kHz, 10 RK4 sub-steps): best of 3 **{timing['best_s']:.2f} s**, "
-          f"first run in the process {timing['first_s']:.2f} s (target < {GRID_TIME_TARGET_S:g} s). "
+          f"first run in the process {timing['first_s']:.2f} s (target < {GRID_TIME_TARGET_S:g} s; best run on the "
+          f"{timing.get('build', 'fast-step')} build"
+          + ("" if timing.get("build", "fast-step") == "fast-step" else
+             ": the fast-step build was still compiling in the background; rerun for its figure") + "). "
           "Also in `benchmark_timing.json`.", ""]
     for ctrl, name in zip(controllers, names):
         L += [f"## {name}", "", f"`{ctrl!r}`".replace("\n", "; "), "",

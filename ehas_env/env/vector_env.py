@@ -48,7 +48,7 @@ from gymnasium.vector.utils import batch_space
 from ehas_env.env import batch_kernel as bk
 from ehas_env.env import parts
 from ehas_env.physics import layout as K
-from ehas_env.simulation.compiled_model import current_model
+from ehas_env.simulation.compiled_model import current_model, fast_model_behind
 from ehas_env.simulation.plant import TAU_MAX
 from ehas_env.env.tracking_env import ACTION_SPACE, EpisodePacker, model_plant_kwargs, observation_space, step_settings
 
@@ -171,6 +171,17 @@ class TrackingVectorEnv(VectorEnv):
         self._all.flags.writeable = False
         self._raw_masks = {"_" + name: self._all for name in bk.RAW_NAMES}
         self._started = False
+        # the fast-step build, or (its first time on this machine) the interpreted build while it compiles behind;
+        # a read-only mask (self._all) and a writable one are two types for numba: both are compiled
+        rows = (self._X, self._C, self._W)
+        out = (self._obs, self._raw)
+        ends = (self._rew, np.zeros(n, bool), np.zeros(n, bool))
+        step = "batch_step_parallel" if self.parallel else "batch_step_serial"
+        calls = [(entry, args) for mask in (self._all, np.ones(n, bool))
+                 for entry, args in (("batch_reset", rows + (mask,) + out),
+                                     (step, rows + (np.zeros(n), mask) + out + ends))]
+        self._builds = fast_model_behind(calls, "the environments' step", "inline, environment step")
+        self._model = self._builds.model
 
     # -- gymnasium API ------------------------------------------------------
     def reset(self, *, seed=None, options: dict | None = None):
@@ -265,6 +276,8 @@ class TrackingVectorEnv(VectorEnv):
             active = self._all
         terminated = np.empty(self.num_envs, bool)
         truncated = np.empty(self.num_envs, bool)
+        if not self._builds.done or self._model is not self._builds.model:
+            self._model = self._builds.poll()
         self._n_done = self._model.batch_step(self._X, self._C, self._W, a, active, self._obs, self._raw, self._rew,
                                      terminated, truncated, parallel=self.parallel)
         info = self._raw_info()
@@ -301,6 +314,8 @@ class TrackingVectorEnv(VectorEnv):
             if self.max_episode_steps is not None:
                 C[bk.C_NSTEPS] = min(C[bk.C_NSTEPS], self.max_episode_steps)
             self._C[i] = C
+        if not self._builds.done or self._model is not self._builds.model:
+            self._model = self._builds.poll()
         self._model.batch_reset(self._X, self._C, self._W, mask, self._obs, self._raw)
 
     def _schedule_law(self, disc_sets: int):
@@ -343,6 +358,8 @@ class TrackingVectorEnv(VectorEnv):
             raise RuntimeError("step_rows() before reset()")
         terminated = np.empty(self.num_envs, bool)
         truncated = np.empty(self.num_envs, bool)
+        if not self._builds.done or self._model is not self._builds.model:
+            self._model = self._builds.poll()
         self._model.batch_step(self._X, self._C, self._W, a, np.asarray(active, bool), self._obs, self._raw,
                                self._rew, terminated, truncated, parallel=self.parallel)
         return self._obs.copy(), self._rew.copy(), terminated, truncated
@@ -402,6 +419,26 @@ class TrackingVectorEnv(VectorEnv):
                          ("episode_steps", steps)):
             info[key] = val
             info["_" + key] = done.copy()
+
+    def wait_for_fast_step(self, timeout: float | None = None) -> bool:
+        """Wait until the step runs on the fast-step build (see :mod:`ehas_env.physics.compile_behind`).
+
+        The first time a set of effects and laws is used on a machine, the step runs on the interpreted
+        build (the same numbers, a slower step) while the fast one compiles in a background process; a
+        benchmark waits here before it times anything.
+
+        Parameters
+        ----------
+        timeout : float, optional
+            Seconds to wait at most (None: until it is).
+
+        Returns
+        -------
+        bool
+            True when the fast-step build is in use.
+        """
+        self._model = self._builds.wait(timeout)
+        return self._builds.done and self._model is self._builds.fast
 
     def episode_metrics(self, i: int) -> dict:
         """rms/peak % position error of environment ``i``'s episode so far.

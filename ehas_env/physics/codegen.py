@@ -18,7 +18,11 @@ caches them beside them.  Two builds of the same text:
   changes), one per effect's terms, one for the controller laws, and the model
   (assembled right-hand side and drivers) importing them -- each compiled once
   and called.  A new user effect compiles its own terms and the model module;
-  the library and every other effect load from numba's cache.
+  the library and every other effect load from numba's cache;
+* ``interpreted`` (an environment's first steps while the inlined build compiles in a background process, see
+  :mod:`ehas_env.physics.compile_behind`): the inlined build's very text run as plain Python, ``njit`` replaced by
+  a stand-in that returns the function -- nothing to compile, the same numbers bit for bit, about a hundred times
+  slower a step (2,455 against 246,862 environment steps per CPU-second, results/first_step.md).
 
 In both, a changed effect file, a new user effect or a new controller law gives
 a new text, hence a new file and a fresh compile -- a stale cache can never run;
@@ -392,9 +396,57 @@ class ModelSource:
 
 
 _BUILD_LOCK = threading.RLock()
+#: the numba import of every generated module's header, and what the interpreted build has in its place
+NUMBA_IMPORT = "from numba import njit, prange\n"
+INTERPRETED_STANDINS = '''
+# ---- the interpreted build: numba's njit and prange, and math as numba runs it ----------------------------------
+import math as _math
 
 
-def build_model(effects=None, laws=(), inline: bool = True):
+def njit(*args, **options):
+    """Stand-in for numba.njit: the function itself, run by Python (a function called from outside, not inlined,
+    runs with numpy's floating-point warnings off: numba's compiled code has none)."""
+    def make(fn):
+        if options.get("inline") == "always":
+            return fn
+
+        def entry(*a):
+            with np.errstate(all="ignore"):
+                return fn(*a)
+        entry.__name__, entry.__doc__, entry.__wrapped__ = fn.__name__, fn.__doc__, fn
+        return entry
+    return make(args[0]) if args and callable(args[0]) else make
+
+
+prange = range
+
+
+class _IEEEMath:
+    """``math`` as numba's compiled code runs it: a domain error or an overflow gives nan or inf (numpy's
+    function of the same name), not Python's exception."""
+
+    def __init__(self):
+        for name in dir(_math):
+            if not name.startswith("_"):
+                f, g = getattr(_math, name), getattr(np, name, None)
+                setattr(self, name, self._ieee(f, g) if callable(f) and callable(g) else f)
+
+    @staticmethod
+    def _ieee(f, g):
+        def call(*args):
+            try:
+                return f(*args)
+            except (ValueError, OverflowError):
+                with np.errstate(all="ignore"):
+                    return float(g(*args))
+        return call
+
+
+math = _IEEEMath()
+'''
+
+
+def build_model(effects=None, laws=(), inline: bool = True, interpreted: bool = False):
     """The compiled model module of ``effects`` and the controller ``laws``.
 
     Writes the generated file on first use (atomically) and imports it; later
@@ -409,6 +461,9 @@ def build_model(effects=None, laws=(), inline: bool = True):
         :func:`ehas_env.simulation.control_laws.all_laws`, gives them).
     inline : bool
         Inline every model function into the drivers (fastest step, longest compile) or compile each once.
+    interpreted : bool
+        The inlined build's text run as plain Python (``inline`` is then ignored): no compile, the same
+        numbers, a slow step (an environment's first steps while its fast build compiles behind it).
 
     Returns
     -------
@@ -416,10 +471,10 @@ def build_model(effects=None, laws=(), inline: bool = True):
         The generated model module.
     """
     with _BUILD_LOCK:  # a second thread must not take a module the first is still writing or importing
-        return _build_model(effects, laws, inline)
+        return _build_model(effects, laws, "interpreted" if interpreted else ("inline" if inline else "quick"))
 
 
-def _build_model(effects, laws, inline: bool):
+def _build_model(effects, laws, build: str):
     from ehas_env.physics.effects import REGISTRY
     from ehas_env.physics.numba_start import answer_blas_probe
 
@@ -427,13 +482,19 @@ def _build_model(effects, laws, inline: bool):
     effects = list(REGISTRY.values()) if effects is None else list(effects)
     laws = list(laws)
     # the same classes and laws give the same text: skip regenerating it (every Plant asks for its model)
-    key = (tuple(effects), tuple(laws), bool(inline))
+    key = (tuple(effects), tuple(laws), build)
     if key in _BY_PARTS:
         return _BY_PARTS[key]
     spec = ModelSource(effects, laws)
-    if inline:
+    if build == "inline":
         text = spec.source()
         mods = [(f"ehas_model_{_digest(text)}", text)]
+    elif build == "interpreted":
+        text, head = spec.source(), _header("one compiled model")
+        if not text.startswith(head) or NUMBA_IMPORT not in head:
+            raise RuntimeError("the generated model does not start with the header whose numba import it replaces")
+        text = head.replace(NUMBA_IMPORT, "") + INTERPRETED_STANDINS + text[len(head):]
+        mods = [(f"ehas_py_{_digest(text)}", text)]
     else:
         mods = spec.modules()
     name = mods[-1][0]
@@ -443,9 +504,10 @@ def _build_model(effects, laws, inline: bool):
     fresh = []
     for dep, text in mods:  # the library, effects and laws first: the model imports them by name
         module = _load(dep, text, fresh)
-    if fresh and os.environ.get("EHAS_QUIET_COMPILE") != "1":
+    if fresh and build != "interpreted" and os.environ.get("EHAS_QUIET_COMPILE") != "1":
         # announced when numba starts compiling them (numba compiles lazily)
-        build = "inline" if inline else ("quick" if fresh[0].startswith("ehas_lib_") else "quick, library cached")
+        if build == "quick":
+            build = "quick" if fresh[0].startswith("ehas_lib_") else "quick, library cached"
         _watch_compiles(fresh, build)
     module.SPEC = spec
     _MODELS[name] = module
@@ -477,8 +539,10 @@ def _load(name: str, text: str, fresh: list):
     return module
 
 
-#: measured CPU seconds to compile what a command first runs of each build (results/compile.md, compile_quiet.md)
-COMPILE_CPU_S = {"inline": 90.0, "quick": 16.0, "quick, library cached": 9.0}
+#: measured CPU seconds to compile what a command first runs of each build (results/compile.md, compile_quiet.md;
+#: the environment's step alone: results/first_step.md; a benchmark grid's driver alone: the "inline" figure)
+COMPILE_CPU_S = {"inline": 90.0, "quick": 16.0, "quick, library cached": 9.0,
+                 "inline, environment step": 36.0, "inline, benchmark grid": 90.0}
 _WATCH = {"depth": 0, "start": 0.0, "name": "", "thread": None, "est": 0.0}
 HEARTBEAT_S = 10.0
 _FRESH: dict[str, tuple] = {}  # modules written by this process, not yet compiled: (build, their model's module)
@@ -489,9 +553,11 @@ def compile_estimate_s(build: str) -> float:
 
     Parameters
     ----------
-    build : {"inline", "quick", "quick, library cached"}
+    build : {"inline", "quick", "quick, library cached", "inline, environment step"}
         The build (see :func:`build_model`); "quick, library cached": a new effect set whose library module
-        numba already holds (only the effects' terms and the assembled model compile).
+        numba already holds (only the effects' terms and the assembled model compile); "inline, environment
+        step": the inlined build's ``single_reset`` and ``single_step`` alone (what an environment compiles);
+        "inline, benchmark grid": its ``closed_loop_batch`` alone (what a benchmark grid compiles).
 
     Returns
     -------

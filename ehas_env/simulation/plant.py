@@ -326,7 +326,9 @@ class Plant:
     def _true_position(self, reading: float) -> float:
         """The piston position at which the sensor reads ``reading`` (m): the sensor chain inverted by a secant
         iteration (the identity without sensor effects)."""
-        read = self._model.position_reading
+        # at most 32 calls: run in Python (numba's py_func), not compiled -- an environment's construction then
+        # compiles nothing of the quick build (the sensor effects' own terms, if on, compile when called)
+        read = getattr(self._model.position_reading, "py_func", self._model.position_reading)
         P = self._P
         x0, x1 = reading, reading - (read(reading, P) - reading)
         f0, f1 = read(x0, P) - reading, read(x1, P) - reading
