@@ -23,6 +23,8 @@ import io
 import json
 from pathlib import Path
 
+import math
+
 import numpy as np
 
 from ehas_env.simulation.long_test import DEFAULT_CYCLES, STEADY_CYCLES, long_test_metrics
@@ -114,13 +116,19 @@ def evaluate_long(controller, conditions, *, cycles: int = DEFAULT_CYCLES, plant
     return rows
 
 
-def spread_variants() -> list[tuple[str, dict]]:
+def spread_variants(model=None) -> list[tuple[str, dict]]:
     """The plants a learning controller designed on the book's model must stay convergent on.
 
     +-30 % on the bulk modulus (``bulk_modulus`` beta, 1 GPa), on the valve's flow gain
     (``valve_dynamics`` K, 1.2723 LPM/mA) and on seal friction (``coulomb_friction`` Fc and
     ``viscous_friction`` b, each around the middle of its ``typical`` range - the book's plant has
-    none, so +-30 % of a typical rig's).
+    none, so +-30 % of a typical rig's); with a calibrated ``model``, also the ends of its 95 % intervals
+    (:func:`interval_variants`).
+
+    Parameters
+    ----------
+    model : ehas_env.simulation.model_file.PlantModel, optional
+        The calibrated model the runs are on (``--model``).
 
     Returns
     -------
@@ -139,6 +147,45 @@ def spread_variants() -> list[tuple[str, dict]]:
         out.append((f"K x{f:g}", {"valve_dynamics": {"K": 1.2723 * f}}))
         out.append((f"friction x{f:g}", {"coulomb_friction": {"Fc": mid("coulomb_friction", "Fc") * f},
                                          "viscous_friction": {"b": mid("viscous_friction", "b") * f}}))
+    return out + interval_variants(model)
+
+
+def interval_variants(model) -> list[tuple[str, dict]]:
+    """Plants at the ends of a calibrated model's 95 % intervals, one fitted number at a time.
+
+    A model file written by ``ehas compare --fit --save-model`` records each fitted number's interval in
+    ``calibration.ci95`` (rows ``{effect, param, value, low, high, unit}``; ``effect`` "baseline" for the
+    bulk modulus beta and the valve gain K).  Each end becomes one plant: the model with that number moved
+    there (beta and K through the effects that set them, ``bulk_modulus`` and ``valve_dynamics`` with the
+    model's own wn and zeta).  A side the data do not bound (null) gives no plant.
+
+    Parameters
+    ----------
+    model : ehas_env.simulation.model_file.PlantModel or None
+        The calibrated model the learning runs on (``--model``); None or a model without intervals gives none.
+
+    Returns
+    -------
+    list of (str, dict)
+        ``(label, effects)`` per plant, the effects given on top of the model's (same name: these win).
+    """
+    rows = ((getattr(model, "calibration", None) or {}).get("ci95") or []) if model is not None else []
+    out = []
+    for r in rows:
+        effect, param = r.get("effect"), r.get("param")
+        for side in ("low", "high"):
+            v = r.get(side)
+            if v is None or not math.isfinite(float(v)):
+                continue
+            if effect == "baseline" and param == "beta":
+                eff = {"bulk_modulus": {"beta": float(v)}}
+            elif effect == "baseline" and param == "K":
+                eff = {"valve_dynamics": {"K": float(v), "wn": model.rig.wn, "zeta": model.rig.zeta}}
+            elif effect in model.effects:
+                eff = {effect: {**model.effects[effect], param: float(v)}}
+            else:
+                continue
+            out.append((f"{param} at its 95 % {side} end ({float(v):.4g} {r.get('unit', '')})".replace(" )", ")"), eff))
     return out
 
 
@@ -196,7 +243,7 @@ def run_robustness(controllers, names, *, cycles: int, plant_kwargs: dict | None
     """
     conds = grid(ROBUST_DISC_SETS, FREQS, ROBUST_AMPLITUDES)
     out = []
-    for label, effects in spread_variants():
+    for label, effects in spread_variants((plant_kwargs or {}).get("model")):
         kw = _merge_effects(plant_kwargs, effects)
         for ctrl, name in zip(controllers, names):
             rows = evaluate_long(ctrl, conds, cycles=cycles, plant_kwargs=kw, progress=progress,

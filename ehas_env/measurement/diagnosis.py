@@ -448,7 +448,7 @@ def lowers_validation(before: float, after: float, strict: bool = False) -> bool
 
     Examples
     --------
-    >>> lowers_validation(2.0, 1.95), lowers_validation(2.0, 1.9)
+    >>> lowers_validation(2.0, 1.97), lowers_validation(2.0, 1.95)   # 2 % of 2.0 is 0.04
     (False, True)
     """
     limit = before * (1.0 - VAL_GAIN)

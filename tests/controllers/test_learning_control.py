@@ -324,3 +324,29 @@ def test_learned_controllers_long_test_path_matches_the_plant():
     assert row["cycles"] == 7
     assert row["steady_rms_pct"] == pytest.approx(ref["steady_rms_pct"], rel=0.01)
     assert row["settle_cycles"] == ref["settle_cycles"]
+
+
+def test_robustness_spread_includes_the_calibrated_models_intervals(tmp_path):
+    """The ends of a calibrated model's 95 % intervals (calibration.ci95) are plants of the robustness spread,
+    one number moved at a time, beside the +-30 % plants; an unbounded side gives no plant."""
+    from ehas_controllers.long_test import interval_variants, spread_variants
+    from ehas_env.cli.main import main
+    from ehas_env.simulation.model_file import load_model
+
+    path = tmp_path / "cal.json"
+    assert main(["model", "new", str(path), "--effects", "coulomb_friction:Fc=420"]) == 0
+    doc = json.loads(path.read_text())
+    doc["calibration"] = {"ci95": [
+        {"effect": "baseline", "param": "beta", "value": 1.02e9, "low": 0.99e9, "high": 1.05e9, "unit": "Pa"},
+        {"effect": "baseline", "param": "K", "value": 1.26, "low": 1.25, "high": 1.27, "unit": "LPM/mA"},
+        {"effect": "coulomb_friction", "param": "Fc", "value": 420.0, "low": 380.0, "high": None, "unit": "N"}]}
+    path.write_text(json.dumps(doc))
+    model = load_model(path)
+    plants = interval_variants(model)
+    assert [eff for _, eff in plants] == [
+        {"bulk_modulus": {"beta": 0.99e9}}, {"bulk_modulus": {"beta": 1.05e9}},
+        {"valve_dynamics": {"K": 1.25, "wn": model.rig.wn, "zeta": model.rig.zeta}},
+        {"valve_dynamics": {"K": 1.27, "wn": model.rig.wn, "zeta": model.rig.zeta}},
+        {"coulomb_friction": {"Fc": 380.0}}]
+    assert len(spread_variants(model)) == len(spread_variants()) + 5
+    assert interval_variants(None) == [] and len(spread_variants(None)) == 6
