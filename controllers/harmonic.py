@@ -22,16 +22,15 @@ that fails it is refused with one line.
 """
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
-from .base import Controller, check_measurement, register_type
-from .learning import CycleTable, base_from_dict, base_to_dict, check_number, process_sensitivity, sub_object
+from .base import check_measurement, register_type
+from .learning import (CycleLearner, CycleTable, base_from_dict, base_to_dict, check_number, process_sensitivity,
+                       sub_object)
 
 
 @register_type("harmonic")
-class HarmonicCanceller(Controller):
+class HarmonicCanceller(CycleLearner):
     """Adaptive harmonic cancellation / amplitude-phase control (module docstring).
 
     Parameters
@@ -52,48 +51,13 @@ class HarmonicCanceller(Controller):
         Label in tables and files.
     """
 
-    kind = "classical"
-
     def __init__(self, base, *, harmonics: int = 10, gain: float = 0.5, adapt: float = 0.3, start_cycle: int = 1,
                  design_model: str | None = None, name: str = "harmonic"):
-        from .piff import GainSchedule, PIFF
-
         who = "harmonic"
-        if not isinstance(base, (PIFF, GainSchedule)):
-            raise ValueError(f"{who}: base must be a PIFF or GainSchedule (a fixed-gain loop), got {type(base).__name__}")
-        self.base = base
         self.harmonics = int(check_number(harmonics, "harmonics", 1, 50, who, integer=True))
         self.gain = check_number(gain, "gain", 0.0, 10.0, who, lo_open=True)
         self.adapt = check_number(adapt, "adapt", 0.0, 1.0, who)
-        self.start_cycle = int(check_number(start_cycle, "start_cycle", 0, 100, who, integer=True))
-        if design_model is not None and not (isinstance(design_model, str) and design_model.strip()):
-            raise ValueError(f"{who}: 'design_model' must be a model file's path or null, got {design_model!r}")
-        self.design_model = design_model
-        if not isinstance(name, str) or not name.strip():
-            raise ValueError(f"{who}: 'name' must be a non-empty text, got {name!r}")
-        self.name = name
-        self.disc_sets: int | None = None
-        self._loop = base if isinstance(base, PIFF) else None
-        self.reset()
-
-    def for_plant(self, disc_sets: int) -> "HarmonicCanceller":
-        """A fresh copy for a plant with ``disc_sets`` disc sets (the base loop's entry).
-
-        Parameters
-        ----------
-        disc_sets : int
-            Number of disc sets, 1..7.
-
-        Returns
-        -------
-        HarmonicCanceller
-            The copy.
-        """
-        new = copy.copy(self)
-        new._loop = copy.deepcopy(self.base.for_plant(disc_sets))
-        new.disc_sets = int(disc_sets)
-        new.reset()
-        return new
+        self._layer(base, start_cycle, design_model, name, who)
 
     def design(self, amplitude_deg: float, freq_hz: float) -> np.ndarray:
         """The model's P_h (deg/mA) at harmonics 1..k, after the convergence check.

@@ -35,19 +35,17 @@ Examples
 """
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
-from .base import Controller, check_measurement, register_type
-from .learning import (CycleTable, base_from_dict, base_to_dict, check_number, process_sensitivity, q_filter,
-                       sub_object)
+from .base import check_measurement, register_type
+from .learning import (CycleLearner, CycleTable, base_from_dict, base_to_dict, check_number, process_sensitivity,
+                       q_filter, sub_object)
 
 FILTERS = ("inverse", "lead")
 
 
 @register_type("ilc")
-class ILC(Controller):
+class ILC(CycleLearner):
     """Iterative learning control on a fixed-gain loop (module docstring).
 
     Parameters
@@ -74,55 +72,20 @@ class ILC(Controller):
         Label in tables and files.
     """
 
-    kind = "classical"
-
     def __init__(self, base, *, gain: float = 0.8, learning: str = "inverse", lead_ms: float = 0.0,
                  q_cutoff_hz: float = 40.0, q_order: int = 2, start_cycle: int = 1,
                  design_model: str | None = None, name: str = "ILC"):
-        from .piff import GainSchedule, PIFF
-
         who = "ilc"
-        if not isinstance(base, (PIFF, GainSchedule)):
-            raise ValueError(f"{who}: base must be a PIFF or GainSchedule (a fixed-gain loop), got {type(base).__name__}")
         if learning not in FILTERS:
             raise ValueError(f"{who}: 'learning.filter' must be one of {', '.join(FILTERS)}, got {learning!r}")
-        self.base = base
         self.learning = learning
         self.gain = check_number(gain, "learning.gain", 0.0, 100.0, who, lo_open=True)
         self.lead_ms = check_number(lead_ms, "learning.lead_ms", 0.0, 100.0, who)
         self.q_cutoff_hz = check_number(q_cutoff_hz, "q_filter.cutoff_hz", 0.0, 500.0, who, lo_open=True)
         self.q_order = int(check_number(q_order, "q_filter.order", 1, 8, who, integer=True))
-        self.start_cycle = int(check_number(start_cycle, "start_cycle", 0, 100, who, integer=True))
-        if design_model is not None and not (isinstance(design_model, str) and design_model.strip()):
-            raise ValueError(f"{who}: 'design_model' must be a model file's path or null, got {design_model!r}")
-        self.design_model = design_model
-        if not isinstance(name, str) or not name.strip():
-            raise ValueError(f"{who}: 'name' must be a non-empty text, got {name!r}")
-        self.name = name
-        self.disc_sets: int | None = None
-        self._loop = base if isinstance(base, PIFF) else None
-        self.reset()
+        self._layer(base, start_cycle, design_model, name, who)
 
-    # -- plant and design -----------------------------------------------------------
-    def for_plant(self, disc_sets: int) -> "ILC":
-        """A copy for a plant with ``disc_sets`` disc sets (the base loop's entry; the design plant).
-
-        Parameters
-        ----------
-        disc_sets : int
-            Number of disc sets of the plant, 1..7.
-
-        Returns
-        -------
-        ILC
-            A fresh copy whose base loop is ``base.for_plant(disc_sets)``.
-        """
-        new = copy.copy(self)
-        new._loop = copy.deepcopy(self.base.for_plant(disc_sets))
-        new.disc_sets = int(disc_sets)
-        new.reset()
-        return new
-
+    # -- design ---------------------------------------------------------------------
     def design(self, amplitude_deg: float, freq_hz: float, rate_hz: float = 1000.0) -> dict:
         """L and Q on the cycle's harmonics, and the monotonic-convergence check on the design model.
 

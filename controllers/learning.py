@@ -14,6 +14,8 @@ error of the cycle before.  Three pieces are common to them and live here, once:
   current ``du`` changes the error ``e = theta_ref - theta`` by ``-P du``;
 * :class:`CycleTable` - the period cut into ``N = round(rate / f)`` phase bins:
   the bin of a sample, the error of the last whole cycle per bin;
+* :class:`CycleLearner` - the layer itself: its fixed-gain base loop, the cycle it starts learning
+  from, its design model, its name, and a fresh copy per plant (:meth:`CycleLearner.for_plant`);
 * :func:`q_filter` - the robustness filter, zero phase: a Butterworth low-pass
   run forwards and backwards over the periodic signal (``filtfilt``), i.e. its
   magnitude squared ``1 / (1 + (f / f_c)^(2 n))`` on each harmonic of the cycle.
@@ -23,10 +25,13 @@ the rig (docs/model-file.md), read as data.
 """
 from __future__ import annotations
 
+import copy
 import math
 from functools import lru_cache
 
 import numpy as np
+
+from .base import Controller
 
 
 def check_number(value, name: str, lo: float, hi: float, who: str, *, lo_open: bool = False,
@@ -284,3 +289,50 @@ class CycleTable:
         self._sum[:] = 0.0
         self._count[:] = 0.0
         return e
+
+
+class CycleLearner(Controller):
+    """What a controller that learns the cycle holds besides its law: a fixed-gain base loop, the cycle it
+    starts learning from, its design model and its name; and a fresh copy per plant.
+
+    Subclasses call :meth:`_layer` from their ``__init__`` (it checks and sets these, then ``reset()``).
+    """
+
+    kind = "classical"
+
+    def _layer(self, base, start_cycle, design_model, name, who: str) -> None:
+        """Check and set the layer's common parameters (one-line errors naming ``who`` and the field)."""
+        from .piff import GainSchedule, PIFF
+
+        if not isinstance(base, (PIFF, GainSchedule)):
+            raise ValueError(f"{who}: base must be a PIFF or GainSchedule (a fixed-gain loop), got {type(base).__name__}")
+        self.base = base
+        self.start_cycle = int(check_number(start_cycle, "start_cycle", 0, 100, who, integer=True))
+        if design_model is not None and not (isinstance(design_model, str) and design_model.strip()):
+            raise ValueError(f"{who}: 'design_model' must be a model file's path or null, got {design_model!r}")
+        self.design_model = design_model
+        if not isinstance(name, str) or not name.strip():
+            raise ValueError(f"{who}: 'name' must be a non-empty text, got {name!r}")
+        self.name = name
+        self.disc_sets: int | None = None
+        self._loop = base if isinstance(base, PIFF) else None
+        self.reset()
+
+    def for_plant(self, disc_sets: int) -> "CycleLearner":
+        """A fresh copy for a plant with ``disc_sets`` disc sets (the base loop's entry; the design plant).
+
+        Parameters
+        ----------
+        disc_sets : int
+            Number of disc sets of the plant, 1..7.
+
+        Returns
+        -------
+        CycleLearner
+            A fresh copy (same type) whose base loop is ``base.for_plant(disc_sets)``.
+        """
+        new = copy.copy(self)
+        new._loop = copy.deepcopy(self.base.for_plant(disc_sets))
+        new.disc_sets = int(disc_sets)
+        new.reset()
+        return new

@@ -98,6 +98,15 @@ def _run(mode: str, cache: Path, script: str = SCRIPT) -> dict:
     return row
 
 
+def _busy(*loads: str) -> str:
+    """A note when a load average was above the core count (other processes shared the machine)."""
+    try:
+        high = max(float(x) for x in loads) > (os.cpu_count() or 1)
+    except ValueError:  # "unknown"
+        return ""
+    return " (above the core count: other processes shared the machine)" if high else ""
+
+
 def _load() -> str:
     try:
         return f"{os.getloadavg()[0]:.1f}"
@@ -163,7 +172,7 @@ def main(argv=None) -> int:
         f"{' --overwrite' if args.overwrite else ''}`.",
         "",
         f"Measured {time.strftime('%Y-%m-%dT%H:%M:%S%z')} on {os.cpu_count()} cores; 1-min load average {load0} "
-        f"before, {load1} after (above the core count, other processes shared the machine). Each row: new "
+        f"before, {load1} after{_busy(load0, load1)}. Each row: new "
         "`python` processes that import ehas, make `gymnasium.make(\"ehas/Tracking-v0\")`, reset and step it once; "
         "wall and CPU (user + system) of the whole process, median of the runs (min-max in brackets). The first "
         "step's build: `py` the interpreted build, `model` the fast-step (inlined, compiled) build.",
