@@ -55,6 +55,7 @@ import numpy as np
 
 from ehas_env.ranges import FIELDS
 from ehas_env.output.files import atomic_write_text
+from ehas_env.output.outputs import RECORD as OUTPUT_RECORD
 from ehas_env.physics.rig import (AREA, BAR, CRANK_RADIUS, LPM, MAX_SETS, MIN_SETS, RATED_CURRENT, RATED_VALVE_DROP,
                                   THETA_STROKE_END, VALVE_K)
 from ehas_env.measurement import formats
@@ -356,6 +357,8 @@ def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
             continue
         if suffix in companions and p.stem in data:
             continue  # a TDMS index beside its file
+        if p.name == OUTPUT_RECORD:
+            continue  # the record ehas keeps of the files it wrote into the folder (simulate-campaign)
         ignored.append(p.name)
         if suffix == ".json":
             warnings.append(f"skipped {p.name}: no {p.stem}.csv beside it, nor a {p.stem} data file of another format "
