@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import check_measurement, register_type
+from .base import register_type
 from .learning import (CycleLearner, CycleTable, base_from_dict, base_to_dict, check_number, process_sensitivity,
                        sub_object)
 
@@ -93,44 +93,16 @@ class HarmonicCanceller(CycleLearner):
             self._loop.reset()
         self._table = None
 
-    def act(self, measurement: dict) -> float:
-        """Current command, mA: the base loop's plus the harmonic currents at this phase.
+    def _feedforward(self, t: float) -> float:
+        x = (t * self._table.freq_hz) % 1.0
+        return float(np.real(np.dot(self._U, np.exp(2j * np.pi * self._h * x))))
 
-        Parameters
-        ----------
-        measurement : dict of str to float
-            :data:`~ehas_controllers.base.MEASUREMENT_KEYS` (s, deg, deg/s^k, bar) plus the
-            reference's ``amplitude_deg`` (deg) and ``freq_hz`` (Hz).
-
-        Returns
-        -------
-        float
-            The current in mA, clipped to the base loop's +-``i_max``.
-        """
-        m = measurement
-        if self._table is None:
-            self._start(m)
-        done = self._table.add(m["t"], m["theta_ref_deg"] - m["theta_deg"])
-        if done is not None and done[0] >= self.start_cycle:
-            self._learn(done[1])
-        x = (m["t"] * self._table.freq_hz) % 1.0
-        u = self._loop.act(m) + float(np.real(np.dot(self._U, np.exp(2j * np.pi * self._h * x))))
-        lim = self._loop.i_max
-        return min(max(u, -lim), lim)
-
-    def _start(self, m: dict) -> None:
-        if self._loop is None or self.disc_sets is None:
-            raise ValueError(f"harmonic '{self.name}': which plant? call for_plant(disc_sets) before running it")
-        check_measurement(m, "HarmonicCanceller")
-        if "freq_hz" not in m or "amplitude_deg" not in m:
-            raise ValueError("HarmonicCanceller.act: measurement has no 'freq_hz'/'amplitude_deg'; it needs the "
-                             "reference's period (Plant.simulate_closed_loop passes them)")
-        self._table = CycleTable(float(m["freq_hz"]), self._loop.rate_hz)
+    def _begin(self, amplitude_deg: float, freq_hz: float) -> None:
         self._h = np.arange(1, self.harmonics + 1)
         if self.harmonics > self._table.n // 2 - 1:
-            raise ValueError(f"harmonic '{self.name}': {self.harmonics} harmonics of {m['freq_hz']:g} Hz pass the "
+            raise ValueError(f"harmonic '{self.name}': {self.harmonics} harmonics of {freq_hz:g} Hz pass the "
                              f"control rate's Nyquist frequency; use at most {self._table.n // 2 - 1}")
-        self.P = self.design(float(m["amplitude_deg"]), float(m["freq_hz"]))
+        self.P = self.design(amplitude_deg, freq_hz)
         self._U = np.zeros(self.harmonics, dtype=complex)
         self._dU = None
         self._E = None

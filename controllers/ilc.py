@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import check_measurement, register_type
+from .base import register_type
 from .learning import (CycleLearner, CycleTable, base_from_dict, base_to_dict, check_number, process_sensitivity,
                        q_filter, sub_object)
 
@@ -143,41 +143,12 @@ class ILC(CycleLearner):
         self._checked = False
         self.cycle_log: list[float] = []  # rms of the table's update per learned cycle, mA
 
-    def act(self, measurement: dict) -> float:
-        """Current command, mA: the base loop's, plus the learned table's value at this phase.
-
-        Parameters
-        ----------
-        measurement : dict of str to float
-            :data:`~ehas_controllers.base.MEASUREMENT_KEYS` (s, deg, deg/s^k, bar) plus the
-            reference's ``amplitude_deg`` (deg) and ``freq_hz`` (Hz).
-
-        Returns
-        -------
-        float
-            The current in mA, clipped to the base loop's +-``i_max``.
-        """
-        m = measurement
-        if self._table is None:
-            self._start(m)
-        e = m["theta_ref_deg"] - m["theta_deg"]
-        done = self._table.add(m["t"], e)
-        if done is not None and done[0] >= self.start_cycle:
-            self._learn(done[1])
-        u = self._loop.act(m) + self._table.value(self._u)
-        lim = self._loop.i_max
-        return min(max(u, -lim), lim)
-
-    def _start(self, m: dict) -> None:
-        if self._loop is None or self.disc_sets is None:
-            raise ValueError(f"ilc '{self.name}': which plant? call for_plant(disc_sets) before running it")
-        check_measurement(m, "ILC")
-        if "freq_hz" not in m or "amplitude_deg" not in m:
-            raise ValueError("ILC.act: measurement has no 'freq_hz'/'amplitude_deg'; a learning controller needs the "
-                             "reference's period (Plant.simulate_closed_loop passes them)")
-        self._plan = self.design(float(m["amplitude_deg"]), float(m["freq_hz"]), self._loop.rate_hz)
-        self._table = CycleTable(float(m["freq_hz"]), self._loop.rate_hz)
+    def _begin(self, amplitude_deg: float, freq_hz: float) -> None:
+        self._plan = self.design(amplitude_deg, freq_hz, self._loop.rate_hz)
         self._u = np.zeros(self._table.n)
+
+    def _feedforward(self, t: float) -> float:
+        return self._table.value(self._u)
 
     def _learn(self, e: np.ndarray) -> None:
         n = self._table.n

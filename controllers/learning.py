@@ -302,6 +302,7 @@ class CycleLearner(Controller):
 
     def _layer(self, base, start_cycle, design_model, name, who: str) -> None:
         """Check and set the layer's common parameters (one-line errors naming ``who`` and the field)."""
+        self._who = who
         from .piff import GainSchedule, PIFF
 
         if not isinstance(base, (PIFF, GainSchedule)):
@@ -336,3 +337,59 @@ class CycleLearner(Controller):
         new.disc_sets = int(disc_sets)
         new.reset()
         return new
+
+    def act(self, measurement: dict) -> float:
+        """Current command, mA: the base loop's, plus the learned feed-forward at this phase of the cycle.
+
+        The cycle's error is recorded sample by sample; at the end of each cycle from ``start_cycle`` on,
+        the subclass learns from it (``_learn``).
+
+        Parameters
+        ----------
+        measurement : dict of str to float
+            :data:`~ehas_controllers.base.MEASUREMENT_KEYS` (s, deg, deg/s^k, bar) plus the
+            reference's ``amplitude_deg`` (deg) and ``freq_hz`` (Hz).
+
+        Returns
+        -------
+        float
+            The current in mA, clipped to the base loop's +-``i_max``.
+        """
+        m = measurement
+        if self._table is None:
+            self._start(m)
+        done = self._table.add(m["t"], m["theta_ref_deg"] - m["theta_deg"])
+        if done is not None and done[0] >= self.start_cycle:
+            self._learn(done[1])
+        u = self._loop.act(m) + self._feedforward(m["t"])
+        lim = self._loop.i_max
+        return min(max(u, -lim), lim)
+
+    def _start(self, m: dict) -> None:
+        """The first sample of a run: check the plant and the measurement, then the subclass's ``_begin``."""
+        from .base import check_measurement
+
+        if self._loop is None or self.disc_sets is None:
+            raise ValueError(f"{self._who} '{self.name}': which plant? call for_plant(disc_sets) before running it")
+        check_measurement(m, type(self).__name__)
+        if "freq_hz" not in m or "amplitude_deg" not in m:
+            raise ValueError(f"{type(self).__name__}.act: measurement has no 'freq_hz'/'amplitude_deg'; a learning "
+                             "controller needs the reference's period (Plant.simulate_closed_loop passes them)")
+        self._table = CycleTable(float(m["freq_hz"]), self._loop.rate_hz)
+        try:
+            self._begin(float(m["amplitude_deg"]), float(m["freq_hz"]))
+        except BaseException:
+            self._table = None  # a refused design leaves the controller as it was: the next run starts again
+            raise
+
+    def _begin(self, amplitude_deg: float, freq_hz: float) -> None:
+        """Design for this reference and clear what is learned (``self._table`` is set)."""
+        raise NotImplementedError
+
+    def _learn(self, e: np.ndarray) -> None:
+        """Learn from the last whole cycle's error ``e`` (deg, one value per phase bin)."""
+        raise NotImplementedError
+
+    def _feedforward(self, t: float) -> float:
+        """The learned current at time ``t``, mA."""
+        raise NotImplementedError
