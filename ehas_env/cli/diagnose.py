@@ -126,7 +126,8 @@ def run_trend(args, camps: list) -> int:
 
 def run_one(args) -> int:
     from ehas_env.measurement.campaign import parse_column_map, read_campaign
-    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, diagnose_open, resolve_candidates
+    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, resolve_candidates
+    from ehas_env.measurement.open_diagnosis import diagnose_open
     from ehas_env.physics.effects import get_effect, parse_spec
     from ehas_env.measurement.replay import format_fit_tables
     from ehas_env.measurement.residuals import follows_text, where_it_fails
@@ -344,7 +345,7 @@ def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dic
     Parameters
     ----------
     res : OpenDiagnosis
-        The result of :func:`ehas_env.measurement.diagnosis.diagnose_open`.
+        The result of :func:`ehas_env.measurement.open_diagnosis.diagnose_open`.
     campaign_path : str or Path
         The campaign diagnosed.
     elapsed_s : float
@@ -499,7 +500,7 @@ def demo_section(outdir: Path) -> str:
     from ehas_env.measurement.campaign import read_campaign
     from ehas_env.measurement.synthetic import write_simulated_campaign
     from ehas_env.cli.compare import write_report
-    from ehas_env.measurement.diagnosis import diagnose_open
+    from ehas_env.measurement.open_diagnosis import diagnose_open
     from ehas_env.output.files import atomic_write_text
     from ehas_env.simulation.model_file import save_model
 

@@ -248,7 +248,7 @@ def _cpu() -> float:
 def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0: int = SEED + 100) -> list[dict]:
     """Diagnose a campaign per out-of-library effect and magnitude; one record each."""
     from ehas_env.measurement.campaign import read_campaign
-    from ehas_env.measurement.diagnosis import diagnose_open
+    from ehas_env.measurement.open_diagnosis import diagnose_open
 
     names = list(names or OOL_CASES)
     work = Path(workdir or tempfile.mkdtemp(prefix="ehas_ool_"))
@@ -304,7 +304,7 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
 
 def run_pairs(pairs=None, seed0: int = SEED + 800) -> list[dict]:
     """Two library effects hidden together: which effects the stacked diagnosis keeps, with their values."""
-    from ehas_env.measurement.diagnosis import diagnose_open
+    from ehas_env.measurement.open_diagnosis import diagnose_open
     from ehas_env.physics.effects import get_effect
 
     out = []
@@ -327,7 +327,7 @@ def run_pairs(pairs=None, seed0: int = SEED + 800) -> list[dict]:
 
 def run_clean(seeds=range(20), position_only: bool = False, duration: float = 3.0) -> list[dict]:
     """Clean campaigns (no hidden effect): the verdict per seed."""
-    from ehas_env.measurement.diagnosis import diagnose_open
+    from ehas_env.measurement.open_diagnosis import diagnose_open
 
     out = []
     for s in seeds:
@@ -343,7 +343,7 @@ def run_clean(seeds=range(20), position_only: bool = False, duration: float = 3.
 def run_ci(cases=None, seed0: int = SEED + 900) -> list[dict]:
     """Single-effect campaigns: each fitted parameter of the hidden effect, its interval, and whether it holds
     the truth."""
-    from ehas_env.measurement.diagnosis import diagnose_open
+    from ehas_env.measurement.open_diagnosis import diagnose_open
 
     out = []
     for j, (n, vals) in enumerate(cases or CI_CASES):
@@ -380,7 +380,7 @@ RECAL_NAMES = {"beta": "bulk_modulus", "K": "valve_dynamics"}
 def run_recal(cases=None, seeds=(0, 1), seed0: int = SEED + 1100) -> list[dict]:
     """beta / K beyond what the recalibration ranges absorb: is the effect that re-opens the number named, with
     its value, and nothing else? Full campaigns and position-only logs, each case with ``seeds``."""
-    from ehas_env.measurement.diagnosis import diagnose_open
+    from ehas_env.measurement.open_diagnosis import diagnose_open
     from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
 
     nominal = {"beta": BULK_MODULUS, "K": VALVE_K}
@@ -410,7 +410,7 @@ def run_time(duration_long: float = 30.0, repeats: int = 3) -> dict:
 
     Each diagnosis runs ``repeats`` times, interleaved; the figures are the medians (``*_all``: every
     run), so that another job's burst on the shared machine does not decide a ratio."""
-    from ehas_env.measurement.diagnosis import diagnose_open
+    from ehas_env.measurement.open_diagnosis import diagnose_open
 
     def timed(camp, **kw):
         t0, c0 = time.perf_counter(), _cpu()

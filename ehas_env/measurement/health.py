@@ -1,6 +1,6 @@
 """A health trend over campaigns recorded weeks apart: parameters per campaign, and which changed (issue 33).
 
-``ehas diagnose CAMP1 CAMP2 ...`` diagnoses each campaign on its own (:func:`ehas_env.measurement.diagnosis.
+``ehas diagnose CAMP1 CAMP2 ...`` diagnoses each campaign on its own (:func:`ehas_env.measurement.open_diagnosis.
 diagnose_open`), then sets the final models' fitted parameters side by side, each with its 95 % interval, and
 tests each parameter found in at least two campaigns with the chi-square test of one common value
 (:func:`ehas_env.measurement.drift.differ`, the per-run test's, with its model-error floor): a parameter changed

@@ -21,7 +21,7 @@ import pytest
 
 from ehas_env.measurement import acceptance as A
 from ehas_env.measurement.acceptance import OOL_CASES, SEED, memory_campaign
-from ehas_env.measurement.diagnosis import diagnose_open
+from ehas_env.measurement.open_diagnosis import diagnose_open
 
 #: the default run's campaigns: three closed-loop runs of 2 s (the valve chirp and a fourth sine only in the slow
 #: sweeps)

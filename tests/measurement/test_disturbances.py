@@ -80,7 +80,7 @@ def test_a_supply_ripple_is_reported_as_a_measured_disturbance():
 @pytest.mark.slow  # a diagnosis: 20-40 s on two cores
 def test_the_diagnosis_reports_the_ripple():
     """The same campaign diagnosed (viscous friction the only candidate): the JSON's disturbances say it."""
-    from ehas_env.measurement.diagnosis import diagnose_open
+    from ehas_env.measurement.open_diagnosis import diagnose_open
 
     res = diagnose_open(_rippled_campaign(), candidates=["viscous_friction"], stack=False, hypotheses=False,
                         holdout=[], per_run=False, propose=False)

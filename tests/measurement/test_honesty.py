@@ -13,6 +13,8 @@ from __future__ import annotations
 import pytest
 
 from ehas_env.measurement import diagnosis as D
+from ehas_env.measurement import diagnosis_search as S
+from ehas_env.measurement import open_diagnosis as O
 from ehas_env.measurement import honesty as H
 from ehas_env.measurement.acceptance import SEED, memory_campaign
 
@@ -55,12 +57,12 @@ class _NoGain:
 
 
 def _diagnose(camp, **kw):
-    return D.diagnose_open(camp, candidates=["viscous_friction"], stack=False, hypotheses=False, holdout=[],
+    return O.diagnose_open(camp, candidates=["viscous_friction"], stack=False, hypotheses=False, holdout=[],
                            per_run=False, **kw)
 
 
 def test_a_term_that_removes_nothing_is_not_proposed(friction_campaign, monkeypatch):
-    monkeypatch.setattr(D.P, "propose", _NoGain())
+    monkeypatch.setattr(O.P, "propose", _NoGain())
     res = _diagnose(friction_campaign)
     assert res.verdict == "unexplained"
     assert res.proposal is None  # not written (--write-effect) nor recommended (next:)
@@ -77,7 +79,7 @@ def test_a_term_that_removes_the_residual_is_proposed(friction_campaign, monkeyp
     """The rule refuses only what removes too little: the true model as the 'term' passes."""
     from ehas_env.measurement.replay import ModelSpec
 
-    monkeypatch.setattr(D.P, "propose", _NoGain(ModelSpec(effects={"coulomb_friction": {"Fc": 700.0}})))
+    monkeypatch.setattr(O.P, "propose", _NoGain(ModelSpec(effects={"coulomb_friction": {"Fc": 700.0}})))
     res = _diagnose(friction_campaign)
     assert res.proposal is not None
     v = res.proposal.validation
@@ -109,14 +111,14 @@ def test_hypotheses_that_make_the_all_data_residual_worse_are_not_kept(friction_
     lib.kept, lib.reason = False, "stands in for hyp_rod_area"  # dropped after the hypothesis was kept
     hyp = D.Step("hyp_rod_area", True, "kept", now_fit, now_fit.cost, None, None)
     steps = [lib, hyp]
-    out = D.keep_no_worse(full, (bare_fit, bare_sims, None, {"coulomb_friction": {}}, flags),
+    out = S.keep_no_worse(full, (bare_fit, bare_sims, None, {"coulomb_friction": {}}, flags),
                           (now_fit, now_sims, None, {}), steps, lambda m: None)
     assert out[0] is bare_fit
     assert not hyp.kept and "worse" in hyp.reason
     assert lib.kept and lib.reason == "sane"
     # and the other way: a hypothesis that lowers the residual stays
     hyp2 = D.Step("hyp_rod_area", True, "kept", bare_fit, bare_fit.cost, None, None)
-    out = D.keep_no_worse(full, (now_fit, now_sims, None, {}, []), (bare_fit, bare_sims, None, {}), [hyp2],
+    out = S.keep_no_worse(full, (now_fit, now_sims, None, {}, []), (bare_fit, bare_sims, None, {}), [hyp2],
                           lambda m: None)
     assert out[0] is bare_fit and hyp2.kept
 

@@ -1,0 +1,524 @@
+"""The open-world diagnosis: a sequence of named stages, each a small function on one :class:`Search`.
+
+::
+
+    campaign ─► data ─► library ─► hypotheses ─► measure ─► per_run ─► verdict ─► proposal ─► alternatives
+                 │         │            │            │          │          │           │              │
+              holdout,   rounds of   structural   final model  each run's grade,     a term at a    what the logs
+              windows,   library     hypotheses   on all runs, parameters, unexpla-  place, fitted  cannot tell
+              replayers  effects,    (rivals,     follows,     drift      ined text  and named      apart
+                         stacked     pairs, swap, disturban-
+                                     honesty 2)   ces, ci95
+
+Each stage reads and writes the fields of :class:`~ehas_env.measurement.diagnosis_search.Search` its docstring
+names and returns a record (a dict in the JSON's own terms) that :meth:`OpenDiagnosis.to_json` lists under
+``stages`` with its time.  Adding a search is adding a function to :data:`STAGES` (docs/diagnosis-pipeline.md).
+The rules that judge one candidate live in :mod:`ehas_env.measurement.diagnosis`; the search stages in
+:mod:`ehas_env.measurement.diagnosis_search`; the honesty rules in :mod:`ehas_env.measurement.honesty`.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from ehas_env.measurement import proposal as P
+from ehas_env.measurement.campaign import Campaign
+from ehas_env.measurement.diagnosis import (
+    FIT_WINDOW_S, Diagnosis, _held_table, _parts_cost, _round, confidence, fit_candidate, fit_null, windowed)
+from ehas_env.measurement.diagnosis_search import Search, data_stage, hypotheses_stage, library_stage
+from ehas_env.measurement.disturbances import disturbances as disturbances_of
+from ehas_env.measurement.drift import per_run_stage
+from ehas_env.measurement.fitting import Fit, _unit, _value_of
+from ehas_env.measurement.honesty import at_bounds, term_refused
+from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
+from ehas_env.measurement.residuals import follows as follows_of
+from ehas_env.measurement.verdict import blocks_of, grade
+from ehas_env.physics.effects import get_effect
+
+
+@dataclass
+class OpenDiagnosis:
+    """Result of :func:`diagnose_open`: library ranking, stacked model, verdict, what is left, the proposal."""
+
+    first: Diagnosis  # the first round's ranking (on the fit data)
+    rounds: list  # Diagnosis of every round
+    steps: list  # Step of every candidate judged
+    model: ModelSpec  # the final library model
+    fit_train: Fit  # the final model on the fit data (windows of the fitted runs)
+    sims_all: list  # the final model on all runs, full length
+    baseline_all: list  # the baseline on all runs, full length
+    full: Replayer
+    train: Replayer
+    holdout: list
+    cost_all: float
+    run_costs: dict
+    unexplained: dict | None
+    follows: dict
+    ci: dict
+    proposal: object = None
+    alternatives: list = field(default_factory=list)  # other explanations, compared (ehas_env.measurement.alternatives)
+    validation: dict = field(default_factory=dict)
+    per_run: dict | None = None  # parameters fitted on each run alone (ehas_env.measurement.drift)
+    drift: list = field(default_factory=list)  # parameters that differ between runs, related to the sidecars
+    disturbances: list = field(default_factory=list)  # residual lines at no harmonic of the test frequency
+    grade: dict = field(default_factory=dict)
+    stages: list = field(default_factory=list)  # one record per stage run (STAGES): stage, elapsed_s, what it found
+    elapsed_s: float = 0.0
+    n_evals: int = 0
+
+    @property
+    def verdict(self) -> str:
+        """``explained``, ``small structured residual`` or ``unexplained`` (:func:`ehas_env.measurement.verdict.grade`)."""
+        return self.grade["verdict"]
+
+    @property
+    def unexplained_threshold(self) -> float:
+        return self.grade["thresholds"]["unexplained"]
+
+    @property
+    def residual_x_noise(self) -> float:
+        """The residual against what does not repeat (:mod:`ehas_env.measurement.verdict`)."""
+        return self.grade["residual_x_noise"]
+
+    @property
+    def hypothesis(self) -> str | None:
+        """The structural hypothesis in the final model, if one was kept."""
+        return next((n for n in self.model.effects if get_effect(n).kind == "hypothesis"), None)
+
+    def hypothesis_json(self) -> dict | None:
+        """The kept hypothesis: effect, values, 95 % intervals, in words (None when none was kept)."""
+        h = self.hypothesis
+        if h is None:
+            return None
+        cls = get_effect(h)
+        vals = self.model.effects[h]
+        return {"effect": h, "title": cls.title, "words": cls.in_words(vals),
+                "params": {k: _round(v) for k, v in vals.items()},
+                "units": {p.name: p.unit for p in cls.params},
+                "ci95": {n: [_round(lo), _round(hi)] for (e, n), (lo, hi) in self.ci.items() if e == h},
+                "residual_x_noise_before": self.validation.get("residual_x_noise_before_hypotheses"),
+                "residual_x_noise_after": self.residual_x_noise}
+
+    @property
+    def kept(self) -> list[str]:
+        return [s.effect for s in self.steps if s.kept]
+
+    def to_json(self) -> dict:
+        doc = self.first.to_json()
+        doc["verdict"] = self.verdict
+        doc["residual_x_noise"] = self.residual_x_noise
+        doc["residual_x_sensor_noise"] = round(self.cost_all, 3)
+        doc["grade"] = self.grade
+        # beta and K are fitted relative to the book's rig (replay.Replayer.absolute): report the rig's own numbers
+        rig = self.full.absolute(self.model)
+        scale = {"beta": rig.beta / self.model.beta if self.model.beta else 1.0,
+                 "K": rig.K / self.model.K if self.model.K else 1.0}
+
+        def rig_scale(e, n):
+            return 1.0 if e else scale.get(n, 1.0)
+
+        doc["model"] = {"effects": {n: {k: _round(v) for k, v in p.items()} for n, p in self.model.effects.items()},
+                        "beta": _round(rig.beta), "K": _round(rig.K),
+                        "ci95": [{"effect": e or "baseline", "param": n, "value": _round(rig_scale(e, n) * _value_of(self.model, fp)),
+                                  "low": _round(rig_scale(e, n) * lo), "high": _round(rig_scale(e, n) * hi), "unit": _unit(e, n)}
+                                 for fp in self.fit_train.free for (e, n), (lo, hi) in self.ci.items()
+                                 if (fp.effect, fp.name) == (e, n)],
+                        "at_bound": at_bounds(self.fit_train, self.model.effects)}  # honesty rule 3
+        doc["stack"] = [{"effect": s.effect, "kept": s.kept, "reason": s.reason,
+                         "params": {k: _round(v) for k, v in (s.fit.model.effects.get(s.effect, {}) if s.fit else {}).items()},
+                         "residual_x_noise_fit": round(s.cost_train, 3),
+                         "residual_x_noise_validation": None if s.cost_val is None else round(s.cost_val, 3),
+                         "fit_percent_validation": None if s.fit_val is None else round(s.fit_val, 2)}
+                        for s in self.steps]
+        doc["validation"] = self.validation
+        doc["hypothesis"] = self.hypothesis_json()
+        doc["follows"] = self.follows
+        doc["unexplained"] = self.unexplained
+        # what these logs cannot tell apart from the model reported, and what they rule out (issue 34)
+        doc["reported_model"] = {"effects": {n: {k: float(v) for k, v in p.items()} for n, p in self.model.effects.items()},
+                                 "beta": float(self.model.beta), "K": float(self.model.K),
+                                 "rig_model": None if self.full.model is None else self.full.model.label}
+        doc["alternatives"] = [a.to_json() for a in self.alternatives if a.within]
+        doc["ruled_out"] = [a.to_json() for a in self.alternatives if not a.within]
+        doc["per_run"] = self.per_run
+        doc["drift"] = self.drift
+        doc["disturbances"] = self.disturbances
+        doc["stages"] = self.stages
+        return doc
+
+
+
+
+
+def measure_stage(s: Search) -> dict:
+    """Stage 4, the final model measured on every run: its simulation, the residual per run, what the residual
+    follows, the disturbances (lines at no harmonic of the test), the 95 % intervals; builds ``s.result``.
+
+    Parameters
+    ----------
+    s : Search
+        Reads the model kept; sets ``result``.
+
+    Returns
+    -------
+    dict
+        ``effects`` (the final model's), ``residual_x_noise``.
+    """
+    full, final = s.full, s.current
+    sims_all = s.cur_sims
+    baseline_all = full.simulate(ModelSpec(effects=s.options.get("base_effects") or {}))
+    run_costs = {}
+    for i, case in enumerate(full.cases):
+        c = _parts_cost(full, sims_all, {i: 0})
+        if c is not None:
+            run_costs[case.run.name] = c
+    validation = {"holdout": s.held, "fit_window_s": s.window_s,
+                  "residual_x_noise_before_hypotheses": s.before_floor,
+                  "hypotheses_tried_because": s.hyp_because,
+                  "fit_runs": [r.name for r in s.train_runs],
+                  "residual_x_noise_validation": None if s.cur_val is None else round(s.cur_val, 3)}
+    tb, tf = _held_table(full, baseline_all, s.held_idx), _held_table(full, sims_all, s.held_idx)
+    if tb is not None:
+        validation["holdout_fit_percent_baseline"] = round(tb.overall, 2)
+        validation["holdout_fit_percent_model"] = round(tf.overall, 2)
+    s.result = OpenDiagnosis(first=s.rounds[0], rounds=s.rounds, steps=s.steps, model=final.model, fit_train=final,
+                             sims_all=sims_all, baseline_all=baseline_all, full=full, train=s.rep, holdout=s.held,
+                             cost_all=full.log_cost(sims_all), run_costs=run_costs, unexplained=None,
+                             follows=follows_of(full, sims_all), ci=confidence(s.rep, final) if final.free else {},
+                             validation=validation, grade=grade(blocks_of(full, sims_all, COST_SIGNALS)),
+                             disturbances=disturbances_of(full, sims_all))
+    return {"effects": list(final.model.effects), "residual_x_noise": s.result.residual_x_noise}
+
+
+def per_run_parameters_stage(s: Search) -> dict:
+    """Stage 5, parameters per run: the final model's parameters (and the best effects judged but not kept) fitted
+    on each closed-loop run alone, and those that differ between runs, related to the sidecars
+    (:func:`ehas_env.measurement.drift.per_run_stage`).
+
+    Parameters
+    ----------
+    s : Search
+        Sets ``result.per_run`` and ``result.drift`` (skipped when ``options["per_run"]`` is False).
+
+    Returns
+    -------
+    dict
+        ``drift``: the parameters that differ, in words.
+    """
+    if not s.options.get("per_run", True):
+        return {"skipped": True, "drift": []}
+    cl = [r for r in s.campaign.runs if r.kind == "closed_loop"]
+    d = per_run_stage(s.rep, cl, windowed(Campaign(s.campaign.path, cl), s.window_s).runs, s.current,
+                      not_kept(s.steps, s.current), say=s.say)
+    s.result.per_run, s.result.drift = d["per_run"], d["drift"]
+    return {"drift": [x["text"] for x in d["drift"]]}
+
+
+def verdict_stage(s: Search) -> dict:
+    """Stage 6, the verdict: explained, small structured residual or unexplained; when not explained, where the
+    residual is, what it follows, the worst run (``unexplained``).
+
+    Parameters
+    ----------
+    s : Search
+        Sets ``result.unexplained`` (its text is completed after the proposal).
+
+    Returns
+    -------
+    dict
+        ``verdict``, ``residual_x_noise``.
+    """
+    res = s.result
+    if res.verdict != "explained":
+        fol = res.follows
+        where = sorted(((k, v["x_noise"]) for k, v in fol["signals"].items()), key=lambda kv: kv[1], reverse=True)
+        worst_run = max(res.run_costs.items(), key=lambda kv: kv[1]) if res.run_costs else ("", 0.0)
+        g = res.grade
+        res.unexplained = {"residual_x_noise": g["residual_x_noise"], "structured_db": g["structured_db"],
+                           "threshold": g["thresholds"]["unexplained"], "worst": g["worst"],
+                           "worst_run": {"run": worst_run[0], "residual_x_sensor_noise": round(worst_run[1], 3)},
+                           "where": [{"signal": k, "rms_x_noise": v} for k, v in where],
+                           "follows": list(fol["follows"]),
+                           "follows_shares": fol["follows"],
+                           "proposal": None,
+                           "text": ""}
+        res.unexplained["text"] = unexplained_text(res, res.unexplained)
+    return {"verdict": res.verdict, "residual_x_noise": res.residual_x_noise}
+
+
+def proposal_stage(s: Search) -> dict:
+    """Stage 7, the missing term: on an unexplained campaign only, a term at a place of the model fitted inside it
+    and named (:func:`propose_stage`), kept when honesty rule 1 allows.  A structured residual below that (within
+    twice what does not repeat) is as likely two simulators' numerics as physics, and a term fitted to it names a
+    kind of effect that may not be there.
+
+    Parameters
+    ----------
+    s : Search
+        Sets ``result.proposal`` and ``result.unexplained["proposal"]`` / ``["no_term"]``.
+
+    Returns
+    -------
+    dict
+        ``proposed`` (the term's places, or None), ``refused`` (why a term found was refused, or None).
+    """
+    res = s.result
+    if not s.options.get("propose", True) or res.verdict != "unexplained":
+        return {"proposed": None, "refused": None}
+    s.say("proposing the missing term")
+    prop, ps, refused = propose_stage(s.rep, s.full, s.current, res.sims_all, s.parts, s.cur_val, res.grade, s.say)
+    if prop is not None:
+        res.proposal, res.proposal_sims = prop, ps
+        res.unexplained["proposal"] = prop.to_json()
+    if refused is not None:  # honesty rule 1 (ehas_env.measurement.honesty): neither written nor recommended
+        res.unexplained["no_term"] = refused
+    res.unexplained["text"] = unexplained_text(res, res.unexplained)
+    return {"proposed": None if prop is None else res.unexplained["proposal"].get("where"), "refused": refused}
+
+
+def alternatives_stage(s: Search) -> dict:
+    """Stage 8, the alternatives: the explanations each effect of the final model may be confused with, fitted in
+    its place; those these logs cannot tell apart are listed (:func:`ehas_env.measurement.alternatives.find_alternatives`).
+
+    Parameters
+    ----------
+    s : Search
+        Sets ``result.alternatives`` (skipped when ``options["alternatives"]`` is False or nothing was kept).
+
+    Returns
+    -------
+    dict
+        ``within``: the names of the alternatives the logs cannot tell apart.
+    """
+    res = s.result
+    if not s.options.get("alternatives", True) or not res.model.effects:
+        return {"within": []}
+    from ehas_env.measurement.alternatives import find_alternatives
+
+    res.alternatives = find_alternatives(res, fit_null, fit_candidate, s.say)
+    return {"within": [a.name for a in res.alternatives if a.within]}
+
+
+#: the diagnosis, in order: (name, stage); each takes the Search and returns its record (docs/diagnosis-pipeline.md)
+STAGES = (
+    ("library", library_stage),
+    ("hypotheses", hypotheses_stage),
+    ("measure", measure_stage),
+    ("per_run", per_run_parameters_stage),
+    ("verdict", verdict_stage),
+    ("proposal", proposal_stage),
+    ("alternatives", alternatives_stage),
+)
+
+
+def run_stages(s: Search, stages=STAGES) -> list:
+    """Run ``stages`` in order on ``s``; each record gets the stage's name and time.
+
+    Parameters
+    ----------
+    s : Search
+        The search (from :func:`~ehas_env.measurement.diagnosis_search.data_stage`).
+    stages : sequence of (str, callable)
+        The stages.
+
+    Returns
+    -------
+    list of dict
+        One record per stage: ``stage``, ``elapsed_s`` and what the stage returned.
+    """
+    for name, stage in stages:
+        t = time.perf_counter()
+        out = stage(s) or {}
+        s.records.append({"stage": name, "elapsed_s": round(time.perf_counter() - t, 2), **out})
+    return s.records
+
+
+def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | None = None, holdout=None,
+                  stack: bool = True, propose: bool = True, hypotheses: bool = True, window_s: float = FIT_WINDOW_S,
+                  progress: bool = False, log=None, model=None,
+                  alternatives: bool = True, per_run: bool = True) -> OpenDiagnosis:
+    """The open-world diagnosis: the best model of the library, then whether it explains the campaign.
+
+    The stages of :data:`STAGES`, in order, after the data stage (:func:`~ehas_env.measurement.diagnosis_search.data_stage`):
+
+    1. Runs named by ``holdout`` (default :func:`~ehas_env.measurement.diagnosis.default_holdout`) are kept out
+       of the fit; the others are fitted on their windows; the validation data are the held-out runs and the
+       fitted closed-loop runs beyond their windows.
+    2. ``library``: rounds of :func:`~ehas_env.measurement.diagnosis.diagnose`; the best candidate that beats
+       noise is kept when it is physically sane (after widening a range it ran into), lowers the validation
+       residual by at least ``VAL_GAIN`` and fits the same on two separate groups of runs; with ``stack`` the
+       kept model is the base of the next round.
+    3. ``hypotheses``: the structural hypotheses, when the library's model leaves the campaign unexplained or
+       with a structured rest (:func:`~ehas_env.measurement.diagnosis.hypotheses_trigger`), judged alike; never
+       kept when they make the all-data residual worse (honesty rule 2).
+    4. ``measure``, ``per_run``, ``verdict``: the graded verdict on all data
+       (:func:`ehas_env.measurement.verdict.grade`), what the remaining residual follows, confidence intervals,
+       the parameters per run and their drift.
+    5. ``proposal``: when unexplained, the missing term at a place of the model, fitted and named
+       (:func:`ehas_env.measurement.proposal.propose`); ``alternatives``: what these logs cannot tell apart.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The measurements (:func:`ehas_env.measurement.campaign.read_campaign`).
+    candidates : list of str, optional
+        Effects to try (default: the library's, :func:`~ehas_env.measurement.diagnosis.library_effects`).
+    base_effects : dict, optional
+        Effects the model has from the start, {name: {param: value}} (refitted with every candidate).
+    holdout : list of str, optional
+        Names of runs kept out of the fit (default: ``default_holdout``; ``[]``: none).
+    stack : bool
+        Keep stacking effects while one passes (False: one round).
+    propose : bool
+        Propose the missing term when the verdict is ``unexplained``.
+    hypotheses : bool
+        Try the structural hypotheses when the library's effects leave the campaign not explained, or explained
+        with a structured rest; and in place of a kept library effect they may be mistaken for.
+    window_s : float
+        Seconds of each closed-loop run fitted.
+    progress : bool
+        Show progress bars.
+    log : callable, optional
+        Called with one line of progress text per step.
+    model : PlantModel or str, optional
+        A model file's rig to diagnose on (docs/model-file.md; default the book's rig).
+    alternatives : bool
+        Fit the explanations each effect of the final model may be confused with in its place and list those
+        these logs cannot tell apart (:func:`ehas_env.measurement.alternatives.find_alternatives`).
+    per_run : bool
+        Fit the final model's parameters on each closed-loop run alone and report those that differ between runs
+        (:func:`ehas_env.measurement.drift.per_run_stage`).
+
+    Returns
+    -------
+    OpenDiagnosis
+        The rounds, every step judged (kept or not, and why), the final model with confidence intervals,
+        its simulation of every run, ``verdict``, ``residual_x_noise`` and ``grade``, ``unexplained`` (the
+        remaining residual, where and what it follows, the proposal; None when explained), ``stages`` (each
+        stage's record and time), ``elapsed_s``.
+
+    Raises
+    ------
+    ValueError
+        A ``holdout`` name that is no run of the campaign, or every run held out.
+    """
+    t0 = time.perf_counter()
+    s = data_stage(campaign, holdout=holdout, window_s=window_s, model=model, hypotheses=hypotheses,
+                   base_effects=base_effects, candidates=candidates, stack=stack, progress=progress, say=log)
+    s.options = {"propose": propose, "alternatives": alternatives, "per_run": per_run, "base_effects": base_effects}
+    s.records.append({"stage": "data", "elapsed_s": round(time.perf_counter() - t0, 2), "holdout": s.held,
+                      "fit_runs": [r.name for r in s.train_runs]})
+    run_stages(s)
+    res = s.result
+    res.stages = s.records
+    res.elapsed_s = time.perf_counter() - t0
+    res.n_evals = s.rep.n_evals + s.full.n_evals
+    return res
+
+
+def propose_stage(rep: Replayer, full: Replayer, final: Fit, sims_all: list, parts: dict, cur_val, g: dict,
+                  say) -> tuple:
+    """The missing term (:func:`ehas_env.measurement.proposal.propose`), judged on all data and by honesty rule 1
+    (:func:`ehas_env.measurement.honesty.term_refused`).
+
+    Parameters
+    ----------
+    rep, full : Replayer
+        The fit data and every run.
+    final : Fit
+        The final model (on the fit data); ``sims_all`` its simulation of every run.
+    sims_all : list
+        The final model on every run.
+    parts : dict
+        The validation samples ({case index: first sample}).
+    cur_val : float or None
+        The final model's validation residual.
+    g : dict
+        The final model's grade on all data.
+    say : callable
+        Progress text.
+
+    Returns
+    -------
+    (Proposal or None, sims or None, str or None)
+        The proposal kept (with its ``validation`` numbers) and its simulation of every run, or None; and why a
+        term found was refused (None when none was, or none was found).
+    """
+    prop = P.propose(rep, final, confidence=confidence)
+    if prop is None:
+        return None, None, None
+    ps = full.simulate(prop.fit.model)
+    val_after = _parts_cost(full, ps, parts)
+    prop.validation = {"residual_x_noise_all_before": g["residual_x_noise"],
+                       "residual_x_noise_all_after": grade(blocks_of(full, ps, COST_SIGNALS))["residual_x_noise"],
+                       "fit_percent_all_before": round(full.fit_table(sims_all).overall, 2),
+                       "fit_percent_all_after": round(full.fit_table(ps).overall, 2),
+                       "residual_x_noise_validation_before": None if cur_val is None else round(cur_val, 3),
+                       "residual_x_noise_validation_after": None if val_after is None else round(val_after, 3)}
+    refused = term_refused(prop.validation["residual_x_noise_all_before"], prop.validation["residual_x_noise_all_after"])
+    if refused is not None:
+        say(f"  no term proposed: {refused}")
+        return None, None, refused
+    return prop, ps, None
+
+
+#: effects judged but not kept that the per-run stage refits run by run (the first judged: the best ranked)
+PER_RUN_NOT_KEPT = 3
+
+
+def not_kept(steps: list, final: Fit) -> dict:
+    """The effects judged but not kept (not in the final model), at most :data:`PER_RUN_NOT_KEPT`, first judged
+    first: {effect: its Fit}.  A parameter that changes from run to run makes its effect fit differently on
+    separate groups of runs, or fail on the validation runs; refitted run by run
+    (:func:`ehas_env.measurement.drift.per_run_stage`), it shows.
+
+    Parameters
+    ----------
+    steps : list of Step
+        Every step judged.
+    final : Fit
+        The final model.
+
+    Returns
+    -------
+    dict
+    """
+    out = {}
+    for st in steps:
+        if len(out) >= PER_RUN_NOT_KEPT:
+            break
+        if not st.kept and st.fit is not None and st.effect not in final.model.effects and st.effect not in out \
+                and st.effect in st.fit.model.effects:
+            out[st.effect] = st.fit
+    return out
+
+
+def unexplained_text(res: OpenDiagnosis, u: dict) -> str:
+    """The verdict in words."""
+    what = "the baseline" + "".join(f" + {n}" for n in res.model.effects)
+    where = ", ".join(f"{w['signal']} {w['rms_x_noise']:.1f}x" for w in u["where"][:3])
+    fol = ", ".join(f"{n} ({100 * s:.0f} %)" for n, s in list(u["follows_shares"].items())[:3]) or "no listed quantity"
+    w = u["worst"] or {}
+    head = ("unexplained: no effect of the library explains this campaign" if res.verdict == "unexplained" else
+            "small structured residual: the library's model leaves a repeatable residual above what does not repeat, "
+            "but not enough to call the campaign unexplained")
+    text = (f"{head}. The best model found ({what}) leaves residuals at {u['residual_x_noise']:.2f}x what does not "
+            f"repeat from cycle to cycle (sensor noise, disturbances; geometric mean over runs and signals; "
+            f"explained up to {res.grade['thresholds']['explained']:g}x, unexplained above {u['threshold']:g}x"
+            + (f"; structured part {u['structured_db']:+.1f} dB against it" if u["structured_db"] is not None else "")
+            + f"), worst {w.get('signal', '')} in run {w.get('run', '')} at {w.get('residual_x_noise', 0.0):.2f}x; "
+            f"residual RMS in sensor-noise units: {where}. What is left follows {fol}.")
+    p = u.get("proposal")
+    if res.verdict != "unexplained":
+        text += (" No term is proposed at this level: a residual this small may come from the numerics of two "
+                 "simulators of one rig as much as from physics.")
+    if res.disturbances:
+        text += " Disturbances: " + "; ".join(d["text"] for d in res.disturbances[:3]) + "."
+    if res.drift:
+        text += " Parameters that differ between runs: " + "; ".join(d["text"] for d in res.drift) + "."
+    if u.get("no_term"):
+        text += f" No term is proposed: {u['no_term']}."
+    if p:
+        text += (f" Proposed missing term at {', '.join(p['where'])}: {p['equation']}; residual "
+                 f"{p['residual_x_noise_before']:.2f}x -> {p['residual_x_noise_after']:.2f}x noise on the fit data.")
+    return text
