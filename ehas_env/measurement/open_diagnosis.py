@@ -336,7 +336,7 @@ def run_stages(s: Search, stages=STAGES) -> list:
 def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | None = None, holdout=None,
                   stack: bool = True, propose: bool = True, hypotheses: bool = True, window_s: float = FIT_WINDOW_S,
                   progress: bool = False, log=None, model=None,
-                  alternatives: bool = True, per_run: bool = True) -> OpenDiagnosis:
+                  alternatives: bool = True, per_run: bool = True, stages=None) -> OpenDiagnosis:
     """The open-world diagnosis: the best model of the library, then whether it explains the campaign.
 
     The stages of :data:`STAGES`, in order, after the data stage (:func:`~ehas_env.measurement.diagnosis_search.data_stage`):
@@ -388,6 +388,10 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     per_run : bool
         Fit the final model's parameters on each closed-loop run alone and report those that differ between runs
         (:func:`ehas_env.measurement.drift.per_run_stage`).
+    stages : sequence of (str, callable), optional
+        The stages after the data stage (default :data:`STAGES`): a search of your own is a function of the
+        :class:`~ehas_env.measurement.diagnosis_search.Search` returning its record, added where it belongs
+        (docs/diagnosis-pipeline.md).  ``measure`` must run before the stages that read ``s.result``.
 
     Returns
     -------
@@ -408,8 +412,10 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     s.options = {"propose": propose, "alternatives": alternatives, "per_run": per_run, "base_effects": base_effects}
     s.records.append({"stage": "data", "elapsed_s": round(time.perf_counter() - t0, 2), "holdout": s.held,
                       "fit_runs": [r.name for r in s.train_runs]})
-    run_stages(s)
+    run_stages(s, STAGES if stages is None else stages)
     res = s.result
+    if res is None:
+        raise ValueError("stages: the 'measure' stage (measure_stage) must be among the stages; it builds the result")
     res.stages = s.records
     res.elapsed_s = time.perf_counter() - t0
     res.n_evals = s.rep.n_evals + s.full.n_evals

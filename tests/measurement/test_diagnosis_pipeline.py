@@ -1,0 +1,52 @@
+"""The diagnosis is a sequence of named stages (issue 33, item 6): the JSON lists each with its record, a stage of
+one's own is added by adding a function, and the documented example runs as written."""
+import contextlib
+import io
+import re
+from pathlib import Path
+
+import pytest
+
+from ehas_env.measurement.open_diagnosis import STAGES, diagnose_open
+
+DOC = Path(__file__).resolve().parents[2] / "docs" / "diagnosis-pipeline.md"
+
+
+def test_the_stages_are_named_functions_in_the_documented_order():
+    names = [n for n, _ in STAGES]
+    assert names == ["library", "hypotheses", "measure", "per_run", "verdict", "proposal", "alternatives"]
+    text = DOC.read_text()
+    for n, fn in STAGES:  # each stage is drawn and tabled in the docs, by name and function
+        assert f"| {n} |" in text and fn.__name__ in text, n
+    # the drawing shows them in this order
+    drawing = text.split("```\n", 2)[1]
+    pos = [re.search(rf"(?<![\w_]){n}(?![\w_])", drawing).start() for n in ["data"] + names]
+    assert pos == sorted(pos)
+
+
+def test_the_documented_example_runs_and_a_stage_of_ones_own_is_recorded():
+    block = re.search(r"```python\n(.*?)\n```", DOC.read_text(), flags=re.S).group(1)
+    out = io.StringIO()
+    ns = {}
+    with contextlib.redirect_stdout(out):
+        exec(compile(block, str(DOC), "exec"), ns)
+    res = ns["res"]
+    stages = [r["stage"] for r in res.stages]
+    assert stages == ["data", "library", "hypotheses", "measure", "worst_run", "per_run", "verdict", "proposal",
+                      "alternatives"]
+    rec = res.to_json()["stages"][4]
+    assert rec["worst_run"] in res.run_costs and rec["residual_x_sensor_noise"] == pytest.approx(
+        max(res.run_costs.values()), abs=1e-3)
+    assert all(r["elapsed_s"] >= 0.0 for r in res.stages)
+    # the library stage found the friction hidden in the campaign, and its record says so
+    lib = res.stages[1]
+    assert "coulomb_friction" in lib["kept"] and "coulomb_friction" in res.model.effects
+    assert "worst_run" in out.getvalue()
+
+
+def test_without_the_measure_stage_the_diagnosis_refuses_in_one_line():
+    from ehas_env.measurement.acceptance import SEED, memory_campaign
+
+    camp = memory_campaign({}, SEED, duration=0.6, plan=((3, 20.0, 1.0),))[0]
+    with pytest.raises(ValueError, match="'measure' stage"):
+        diagnose_open(camp, stages=STAGES[:2], holdout=[], hypotheses=False)
