@@ -45,6 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--columns", default=None, metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
+    parser.add_argument("--measured-input", default=None, metavar="QUANTITY",
+                        help="replay a logged quantity the model holds constant as a measured input, from the log "
+                             "(p_s_bar: the supply pressure; the diagnosis' next: line gives it when it kept one)")
 
 
 def run(args) -> int:
@@ -58,8 +61,9 @@ def run(args) -> int:
 
     t0 = time.perf_counter()
     requested = parse_spec(args.effects) if args.effects else {}
-    if args.fit and not requested:
-        raise ValueError("--fit needs --effects NAME[,NAME...] (the effects whose parameters to calibrate)")
+    if args.fit and not requested and not getattr(args, "measured_input", None):
+        raise ValueError("--fit needs --effects NAME[,NAME...] (the effects whose parameters to calibrate) or "
+                         "--measured-input (then beta and K are calibrated with the logged input)")
     if not args.fit and requested:
         resolve_effects(requested)  # bad values refused before any work
     # the output paths, before any work
@@ -81,18 +85,22 @@ def run(args) -> int:
     status(f"{len(campaign.runs)} runs read from {campaign.path}", "compare")
     # one compiled model for the baseline and the effects: with the structural hypotheses when one is named
     rep = Replayer(campaign, model=base_model, hypotheses=names_hypothesis(requested))
+    if getattr(args, "measured_input", None):  # a logged supply as the model's input (docs/measurement-format.md)
+        from ehas_env.measurement.measured_inputs import measured
+
+        rep = measured(rep, tuple(q.strip() for q in args.measured_input.split(",") if q.strip()))
     with working("replaying the campaign with the baseline model", "compare"):
         baseline_sims = rep.simulate(ModelSpec())
     tables = {"baseline": rep.fit_table(baseline_sims)}
     sims = {"baseline": baseline_sims}
     null = fitted = None
     ci = None
-    if requested and args.fit:
+    if args.fit:
         from ehas_env.measurement.diagnosis import calibrate
 
         n_par = sum(len(p) for p in resolve_effects(requested).values())
-        with working(f"calibrating {', '.join(requested)} ({n_par} parameter(s)) with beta and K on "
-                     f"{len(campaign.runs)} runs", "compare"):
+        what = f"{', '.join(requested)} ({n_par} parameter(s)) with beta and K" if requested else "beta and K"
+        with working(f"calibrating {what} on {len(campaign.runs)} runs", "compare"):
             null, fitted = calibrate(rep, requested)
         with working("confidence intervals of the fitted numbers", "compare"):
             ci = fit_intervals(rep, fitted)
@@ -111,7 +119,7 @@ def run(args) -> int:
         after_model = None
     label_after = None
     if after_model is not None:
-        label_after = "+ " + " + ".join(after_model.effects)
+        label_after = "+ " + " + ".join(list(after_model.effects) or ["measured " + str(args.measured_input)])
         sims[label_after] = sims.get(label_after) or rep.simulate(after_model)
         tables[label_after] = rep.fit_table(sims[label_after])
 

@@ -235,6 +235,9 @@ def run_one(args) -> int:
     for line in _findings_lines(res):  # per-run drift, disturbances, fits on a bound (issue 33)
         print(line)
     written = next_line = None
+    state = res.to_json().get("state") if res.state else None
+    if state:
+        print(f"missing state kept: {state['kept']} ({state['words']})")
     hyp = res.hypothesis
     if hyp is not None:
         h = res.hypothesis_json()
@@ -251,7 +254,7 @@ def run_one(args) -> int:
             name = Path(args.write_effect).stem
             print(f"effect file: {args.write_effect}")
             next_line = next_command(args, campaign.path, [n for n in res.model.effects if n != hyp] + [name],
-                                     extra_path=Path(args.write_effect).parent)
+                                     extra_path=Path(args.write_effect).parent, measured_inputs=res.measured_inputs)
             print("next: " + next_line)
     elif res.proposal is not None:
         p = res.proposal
@@ -268,13 +271,14 @@ def run_one(args) -> int:
             name = Path(args.write_effect).stem
             print(f"effect file: {args.write_effect}")
             next_line = next_command(args, campaign.path, list(res.model.effects) + [name],
-                                     extra_path=Path(args.write_effect).parent)
+                                     extra_path=Path(args.write_effect).parent, measured_inputs=res.measured_inputs)
             print("next: " + next_line)
     elif args.write_effect:
         print("no effect file written: " + ("the campaign is explained" if res.unexplained is None else
                                             "no term of the dictionary lowers the residual"))
-    if next_line is None and res.model.effects:  # the model's effects (a kept hypothesis is a registered effect)
-        next_line = next_command(args, campaign.path, list(res.model.effects))
+    if next_line is None and (res.model.effects or res.measured_inputs):  # the final model (a kept hypothesis is
+        # a registered effect; a logged quantity kept as a measured input is given as one)
+        next_line = next_command(args, campaign.path, list(res.model.effects), measured_inputs=res.measured_inputs)
         print("next: " + next_line)
     elapsed = time.perf_counter() - t0
     print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
@@ -379,7 +383,7 @@ def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dic
     return doc
 
 
-def next_command(args, campaign_path, effects: list[str], extra_path=None) -> str:
+def next_command(args, campaign_path, effects: list[str], extra_path=None, measured_inputs=()) -> str:
     """The ``ehas compare`` command that adds ``effects`` to the campaign, runnable as printed: it keeps every
     ``--effects-path`` given, the written effect file's folder, ``--model`` and ``--columns``, and always saves
     the calibrated model (``--save-model model.json``, the file ``ehas tune``/``bench --model`` take).
@@ -394,6 +398,8 @@ def next_command(args, campaign_path, effects: list[str], extra_path=None) -> st
         The effects of the final model (and the written effect's name).
     extra_path : str or Path, optional
         The folder of a written effect file, added to ``--effects-path``.
+    measured_inputs : sequence of str
+        Logged quantities the diagnosis took as measured inputs (``--measured-input``).
 
     Returns
     -------
@@ -410,9 +416,14 @@ def next_command(args, campaign_path, effects: list[str], extra_path=None) -> st
         parts.append(f"--model {q(str(args.model))}")
     if getattr(args, "columns", None):
         parts.append(f"--columns {q(args.columns)}")
+    if measured_inputs:
+        parts.append(f"--measured-input {q(','.join(measured_inputs))}")
     # the calibrated model file is what a user tunes and benchmarks on (--model): always offered
-    parts += [f"--effects {q(','.join(effects))}", "--fit", "--out compare", "--json compare.json",
-              "--save-model model.json"]
+    if effects:
+        parts.append(f"--effects {q(','.join(effects))}")
+    if effects or measured_inputs:
+        parts.append("--fit")
+    parts += ["--out compare", "--json compare.json", "--save-model model.json"]
     return " ".join(parts)
 
 

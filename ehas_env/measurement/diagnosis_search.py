@@ -94,7 +94,7 @@ class Search:
 def data_stage(campaign: Campaign, *, holdout=None, window_s: float, model=None, hypotheses: bool = True,
                base_effects: dict | None = None, candidates=None, stack: bool = True, progress: bool = False,
                say=None) -> Search:
-    """Stage 1, the data: the held-out runs, the fit windows, the replayers of the fit data and of every run.
+    """The stage of the data: the held-out runs, the fit windows, the replayers of the fit data and of every run.
 
     Parameters
     ----------
@@ -279,7 +279,7 @@ def _rounds_left(s: Search) -> bool:
 
 
 def library_stage(s: Search) -> dict:
-    """Stage 2, the library: rounds over the library's effects (``candidates``), stacking while one passes.
+    """The stage of the library: rounds over the library's effects (``candidates``), stacking while one passes.
 
     Parameters
     ----------
@@ -300,7 +300,7 @@ def library_stage(s: Search) -> dict:
 
 
 def hypotheses_stage(s: Search) -> dict:
-    """Stage 3, the structural hypotheses: tried when the library's model leaves the campaign unexplained or with
+    """The stage of the structural hypotheses: tried when the library's model leaves the campaign unexplained or with
     a structured rest (:func:`~ehas_env.measurement.diagnosis.hypotheses_trigger`); rounds over them (and the
     library's effects again on top of one kept) until none passes or one explains the campaign; a lost rival may
     be tried in its library effect's place (:func:`_swap_branch`); the model kept must not leave a worse all-data

@@ -47,6 +47,7 @@ import numpy as np
 from ehas_env.measurement.campaign import Campaign
 from ehas_env.measurement.fitting import SCREEN_NFEV, Fit, FreeParam, _unit, _value_of, confidence, fit
 from ehas_env.measurement.keeping import MODEL_ERROR_FLOOR
+from ehas_env.measurement.measured_inputs import input_names, measured
 from ehas_env.measurement.replay import ModelSpec, Replayer
 
 #: per-run values differ beyond their intervals when the chi-square test of one common value gives p below this
@@ -223,6 +224,7 @@ def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreePara
     for run in runs:
         sub = Replayer(Campaign(rep.campaign.path, [run]), substeps=rep.substeps, model=rep.model,
                        hypotheses=rep.hypotheses)
+        sub = measured(sub, input_names(rep))  # a logged supply the diagnosis took as an input stays one
         f = fit(sub, free, start, fixed, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
         ci = confidence(sub, f)
         rep.n_evals += sub.n_evals

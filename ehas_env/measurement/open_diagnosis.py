@@ -24,12 +24,17 @@ from dataclasses import dataclass, field
 from ehas_env.measurement import proposal as P
 from ehas_env.measurement.campaign import Campaign
 from ehas_env.measurement.diagnosis import (
-    FIT_WINDOW_S, Diagnosis, _held_table, _parts_cost, _round, confidence, fit_candidate, fit_null, windowed)
+    FIT_WINDOW_S, Diagnosis, Step, _drop_stand_ins, _held_fit, _held_table, _parts_cost, _round, confidence,
+    fit_candidate, fit_null, windowed)
 from ehas_env.measurement.diagnosis_search import Search, data_stage, hypotheses_stage, library_stage
 from ehas_env.measurement.disturbances import disturbances as disturbances_of
 from ehas_env.measurement.drift import per_run_stage
 from ehas_env.measurement.fitting import Fit, _unit, _value_of
 from ehas_env.measurement.honesty import at_bounds, term_refused
+from ehas_env.measurement.measured_inputs import measured, measured_input_stage
+from ehas_env.measurement.naming import judge_on_all_data
+from ehas_env.measurement.state_search import state_stage
+from ehas_env.physics.augment import Augmentation
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
 from ehas_env.measurement.residuals import follows as follows_of
 from ehas_env.measurement.verdict import blocks_of, grade
@@ -62,6 +67,7 @@ class OpenDiagnosis:
     drift: list = field(default_factory=list)  # parameters that differ between runs, related to the sidecars
     disturbances: list = field(default_factory=list)  # residual lines at no harmonic of the test frequency
     grade: dict = field(default_factory=dict)
+    measured_inputs: list = field(default_factory=list)  # logged quantities replayed as inputs (the supply pressure)
     stages: list = field(default_factory=list)  # one record per stage run (STAGES): stage, elapsed_s, what it found
     elapsed_s: float = 0.0
     n_evals: int = 0
@@ -82,8 +88,15 @@ class OpenDiagnosis:
 
     @property
     def hypothesis(self) -> str | None:
-        """The structural hypothesis in the final model, if one was kept."""
-        return next((n for n in self.model.effects if get_effect(n).kind == "hypothesis"), None)
+        """The structural hypothesis in the final model, if one was kept (a missing state is :attr:`state`)."""
+        return next((n for n in self.model.effects if get_effect(n).kind == "hypothesis"
+                     and not issubclass(get_effect(n), Augmentation)), None)
+
+    @property
+    def state(self) -> str | None:
+        """The generic augmentation (a missing state, :mod:`ehas_env.physics.augment`) in the final model, if one
+        was kept."""
+        return next((n for n in self.model.effects if issubclass(get_effect(n), Augmentation)), None)
 
     def hypothesis_json(self) -> dict | None:
         """The kept hypothesis: effect, values, 95 % intervals, in words (None when none was kept)."""
@@ -144,14 +157,81 @@ class OpenDiagnosis:
         doc["drift"] = self.drift
         doc["disturbances"] = self.disturbances
         doc["stages"] = self.stages
+        # a missing state kept (the states stage's record: the augmentation, its values with intervals, in words)
+        doc["state"] = next(({k: r[k] for k in ("kept", "words", "params", "ci95", "residual_x_noise_all_before",
+                                                "residual_x_noise_all_after") if k in r}
+                             for r in self.stages if r.get("stage") == "states" and r.get("kept")
+                             and r["kept"] in self.model.effects), None)
+        doc["measured_inputs"] = self.measured_inputs
         return doc
 
 
 
 
 
+def measured_inputs_stage(s: Search) -> dict:
+    """The stage of measured boundaries: a logged quantity the model holds constant (the supply pressure) that varies
+    beyond its noise is taken as a measured input when that removes at least a tenth of the residual's excess over
+    the noise (:func:`ehas_env.measurement.measured_inputs.measured_input_stage`); from then on every replayer
+    takes it.
+
+    Parameters
+    ----------
+    s : Search
+        Reads the model kept; when the input is kept, replaces ``rep``, ``full`` and the model kept.
+
+    Returns
+    -------
+    dict
+        The stage's record (``quantity``, ``tried``, ``kept``, ``inputs``, residual before and after, ``text``).
+    """
+    if not s.options.get("measured_inputs", True):
+        return {"skipped": True, "kept": False, "inputs": []}
+    f, rec = measured_input_stage(s.full, s.rep, s.current, s.parts, s.say)
+    if f is not None:
+        s.full, s.rep = measured(s.full, rec["inputs"]), measured(s.rep, rec["inputs"])
+        sims = s.full.simulate(f.model)
+        s.keep(f, sims, _parts_cost(s.full, sims, s.parts))
+    return rec
+
+
+def states_stage(s: Search) -> dict:
+    """The stage of missing states: when the model kept leaves more than a residual of ``STATE_TRIGGER`` x noise,
+    each generic augmentation (a lag in a signal path, a compliance with a mass in a link, a volume with a
+    resistance in a line, play in a joint: :mod:`ehas_env.physics.augment`) is tried place by place on top of it
+    (:func:`ehas_env.measurement.state_search.state_stage`); the best is kept when it removes a tenth of the
+    excess over the noise and lowers the validation residual.  An effect kept before it that it stood in for is
+    refitted away (as for a structural hypothesis).
+
+    Parameters
+    ----------
+    s : Search
+        Reads the model kept; appends a step and replaces the model kept when an augmentation is kept.
+
+    Returns
+    -------
+    dict
+        The stage's record (``tried``, ``kept``, ``params``, ``ci95``, residuals before and after, ``words``,
+        ``skipped``).
+    """
+    if not s.options.get("states", True):
+        return {"skipped": "not asked for", "kept": None}
+    f, rec = state_stage(s.rep, s.full, s.current, s.parts, s.say)
+    if f is not None:
+        name = rec["kept"]
+        sims = s.full.simulate(f.model)
+        val = _parts_cost(s.full, sims, s.parts)
+        s.steps.append(Step(name, True, f"{rec['words']}; a missing state: removes at least a tenth of the "
+                            "residual's excess over the noise and lowers the validation residual", f, f.cost, val,
+                            _held_fit(s.full, sims, s.held_idx)))
+        s.say(f"  {name}: kept ({rec['words']})")
+        current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, name, s.steps, s.say)
+        s.keep(current, sims, val)
+    return rec
+
+
 def measure_stage(s: Search) -> dict:
-    """Stage 4, the final model measured on every run: its simulation, the residual per run, what the residual
+    """The stage of the final model measured on every run: its simulation, the residual per run, what the residual
     follows, the disturbances (lines at no harmonic of the test), the 95 % intervals; builds ``s.result``.
 
     Parameters
@@ -186,12 +266,19 @@ def measure_stage(s: Search) -> dict:
                              cost_all=full.log_cost(sims_all), run_costs=run_costs, unexplained=None,
                              follows=follows_of(full, sims_all), ci=confidence(s.rep, final) if final.free else {},
                              validation=validation, grade=grade(blocks_of(full, sims_all, COST_SIGNALS)),
-                             disturbances=disturbances_of(full, sims_all))
-    return {"effects": list(final.model.effects), "residual_x_noise": s.result.residual_x_noise}
+                             disturbances=disturbances_of(full, sims_all),
+                             measured_inputs=sorted({q for given in full.inputs.values() for q in given}))
+    # where the search started: the baseline with beta and K recalibrated (the first round's null model), on all data
+    null = s.rounds[0].null
+    start = sims_all if null is final else full.simulate(null.model)
+    s.result.validation["residual_x_noise_recalibrated_baseline"] = grade(blocks_of(full, start,
+                                                                                    COST_SIGNALS))["residual_x_noise"]
+    return {"effects": list(final.model.effects), "residual_x_noise": s.result.residual_x_noise,
+            "residual_x_noise_recalibrated_baseline": s.result.validation["residual_x_noise_recalibrated_baseline"]}
 
 
 def per_run_parameters_stage(s: Search) -> dict:
-    """Stage 5, parameters per run: the final model's parameters (and the best effects judged but not kept) fitted
+    """The stage of parameters per run: the final model's parameters (and the best effects judged but not kept) fitted
     on each closed-loop run alone, and those that differ between runs, related to the sidecars
     (:func:`ehas_env.measurement.drift.per_run_stage`).
 
@@ -215,7 +302,7 @@ def per_run_parameters_stage(s: Search) -> dict:
 
 
 def verdict_stage(s: Search) -> dict:
-    """Stage 6, the verdict: explained, small structured residual or unexplained; when not explained, where the
+    """The stage of the verdict: explained, small structured residual or unexplained; when not explained, where the
     residual is, what it follows, the worst run (``unexplained``).
 
     Parameters
@@ -247,7 +334,7 @@ def verdict_stage(s: Search) -> dict:
 
 
 def proposal_stage(s: Search) -> dict:
-    """Stage 7, the missing term: on an unexplained campaign only, a term at a place of the model fitted inside it
+    """The stage of the missing term: on an unexplained campaign only, a term at a place of the model fitted inside it
     and named (:func:`propose_stage`), kept when honesty rule 1 allows.  A structured residual below that (within
     twice what does not repeat) is as likely two simulators' numerics as physics, and a term fitted to it names a
     kind of effect that may not be there.
@@ -277,7 +364,7 @@ def proposal_stage(s: Search) -> dict:
 
 
 def alternatives_stage(s: Search) -> dict:
-    """Stage 8, the alternatives: the explanations each effect of the final model may be confused with, fitted in
+    """The stage of the alternatives: the explanations each effect of the final model may be confused with, fitted in
     its place; those these logs cannot tell apart are listed (:func:`ehas_env.measurement.alternatives.find_alternatives`).
 
     Parameters
@@ -303,6 +390,8 @@ def alternatives_stage(s: Search) -> dict:
 STAGES = (
     ("library", library_stage),
     ("hypotheses", hypotheses_stage),
+    ("measured_inputs", measured_inputs_stage),
+    ("states", states_stage),
     ("measure", measure_stage),
     ("per_run", per_run_parameters_stage),
     ("verdict", verdict_stage),
@@ -336,7 +425,8 @@ def run_stages(s: Search, stages=STAGES) -> list:
 def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | None = None, holdout=None,
                   stack: bool = True, propose: bool = True, hypotheses: bool = True, window_s: float = FIT_WINDOW_S,
                   progress: bool = False, log=None, model=None,
-                  alternatives: bool = True, per_run: bool = True, stages=None) -> OpenDiagnosis:
+                  alternatives: bool = True, per_run: bool = True, measured_inputs: bool = True,
+                  states: bool = True, stages=None) -> OpenDiagnosis:
     """The open-world diagnosis: the best model of the library, then whether it explains the campaign.
 
     The stages of :data:`STAGES`, in order, after the data stage (:func:`~ehas_env.measurement.diagnosis_search.data_stage`):
@@ -388,6 +478,11 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     per_run : bool
         Fit the final model's parameters on each closed-loop run alone and report those that differ between runs
         (:func:`ehas_env.measurement.drift.per_run_stage`).
+    measured_inputs : bool
+        Take a logged quantity the model holds constant (the supply pressure) as a measured input when that
+        explains the residual (:func:`measured_inputs_stage`).
+    states : bool
+        Look for a missing state place by place when the model kept leaves a residual (:func:`states_stage`).
     stages : sequence of (str, callable), optional
         The stages after the data stage (default :data:`STAGES`): a search of your own is a function of the
         :class:`~ehas_env.measurement.diagnosis_search.Search` returning its record, added where it belongs
@@ -409,7 +504,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     t0 = time.perf_counter()
     s = data_stage(campaign, holdout=holdout, window_s=window_s, model=model, hypotheses=hypotheses,
                    base_effects=base_effects, candidates=candidates, stack=stack, progress=progress, say=log)
-    s.options = {"propose": propose, "alternatives": alternatives, "per_run": per_run, "base_effects": base_effects}
+    s.options = {"propose": propose, "alternatives": alternatives, "per_run": per_run, "base_effects": base_effects,
+                 "measured_inputs": measured_inputs, "states": states}
     s.records.append({"stage": "data", "elapsed_s": round(time.perf_counter() - t0, 2), "holdout": s.held,
                       "fit_runs": [r.name for r in s.train_runs]})
     run_stages(s, STAGES if stages is None else stages)
@@ -450,7 +546,7 @@ def propose_stage(rep: Replayer, full: Replayer, final: Fit, sims_all: list, par
         The proposal kept (with its ``validation`` numbers) and its simulation of every run, or None; and why a
         term found was refused (None when none was, or none was found).
     """
-    prop = P.propose(rep, final, confidence=confidence)
+    prop = P.propose(rep, final, confidence=confidence, say=say)
     if prop is None:
         return None, None, None
     ps = full.simulate(prop.fit.model)
@@ -465,6 +561,9 @@ def propose_stage(rep: Replayer, full: Replayer, final: Fit, sims_all: list, par
     if refused is not None:
         say(f"  no term proposed: {refused}")
         return None, None, refused
+    # the named forms (ehas_env.measurement.naming) are held to honesty rule 1 on all data too
+    judge_on_all_data(prop, lambda m: grade(blocks_of(full, full.simulate(m), COST_SIGNALS))["residual_x_noise"],
+                      g["residual_x_noise"])
     return prop, ps, None
 
 

@@ -3,7 +3,8 @@
 When the best model of the library leaves residuals above noise, this module
 looks for the term the model lacks among the forms of
 :mod:`ehas_env.measurement.proposal_terms` (forces on the piston, torques on the
-crank, flows into the chambers, the valve current), in three steps:
+crank, flows into the chambers and at the valve's lands, supply and return, the
+valve current, the position reading), in four steps:
 
 1. **sparse regression on the residual force** (campaigns with chamber pressures):
    the force the model misses at the piston, F = -A (P_L,measured - P_L,model),
@@ -20,6 +21,11 @@ crank, flows into the chambers, the valve current), in three steps:
    (as the diagnosis fits effects); a second and third form are added while
    each lowers the residual by at least :data:`ADD_TERM_DB`.
 
+4. **naming** (:func:`ehas_env.measurement.naming.name_terms`): at the places of
+   the sparse terms, every coefficient of the place fitted together (the flexible
+   term), then the sparse set of physical forms (laws with units, of a kind) that
+   keeps most of its gain: ``Proposal.named``.
+
 The result is an equation with units and fitted coefficients (with confidence
 intervals), the fit before and after, and :func:`effect_source`, the text of a
 user effect file (``--write-effect DIR/NAME.py``) that ``ehas compare CAMPAIGN
@@ -35,17 +41,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.measurement import fitting as D
+from ehas_env.measurement.naming import ADD_TERM_DB, PENALTY_PER_TERM_DB, name_terms
 from ehas_env.measurement.proposal_terms import TERM_CLASSES, term_param
 from ehas_env.measurement.replay import ModelSpec, Replayer
 from ehas_env.physics.rig import BAR, LPM, RigParams
 
-PENALTY_PER_TERM_DB = 0.2
-ADD_TERM_DB = 1.0  # a further form must lower the residual by at least this much
 SCREEN_MAGS = 4  # magnitudes per sign scanned per form
 SCREEN_BATCH = 40  # models replayed per batch while screening
 FIT_TOP = 3  # screened forms fitted fully
 MAX_TERMS = 3
 
+#: the arguments of a form at the valve's lands (proposal_terms.ProposalLand: valve_side)
+_LAND_ARGS = ("pa", "pb", "ps", "q_a", "q_b", "qc", "q_supply")
 #: place, the form in words (the coefficient multiplies it), the expression of the effect file, its arguments
 FORMS = {
     "proposal_piston_force.c_x": ("piston_force", "x", "{c} * x", ("x",)),
@@ -56,30 +63,75 @@ FORMS = {
     "proposal_piston_force.c_pb": ("piston_force", "p_B", "{c} * pb", ("pb",)),
     "proposal_piston_force.c_vv": ("piston_force", "v |v|", "{c} * v * abs(v)", ("v",)),
     "proposal_piston_force.c_x3": ("piston_force", "x^3", "{c} * x ** 3", ("x",)),
+    "proposal_piston_force.c_x2": ("piston_force", "x^2", "{c} * x ** 2", ("x",)),
+    "proposal_piston_force.c_x2sv": ("piston_force", "x^2 tanh(v / v_tanh)", "{c} * x ** 2 * math.tanh(v / v_tanh)",
+                                     ("x", "v", "v_tanh")),
+    "proposal_piston_force.c_x2v": ("piston_force", "x^2 v", "{c} * x ** 2 * v", ("x", "v")),
+    "proposal_piston_force.c_plsv": ("piston_force", "|p_A - p_B| tanh(v / v_tanh)",
+                                     "{c} * abs(pa - pb) * math.tanh(v / v_tanh)", ("pa", "pb", "v", "v_tanh")),
     "proposal_crank_torque.c_th": ("crank_torque", "theta", "{c} * theta", ("theta",)),
     "proposal_crank_torque.c_w": ("crank_torque", "omega", "{c} * omega", ("omega",)),
     "proposal_crank_torque.c_sw": ("crank_torque", "tanh(r omega / v_tanh)", "{c} * math.tanh(radius * omega / v_tanh)",
                                    ("omega", "radius", "v_tanh")),
     "proposal_crank_torque.c_1": ("crank_torque", "1", "{c}", ()),
     "proposal_crank_torque.c_th3": ("crank_torque", "theta^3", "{c} * theta ** 3", ("theta",)),
+    "proposal_crank_torque.c_th2sw": ("crank_torque", "theta^2 tanh(r omega / v_tanh)",
+                                      "{c} * theta ** 2 * math.tanh(radius * omega / v_tanh)",
+                                      ("theta", "omega", "radius", "v_tanh")),
+    "proposal_crank_torque.c_jsw": ("crank_torque", "|p_A - p_B| r |cos theta| tanh(r omega / v_tanh)",
+                                    "{c} * abs(pa - pb) * radius * abs(math.cos(theta)) * math.tanh(radius * omega / v_tanh)",
+                                    ("theta", "omega", "pa", "pb", "radius", "v_tanh")),
     "proposal_chamber_flows.c_ext": ("chamber_flows", "(-p_A, -p_B)", None, ("pa", "pb")),
     "proposal_chamber_flows.c_int": ("chamber_flows", "(-(p_A - p_B), +(p_A - p_B))", None, ("pa", "pb")),
-    "proposal_chamber_flows.c_ret": ("chamber_flows", "the outflow land's flow times -1 / (2 p_out): return back-pressure",
-                                     None, ("pa", "pb", "q_a", "q_b", "qc")),
-    "proposal_chamber_flows.c_sup": ("chamber_flows", "the inflow land's flow times 1 / (2 (p_S - p_in)): supply offset",
-                                     None, ("pa", "pb", "ps", "q_a", "q_b", "qc")),
-    "proposal_chamber_flows.c_ga": ("chamber_flows", "(q_A, 0)", None, ("q_a",)),
-    "proposal_chamber_flows.c_gb": ("chamber_flows", "(0, q_B)", None, ("q_b",)),
-    "proposal_chamber_flows.c_gpos": ("chamber_flows", "(q_A, q_B) while q_c >= 0", None, ("q_a", "q_b", "qc")),
-    "proposal_chamber_flows.c_gneg": ("chamber_flows", "(q_A, q_B) while q_c < 0", None, ("q_a", "q_b", "qc")),
+    "proposal_chamber_flows.c_intsq": ("chamber_flows", "(-sign(p_L) sqrt|p_L|, +sign(p_L) sqrt|p_L|)", None,
+                                       ("pa", "pb")),
+    "proposal_land_flows.c_ret": ("chamber_flows", "the outflow land's flow times -1 / (2 p_out): return back-pressure",
+                                  None, _LAND_ARGS),
+    "proposal_land_flows.c_sup": ("chamber_flows", "the inflow land's flow times 1 / (2 (p_S - p_in)): supply offset",
+                                  None, _LAND_ARGS),
+    "proposal_land_flows.c_ga": ("chamber_flows", "(q_A, 0)", None, _LAND_ARGS),
+    "proposal_land_flows.c_gb": ("chamber_flows", "(0, q_B)", None, _LAND_ARGS),
+    "proposal_land_flows.c_gpos": ("chamber_flows", "(q_A, q_B) while q_c >= 0", None, _LAND_ARGS),
+    "proposal_land_flows.c_gneg": ("chamber_flows", "(q_A, q_B) while q_c < 0", None, _LAND_ARGS),
+    "proposal_land_flows.c_gpl": ("chamber_flows", "(q_A, q_B) |p_A - p_B| / p_S", None, _LAND_ARGS),
+    "proposal_land_flows.c_rline": ("chamber_flows", "each land's flow times -|q| / (2 drop): line resistance",
+                                    None, _LAND_ARGS),
+    "proposal_land_flows.c_rsup": ("chamber_flows", "the inflow land's flow times -|q_S| / (2 (p_S - p_in)): "
+                                   "supply drop per supply flow", None, _LAND_ARGS),
+    "proposal_land_flows.c_rsup2": ("chamber_flows", "the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): "
+                                    "supply drop per supply flow squared", None, _LAND_ARGS),
+    "proposal_land_flows.c_lam": ("chamber_flows", "each land's flow times (sqrt(drop / (p_S / 2)) - 1): "
+                                  "metering that goes with the drop", None, _LAND_ARGS),
     "proposal_valve_current.c_1": ("valve_current", "1", "{c}", ()),
     "proposal_valve_current.c_i": ("valve_current", "i", "{c} * i", ()),
     "proposal_valve_current.c_abs": ("valve_current", "|i|", "{c} * abs(i)", ()),
+    "proposal_valve_current.c_i3": ("valve_current", "i^3", "{c} * i ** 3", ()),
+    "proposal_valve_current.c_sgn": ("valve_current", "tanh(i / 0.05 mA)", "{c} * math.tanh(i / 0.05)", ()),
+    "proposal_position_reading.c_1": ("position_reading", "1", "{c}", ()),
+    "proposal_position_reading.c_x": ("position_reading", "x", "{c} * x", ()),
+    "proposal_position_reading.c_x2": ("position_reading", "x^2", "{c} * x ** 2", ()),
+    "proposal_position_reading.c_x3": ("position_reading", "x^3", "{c} * x ** 3", ()),
 }
 #: flow forms as code of the effect file: (lines when q_c >= 0 and always, lines when q_c < 0)
 FLOW_CODE = {
     "c_ext": (["dqa -= {c} * pa", "dqb -= {c} * pb"], None),
     "c_int": (["dqa -= {c} * (pa - pb)", "dqb += {c} * (pa - pb)"], None),
+    "c_intsq": (["dqa -= {c} * math.copysign(math.sqrt(abs(pa - pb)), pa - pb)",
+                 "dqb += {c} * math.copysign(math.sqrt(abs(pa - pb)), pa - pb)"], None),
+    "c_gpl": (["dqa += {c} * abs(pa - pb) / max(ps, 1.0e5) * q_a", "dqb += {c} * abs(pa - pb) / max(ps, 1.0e5) * q_b"],
+              None),
+    "c_rline": (["dqa -= {c} * abs(q_a) * q_a / (2.0 * max(ps - pa, 1.0e5))",
+                 "dqb -= {c} * abs(q_b) * q_b / (2.0 * max(pb, 1.0e5))"],
+                ["dqb -= {c} * abs(q_b) * q_b / (2.0 * max(ps - pb, 1.0e5))",
+                 "dqa -= {c} * abs(q_a) * q_a / (2.0 * max(pa, 1.0e5))"]),
+    "c_rsup": (["dqa -= {c} * abs(q_supply) * q_a / (2.0 * max(ps - pa, 1.0e5))"],
+               ["dqb -= {c} * abs(q_supply) * q_b / (2.0 * max(ps - pb, 1.0e5))"]),
+    "c_rsup2": (["dqa -= {c} * q_supply ** 2 * q_a / (2.0 * max(ps - pa, 1.0e5))"],
+                ["dqb -= {c} * q_supply ** 2 * q_b / (2.0 * max(ps - pb, 1.0e5))"]),
+    "c_lam": (["dqa += {c} * q_a * (math.sqrt(max(ps - pa, 1.0e5) / (0.5 * max(ps, 1.0e5))) - 1.0)",
+               "dqb += {c} * q_b * (math.sqrt(max(pb, 1.0e5) / (0.5 * max(ps, 1.0e5))) - 1.0)"],
+              ["dqb += {c} * q_b * (math.sqrt(max(ps - pb, 1.0e5) / (0.5 * max(ps, 1.0e5))) - 1.0)",
+               "dqa += {c} * q_a * (math.sqrt(max(pa, 1.0e5) / (0.5 * max(ps, 1.0e5))) - 1.0)"]),
     "c_ret": (["dqb -= {c} * q_b / (2.0 * max(pb, 1.0e5))"], ["dqa -= {c} * q_a / (2.0 * max(pa, 1.0e5))"]),
     "c_sup": (["dqa += {c} * q_a / (2.0 * max(ps - pa, 1.0e5))"], ["dqb += {c} * q_b / (2.0 * max(ps - pb, 1.0e5))"]),
     "c_ga": (["dqa += {c} * q_a"], None),
@@ -89,16 +141,25 @@ FLOW_CODE = {
 }
 #: what the model's right-hand side returns at each place (for the equation)
 PLACE_SYMBOL = {"piston_force": "F_piston [N] +=", "crank_torque": "T_crank [N m] +=",
-                "chamber_flows": "(Q_A, Q_B) [m^3/s] +=", "valve_current": "i_valve [mA] +="}
-SHORT = {"piston_force": "f", "crank_torque": "t", "chamber_flows": "q", "valve_current": "i"}
+                "chamber_flows": "(Q_A, Q_B) [m^3/s] +=", "valve_current": "i_valve [mA] +=",
+                "position_reading": "x_read [m] +="}
+SHORT = {"piston_force": "f", "crank_torque": "t", "chamber_flows": "q", "valve_current": "i", "position_reading": "r"}
 #: the largest coefficient tried: the form's typical size on this rig times this scale
 FORCE_SCALE = 4000.0  # N on the piston (a third of the stall force)
 FIXED_RANGE = {"proposal_chamber_flows.c_ext": 2e-11, "proposal_chamber_flows.c_int": 2e-11,
-               "proposal_chamber_flows.c_ret": 30e5, "proposal_chamber_flows.c_sup": 60e5,
-               "proposal_chamber_flows.c_ga": 0.4, "proposal_chamber_flows.c_gb": 0.4,
-               "proposal_chamber_flows.c_gpos": 0.4, "proposal_chamber_flows.c_gneg": 0.4,
+               "proposal_chamber_flows.c_intsq": 6e-8,
+               "proposal_land_flows.c_ret": 30e5, "proposal_land_flows.c_sup": 60e5,
+               "proposal_land_flows.c_ga": 0.4, "proposal_land_flows.c_gb": 0.4,
+               "proposal_land_flows.c_gpos": 0.4, "proposal_land_flows.c_gneg": 0.4,
+               "proposal_land_flows.c_gpl": 0.6, "proposal_land_flows.c_rline": 1.5e10,
+               "proposal_land_flows.c_rsup": 1.5e10, "proposal_land_flows.c_rsup2": 7.5e13,
+               "proposal_land_flows.c_lam": 0.5,
                "proposal_valve_current.c_1": 3.0, "proposal_valve_current.c_i": 0.4,
-               "proposal_valve_current.c_abs": 0.4}
+               "proposal_valve_current.c_abs": 0.4, "proposal_valve_current.c_i3": 1e-3,
+               "proposal_valve_current.c_sgn": 1.0,
+               # the position reading: 2 mm at the crank's radius (0.05 m) for each form
+               "proposal_position_reading.c_1": 2e-3, "proposal_position_reading.c_x": 0.04,
+               "proposal_position_reading.c_x2": 0.8, "proposal_position_reading.c_x3": 16.0}
 
 
 def place_of(key: str) -> str:
@@ -119,7 +180,7 @@ def force_feature(key: str, q: dict) -> np.ndarray:
     """The piston-equivalent force per unit coefficient of a force or torque form (torque / (r cos theta))."""
     place, _, expr, _ = FORMS[key]
     env = {"math": math, "abs": np.abs, "max": np.maximum, **q}
-    val = eval(expr.format(c="1.0").replace("math.tanh", "np.tanh"), {"np": np, **env})  # noqa: S307 (our own table)
+    val = eval(expr.format(c="1.0").replace("math.", "np."), {"np": np, **env})  # noqa: S307 (our own table)
     val = np.broadcast_to(np.asarray(val, dtype=float), q["theta"].shape).astype(float)
     if place == "crank_torque":
         val = val / (q["radius"] * np.maximum(q["cos"], 0.2))
@@ -209,6 +270,10 @@ class Proposal:
     screened: list = field(default_factory=list)  # [(form, J after screening)], best first
     sparse: dict = field(default_factory=dict)  # the STLSQ selection on the residual force
     validation: dict = field(default_factory=dict)  # filled by the caller: J and fit % on all data
+    #: the named physical forms (ehas_env.measurement.naming: JSON entries) and the naming's record
+    named: list = field(default_factory=list)
+    naming: dict = field(default_factory=dict)
+    named_model: object = None  # the model with the named forms (a ModelSpec; None when none is named)
 
     @property
     def places(self) -> list[str]:
@@ -235,6 +300,9 @@ class Proposal:
                "fit_percent_before": round(self.fit_before, 2), "fit_percent_after": round(self.fit_after, 2),
                "sparse_regression": {k: _r(v) for k, v in self.sparse.items()},
                "screened": [[k, round(c, 3)] for k, c in self.screened[:6]]}
+        out["named"] = list(self.named)
+        if self.naming:
+            out["naming"] = self.naming
         if self.validation:
             out["validation"] = self.validation
         return out
@@ -277,11 +345,28 @@ def _screen(rep: Replayer, base, keys: list[str], ranges: dict[str, float]) -> l
     return sorted(((k, j, c) for k, (j, c) in best.items()), key=lambda x: x[1])
 
 
-def propose(rep: Replayer, base, *, confidence=None) -> Proposal | None:
-    """The best sparse term for the residual of ``base`` (a diagnosis Fit), fitted inside the model.
+def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None) -> Proposal | None:
+    """The best sparse term for the residual of ``base`` (a diagnosis Fit), fitted inside the model, then named.
 
-    ``confidence(rep, fit)`` (optional) returns confidence intervals {(effect, name): (lo, hi)}.
-    Returns None when no form lowers the residual.
+    Parameters
+    ----------
+    rep : Replayer
+        The fit data.
+    base : Fit
+        The model the term is added to.
+    confidence : callable, optional
+        ``confidence(rep, fit)`` returns confidence intervals {(effect, name): (lo, hi)}.
+    name : bool
+        Fit the flexible term at the sparse terms' places and name it (:func:`ehas_env.measurement.naming.name_terms`):
+        the Proposal's ``named`` (physical forms with units, values and intervals, each passing honesty rule 1 on
+        the fit data) and ``naming`` (the flexible fit, the text).
+    say : callable, optional
+        Progress text.
+
+    Returns
+    -------
+    Proposal or None
+        None when no form lowers the residual.
     """
 
     keys = list(FORMS)
@@ -349,9 +434,15 @@ def propose(rep: Replayer, base, *, confidence=None) -> Proposal | None:
         for (eff, name), lohi in confidence(rep, best).items():
             if eff == D.TERM:
                 ci[name] = lohi
-    return Proposal(terms=dict(best.model.terms), ci=ci, cost_before=base.cost, cost_after=best.cost,
+    prop = Proposal(terms=dict(best.model.terms), ci=ci, cost_before=base.cost, cost_after=best.cost,
                     fit_before=base.table.overall, fit_after=best.table.overall, fit=best,
                     screened=[(k, j) for k, j, _ in screened], sparse=sparse)
+    if name:
+        nm = name_terms(rep, base, prop.terms, ranges, fixed_model=best.model, confidence=confidence, say=say)
+        prop.named = nm.named
+        prop.naming = nm.to_json()
+        prop.named_model = nm.fit.model if nm.named and nm.fit is not None else None
+    return prop
 
 
 # --- the effect file ----------------------------------------------------------------------------
@@ -393,7 +484,8 @@ def effect_source(proposal: Proposal, name: str, *, origin: str = "") -> str:
             else:
                 expr = FORMS[k][2].format(c=pname)
                 body.append(f"{sign}({expr})" if sign else f"({expr})")
-        sig = ", ".join((["i"] if place == "valve_current" else []) + args + pnames)
+        first = {"valve_current": ["i"], "position_reading": ["x"]}.get(place, [])
+        sig = ", ".join(first + args + pnames)
         lines = [f"    @staticmethod", f"    def {place}({sig}):"]
         if place == "chamber_flows":
             lines += ["        dqa = 0.0", "        dqb = 0.0"]
@@ -412,12 +504,14 @@ def effect_source(proposal: Proposal, name: str, *, origin: str = "") -> str:
                 lines.append("        else:")
                 lines += ["            " + ln for ln in neg] or ["            pass"]
             lines.append("        return dqa, dqb")
-        elif place == "valve_current":
-            lines.append("        return i + " + " + ".join(body))
+        elif place in ("valve_current", "position_reading"):
+            lines.append(f"        return {first[0]} + " + " + ".join(body))
         else:
             lines.append("        return " + " + ".join(body))
         methods.append("\n".join(lines))
     main = max(mains)[1]
+    flows = [k for k in proposal.terms if place_of(k) == "chamber_flows"]
+    valve_side = bool(flows) and all(k.startswith("proposal_land_flows.") for k in flows)
     eq = proposal.equation().replace('"', "'")
     doc = (f'"""{name}: a term proposed by ehas diagnose{(" for " + origin) if origin else ""}.\n\n'
            f"{eq}\n\n"
@@ -437,6 +531,7 @@ def effect_source(proposal: Proposal, name: str, *, origin: str = "") -> str:
         f'    title = "proposed term ({", ".join(p.replace("_", " ") for p in proposal.places)})"',
         "    params = (", *params, "    )",
         f'    main_param = "{main}"',
+        *(["    valve_side = True"] if valve_side else []),
         f"    explanation = {expl!r}",
         f"    signature = {sigt!r}",
         "", "\n\n".join(methods), ""])

@@ -129,6 +129,7 @@ class _Case:
     theta0: float = 0.0
     cmd: np.ndarray | None = None
     skip: int = 0  # leading samples left out of cost and fit (the warm-up of a window cut from a valve run)
+    supply: np.ndarray | None = None  # the measured supply, Pa, one per simulation step (None: the sidecar's)
 
     @property
     def hist_len(self) -> int:
@@ -195,10 +196,17 @@ class Replayer:
         diagnosis that may try them compiles one model, not one without them and then one with them.
     threads : int, optional
         Replays run side by side on this many threads, 1 to 1024 (default: one per core this process may use).
+    inputs : dict, optional
+        Measured inputs: {run name: {quantity: series at the run's samples, in the quantity's unit}}, the only
+        quantity today ``p_s_bar`` (the supply pressure, bar), cleared of its noise by
+        :func:`ehas_env.measurement.measured_inputs.measured` (which makes such a replayer).  A run given one is
+        replayed with it instead of the sidecar's constant ``supply_bar`` (a closed-loop run's control period at
+        its mid-point value, the bench's sample at its own), starting at rest at it, and the quantity is no longer
+        an output compared.  None (default): every run at its sidecar's supply.
     """
 
     def __init__(self, campaign: Campaign, substeps: int = 10, model=None, hypotheses: bool = False,
-                 threads: int | None = None):
+                 threads: int | None = None, inputs: dict | None = None):
         from ehas_env.simulation.model_file import as_model
 
         self.campaign = campaign
@@ -206,6 +214,7 @@ class Replayer:
         self.model = as_model(model)
         self.hypotheses = bool(hypotheses)
         self.threads = None if threads is None else check_field("workers", threads, "threads")
+        self.inputs = dict(inputs or {})
         self.cases = [self._case(r) for r in campaign.runs]
         self.n_evals = 0
         self._executor = None  # (pid, ThreadPoolExecutor) of :meth:`_pool`
@@ -239,6 +248,20 @@ class Replayer:
         for s, nz in (window.get("noise") or {}).items():
             if s in case.noise:
                 case.noise[s] = nz
+        given = self.inputs.get(run.name, {})
+        for q in given:
+            if q != "p_s_bar":
+                raise ValueError(f"inputs[{run.name!r}]: {q!r} is not a quantity the model can take as a measured "
+                                 "input; allowed: p_s_bar")
+        if "p_s_bar" in given:
+            y = np.asarray(given["p_s_bar"], dtype=float)
+            if y.shape != (run.n,) or not np.all(np.isfinite(y)):
+                raise ValueError(f"inputs[{run.name!r}]['p_s_bar']: expected {run.n} finite values (bar), one per "
+                                 f"sample of the run")
+            if run.kind == "closed_loop":  # each control period at its mid-point value
+                y = np.interp((np.arange(case.n_sim) + 0.5) * case.dt, run.t - run.t[0], y)
+            case.supply = np.ascontiguousarray(y * BAR)
+            case.signals = tuple(s for s in case.signals if s != "p_s_bar")
         return case
 
     def plant(self, model: ModelSpec, run: Run, dt: float | None = None) -> Plant:
@@ -328,8 +351,9 @@ class Replayer:
         # stops it, not in a thread the interpreter would wait for at exit
         first = {}
         for k, job in enumerate(ready):
-            if not job.driver.signatures:
-                first.setdefault(id(job.driver), k)
+            given = job.case.supply is not None  # a measured supply: the driver's specialisation with it
+            if not any(("omitted" not in str(sig[-1])) == given for sig in job.driver.signatures):
+                first.setdefault((id(job.driver), given), k)
         sims = {k: self._run_case(ready[k]) for k in first.values()}
         rest = [k for k in range(len(ready)) if k not in sims]
         runner = self._pool().map if len(rest) > 1 else map
@@ -362,18 +386,29 @@ class Replayer:
         mod, P, plant = self.compiled(model, case.run, case.dt)
         if case.run.kind == "valve_open_loop":
             return _Job(case, mod, P, None, plant.rig.i_max, np.zeros((case.run.n, 3)))
-        return _Job(case, mod, P, self.initial_state(mod, plant, case.theta0), plant.rig.i_max,
-                    np.zeros((case.n_sim, KN.N_OUT)))
+        s0 = self.initial_state(mod, plant, case.theta0)
+        if case.supply is not None:  # at rest at the measured supply: P_A = P_B = P_S / 2 (as Plant.initial_state)
+            s0[KN.S_PA] = s0[KN.S_PB] = 0.5 * case.supply[0]
+            s0[KN.S_PS] = case.supply[0]
+        return _Job(case, mod, P, s0, plant.rig.i_max, np.zeros((case.n_sim, KN.N_OUT)))
 
     def _run_case(self, job: _Job) -> dict[str, np.ndarray]:
         """Runs one replay :meth:`_prepare` made ready (the compiled drivers release the GIL)."""
         case, out = job.case, job.out
         hist = np.zeros(case.hist_len)
         if job.s0 is None:
-            job.driver(job.P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out)
+            if case.supply is None:
+                job.driver(job.P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out)
+            else:
+                job.driver(job.P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out,
+                           case.supply)
             return {"flow_lpm": out[:, 0] / LPM}
-        job.driver(job.s0, job.P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
-                   hist, case.zeros, np.array([0.0, 0.0, 0.0, job.i_max]), 0, 0, np.zeros(6), out)
+        args = (job.s0, job.P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
+                hist, case.zeros, np.array([0.0, 0.0, 0.0, job.i_max]), 0, 0, np.zeros(6), out)
+        if case.supply is None:
+            job.driver(*args)
+        else:
+            job.driver(*args, case.supply)
         return self._closed_loop_signals(case, out)
 
     def _closed_loop_signals(self, case: _Case, o: np.ndarray) -> dict[str, np.ndarray]:

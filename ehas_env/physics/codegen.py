@@ -268,8 +268,9 @@ class ModelSource:
         a("    return i")
         a("")
         a('@njit(cache=True, inline="always")')
-        a("def position_reading(x, P):")
-        a('    """The piston position the LVDT reads for the true position x, m: the effects of the sensor chain."""')
+        a("def position_reading(x, P, s):")
+        a('    """The piston position the LVDT reads for the true position x, m: the effects of the sensor chain (a')
+        a('    sensor effect\'s term may read its own states from the state s: a lag of the reading)."""')
         a("    if P[I_EFFECTS_ON] == 0.0:")
         a("        return x")
         for cls in sorted(self._with("position_reading"), key=lambda c: (c.chain_order, c.name)):

@@ -98,7 +98,7 @@ def measure(s, P, out):
     """Write the physical outputs of state s into out[0:8] (SI, noise-free; the angle as the LVDT reads it)."""
     r = P[I_RADIUS]
     th = math.asin(min(max(s[7] / r, -1.0), 1.0))
-    out[O_THETA] = math.asin(min(max(position_reading(s[7], P) / r, -1.0), 1.0))
+    out[O_THETA] = math.asin(min(max(position_reading(s[7], P, s) / r, -1.0), 1.0))
     out[O_OMEGA] = s[8] / (r * math.cos(th))
     qa, _, _ = land_flows(s[2], s[4], s[5], s[6], P[I_DROP])
     out[O_FLOW] = qa + valve_side_flows(s[2], s[4], s[5], s[6], P)[0]
@@ -197,11 +197,13 @@ def bench_flow(qc, supply, scale, P):
 
 # nogil: replays of a campaign run side by side in Python threads (ehas_env.measurement.replay)
 @njit(cache=True, nogil=True)
-def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
+def run_valve_test(P, cmd, dt, nsub, supply, hist, out, supply_log=None):
     """Valve alone, control ports joined through the flow meter (rated test).
 
     Two lands in series share the supply drop, so the metered flow is
     q_c * sqrt(supply / rated_drop).  out[k] = (flow m^3/s, q_c m^3/s, valve current mA).
+    ``supply_log`` (Pa, one per sample; left out: the constant ``supply``) is a measured
+    supply pressure: sample k and the step after it run at supply_log[k].
     """
     s = np.zeros(N_STATES)
     k1, k2, k3, k4, tmp = rk4_work(s)
@@ -210,6 +212,9 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out):
     scale = math.sqrt(max(supply, 0.0) / P[I_DROP])
     hist[:] = 0.0
     for k in range(cmd.shape[0]):
+        if supply_log is not None:
+            supply = supply_log[k]
+            scale = math.sqrt(max(supply, 0.0) / P[I_DROP])
         out[k, 0] = bench_flow(s[2], supply, scale, P)
         out[k, 1] = s[2]
         hist[k % hist.shape[0]] = cmd[k]

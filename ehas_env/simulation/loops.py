@@ -86,15 +86,20 @@ REF_SINE, REF_STEP = 0, 1
 
 # nogil: replays of a campaign run side by side in Python threads (ehas_env.measurement.replay)
 @njit(cache=True, nogil=True)
-def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, k1, metrics, out):
+def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, k1, metrics, out, supply=None):
     """One closed-loop run of ``len(noise)`` periods with the compiled law number ``law``.
 
     ref: (amplitude deg, f Hz, phase rad, ramp s[, offset deg]) for kind REF_SINE, or
     (step deg, -, step time s, -) for REF_STEP; sensor = (theta ADC lsb deg,
     DAC lsb mA, LVDT gain error, output limit mA).  Writes ``metrics`` (see
     METRICS; error window [k0, k1)) and, when ``out`` has rows, the outputs of
-    every period (layout ``OUT_NAMES``).
+    every period (layout ``OUT_NAMES``).  ``supply`` (Pa, one per period; left out:
+    the model's own) is a measured supply pressure: period k runs at supply[k], the
+    supply state and the supply the model caps pressures at both set to it
+    (ehas_env.measurement.measured_inputs; P itself is not changed).
     """
+    if supply is not None:
+        P = P.copy()
     k1v, k2v, k3v, k4v, tmp = rk4_work(s)
     row = np.zeros(N_OUT)
     adc, dac, gain_err, u_max = sensor[0], sensor[1], sensor[2], sensor[3]
@@ -109,6 +114,9 @@ def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, 
     keep = out.shape[0] > 0
     n = noise.shape[0]
     for k in range(n):
+        if supply is not None:
+            P[I_SUPPLY] = supply[k]
+            s[6] = supply[k]
         measure(s, P, row)
         t = k * dt
         if kind == REF_SINE:

@@ -328,8 +328,12 @@ class Plant:
         iteration (the identity without sensor effects)."""
         # at most 32 calls: run in Python (numba's py_func), not compiled -- an environment's construction then
         # compiles nothing of the quick build (the sensor effects' own terms, if on, compile when called)
-        read = getattr(self._model.position_reading, "py_func", self._model.position_reading)
+        fn = getattr(self._model.position_reading, "py_func", self._model.position_reading)
         P = self._P
+        rest = np.zeros(self._model.N_STATES)  # a sensor effect's own states at rest (a lag's error: 0)
+
+        def read(x, P):
+            return fn(x, P, rest)
         x0, x1 = reading, reading - (read(reading, P) - reading)
         f0, f1 = read(x0, P) - reading, read(x1, P) - reading
         for _ in range(30):

@@ -109,8 +109,10 @@ def rig_model(rig: str):
     return None if rig == "book" else gen.RIGS_DIR / f"{rig}.json"
 
 
-def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool = False, log=print) -> dict:
-    """Generate, diagnose and (when an effect file is written) compare one case; returns its record."""
+def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool = False, log=print,
+             resolution: bool = True) -> dict:
+    """Generate, diagnose and (when an effect file is written) compare one case; returns its record
+    (``resolution``: run :func:`resolution_check` when a hidden effect is missed)."""
     cid = case["id"]
     wdir = work / cid
     camp = wdir / "campaign"
@@ -221,7 +223,7 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
     else:
         # explained (or no proposal): the residual after is the diagnosis' own final model
         rec["residual_after"] = rec["residual_before"] if rec.get("verdict") == "explained" else "not available"
-    if rec["judge"]["missed"] and not rec["judge"]["wrong"]:
+    if resolution and rec["judge"]["missed"] and not rec["judge"]["wrong"]:
         t1 = time.time()
         try:
             rec["resolution"] = resolution_check(rec, camp, mopt, wdir, log=log)
@@ -375,8 +377,9 @@ def _num(x):
 
 def library_spurious(kept, truth) -> list[str]:
     """The library's effects kept that are not in the truth.  A structural hypothesis (``hyp_*``) is what the
-    diagnosis names for the missing physics: judged by its kind (:mod:`.judge`), not counted here."""
-    return [k for k in kept if k not in truth and not k.startswith("hyp_")]
+    diagnosis names for the missing physics: judged by its kind (:mod:`.judge`), not counted here; so is a state
+    the state stage kept (``aug_*``)."""
+    return [k for k in kept if k not in truth and not k.startswith(("hyp_", "aug_"))]
 
 
 def summarise(recs: list[dict]) -> dict:

@@ -1,6 +1,6 @@
 """The effects the independent generator can switch on, with their physical kind and magnitudes.
 
-Two groups:
+Three groups:
 
 * **out-of-library** effects (:data:`OUT_OF_LIBRARY`): physics of hydraulic servo
   drives described by Merritt (*Hydraulic Control Systems*, 1967) and Jelali &
@@ -9,6 +9,10 @@ Two groups:
   friction, internal and external leakage, valve deadband, null bias and
   dynamics, transport delay, supply droop from pump + accumulator, piston mass,
   backlash, bulk modulus) does not hold;
+* **unlisted** classes (:data:`UNLISTED`, issue 33 item 7): physics that neither the
+  library, nor the diagnosis' structural hypotheses (``ehas_env/physics/effects/hyp_*.py``),
+  nor the out-of-library group describes, spread over the model's places (:data:`PLACES`);
+  each also says where it acts (``places``), for the judge of "right place";
 * **library** effects re-implemented here from their definitions in
   docs/reference-model.md (:data:`LIBRARY`), for the "found as today" check.
 
@@ -25,7 +29,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 KINDS = ("friction", "leakage/flow", "compliance", "geometry/area", "valve", "sensor", "command path", "load",
-         "fluid property")
+         "fluid property", "supply/return")
+#: the model's places where a physical term acts (the diagnosis' vocabulary: docs/measurement-format.md)
+PLACES = ("valve_current", "coil_current", "chamber_flows", "piston_force", "crank_torque", "supply", "return",
+          "position_reading")
 
 
 @dataclass(frozen=True)
@@ -63,6 +70,11 @@ class EffectSpec:
         Whether ehas's library holds this effect (re-implemented here).
     bench : bool
         Whether it acts on the valve flow bench too.
+    extra : dict
+        Free-form notes.
+    places : tuple of str
+        Places of the model (:data:`PLACES`) where a diagnosis may name it and be right (the first is where it
+        acts); empty for the older groups, which are judged by kind only.
     """
 
     name: str
@@ -75,6 +87,7 @@ class EffectSpec:
     library: bool = False
     bench: bool = False
     extra: dict = field(default_factory=dict)
+    places: tuple = ()
 
     @property
     def accepted_kinds(self) -> tuple:
@@ -203,7 +216,75 @@ CHECKS = {e.name: e for e in (
                accept=("compliance",), library=True),
 )}
 
-ALL = {**OUT_OF_LIBRARY, **LIBRARY, **CHECKS}
+#: classes of hidden physics that no library effect, no structural hypothesis (ehas_env/physics/effects/hyp_*.py)
+#: and no effect of :data:`OUT_OF_LIBRARY` describes (issue 33, item 7); judged by place and kind
+UNLISTED = {e.name: e for e in (
+    EffectSpec("bore_wear_friction", "friction",
+               (P("Fw", "N", 1.0, (400.0, 1200.0), "seal friction at the stroke ends of a bore worn smooth in its "
+                                                  "middle (zero at mid-stroke)"),),
+               "Jelali & Kroll 2003 (cylinder friction, position-dependent through wear); "
+               "Manring 2005 (actuator seal friction)",
+               "F = -Fw (x / h)^2 tanh(v / 1 mm/s) on the piston: the sliding level grows with the square of the "
+               "distance from mid-stroke",
+               accept=("friction",), places=("piston_force",)),
+    EffectSpec("end_cushion", "friction",
+               (P("ce", "N s/m", 1.0, (10000.0, 40000.0), "damping of the cushions at the stroke ends"),),
+               "Merritt 1967 and Manring 2005 (hydraulic cylinders: end-of-stroke cushioning)",
+               "F = -ce v s^2 on the piston, s = max(0, (|x| - 0.6 h) / (0.4 h)): a damping that rises over "
+               "the last 40 % of each half stroke (the cushion spear throttles the outflow)",
+               accept=("friction", "leakage/flow"), places=("piston_force", "chamber_flows"),
+               why="the cushion throttles the outflow near the ends: the same damping seen as a flow restriction "
+                   "at the chamber"),
+    EffectSpec("land_flow_forces", "valve",
+               (P("gamma", "-", 1.0, (0.02, 0.06), "fall of the land's flow exponent below 1/2"),),
+               "Merritt 1967 (spool valves: steady-state flow forces); Manring 2005 (spool valves: flow forces and "
+               "their pressure-flow coupling)",
+               "each land passes a sign(d) |d / (dp_n/2)|^(1/2 - gamma): the flow forces close the spool by a "
+               "share that grows with the land's drop d (equal to the orifice law at the rated drop per land, "
+               "where the bench rates the valve)",
+               accept=("valve", "leakage/flow"), places=("chamber_flows", "valve_current"),
+               why="a flow that departs from the orifice law with the land's drop is a flow term at the chamber"),
+    EffectSpec("current_slew", "command path",
+               (P("S", "mA/s", 1.0, (400.0, 150.0), "slew-rate limit of the current driver (the closed-loop runs ask "
+                                                "up to about 250 mA/s, the chirp up to 1500)"),),
+               "Jelali & Kroll 2003 (servo amplifier and torque-motor coil: voltage-limited current rise); "
+               "Merritt 1967",
+               "S_T i_v' = S tanh((i - i_v) / (S SLEW_T)): the coil current follows the command with its "
+               "small-signal time constant SLEW_T = 0.2 ms but never faster than S",
+               accept=("command path", "valve"), places=("valve_current", "coil_current"), bench=True,
+               why="the limit is in the valve's coil driver, the head of the valve"),
+    EffectSpec("lvdt_lag", "sensor",
+               (P("T", "ms", 1e-3, (0.5, 2.0), "time constant of the LVDT demodulator's output filter"),),
+               "Jelali & Kroll 2003 (position measurement: LVDT carrier demodulation and its output filter)",
+               "the reading x_r lags the piston: T x_r' = x - x_r; the logger and the controller see x_r",
+               accept=("sensor",), places=("position_reading",)),
+    EffectSpec("supply_ripple", "supply/return",
+               (P("a", "bar", 1e5, (3.0, 10.0), "amplitude of the pump's pressure ripple at 23.7 Hz"),),
+               "Manring 2005 (axial-piston pumps: flow ripple and the supply pressure it makes); Merritt 1967",
+               "Ps(t) = Ps + a sin(2 pi 23.7 Hz t) at the valve and in the logged supply pressure (the transducer "
+               "sits at the pump); the flow bench has its own regulated supply",
+               accept=("supply/return",), places=("supply",)),
+    EffectSpec("hose_line", "compliance",
+               (P("dp", "bar", 1e5, (4.0, 12.0), "laminar pressure drop of each hose at 20 LPM"),
+                P("V", "cm^3", 1e-6, (20.0, 50.0), "oil volume of each hose (0.4 m or 1 m of 8 mm bore)")),
+               "Merritt 1967 (hydraulic lines: lumped resistance and capacitance); Jelali & Kroll 2003",
+               "a hose between each valve port and its chamber: port pressure p_v' = beta / V (Q_land - Q_h), "
+               "Q_h = (p_v - p_chamber) 20 LPM / dp into the chamber; the pressure transducers sit at the "
+               "actuator, the flow meter at the valve port",
+               accept=("compliance", "leakage/flow", "fluid property"), places=("chamber_flows",),
+               why="the hose's oil is a compliance (a softer hydraulic spring, as a lower bulk modulus) and its "
+                   "resistance a flow-dependent drop on the chamber's flow"),
+    EffectSpec("bearing_friction", "friction",
+               (P("mur", "mm", 1e-3, (1.5, 5.0), "friction coefficient times pin radius of the crank bearing and "
+                                                "rod eye (mu 0.1 x 15 mm = 1.5 mm)"),),
+               "Merritt 1967 (load friction); Jelali & Kroll 2003 (bearing friction proportional to the joint load)",
+               "torque on the crank -mur |F| tanh(omega / 0.02 rad/s), F = A_A P_A - A_B P_B the force the rod "
+               "carries: Coulomb friction proportional to the joint load",
+               accept=("friction",), places=("crank_torque", "piston_force"),
+               why="a torque on the crank and a force on the piston are the same load seen through the lever"),
+)}
+
+ALL = {**OUT_OF_LIBRARY, **LIBRARY, **CHECKS, **UNLISTED}
 
 
 def to_si(effects: dict) -> dict:

@@ -19,13 +19,27 @@ The verdict:
 * for a campaign without effects (clean), nothing may be named;
 * an item whose place or coefficient is not in the maps is of kind "unknown"
   and never right.
+
+For the group ``unlisted`` (:data:`.effects.UNLISTED`) the question is sharper:
+**right place and right kind, named in physical words** (:func:`judge_place_kind`).
+Items come with the places where they act and whether they are words or a bare
+constant of a form (:func:`worded_items`): a kept library effect or structural
+hypothesis (physical by construction; its place from :data:`LIBRARY_PLACE`), an
+entry of the proposal's ``named`` list (its ``form`` judged here by
+:data:`NAMED_FORM_KIND`, not by the package's own ``kind`` string, which is used
+only where the place allows one kind alone or to choose among the place's kinds
+when the form is not in the map), a disturbance the logged supply pressure carries
+(the supply boundary), and, when there is no ``named`` list, the bare proposal terms
+(right ingredients, but constants: never "in words").  :func:`honesty` records,
+per case, the residual before and after, whether it closed, a recommended term too
+weak to be written and a kept hypothesis that worsens the all-data residual.
 """
 from __future__ import annotations
 
 import re
 from pathlib import Path
 
-from .effects import ALL
+from .effects import ALL, PLACES
 
 #: kinds of ehas's library effects (docs/reference-model.md, "Effects")
 LIBRARY_KIND = {
@@ -42,6 +56,10 @@ LIBRARY_KIND = {
     "hyp_load_compliance": {"compliance"}, "hyp_valve_underlap": {"valve"}, "hyp_position_offset": {"sensor"},
     "hyp_position_shape": {"sensor"}, "hyp_lugre_friction": {"friction"}, "hyp_coil_lag": {"command path", "valve"},
     "hyp_crank_offset": {"geometry/area"},
+    # the state stage's generic augmentations (ehas_env/physics/augment.py), judged by what each is
+    "aug_lag_coil": {"command path", "valve"}, "aug_lag_position_sensor": {"sensor"},
+    "aug_link_rod_crank": {"compliance"}, "aug_link_mount": {"compliance"},
+    "aug_hose_a": {"compliance", "leakage/flow"}, "aug_hose_b": {"compliance", "leakage/flow"},
 }
 
 #: kinds of the proposal's forms, "place.coefficient" (ehas_env/measurement/proposal_terms.py's dictionary as
@@ -62,19 +80,112 @@ FORM_KIND = {
     "crank_torque.c_th3": {"load"},
     "chamber_flows.c_ext": {"leakage/flow"},
     "chamber_flows.c_int": {"leakage/flow"},
-    "chamber_flows.c_ret": {"leakage/flow"},  # return-line back-pressure
-    "chamber_flows.c_sup": {"leakage/flow"},  # supply offset at the valve
-    "chamber_flows.c_ga": {"valve", "geometry/area"},  # one side's flow gain: a land or an area
-    "chamber_flows.c_gb": {"valve", "geometry/area"},
-    "chamber_flows.c_gpos": {"valve"},  # flow gain by spool direction
-    "chamber_flows.c_gneg": {"valve"},
+    "land_flows.c_ret": {"leakage/flow", "supply/return"},  # return-line back-pressure
+    "land_flows.c_sup": {"leakage/flow", "supply/return"},  # supply offset at the valve
+    "land_flows.c_ga": {"valve", "geometry/area"},  # one side's flow gain: a land or an area
+    "land_flows.c_gb": {"valve", "geometry/area"},
+    "land_flows.c_gpos": {"valve"},  # flow gain by spool direction
+    "land_flows.c_gneg": {"valve"},
     "valve_current.c_1": {"valve"},  # null bias
     "valve_current.c_i": {"valve"},  # gain
     "valve_current.c_abs": {"valve"},  # gain by direction
 }
+# the proposal's newer coefficients (ehas_env/measurement/proposal_terms.py), judged here by their law
+FORM_KIND.update({
+    "piston_force.c_x2sv": {"friction"}, "piston_force.c_x2v": {"friction"}, "piston_force.c_plsv": {"friction"},
+    "piston_force.c_x2": {"load"}, "crank_torque.c_th2sw": {"friction"}, "crank_torque.c_jsw": {"friction"},
+    "chamber_flows.c_intsq": {"leakage/flow"}, "land_flows.c_gpl": {"valve"},
+    "land_flows.c_rline": {"leakage/flow", "compliance"}, "land_flows.c_lam": {"valve", "fluid property"},
+    "land_flows.c_rsup": {"supply/return", "leakage/flow"},
+    "land_flows.c_rsup2": {"supply/return", "leakage/flow"},
+    "valve_current.c_i3": {"command path"}, "valve_current.c_sgn": {"valve", "command path"},
+    "position_reading.c_1": {"sensor"}, "position_reading.c_x": {"sensor"}, "position_reading.c_x2": {"sensor"},
+    "position_reading.c_x3": {"sensor"},
+})
+#: coefficients that act on a boundary of the lands rather than on the chambers' flows
+COEF_PLACE = {"c_sup": "supply", "c_rsup": "supply", "c_rsup2": "supply", "c_ret": "return"}
+
+#: the named physical forms (the proposal's ``named[].form``, helper B's ehas_env/measurement/naming.py FORMS as
+#: listed in /tmp/helpers/B-forms.txt), each judged here by its law: the kinds it stands for
+NAMED_FORM_KIND = {
+    "piston_force.coulomb": {"friction"}, "piston_force.viscous": {"friction"},
+    "piston_force.friction_x2": {"friction"},  # F = -(F_0 + k x^2) sign(v): friction varying along the stroke
+    "piston_force.viscous_x2": {"friction"},  # F = -(b_0 + b_2 x^2) v: a damping rising toward the ends
+    "piston_force.friction_load": {"friction"},  # F = -(F_0 + a |P_L|) sign(v)
+    "piston_force.quadratic_drag": {"friction"},  # F = -d v|v|: a dissipative drag (disc_drag is friction too)
+    "piston_force.spring": {"load"}, "piston_force.hardening_spring": {"load"}, "piston_force.constant": {"load"},
+    "piston_force.load_x2": {"load"},
+    "piston_force.area_ab": {"geometry/area"}, "piston_force.area_b": {"geometry/area"},
+    "crank_torque.coulomb": {"friction"}, "crank_torque.viscous": {"friction"},
+    "crank_torque.friction_angle": {"friction"}, "crank_torque.joint_friction": {"friction"},
+    "crank_torque.spring": {"load"}, "crank_torque.hardening_spring": {"load"}, "crank_torque.constant": {"load"},
+    "chamber_flows.leak_drain": {"leakage/flow"}, "chamber_flows.leak_across": {"leakage/flow"},
+    "chamber_flows.leak_across_turbulent": {"leakage/flow"},
+    "chamber_flows.gain_by_direction": {"valve"}, "chamber_flows.gain_by_port": {"valve", "geometry/area"},
+    "chamber_flows.gain_load": {"valve"},  # q (1 - c |P_L| / P_S): a flow gain falling with the load pressure
+    "chamber_flows.line_resistance": {"leakage/flow", "compliance"},  # a drop R q in the line to the chamber
+    "chamber_flows.metering_law": {"valve"},  # q ~ sqrt(drop)(1 + c (sqrt(drop/(P_S/2)) - 1)): the lands' own law
+    "supply.offset": {"supply/return"}, "supply.line_drop": {"supply/return", "leakage/flow"},
+    "supply.line_drop_turbulent": {"supply/return", "leakage/flow"},
+    "return.back_pressure": {"supply/return", "leakage/flow"},
+    "valve_current.bias": {"valve", "command path"}, "valve_current.gain": {"command path", "valve"},
+    "valve_current.gain_by_direction": {"valve"}, "valve_current.saturation": {"command path"},
+    "valve_current.dead_band": {"valve", "command path"},
+    "position_reading.offset": {"sensor"}, "position_reading.gain": {"sensor"}, "position_reading.bow": {"sensor"},
+    "position_reading.cubic": {"sensor"},
+}
+#: the package's place names (and spellings it has used) -> the generator's (:data:`.effects.PLACES`)
+PLACE_ALIAS = {**{p: p for p in PLACES}, "land_flows": "chamber_flows", "chamber_flow": "chamber_flows",
+               "metering": "chamber_flows", "hydraulic_lines": "chamber_flows", "lines": "chamber_flows",
+               "command": "valve_current", "command_path": "valve_current", "current": "valve_current",
+               "supply_pressure": "supply", "return_pressure": "return", "position": "position_reading",
+               "position_sensor": "position_reading", "theta": "position_reading", "sensor": "position_reading"}
+#: kinds a term at a place can stand for (for a named form not in :data:`NAMED_FORM_KIND`)
+PLACE_KINDS = {"valve_current": {"valve", "command path"}, "coil_current": {"command path", "valve"},
+               "chamber_flows": {"leakage/flow", "valve", "geometry/area", "compliance", "fluid property"},
+               "piston_force": {"friction", "load", "geometry/area"}, "crank_torque": {"friction", "load"},
+               "supply": {"supply/return"}, "return": {"supply/return"}, "position_reading": {"sensor"}}
+#: where each library effect and structural hypothesis acts
+LIBRARY_PLACE = {
+    "coulomb_friction": {"piston_force"}, "viscous_friction": {"piston_force"}, "stribeck_friction": {"piston_force"},
+    "internal_leakage": {"chamber_flows"}, "external_leakage": {"chamber_flows"},
+    "valve_deadband": {"valve_current"}, "valve_null_bias": {"valve_current"}, "valve_dynamics": {"coil_current"},
+    "transport_delay": {"valve_current"}, "supply_droop": {"supply"}, "piston_mass": {"piston_force"},
+    "backlash": {"piston_force", "crank_torque"}, "bulk_modulus": {"chamber_flows"},
+    "hyp_rod_area": {"piston_force", "chamber_flows"}, "hyp_return_pressure": {"return"},
+    "hyp_direction_gain": {"chamber_flows", "valve_current"}, "hyp_turbulent_leakage": {"chamber_flows"},
+    "hyp_pressure_friction": {"piston_force"}, "hyp_quadratic_drag": {"crank_torque"},
+    "hyp_crank_unbalance": {"crank_torque"}, "hyp_crank_spring": {"crank_torque"}, "hyp_supply_line_loss": {"supply"},
+    "hyp_entrained_air": {"chamber_flows"}, "hyp_dead_volume": {"chamber_flows"},
+    "hyp_load_compliance": {"piston_force", "crank_torque"}, "hyp_valve_underlap": {"chamber_flows"},
+    "hyp_position_offset": {"position_reading"}, "hyp_position_shape": {"position_reading"},
+    "hyp_lugre_friction": {"piston_force"}, "hyp_coil_lag": {"coil_current", "valve_current"},
+    "hyp_crank_offset": {"crank_torque", "position_reading"},
+    "aug_lag_coil": {"coil_current", "valve_current"}, "aug_lag_position_sensor": {"position_reading"},
+    "aug_link_rod_crank": {"piston_force", "crank_torque"}, "aug_link_mount": {"piston_force"},
+    "aug_hose_a": {"chamber_flows"}, "aug_hose_b": {"chamber_flows"},
+}
+#: words of the package's own kind strings -> kinds (used only to choose among a place's kinds)
+KIND_WORDS = (("fric", "friction"), ("damp", "friction"), ("leak", "leakage/flow"), ("flow", "leakage/flow"),
+              ("compli", "compliance"), ("area", "geometry/area"), ("geometr", "geometry/area"),
+              ("valve", "valve"), ("sensor", "sensor"), ("command", "command path"), ("load", "load"),
+              ("fluid", "fluid property"), ("supply", "supply/return"), ("return", "supply/return"))
+
 #: places alone, when a written effect file is read without the JSON
 PLACE_KIND = {"piston_force": {"friction", "load", "geometry/area"}, "crank_torque": {"friction", "load"},
-              "chamber_flows": {"leakage/flow", "valve", "geometry/area"}, "valve_current": {"valve"}}
+              "chamber_flows": {"leakage/flow", "valve", "geometry/area"}, "valve_current": {"valve"},
+              "land_flows": {"leakage/flow", "valve", "geometry/area", "supply/return"},
+              "position_reading": {"sensor"}}
+
+
+def form_kinds(place, coefficient) -> set | None:
+    """Kinds of the proposal form ``place.coefficient`` (:data:`FORM_KIND`; the lands' coefficients were
+    listed under ``chamber_flows`` before the package gave them their own place, ``land_flows``); None if unknown."""
+    key = f"{place}.{coefficient}"
+    if key in FORM_KIND:
+        return set(FORM_KIND[key])
+    other = {"chamber_flows": "land_flows", "land_flows": "chamber_flows"}.get(str(place))
+    return set(FORM_KIND[f"{other}.{coefficient}"]) if other and f"{other}.{coefficient}" in FORM_KIND else None
 
 
 def kept_effects(diag: dict) -> list[str]:
@@ -104,7 +215,8 @@ def named_items(diag: dict) -> list[dict]:
     prop = proposal(diag)
     for term in (prop or {}).get("terms") or []:
         key = f"{term.get('place')}.{term.get('coefficient')}"
-        items.append({"label": f"{key} ({term.get('form', '?')})", "kinds": sorted(FORM_KIND.get(key, {"unknown"})),
+        items.append({"label": f"{key} ({term.get('form', '?')})",
+                      "kinds": sorted(form_kinds(term.get("place"), term.get("coefficient")) or {"unknown"}),
                       "source": "proposal"})
     return items
 
@@ -145,3 +257,190 @@ def judge(truth_effects: dict, items: list[dict]) -> dict:
     return {"right_kind": not missed and not wrong, "missed": missed, "wrong": wrong,
             "true_kinds": {n: ALL[n].kind for n in truth_effects},
             "named_kinds": [{"label": it["label"], "kinds": it["kinds"]} for it in items]}
+
+
+def canonical_place(place) -> str | None:
+    """The generator's name of a place the package names (``land_flows`` -> ``chamber_flows``); None if unknown."""
+    return PLACE_ALIAS.get(str(place or "").strip().lower())
+
+
+def claimed_kinds(text) -> set:
+    """The kinds the package's own ``kind`` string claims (by its words)."""
+    t = str(text or "").lower()
+    return {k for w, k in KIND_WORDS if w in t}
+
+
+def named_entry_kinds(entry: dict) -> set:
+    """The kinds of one entry of the proposal's ``named`` list, judged by its form and place.
+
+    The form (``named[].form``, ``place.name``) in :data:`NAMED_FORM_KIND` decides; else the coefficients it sets
+    (``params``' keys as ``place.coefficient`` in :data:`FORM_KIND`); else the place when it allows one kind only;
+    else the package's ``kind`` among the place's kinds; else ``{"unknown"}``.
+    """
+    place = canonical_place(entry.get("place"))
+    form = str(entry.get("form") or "")
+    if form in NAMED_FORM_KIND:
+        return set(NAMED_FORM_KIND[form])
+    found = set().union(set(), *(form_kinds(place, k) or set() for k in (entry.get("params") or {})))
+    if found:
+        return found
+    allowed = PLACE_KINDS.get(place, set())
+    if len(allowed) == 1:
+        return set(allowed)
+    chosen = claimed_kinds(entry.get("kind")) & allowed
+    return chosen or {"unknown"}
+
+
+def states_kept(diag: dict) -> list[str]:
+    """Augmentations the state stage kept: ``stages[]`` records (or their ``states``) whose ``kept`` is a name, and
+    ``aug_*`` effects of the final model."""
+    names = []
+    for st in diag.get("stages") or []:
+        for rec in ((st, st.get("states")) if isinstance(st, dict) else ()):
+            if isinstance(rec, dict) and isinstance(rec.get("kept"), str) and rec["kept"].startswith("aug_"):
+                names.append(rec["kept"])
+    names += [n for n in ((diag.get("model") or {}).get("effects") or {}) if str(n).startswith("aug_")]
+    return list(dict.fromkeys(names))
+
+
+def worded_items(diag: dict) -> list[dict]:
+    """What the diagnosis names, with places and whether it is said in physical words.
+
+    Returns
+    -------
+    list of dict
+        ``label``, ``kinds`` (sorted list), ``places`` (sorted list of :data:`.effects.PLACES`), ``words`` (bool),
+        ``source`` (library, hypothesis, named, disturbance, proposal).
+    """
+    items = []
+    for name in kept_effects(diag):
+        items.append({"label": name, "kinds": sorted(LIBRARY_KIND.get(name, {"unknown"})),
+                      "places": sorted(LIBRARY_PLACE.get(name, set())), "words": name in LIBRARY_KIND,
+                      "source": "hypothesis" if name.startswith("hyp_") else "library"})
+    for name in states_kept(diag):
+        if name not in {i["label"] for i in items}:
+            items.append({"label": name, "kinds": sorted(LIBRARY_KIND.get(name, {"unknown"})),
+                          "places": sorted(LIBRARY_PLACE.get(name, set())), "words": name in LIBRARY_KIND,
+                          "source": "state"})
+    hyp = diag.get("hypothesis")
+    if isinstance(hyp, dict) and hyp.get("effect") and hyp["effect"] not in {i["label"] for i in items}:
+        name = hyp["effect"]
+        items.append({"label": name, "kinds": sorted(LIBRARY_KIND.get(name, {"unknown"})),
+                      "places": sorted(LIBRARY_PLACE.get(name, set())), "words": name in LIBRARY_KIND,
+                      "source": "hypothesis"})
+    prop = proposal(diag) or {}
+    named = prop.get("named")
+    if isinstance(named, list) and named:
+        for e in named:
+            place = canonical_place(e.get("place"))
+            items.append({"label": f"{e.get('form') or e.get('place')}: {e.get('words') or e.get('law') or ''}"[:160],
+                          "kinds": sorted(named_entry_kinds(e)), "places": [place] if place else [],
+                          "words": bool(str(e.get("words") or "").strip()), "source": "named"})
+    else:
+        for term in prop.get("terms") or []:
+            coef = term.get("coefficient")
+            place = COEF_PLACE.get(coef) or canonical_place(term.get("place"))
+            items.append({"label": f"{term.get('place')}.{coef} ({term.get('form', '?')})",
+                          "kinds": sorted(form_kinds(term.get("place"), coef) or {"unknown"}),
+                          "places": [place] if place else [],
+                          "words": False, "source": "proposal"})
+    for d in diag.get("disturbances") or []:
+        if isinstance(d, dict) and d.get("boundary"):
+            items.append({"label": f"supply disturbance {d.get('frequency_hz')} Hz: {d.get('text', '')}"[:160],
+                          "kinds": ["supply/return"], "places": ["supply"], "words": True, "source": "disturbance"})
+    return items
+
+
+def truth_places(name: str) -> set:
+    """Places where a hidden effect may rightly be named: its own (``places``), a library effect's, else any."""
+    spec = ALL[name]
+    return set(spec.places) or set(LIBRARY_PLACE.get(name, ())) or set(PLACES)
+
+
+def judge_place_kind(truth_effects: dict, items: list[dict]) -> dict:
+    """Right place and right kind, named in physical words?
+
+    Parameters
+    ----------
+    truth_effects : dict
+        ``{name: params}`` hidden in the campaign.
+    items : list of dict
+        :func:`worded_items`.
+
+    Returns
+    -------
+    dict
+        ``right`` (bool: every hidden effect is matched by one worded item of an accepted kind at an accepted place,
+        and no worded item is of a kind no hidden effect has), ``per_effect`` {name: {"right_kind", "right_place",
+        "right_kind_any_form"}} (the last counting bare proposal constants too), ``wrong`` (labels), ``items``.
+    """
+    per = {}
+    worded = [it for it in items if it["words"]]
+    for n in truth_effects:
+        acc, places = set(ALL[n].accepted_kinds), truth_places(n)
+        kind_ok = [it for it in worded if acc & set(it["kinds"])]
+        per[n] = {"right_kind": bool(kind_ok),
+                  "right_place": any(places & set(it["places"]) for it in kind_ok),
+                  "right_kind_any_form": any(acc & set(it["kinds"]) for it in items)}
+    union = set().union(*(set(ALL[n].accepted_kinds) for n in truth_effects)) if truth_effects else set()
+    wrong = [it["label"] for it in worded if not (set(it["kinds"]) & union)]
+    right = all(v["right_kind"] and v["right_place"] for v in per.values()) and not wrong
+    return {"right": right, "per_effect": per, "wrong": wrong,
+            "items": [{k: it[k] for k in ("label", "kinds", "places", "words", "source")} for it in items]}
+
+
+#: a term is too weak to be recommended when its refit removes less than this share of the excess over noise
+WEAK_TERM_SHARE = 0.10
+#: the residual is closed when at most this many times the noise ...
+CLOSED_X_NOISE = 2.0
+#: ... and at least this share below the baseline's
+CLOSED_BELOW_BASELINE = 0.20
+
+
+def _num(x):
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
+
+
+def honesty(diag: dict, baseline, final) -> dict:
+    """Per case: the residual before and after, closed?, a weak recommended term?, a worsening kept hypothesis?
+
+    Parameters
+    ----------
+    diag : dict
+        The diagnosis JSON.
+    baseline : float or None
+        Residual x noise of the recalibrated baseline (the model with no effect, beta and K fitted).
+    final : float or None
+        Residual x noise of the diagnosis' final model (with its recommended term, when one is).
+
+    Returns
+    -------
+    dict
+        ``baseline``, ``final``, ``closed`` (final <= :data:`CLOSED_X_NOISE` and at least
+        :data:`CLOSED_BELOW_BASELINE` below the baseline; None when a figure is missing), ``weak_term`` (a proposal
+        is recommended whose refit on all data removes less than :data:`WEAK_TERM_SHARE` of the excess over noise),
+        ``term_share`` (that share), ``worsening_hypothesis`` (a structural hypothesis is kept and the all-data
+        residual is above the bare library model's), ``library_residual`` (that model's).
+    """
+    b, f = _num(baseline), _num(final)
+    closed = None if b is None or f is None else (f <= CLOSED_X_NOISE and f <= (1.0 - CLOSED_BELOW_BASELINE) * b)
+    prop = proposal(diag)
+    share = None
+    if prop:
+        v = prop.get("validation") or {}
+        before = _num(v.get("residual_x_noise_all_before", prop.get("residual_x_noise_before")))
+        after = _num(v.get("residual_x_noise_all_after", prop.get("residual_x_noise_after")))
+        if before is not None and after is not None:
+            share = (before - after) / (before - 1.0) if before > 1.0 else 0.0
+    weak = (None if share is None else share < WEAK_TERM_SHARE) if prop else False
+    hyps = [k for k in kept_effects(diag) if k.startswith("hyp_")]
+    if isinstance(diag.get("hypothesis"), dict) and diag["hypothesis"].get("effect"):
+        hyps = sorted(set(hyps) | {diag["hypothesis"]["effect"]})
+    lib = _num((diag.get("validation") or {}).get("residual_x_noise_before_hypotheses"))
+    if lib is None and isinstance(diag.get("hypothesis"), dict):
+        lib = _num(diag["hypothesis"].get("residual_x_noise_before"))
+    all_data = _num(diag.get("residual_x_noise"))
+    worse = bool(hyps) and lib is not None and all_data is not None and all_data > lib
+    return {"baseline": b, "final": f, "closed": closed, "weak_term": weak,
+            "term_share": None if share is None else round(share, 4), "worsening_hypothesis": worse,
+            "hypotheses_kept": hyps, "library_residual": lib}

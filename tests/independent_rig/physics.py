@@ -1,7 +1,9 @@
 """The rig's equations, written from docs/reference-model.md, plus the switchable effects of :mod:`.effects`.
 
-State vector (SI), always all ten components (an effect that is off leaves its
-states at rest):
+State vector (SI): always these ten components (an effect that is off leaves its
+states at rest), and after them the states of the unlisted classes that are on
+(``lvdt_lag``: the reading x_r, m; ``hose_line``: the two valve-port pressures,
+Pa), so that a campaign without them integrates exactly the ten it always did:
 
 ====  ========  ============================================================
  0    theta     crank angle, rad (0 at mid-stroke)
@@ -37,6 +39,13 @@ LUGRE = {"ratio": 1.6, "vs": 5.0e-3, "sigma0": 1.0e6, "sigma1": 1.0e3, "sigma2":
 UNBALANCE_PHASE = math.pi / 3.0  # rad: the discs' centre of mass 60 deg from the bottom at mid-stroke
 LINE_LOSS_REF_FLOW = 20.0 * LPM  # flow at which supply_line_loss's dp is given
 JOINT_K, JOINT_C = 2.0e7, 3.0e3  # N/m, N s/m: contact of the joint with play (docs/reference-model.md, backlash)
+# the unlisted classes (effects.UNLISTED); their figures are assumed, typical of the sources cited there
+CUSHION_START = 0.6  # share of the half stroke beyond which an end cushion acts
+SLEW_T = 2.0e-4  # s: the current driver's small-signal time constant under a slew limit
+RIPPLE_HZ = 23.7  # Hz: once-per-revolution line of a 1422 rpm pump (one worn piston of nine)
+HOSE_VOLUME = 50.0e-6  # m^3 of oil per hose when hose_line gives no V (1 m of 8 mm bore)
+HOSE_REF_FLOW = 20.0 * LPM  # flow at which hose_line's dp is given
+BEARING_W_TANH = 0.02  # rad/s: smoothing of the bearing friction's sign (1 mm/s at the 50 mm crank)
 
 
 def _root(z: float) -> float:
@@ -89,6 +98,40 @@ class RigModel:
         self.tau = e.get("transport_delay", {}).get("tau", 0.0)
         self.i_bias = e.get("valve_null_bias", {}).get("i_bias", 0.0)
         self.c_leak = e.get("internal_leakage", {}).get("C_leak", 0.0)
+        # unlisted classes
+        self.bore_fw = e.get("bore_wear_friction", {}).get("Fw", 0.0)
+        self.cushion = e.get("end_cushion", {}).get("ce", 0.0)
+        self.gamma = e.get("land_flow_forces", {}).get("gamma", 0.0)
+        self.slew = e.get("current_slew", {}).get("S", 0.0)
+        self.lvdt_t = e.get("lvdt_lag", {}).get("T", 0.0)
+        self.ripple = e.get("supply_ripple", {}).get("a", 0.0)
+        self.hose_r = e.get("hose_line", {}).get("dp", 0.0) / HOSE_REF_FLOW  # Pa s/m^3
+        self.hose_v = e.get("hose_line", {}).get("V", HOSE_VOLUME)  # m^3
+        self.mur = e.get("bearing_friction", {}).get("mur", 0.0)
+        # states beyond the ten, only when their effect is on
+        self.n = N
+        self.i_xr = self.i_hose = None
+        if self.lvdt_t:
+            self.i_xr, self.n = self.n, self.n + 1
+        if self.hose_r:
+            self.i_hose, self.n = self.n, self.n + 2
+
+    def extra_atol(self) -> list:
+        """Absolute tolerances of the states beyond the ten (reading m, port pressures Pa)."""
+        return [1e-11] * (self.i_xr is not None) + [1e-2, 1e-2] * (self.i_hose is not None)
+
+    def supply(self, t: float) -> float:
+        """Supply pressure at the pump at time t, Pa (with the pump's ripple)."""
+        if not self.ripple:
+            return self.rig.supply
+        return self.rig.supply + self.ripple * math.sin(2.0 * math.pi * RIPPLE_HZ * t)
+
+    def land(self, d: float) -> float:
+        """A land's flow per unit opening (as no-load flow) for its drop d, -: sign(d) |d / (dp_n/2)|^(1/2 - gamma)."""
+        z = d / (0.5 * self.rig.rated_drop)
+        if not self.gamma:
+            return _root(z)
+        return math.copysign(abs(z) ** (0.5 - self.gamma), z)
 
     # -- pieces ---------------------------------------------------------
     def crank_x(self, theta: float) -> float:
@@ -105,7 +148,7 @@ class RigModel:
 
     def lvdt_angle_deg(self, y) -> float:
         """The angle the LVDT shows, asin(x_read / r), deg (before noise and ADC)."""
-        x, _ = self.piston(y)
+        x = y[self.i_xr] if self.i_xr is not None else self.piston(y)[0]
         h = self.rig.half_stroke
         xr = x + self.x0 + self.lvdt_n * h * (x / h) ** 3
         return math.degrees(math.asin(max(-1.0, min(1.0, xr / self.rig.radius))))
@@ -125,9 +168,9 @@ class RigModel:
         a = va / (1.0 + va)
         return 1.0 / ((1.0 - a) / beta + a / (KAPPA_AIR * p))
 
-    def supply_at_valve(self, qc: float, p_in: float) -> float:
+    def supply_at_valve(self, qc: float, p_in: float, t: float = 0.0) -> float:
         """Supply pressure at the valve, Pa: Ps less the line loss k Q_s^2, Q_s through the inflow land."""
-        ps = self.rig.supply
+        ps = self.supply(t)
         if not self.k_line:
             return ps
         half = 0.5 * self.rig.rated_drop
@@ -135,30 +178,32 @@ class RigModel:
         s = (ps - p_in) / (1.0 + self.k_line * qc * qc / half)
         return p_in + s
 
-    def land_flows(self, qc: float, pa: float, pb: float) -> tuple:
-        """(Q into A, Q into B), m^3/s: four metering lands, each by the root of its own drop."""
-        half = 0.5 * self.rig.rated_drop
+    def land_flows(self, qc: float, pa: float, pb: float, t: float = 0.0) -> tuple:
+        """(Q into A, Q into B), m^3/s: four metering lands, each by the root of its own drop (:meth:`land`);
+        pa, pb the pressures at the valve's ports."""
         u0, pt = self.u0, self.p_t
         p_in = pa if qc >= 0.0 else pb
-        ps = self.supply_at_valve(qc, p_in)
+        ps = self.supply_at_valve(qc, p_in, t)
         a_pa = max(u0 + qc, 0.0)  # supply -> A land opening (as no-load flow)
         a_at = max(u0 - qc, 0.0)  # A -> tank
         a_pb = a_at  # supply -> B opens with negative q_c
         a_bt = a_pa  # B -> tank opens with positive q_c
-        qa = a_pa * _root((ps - pa) / half) - a_at * _root((pa - pt) / half)
-        qb = a_pb * _root((ps - pb) / half) - a_bt * _root((pb - pt) / half)
+        land = self.land
+        qa = a_pa * land(ps - pa) - a_at * land(pa - pt)
+        qb = a_pb * land(ps - pb) - a_bt * land(pb - pt)
         return qa, qb
 
     # -- the right-hand side -------------------------------------------
-    def rates(self, y, i_cmd: float) -> list:
-        """dy/dt at state y with the amplifier's command i_cmd (mA)."""
+    def rates(self, y, i_cmd: float, t: float = 0.0) -> list:
+        """dy/dt at state y and time t (s) with the amplifier's command i_cmd (mA)."""
         rig = self.rig
-        theta, omega, qc, qcd, pa, pb, iv, xp, vp, z = y
-        dy = [0.0] * N
+        theta, omega, qc, qcd, pa, pb, iv, xp, vp, z = y[:N]
+        dy = [0.0] * self.n
         # command path -> valve
         i_in = self.valve_input(i_cmd)
-        if self.t_lag:
-            dy[6] = (i_in - iv) / self.t_lag
+        if self.t_lag or self.slew:
+            rate = (i_in - iv) / (self.t_lag or SLEW_T)
+            dy[6] = self.slew * math.tanh(rate / self.slew) if self.slew else rate
             i_v = iv
         else:
             i_v = i_in
@@ -172,7 +217,17 @@ class RigModel:
             dy[3] = min(dy[3], 0.0) if qc > 0 else max(dy[3], 0.0)
         # chambers
         x, v = self.piston(y)
-        qa, qb = self.land_flows(qc, pa, pb)
+        if self.i_hose is not None:  # valve ports, then the hoses into the chambers
+            k = self.i_hose
+            pva, pvb = y[k], y[k + 1]
+            qva, qvb = self.land_flows(qc, pva, pvb, t)
+            qa, qb = (pva - pa) / self.hose_r, (pvb - pb) / self.hose_r
+            dy[k] = self.beta(pva) / self.hose_v * (qva - qa)
+            dy[k + 1] = self.beta(pvb) / self.hose_v * (qvb - qb)
+        else:
+            qa, qb = self.land_flows(qc, pa, pb, t)
+        if self.i_xr is not None:
+            dy[self.i_xr] = (x - y[self.i_xr]) / self.lvdt_t
         dp = pa - pb
         q_leak = self.c_leak * dp + self.c_turb * _root(dp)
         h, vd = rig.half_stroke, rig.dead_volume
@@ -192,6 +247,11 @@ class RigModel:
             zd = v - LUGRE["sigma0"] * abs(v) * z / g
             dy[9] = zd
             f -= LUGRE["sigma0"] * z + LUGRE["sigma1"] * zd + LUGRE["sigma2"] * v
+        if self.bore_fw:
+            f -= self.bore_fw * (x / rig.half_stroke) ** 2 * math.tanh(v / V_TANH)
+        if self.cushion:
+            s = max(0.0, (abs(x) / rig.half_stroke - CUSHION_START) / (1.0 - CUSHION_START))
+            f -= self.cushion * v * s * s
         # torque on the crank
         torque = 0.0
         if self.unbalance:
@@ -208,17 +268,23 @@ class RigModel:
                          JOINT_K * (gap + self.play) + JOINT_C * gap_rate if gap < -self.play else 0.0)
             else:
                 f_rod = self.k_c * gap + self.c_c * gap_rate
+            if self.mur:
+                torque -= self.mur * abs(f_rod) * math.tanh(omega / BEARING_W_TANH)
             dy[7] = vp
             dy[8] = (f - f_rod) / PISTON_MASS
             dy[1] = (f_rod * lever + torque) / self.inertia
         else:
+            if self.mur:
+                torque -= self.mur * abs(f) * math.tanh(omega / BEARING_W_TANH)
             dy[1] = (f * lever + torque) / self.inertia
         return dy
 
     def initial_state(self) -> list:
         """At rest at mid-stroke, both chambers at Ps/2 (docs/reference-model.md §4)."""
-        y = [0.0] * N
+        y = [0.0] * self.n
         y[4] = y[5] = 0.5 * self.rig.supply
+        if self.i_hose is not None:
+            y[self.i_hose] = y[self.i_hose + 1] = 0.5 * self.rig.supply
         return y
 
     def apply_stops(self, y) -> bool:
@@ -229,8 +295,9 @@ class RigModel:
             y[2] = math.copysign(q_stop, y[2])
             if y[3] * y[2] > 0.0:
                 y[3] = 0.0
-        for j in (4, 5):
-            y[j] = min(max(y[j], 0.0), rig.supply)
+        top = rig.supply + self.ripple
+        for j in (4, 5) + ((self.i_hose, self.i_hose + 1) if self.i_hose is not None else ()):
+            y[j] = min(max(y[j], 0.0), top)
         x, _ = self.piston(y)
         hit = False
         if abs(x) > rig.half_stroke:
@@ -244,7 +311,9 @@ class RigModel:
                 y[1] = 0.0 if y[1] * lim > 0 else y[1]
         return hit
 
-    def outputs(self, y) -> dict:
-        """What the rig's transducers see (before noise): flow into A (LPM), pressures (bar)."""
-        qa, _ = self.land_flows(y[2], y[4], y[5])
+    def outputs(self, y, t: float = 0.0) -> dict:
+        """What the rig's transducers see (before noise): flow into A at the valve's port (LPM), chamber
+        pressures (bar)."""
+        ports = (y[self.i_hose], y[self.i_hose + 1]) if self.i_hose is not None else (y[4], y[5])
+        qa, _ = self.land_flows(y[2], *ports, t)
         return {"flow_lpm": qa / LPM, "p_a_bar": y[4] / BAR, "p_b_bar": y[5] / BAR}

@@ -73,7 +73,8 @@ class PIFF:
 def _advance(model: RigModel, y: np.ndarray, t0: float, t1: float, i_cmd: float) -> np.ndarray:
     if t1 - t0 <= 1e-12:
         return y
-    sol = solve_ivp(lambda t, s: model.rates(s, i_cmd), (t0, t1), y, method="RK45", rtol=RTOL, atol=ATOL,
+    atol = ATOL if len(y) == N else np.concatenate([ATOL, model.extra_atol()])
+    sol = solve_ivp(lambda t, s: model.rates(s, i_cmd, t), (t0, t1), y, method="RK45", rtol=RTOL, atol=atol,
                     first_step=min(t1 - t0, 2.5e-4))
     if not sol.success:
         raise RuntimeError(f"integration failed at t = {t0:g} s: {sol.message}")
@@ -160,7 +161,7 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
         r, r1, r2 = reference(t, amplitude_deg, freq_hz, offset_deg)
         u = chain.dac(ctrl(r - th, r1, r2))
         cmds.append(u)
-        out = model.outputs(y)
+        out = model.outputs(y, t)
         cols["t"][k] = t
         cols["current_mA"][k] = u
         cols["theta_deg"][k] = th
@@ -175,7 +176,8 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
     cols["p_a_bar"] = chain.pressure(true["p_a_bar"], rng)
     cols["p_b_bar"] = chain.pressure(true["p_b_bar"], rng)
     # the supply transducer sits at the pump's regulated outlet
-    cols["p_s_bar"] = chain.pressure(np.full(n, rig.supply / BAR), rng)
+    cols["p_s_bar"] = chain.pressure(np.full(n, rig.supply / BAR) if not model.ripple else
+                                     np.array([model.supply(k * DT) for k in range(n)]) / BAR, rng)
     cols["load_kN"] = rig.area * (cols["p_a_bar"] - cols["p_b_bar"]) * BAR * 1e-3
     meta = {"kind": "closed_loop", "disc_sets": int(disc_sets), "supply_bar": rig.supply / BAR,
             "reference": {"amplitude_deg": amplitude_deg, "freq_hz": freq_hz, "phase_rad": 0.0, "ramp_cycles": 1,
@@ -211,7 +213,7 @@ def valve_bench(rig: Rig, command: np.ndarray, supply_bar: float, effects_si: di
     """
     model = RigModel(rig, 1, effects_si)
     ps = supply_bar * BAR
-    y = np.zeros(N)
+    y = np.zeros(model.n)
     flows = np.zeros(command.size)
     drop = rig.rated_drop
     cmds = [float(c) for c in command]
@@ -223,6 +225,8 @@ def valve_bench(rig: Rig, command: np.ndarray, supply_bar: float, effects_si: di
             # Q^2 = net^2 (ps - k Q^2 - p_t) / dp_n, solved for Q^2
             q2 = net * net * (ps - model.p_t) / drop / (1.0 + model.k_line * net * net / drop)
             flows[k] = math.copysign(math.sqrt(q2), net) / LPM
+        elif model.gamma:  # each of the two lands in series takes half the drop, by its own law
+            flows[k] = net * model.land(0.5 * max(ps - model.p_t, 0.0)) / LPM
         else:
             flows[k] = net * math.sqrt(max(ps - model.p_t, 0.0) / drop) / LPM
         y = _period_valve(model, y, k, cmds)
@@ -245,9 +249,14 @@ class _ValveOnly:
         self.m = model
         self.tau = model.tau
 
-    def rates(self, y, i_cmd):
-        dy = self.m.rates(y, i_cmd)
-        return [0.0, 0.0, dy[2], dy[3], 0.0, 0.0, dy[6], 0.0, 0.0, 0.0]
+    def rates(self, y, i_cmd, t=0.0):
+        dy = self.m.rates(y, i_cmd, t)
+        out = [0.0] * len(dy)
+        out[2], out[3], out[6] = dy[2], dy[3], dy[6]
+        return out
+
+    def extra_atol(self):
+        return self.m.extra_atol()
 
     def apply_stops(self, y):
         rig = self.m.rig

@@ -44,7 +44,7 @@ class _NoGain:
     def __init__(self, gain_model=None):
         self.gain_model = gain_model
 
-    def __call__(self, rep, base, *, confidence=None):
+    def __call__(self, rep, base, *, confidence=None, **kw):
         from ehas_env.measurement.fitting import Fit
         from ehas_env.measurement.proposal import Proposal
 

@@ -33,7 +33,8 @@ PLACES = {
                      "as argument i; evaluated inside the right-hand side and on the valve bench, so it may read the "
                      "effect's own states: a lag of the coil current)"),
     "position_reading": ("the piston position the position sensor (LVDT) reads, m (gets the reading so far as "
-                         "argument x; the angle the rig logs and its controller sees is asin(reading / r))"),
+                         "argument x; the angle the rig logs and its controller sees is asin(reading / r); it "
+                         "may read the effect's own states: a lag of the reading)"),
 }
 #: quantities a term may take as arguments, besides its own parameters and constants and the
 #: baseline slots (``layout.BASE_SLOTS``): SI values at the current instant

@@ -1,0 +1,632 @@
+"""Naming a flexible term: the few physical forms (laws with units) that keep most of what it explains.
+
+:func:`ehas_env.measurement.proposal.propose` finds *where* the model lacks a term (the place of its best
+sparse terms).  There, every coefficient of that place's term class
+(:mod:`ehas_env.measurement.proposal_terms`) is fitted together inside the full model: the **flexible term**,
+a function of the place's local quantities (position, velocity, pressures, flows, current, their signs and
+products).  This module then **names** it: among the physical forms of :data:`FORMS` (one table: each form's
+place, kind, law, words and the coefficients it sets), it selects the sparse set of one or two forms that keeps
+most of the flexible term's gain, by the evidence score the proposal uses (10 log10 of the residual ratio less
+:data:`PENALTY_PER_TERM_DB` per coefficient; a second form must add :data:`ADD_TERM_DB`: the rules
+by which :mod:`ehas_env.measurement.proposal` keeps its sparse terms, held here).  Candidates are ranked on the flexible fit's linearisation
+(:func:`linear_predictor`: one Jacobian, no further replays), and the chosen forms are refitted inside the model.
+
+``keeps_share`` is a share of the excess over noise: (R_base - R_named) / (R_base - R_flexible), with R the
+residual x noise (the fit cost, 1 = noise, as the proposal's ``residual_x_noise_before`` reports it), the measure
+of honesty rule 1
+(:func:`ehas_env.measurement.honesty.term_refused`), which no named form may fail: a form whose refit removes less
+than 10 % of the residual's excess over noise is not named, and when none passes ``named`` is empty and the text
+says where the residual is, what it follows and that no term was found.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ehas_env.measurement.honesty import TERM_SHARE, share_removed, term_refused
+
+#: what a named form is
+KINDS = ("friction", "leakage/flow", "compliance", "geometry/area", "valve", "sensor", "command path", "load",
+         "fluid property", "supply/return")
+#: where a named form acts (the model's places, the lands' supply and return boundaries apart)
+PLACES = ("valve_current", "coil_current", "chamber_flows", "piston_force", "crank_torque", "supply", "return",
+          "position_reading")
+#: the evidence score's penalty per fitted coefficient, dB (the proposal's sparse terms and the named forms)
+PENALTY_PER_TERM_DB = 0.2
+#: a further form (or sparse term) must lower the residual by at least this much, dB
+ADD_TERM_DB = 1.0
+MAX_NAMED = 2  # forms per named set
+FLEX_NFEV = 8  # least-squares steps of the flexible fit
+NAMED_NFEV = 8  # ... of a named set's refit
+
+
+@dataclass(frozen=True)
+class Form:
+    """One physical form: a law with units that sets some coefficients of a term class.
+
+    Attributes
+    ----------
+    key : str
+        ``<place>.<name>``, the form's name (written to the JSON's ``named[].form``).
+    place : str
+        One of :data:`PLACES`.
+    kind : str
+        One of :data:`KINDS`.
+    law : str
+        The law, in the symbols of its parameters.
+    words : str
+        What it is, in a test engineer's words.
+    params : tuple
+        (parameter name, coefficient key ``proposal_<class>.<coef>``, sign): parameter = sign x coefficient.
+    """
+
+    key: str
+    place: str
+    kind: str
+    law: str
+    words: str
+    params: tuple
+
+    @property
+    def coefs(self) -> tuple:
+        return tuple(c for _, c, _ in self.params)
+
+
+def _f(key, kind, law, words, *params):
+    place = key.split(".", 1)[0]
+    return Form(key, place, kind, law, words, tuple(params))
+
+
+_PF, _CT, _CF, _LF = "proposal_piston_force", "proposal_crank_torque", "proposal_chamber_flows", "proposal_land_flows"
+_VC, _PR = "proposal_valve_current", "proposal_position_reading"
+#: every named form: its place, kind, law, words and coefficients, in one table
+FORMS = (
+    # piston force
+    _f("piston_force.coulomb", "friction", "F = -F_c sign(v)", "dry friction on the piston, constant level",
+       ("F_c", f"{_PF}.c_sv", -1)),
+    _f("piston_force.viscous", "friction", "F = -b v", "viscous friction on the piston", ("b", f"{_PF}.c_v", -1)),
+    _f("piston_force.friction_x2", "friction", "F = -(F_0 + k x^2) sign(v)",
+       "friction whose level rises with position squared (toward the stroke's ends)",
+       ("F_0", f"{_PF}.c_sv", -1), ("k", f"{_PF}.c_x2sv", -1)),
+    _f("piston_force.viscous_x2", "friction", "F = -(b_0 + b_2 x^2) v",
+       "viscous friction whose level rises with position squared",
+       ("b_0", f"{_PF}.c_v", -1), ("b_2", f"{_PF}.c_x2v", -1)),
+    _f("piston_force.friction_load", "friction", "F = -(F_0 + a |P_L|) sign(v)",
+       "seal friction that rises with the load pressure", ("F_0", f"{_PF}.c_sv", -1), ("a", f"{_PF}.c_plsv", -1)),
+    _f("piston_force.quadratic_drag", "load", "F = -d v |v|", "a drag that grows with velocity squared",
+       ("d", f"{_PF}.c_vv", -1)),
+    _f("piston_force.spring", "load", "F = -k x", "a spring on the piston", ("k", f"{_PF}.c_x", -1)),
+    _f("piston_force.hardening_spring", "load", "F = -(k x + k_3 x^3)", "a spring on the piston that hardens",
+       ("k", f"{_PF}.c_x", -1), ("k_3", f"{_PF}.c_x3", -1)),
+    _f("piston_force.constant", "load", "F = F_0", "a constant force on the piston (an offset load)",
+       ("F_0", f"{_PF}.c_1", 1)),
+    _f("piston_force.load_x2", "load", "F = k_2 x^2", "a load that rises toward both ends of the stroke",
+       ("k_2", f"{_PF}.c_x2", 1)),
+    _f("piston_force.area_ab", "geometry/area", "F = dA_A p_A - dA_B p_B",
+       "the piston's areas differ from the model's (a single rod or an area error)",
+       ("dA_A", f"{_PF}.c_pa", 1), ("dA_B", f"{_PF}.c_pb", -1)),
+    _f("piston_force.area_b", "geometry/area", "F = -dA_B p_B", "the rod side's area differs (a single rod)",
+       ("dA_B", f"{_PF}.c_pb", -1)),
+    # crank torque
+    _f("crank_torque.coulomb", "friction", "T = -T_c sign(omega)", "dry friction at the crank",
+       ("T_c", f"{_CT}.c_sw", -1)),
+    _f("crank_torque.viscous", "friction", "T = -b omega", "viscous friction at the crank", ("b", f"{_CT}.c_w", -1)),
+    _f("crank_torque.friction_angle", "friction", "T = -(T_0 + k theta^2) sign(omega)",
+       "crank friction whose level rises with the angle squared", ("T_0", f"{_CT}.c_sw", -1),
+       ("k", f"{_CT}.c_th2sw", -1)),
+    _f("crank_torque.joint_friction", "friction", "T = -(T_0 + mu |T_joint / A|) sign(omega)",
+       "a joint's friction that rises with the torque it carries (T_joint = P_L A r cos theta)",
+       ("T_0", f"{_CT}.c_sw", -1), ("mu", f"{_CT}.c_jsw", -1)),
+    _f("crank_torque.spring", "load", "T = -k theta", "a torsion spring on the crank", ("k", f"{_CT}.c_th", -1)),
+    _f("crank_torque.hardening_spring", "load", "T = -(k theta + k_3 theta^3)", "a torsion spring that hardens",
+       ("k", f"{_CT}.c_th", -1), ("k_3", f"{_CT}.c_th3", -1)),
+    _f("crank_torque.constant", "load", "T = T_0", "a constant torque on the crank (gravity, an offset load)",
+       ("T_0", f"{_CT}.c_1", 1)),
+    # chamber flows
+    _f("chamber_flows.leak_drain", "leakage/flow", "Q_A -= C_e p_A, Q_B -= C_e p_B",
+       "leakage from each chamber to drain", ("C_e", f"{_CF}.c_ext", 1)),
+    _f("chamber_flows.leak_across", "leakage/flow", "Q_L = C_i (p_A - p_B) from A to B",
+       "laminar leakage across the piston", ("C_i", f"{_CF}.c_int", 1)),
+    _f("chamber_flows.leak_across_turbulent", "leakage/flow", "Q_L = C_t sign(P_L) sqrt|P_L| from A to B",
+       "turbulent (orifice-like) leakage across the piston", ("C_t", f"{_CF}.c_intsq", 1)),
+    _f("chamber_flows.gain_by_direction", "valve", "q (1 + g_+) for i >= 0, q (1 + g_-) for i < 0",
+       "a valve flow gain that differs by spool direction", ("g_+", f"{_LF}.c_gpos", 1),
+       ("g_-", f"{_LF}.c_gneg", 1)),
+    _f("chamber_flows.gain_by_port", "valve", "q_A (1 + g_A), q_B (1 + g_B)", "a flow gain that differs by port",
+       ("g_A", f"{_LF}.c_ga", 1), ("g_B", f"{_LF}.c_gb", 1)),
+    _f("chamber_flows.gain_load", "valve", "q (1 - c |P_L| / P_S)", "a valve flow gain that falls with load pressure",
+       ("c", f"{_LF}.c_gpl", -1)),
+    _f("chamber_flows.line_resistance", "leakage/flow", "p_line drop = R q", "a resistance in the lines A and B",
+       ("R", f"{_LF}.c_rline", 1)),
+    _f("chamber_flows.metering_law", "valve", "q ~ sqrt(drop) (1 + c (sqrt(drop / (P_S / 2)) - 1))",
+       "the lands' flow departs from the orifice law with the land's drop (flow forces on the spool, a laminar "
+       "share)", ("c", f"{_LF}.c_lam", 1)),
+    # supply and return
+    _f("supply.offset", "supply/return", "P_S += dP_S", "the supply pressure at the valve differs from the set one",
+       ("dP_S", f"{_LF}.c_sup", 1)),
+    _f("supply.line_drop", "supply/return", "P_S -= R_S Q_S", "a supply line whose drop rises with the supply flow",
+       ("R_S", f"{_LF}.c_rsup", 1)),
+    _f("supply.line_drop_turbulent", "supply/return", "P_S -= K_S Q_S^2",
+       "a supply line (or filter) whose drop rises with the supply flow squared", ("K_S", f"{_LF}.c_rsup2", 1)),
+    _f("return.back_pressure", "supply/return", "P_T = p_t", "a return line above tank pressure",
+       ("p_t", f"{_LF}.c_ret", 1)),
+    # command path
+    _f("valve_current.bias", "command path", "i += i_0", "a current offset (null bias)", ("i_0", f"{_VC}.c_1", 1)),
+    _f("valve_current.gain", "command path", "i (1 + g)", "a current (or flow) gain off the model's",
+       ("g", f"{_VC}.c_i", 1)),
+    _f("valve_current.gain_by_direction", "valve", "i (1 + g sign(i))", "a gain that differs by spool direction",
+       ("g", f"{_VC}.c_abs", 1)),
+    _f("valve_current.saturation", "command path", "i (1 + g) - s i^3", "a command path that saturates",
+       ("g", f"{_VC}.c_i", 1), ("s", f"{_VC}.c_i3", -1)),
+    _f("valve_current.dead_band", "command path", "i - d sign(i)", "a dead band around null",
+       ("d", f"{_VC}.c_sgn", -1)),
+    # the position sensor
+    _f("position_reading.offset", "sensor", "x_read = x + x_0", "the position sensor reads with an offset",
+       ("x_0", f"{_PR}.c_1", 1)),
+    _f("position_reading.gain", "sensor", "x_read = (1 + g) x", "the position sensor's gain is off",
+       ("g", f"{_PR}.c_x", 1)),
+    _f("position_reading.bow", "sensor", "x_read = x + b x^2", "the position sensor's characteristic bows",
+       ("b", f"{_PR}.c_x2", 1)),
+    _f("position_reading.cubic", "sensor", "x_read = (1 + g) x + c x^3", "the position sensor compresses its ends",
+       ("g", f"{_PR}.c_x", 1), ("c", f"{_PR}.c_x3", 1)),
+)
+assert all(f.kind in KINDS and f.place in PLACES for f in FORMS)
+
+
+def class_of(coef: str) -> str:
+    """The term class of a coefficient key.
+
+    Parameters
+    ----------
+    coef : str
+        ``proposal_<class>.<coef>``.
+
+    Returns
+    -------
+    str
+        ``proposal_<class>``.
+    """
+    return coef.split(".", 1)[0]
+
+
+def forms_of(cls: str, forms=FORMS) -> list:
+    """The forms whose coefficients all belong to one term class.
+
+    Parameters
+    ----------
+    cls : str
+        The term class (``proposal_piston_force`` ...).
+    forms : sequence of Form
+        The table searched (default :data:`FORMS`).
+
+    Returns
+    -------
+    list of Form
+    """
+    return [f for f in forms if all(class_of(c) == cls for c in f.coefs)]
+
+
+def candidates(forms, max_named: int = MAX_NAMED) -> list:
+    """Every set of one to ``max_named`` forms in which no two set the same coefficient.
+
+    Parameters
+    ----------
+    forms : sequence of Form
+        The forms of a place.
+    max_named : int
+        The most forms in a set.
+
+    Returns
+    -------
+    list of tuple of Form
+    """
+    out = [(f,) for f in forms]
+    for n in range(2, max_named + 1):
+        for combo in itertools.combinations(forms, n):
+            cs = [c for f in combo for c in f.coefs]
+            if len(cs) == len(set(cs)):
+                out.append(combo)
+    return out
+
+
+def coefs_of(combo) -> list:
+    """The distinct coefficients a set of forms sets, in order.
+
+    Parameters
+    ----------
+    combo : sequence of Form
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    for f in combo:
+        for c in f.coefs:
+            if c not in out:
+                out.append(c)
+    return out
+
+
+def score(base_cost: float, cost: float, n_coefs: int) -> float:
+    """The evidence score of a set: the cost it removes, dB, less the proposal's penalty per coefficient.
+
+    Parameters
+    ----------
+    base_cost, cost : float
+        Fit costs without the set and with it.
+    n_coefs : int
+        The coefficients the set fits.
+
+    Returns
+    -------
+    float
+        dB.
+    """
+    return 10.0 * math.log10(base_cost / max(cost, 1e-300)) - PENALTY_PER_TERM_DB * n_coefs
+
+
+def select(combos, predict, base_cost: float) -> tuple:
+    """The sparse set of forms by the evidence score: the best single form, or the best pair when it adds at
+    least :data:`ADD_TERM_DB`.
+
+    Parameters
+    ----------
+    combos : list of tuple of Form
+        The candidate sets (:func:`candidates`).
+    predict : callable
+        predict(list of coefficient keys) -> the cost of the model with those coefficients alone fitted.
+    base_cost : float
+        The cost without any term at this place.
+
+    Returns
+    -------
+    (tuple of Form, float)
+        The set chosen and its predicted cost; ((), base_cost) when no set beats the noise
+        (:func:`ehas_env.measurement.fitting.beats_noise`).
+    """
+    from ehas_env.measurement.fitting import beats_noise
+
+    best: dict[int, tuple] = {}
+    for combo in combos:
+        c = predict(coefs_of(combo))
+        if not beats_noise(base_cost, c, len(coefs_of(combo))):  # the fit's own gate: nothing named for noise
+            continue
+        s = score(base_cost, c, len(coefs_of(combo)))
+        n = len(combo)
+        if n not in best or s > best[n][0]:
+            best[n] = (s, combo, c)
+    if 1 not in best or best[1][2] >= base_cost:
+        return (), base_cost
+    chosen = best[1]
+    for n in sorted(k for k in best if k > 1):
+        if 10.0 * math.log10(chosen[2] / max(best[n][2], 1e-300)) >= ADD_TERM_DB and best[n][0] > chosen[0]:
+            chosen = best[n]
+    return chosen[1], chosen[2]
+
+
+def linear_predictor(J: np.ndarray, r0: np.ndarray, u_flex: np.ndarray, u_zero: np.ndarray, keys: list,
+                     sizes: list, weights: list):
+    """The cost of any subset of the flexible term's coefficients, fitted alone, on the flexible fit's
+    linearisation (the others at zero).
+
+    Parameters
+    ----------
+    J : ndarray (n, m)
+        Jacobian of the weighted residual with respect to the m coefficients (in the fit's u).
+    r0 : ndarray (n,)
+        The weighted residual at the flexible fit ``u_flex``.
+    u_flex, u_zero : ndarray (m,)
+        The flexible fit and the coefficients' zero, in u.
+    keys : list of str
+        The coefficients, in the columns' order.
+    sizes, weights : list
+        Sizes and weights of the residual's blocks (the cost is the geometric mean of their mean squares).
+
+    Returns
+    -------
+    callable
+        predict(list of keys) -> (cost, u of the subset's least-squares fit).
+    """
+    idx = {k: i for i, k in enumerate(keys)}
+    bounds = np.cumsum([0] + list(sizes))
+
+    def cost_of(r):
+        n = bounds[-1]
+        tot = 0.0
+        for b, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:])):
+            seg = r[lo:hi] / weights[b]
+            tot += (hi - lo) * math.log(max(float(np.dot(seg, seg)) / max(hi - lo, 1), 1e-300))
+        return math.exp(tot / n)
+
+    def predict(subset):
+        S = [idx[k] for k in subset]
+        du = u_zero - u_flex
+        mask = np.ones(len(keys), bool)
+        mask[S] = False
+        r = r0 + J[:, mask] @ du[mask]
+        u = u_zero.copy()
+        if S:
+            d, *_ = np.linalg.lstsq(J[:, S], -r, rcond=None)
+            r = r + J[:, S] @ d
+            u[S] = u_flex[S] + d
+        return cost_of(r), u
+
+    return predict
+
+
+def x_noise(cost: float) -> float:
+    """The residual "x noise" of a fit cost, as the proposal and the verdict report it (1 = noise).
+
+    Parameters
+    ----------
+    cost : float
+        A fit cost (:meth:`ehas_env.measurement.replay.Replayer.log_cost`: the geometric mean over runs and
+        signals of the mean square residual over the noise's).
+
+    Returns
+    -------
+    float
+        The cost itself (the proposal's ``residual_x_noise_before`` / ``_after`` are its costs).
+    """
+    return max(float(cost), 0.0)
+
+
+def keeps_share(base_cost: float, flex_cost: float, named_cost: float) -> float:
+    """The share of the flexible term's removal of the residual's excess over noise that the named forms keep.
+
+    Parameters
+    ----------
+    base_cost, flex_cost, named_cost : float
+        Fit costs without a term, with the flexible term and with the named forms.
+
+    Returns
+    -------
+    float
+        (R_base - R_named) / (R_base - R_flexible), R x noise (:func:`x_noise`); 0 when the flexible
+        term removes nothing.
+    """
+    b, f, n = x_noise(base_cost), x_noise(flex_cost), x_noise(named_cost)
+    if b - f <= 0.0:
+        return 0.0
+    return (b - n) / (b - f)
+
+
+def named_entry(combo, values: dict, ci: dict, share: float, removed: float) -> list:
+    """The JSON entries (one per form) of a named set.
+
+    Parameters
+    ----------
+    combo : sequence of Form
+        The named forms.
+    values : dict
+        Their fitted coefficients {coefficient: SI value}.
+    ci : dict
+        95 % intervals {coefficient: (low, high)} (may be empty: ``low`` and ``high`` are then None).
+    share : float
+        :func:`keeps_share` of the set.
+    removed : float
+        The share of the residual's excess over noise the set's refit removes.
+
+    Returns
+    -------
+    list of dict
+        ``{place, kind, form, law, words, params: {name: {value, low, high, unit}}, keeps_share,
+        removes_share_of_excess}``.
+    """
+    from ehas_env.measurement.proposal_terms import term_param
+
+    out = []
+    for f in combo:
+        params = {}
+        for name, coef, sign in f.params:
+            v = sign * values.get(coef, 0.0)
+            lo_hi = ci.get(coef)
+            lo = hi = None
+            if lo_hi is not None:
+                a, b = sign * lo_hi[0], sign * lo_hi[1]
+                lo, hi = float(f"{min(a, b):.4g}"), float(f"{max(a, b):.4g}")
+            params[name] = {"value": float(f"{v:.4g}"), "low": lo, "high": hi, "unit": term_param(coef).unit}
+        out.append({"place": f.place, "kind": f.kind, "form": f.key, "law": f.law, "words": f.words, "params": params,
+                    "keeps_share": round(share, 3), "removes_share_of_excess": round(removed, 3)})
+    return out
+
+
+@dataclass
+class Naming:
+    """What the naming found: the named forms (JSON entries), the flexible term's fit and the text."""
+
+    named: list
+    flexible: list  # [{"class", "coefficients", "residual_x_noise_before", "..._after"}]
+    text: str
+    model_terms: dict  # the named forms' coefficients (SI), {} when none is named
+    cost: float | None = None  # the fit cost of the named model (None: none named)
+    fit: object = None  # its Fit
+
+    def to_json(self) -> dict:
+        return {"flexible": self.flexible, "text": self.text,
+                "keeps_share_is": "share of the excess over noise (residual x noise, the fit cost) that the flexible "
+                                  "term removes which the named forms keep"}
+
+
+def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confidence=None, say=None) -> Naming:
+    """Fit the flexible term at each place of ``terms`` inside the model, then name it.
+
+    Parameters
+    ----------
+    rep : Replayer
+        The fit data.
+    base : Fit
+        The model without any proposed term (the diagnosis' final model).
+    terms : dict
+        The proposal's sparse terms {coefficient: SI value}: where the flexible term is fitted (their classes, at
+        most two) and its start.
+    ranges : dict
+        The largest coefficient magnitude of each coefficient (:func:`ehas_env.measurement.proposal.coefficient_range`).
+    fixed_model : ModelSpec, optional
+        The effects, beta and K held while the flexible term and the named forms are fitted: the proposal's fit
+        (fitted with its terms); default ``base``'s.
+    confidence : callable, optional
+        confidence(rep, fit) -> {(effect, name): (low, high)} for the named forms' intervals.
+    say : callable, optional
+        Progress text.
+
+    Returns
+    -------
+    Naming
+    """
+    from ehas_env.measurement import fitting as D
+    from ehas_env.measurement.proposal_terms import TERM_CLASSES
+    from ehas_env.measurement.replay import ModelSpec
+
+    say = say or (lambda _msg: None)
+    held = fixed_model if fixed_model is not None else base.model
+    fixed = ModelSpec(effects=held.effects, beta=held.beta, K=held.K)
+    classes = []
+    for k in sorted(terms, key=lambda k: -abs(terms[k]) / max(ranges.get(k, 1.0), 1e-300)):
+        if class_of(k) not in classes:
+            classes.append(class_of(k))
+    classes = classes[:2]
+    by_name = {c.name: c for c in TERM_CLASSES.values()}
+    flexible, best = [], None
+    for cls in classes:
+        keys = [f"{cls}.{p.name}" for p in by_name[cls].params if ranges.get(f"{cls}.{p.name}", 0.0) > 0]
+        if not keys:
+            continue
+        say(f"  flexible term at {cls.replace('proposal_', '')}: {len(keys)} coefficients fitted together")
+        free = [D.FreeParam(D.TERM, k, -ranges[k], ranges[k], False) for k in keys]
+        start = {(D.TERM, k): float(np.clip(terms.get(k, 0.0), -ranges[k], ranges[k])) for k in keys}
+        flex = D.fit(rep, free, start, fixed, max_nfev=FLEX_NFEV)
+        obj = D.Objective(rep, free, fixed)
+        u_flex = np.array([fp.u(flex.model.terms[fp.name]) for fp in free])
+        u_zero = np.array([fp.u(0.0) for fp in free])
+        w = obj.weights(u_flex)
+        r0 = obj.weighted(u_flex, w)
+        J = obj.jacobian(u_flex, w)
+        sizes = [b.size for b in obj.blocks([u_flex])[0]]
+        predict = linear_predictor(J, r0, u_flex, u_zero, keys, sizes, w)
+        flex_cost = flex.cost
+        # what the flexible term follows: the coefficient whose removal costs most
+        follows = max(keys, key=lambda k: predict([c for c in keys if c != k])[0])
+        flexible.append({"class": cls, "coefficients": {k: float(f"{flex.model.terms[k]:.4g}") for k in keys},
+                         "residual_x_noise_before": round(x_noise(base.cost), 3),
+                         "residual_x_noise_after": round(x_noise(flex_cost), 3), "follows": follows})
+        forms = forms_of(cls)
+        combo, _ = select(candidates(forms), lambda ks: predict(ks)[0], base.cost)
+        if not combo:
+            continue
+        ks = coefs_of(combo)
+        _, u_sub = predict(ks)
+        nfree = [fp for fp in free if fp.name in ks]
+        nstart = {(D.TERM, fp.name): fp.value(u_sub[keys.index(fp.name)]) for fp in nfree}
+        say(f"  naming it: {', '.join(f.key for f in combo)} refitted in the model")
+        named = D.fit(rep, nfree, nstart, fixed, max_nfev=NAMED_NFEV)
+        if best is None or named.cost < best[2].cost:
+            best = (cls, combo, named, flex_cost, predict, keys)
+    if best is None:
+        return Naming([], flexible, _none_text(flexible), {})
+    cls, combo, named, flex_cost, predict, keys = best
+    before, after = x_noise(base.cost), x_noise(named.cost)
+    kept = honest_forms(combo, base.cost, named.cost, lambda ks: predict(ks)[0])
+    if not kept:
+        return Naming([], flexible, _none_text(flexible, after=after), {})
+    if len(kept) < len(combo):  # refit what is left
+        ks = coefs_of(kept)
+        nfree = [D.FreeParam(D.TERM, k, -ranges[k], ranges[k], False) for k in ks]
+        named = D.fit(rep, nfree, {(D.TERM, k): named.model.terms.get(k, 0.0) for k in ks}, fixed,
+                      max_nfev=NAMED_NFEV)
+        after = x_noise(named.cost)
+        if term_refused(before, after) is not None:
+            return Naming([], flexible, _none_text(flexible, after=after), {})
+    ci = {}
+    if confidence is not None:
+        ci = {name: lohi for (eff, name), lohi in confidence(rep, named).items() if eff == D.TERM}
+    share = keeps_share(base.cost, flex_cost, named.cost)
+    removed = share_removed(before, after)
+    entries = named_entry(kept, named.model.terms, ci, share, removed)
+    words = "; ".join(f"{f.words} ({f.law}, {f.kind}, at {f.place.replace('_', ' ')})" for f in kept)
+    text = (f"named: {words}; it keeps {100 * share:.0f} % of what the flexible term at "
+            f"{cls.replace('proposal_', '').replace('_', ' ')} removes (residual {before:.3g}x -> "
+            f"{x_noise(flex_cost):.3g}x noise flexible, {after:.3g}x named)")
+    return Naming(entries, flexible, text, dict(named.model.terms), named.cost, named)
+
+
+def honest_forms(combo, base_cost: float, named_cost: float, predict) -> list:
+    """Honesty rule 1 (:func:`ehas_env.measurement.honesty.term_refused`) for every form of a named set.
+
+    The set's refit must remove :data:`ehas_env.measurement.honesty.TERM_SHARE` of the residual's excess over
+    noise; of two forms, each must also remove that share of what the other alone leaves.
+
+    Parameters
+    ----------
+    combo : tuple of Form
+        The named set.
+    base_cost, named_cost : float
+        Fit costs (mean squares over noise's) without any term and with the set refitted.
+    predict : callable
+        predict(list of coefficient keys) -> cost of those coefficients alone fitted.
+
+    Returns
+    -------
+    list of Form
+        The forms that may be named (empty when none may).
+    """
+    after = x_noise(named_cost)
+    if term_refused(x_noise(base_cost), after) is not None:
+        return []
+    kept = []
+    for f in combo:
+        others = coefs_of([g for g in combo if g is not f])
+        if not others or term_refused(x_noise(predict(others)), after) is None:
+            kept.append(f)
+    return kept
+
+
+def judge_on_all_data(prop, residual_all, before: float) -> str | None:
+    """Honesty rule 1 for the named forms on all data: ``prop.named`` is emptied (and ``prop.naming["text"]``
+    says why) when the named forms' refit removes less than the share a term must of the residual's excess over
+    noise on every run.
+
+    Parameters
+    ----------
+    prop : Proposal
+        A proposal with ``named`` and ``named_model`` (:func:`ehas_env.measurement.proposal.propose`).
+    residual_all : callable
+        residual_all(model) -> the all-data residual (x what does not repeat) of ``model`` (a ModelSpec).
+    before : float
+        The final model's all-data residual without a term.
+
+    Returns
+    -------
+    str or None
+        Why the named forms were refused (None when they stand or none was named).
+    """
+    if not prop.named or prop.named_model is None:
+        return None
+    after = residual_all(prop.named_model)
+    refused = term_refused(before, after)
+    for e in prop.named:
+        e["residual_x_noise_all_after"] = round(float(after), 3)
+    if refused is None:
+        return None
+    prop.named = []
+    prop.naming["text"] = "no form named on all data: " + refused
+    return refused
+
+
+def _none_text(flexible: list, after: float | None = None) -> str:
+    """Honesty rule 1 in words when no form is named: where the residual is, what it follows, no term found."""
+    from ehas_env.measurement.proposal_terms import term_param
+
+    if not flexible:
+        return "no flexible term could be fitted at any place: no term was found"
+    fl = min(flexible, key=lambda f: f["residual_x_noise_after"])
+    where = fl["class"].replace("proposal_", "").replace("_", " ")
+    follows = f"{fl['follows'].split('.', 1)[1]} ({term_param(fl['follows']).doc})"
+    return (f"the residual is at the {where} (a flexible term there takes it from {fl['residual_x_noise_before']:.3g}x "
+            f"to {fl['residual_x_noise_after']:.3g}x noise) and follows {follows}; no physical form of that place "
+            f"removes {100 * TERM_SHARE:.0f} % of the residual's excess over noise"
+            + (f" (the best named leaves {after:.3g}x)" if after is not None else "") + ": no term was found")

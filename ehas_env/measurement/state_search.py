@@ -1,0 +1,180 @@
+"""The state stage of the diagnosis: a missing state tried place by place on the final model (issue 33, item 2).
+
+Each generic augmentation of :mod:`ehas_env.physics.augment` (a lag in a signal path, a compliance with a mass
+in a link, a volume with a resistance in a line, play in a joint) is screened on top of the final model: its own
+parameters fitted with everything else held (:func:`ehas_env.measurement.diagnosis.screen_candidate`, the scan's
+models replayed together).  The best is refitted with the model's own numbers free
+(:func:`ehas_env.measurement.diagnosis.refine_candidate`, again from where it stopped while that still pays,
+:data:`REFINE_ROUNDS`) and judged on all data and on the validation samples:
+it is kept only when it passes :func:`judge` --
+
+* honesty rule 1 (:func:`ehas_env.measurement.honesty.term_refused`): it removes at least a tenth of the
+  all-data residual's excess over the noise;
+* the validation gate (:func:`ehas_env.measurement.diagnosis.lowers_validation`): it lowers the validation
+  residual (by the share every stacked effect must).
+
+The record is in the JSON's terms (``stages[].states``): what was tried, what was kept, its parameters with 95 %
+intervals, the residuals before and after, and the augmentation in words.
+"""
+from __future__ import annotations
+
+import math
+
+from ehas_env.measurement.diagnosis import _parts_cost, lowers_validation, refine_candidate, screen_candidate
+from ehas_env.measurement.fitting import Fit, confidence
+from ehas_env.measurement.honesty import term_refused
+from ehas_env.measurement.replay import COST_SIGNALS, Replayer
+from ehas_env.measurement.verdict import blocks_of, grade
+from ehas_env.physics.augment import augmentations
+from ehas_env.physics.effects import get_effect
+
+
+#: the stage runs only on a final model whose all-data residual is above this (x what does not repeat; 1 is
+#: noise): below it there is too little left for a state to remove a tenth of (and the stage's replays, about
+#: 10-15 per augmentation, are saved on campaigns the model already explains)
+STATE_TRIGGER = 1.5
+
+
+#: the kept augmentation's refit is repeated from where it stopped while it lowers the fit's cost by more than
+#: REFINE_GAIN, at most REFINE_ROUNDS more times: a fit's step budget can end it on the way down the valley (a hose
+#: of 300 cm^3 stopped at 199, and reached 297 in two more refits)
+REFINE_ROUNDS = 3
+REFINE_GAIN = 0.02
+
+
+def _r(v, n: int = 3):
+    return None if v is None else round(float(v), n)
+
+
+def _sig(v, n: int = 4):
+    """``v`` to ``n`` significant digits; None for None and for an unbounded side of an interval (inf)."""
+    return None if v is None or not math.isfinite(v) else float(f"{float(v):.{n}g}")
+
+
+def judge(all_before: float, all_after: float, val_before: float | None, val_after: float | None) -> str | None:
+    """Why an augmentation may not be kept (None when it may).
+
+    Parameters
+    ----------
+    all_before, all_after : float
+        The all-data residual (x what does not repeat; 1 is noise) of the final model without and with it.
+    val_before, val_after : float or None
+        The validation residuals (noise variances) without and with it (None: the campaign has no validation
+        samples; the gate is then the all-data rule alone).
+
+    Returns
+    -------
+    str or None
+        The first gate it fails, in words with the numbers.
+
+    Examples
+    --------
+    >>> judge(3.0, 2.0, 4.0, 3.0) is None
+    True
+    >>> judge(3.0, 2.9, 4.0, 3.0)[:40]
+    'the best term of the dictionary, refitte'
+    >>> judge(3.0, 2.0, 4.0, 3.99)
+    'the validation residual goes from 4 to 3.99 noise variances: not lower by the share every kept effect must remove'
+    """
+    refused = term_refused(all_before, all_after)
+    if refused is not None:
+        return refused
+    if val_before is not None and val_after is not None and not lowers_validation(val_before, val_after):
+        return (f"the validation residual goes from {val_before:.3g} to {val_after:.3g} noise variances: not lower "
+                "by the share every kept effect must remove")
+    return None
+
+
+def _words(name: str, values: dict, ci: dict) -> str:
+    cls = get_effect(name)
+    words = getattr(cls, "in_words", None)
+    if words is None:
+        main = cls.main_param
+        return f"{cls.title}: {main} = {values[main]:.3g} {cls.param(main).unit}"
+    try:
+        return words(values, ci)
+    except TypeError:  # an effect's in_words without intervals (the structural hypotheses')
+        return words(values)
+
+
+def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, names=None,
+                trigger: float = STATE_TRIGGER) -> tuple:
+    """Try each generic augmentation on top of the final model; keep the best when it passes :func:`judge`.
+
+    Parameters
+    ----------
+    rep, full : Replayer
+        The fit data (the fitted runs' windows) and every run, full length.
+    final : Fit
+        The final model so far, fitted on ``rep``.
+    parts : dict
+        The validation samples, {case index in ``full.cases``: first sample}.
+    say : callable
+        Progress text (one line per augmentation tried).
+    names : list of str, optional
+        The augmentations to try (default :func:`ehas_env.physics.augment.augmentations`, less those the model
+        already holds).
+    trigger : float
+        Run only when the final model's all-data residual is above this (x what does not repeat); the record
+        then says ``skipped``.
+
+    Returns
+    -------
+    (Fit or None, dict)
+        The final model with the augmentation kept (None when none is), and the record: ``tried`` (each
+        augmentation's name, place and the screened fit's cost over the final model's), ``kept`` (name or None),
+        ``params`` and ``ci95`` (of the kept one, in its parameters' units), ``residual_x_noise_all_before`` /
+        ``_after``, ``residual_x_noise_validation_before`` / ``_after``, ``words`` (the augmentation in
+        physical words, or why none was kept), ``skipped`` (why the stage did not run, or None).
+    """
+    held = set(final.model.effects)
+    names = [n for n in (augmentations() if names is None else names) if n not in held]
+    sims0 = full.simulate(final.model)
+    all0 = grade(blocks_of(full, sims0, COST_SIGNALS))["residual_x_noise"]
+    val0 = _parts_cost(full, sims0, parts)
+    record = {"tried": [], "kept": None, "params": None, "ci95": None,
+              "residual_x_noise_all_before": _r(all0), "residual_x_noise_all_after": None,
+              "residual_x_noise_validation_before": _r(val0), "residual_x_noise_validation_after": None,
+              "words": None, "skipped": None}
+    if all0 <= trigger:
+        record["skipped"] = (f"the final model's residual, {all0:.3g}x noise on all data, is at or below "
+                             f"{trigger:g}x: no state is looked for")
+        say(f"  states: {record['skipped']}")
+        return None, record
+    screened = {}
+    for k, name in enumerate(names, 1):
+        cls = get_effect(name)
+        say(f"  states {k}/{len(names)}: {cls.title}")
+        f = screen_candidate(rep, name, final)
+        screened[name] = f
+        record["tried"].append({"effect": name, "where": getattr(cls, "where", cls.title),
+                                "cost_ratio": _r(f.cost / final.cost, 4)})
+    better = {n: f for n, f in screened.items() if f.cost < final.cost}
+    if not better:
+        record["words"] = "no augmentation lowers the fit's residual"
+        say(f"  states: {record['words']}")
+        return None, record
+    best = min(better, key=lambda n: better[n].cost)
+    f = refine_candidate(rep, best, better[best], final, dict(final.model.effects))
+    for _ in range(REFINE_ROUNDS):
+        g = refine_candidate(rep, best, f, final, dict(final.model.effects))
+        gain = 1.0 - g.cost / f.cost
+        f = g if g.cost < f.cost else f
+        if gain <= REFINE_GAIN:
+            break
+    sims1 = full.simulate(f.model)
+    all1 = grade(blocks_of(full, sims1, COST_SIGNALS))["residual_x_noise"]
+    val1 = _parts_cost(full, sims1, parts)
+    record["residual_x_noise_all_after"] = _r(all1)
+    record["residual_x_noise_validation_after"] = _r(val1)
+    why = judge(all0, all1, val0, val1)
+    values = dict(f.model.effects[best])
+    if why is not None:
+        record["words"] = f"{get_effect(best).title} is not kept: {why}"
+        say(f"  states: {record['words']}")
+        return None, record
+    ci = {name: tuple(v) for (eff, name), v in confidence(rep, f).items() if eff == best}
+    record.update(kept=best, params={k: _sig(v) for k, v in values.items()},
+                  ci95={k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()}, words=_words(best, values, ci))
+    say(f"  states: kept {record['words']}; residual {all0:.3g}x -> {all1:.3g}x noise")
+    return f, record

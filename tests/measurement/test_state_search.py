@@ -1,0 +1,69 @@
+"""The state stage (ehas_env.measurement.state_search): its gates, and the augmentation it keeps on campaigns
+simulated with one (the package's synthetic campaign writer: a consistency test) and on a clean campaign."""
+from __future__ import annotations
+
+import pytest
+
+from ehas_env.measurement.campaign import Campaign, validate_run
+from ehas_env.measurement.diagnosis import FIT_WINDOW_S, fit_null
+from ehas_env.measurement.diagnosis_search import data_stage
+from ehas_env.measurement.state_search import judge, state_stage
+from ehas_env.measurement.synthetic import simulate_campaign
+
+#: what the stage tries in these tests: a lag at each of its two places and a link at each of its two (the hoses
+#: and the play are tried by the full list; four keep the test's replays few)
+TRIED = ["aug_lag_coil", "aug_lag_position_sensor", "aug_link_rod_crank", "aug_link_mount"]
+
+
+def test_judge_keeps_what_removes_enough_and_lowers_the_validation():
+    assert judge(3.0, 2.0, 4.0, 3.0) is None
+    assert judge(3.0, 2.0, None, None) is None  # no validation samples: the all-data rule alone
+
+
+def test_judge_refuses_what_removes_less_than_a_tenth_of_the_excess():
+    # 3.0 -> 2.81 removes 9.5 % of the excess 2.0 over the noise; 2.79 removes 10.5 %
+    assert "less than the 10 %" in judge(3.0, 2.81, 4.0, 3.0)
+    assert judge(3.0, 2.79, 4.0, 3.0) is None
+
+
+def test_judge_refuses_what_does_not_lower_the_validation_residual():
+    assert "validation residual" in judge(3.0, 2.0, 4.0, 4.1)
+    assert "validation residual" in judge(3.0, 2.0, 4.0, 3.95)  # lower, but by less than the share (2 %)
+
+
+def _search(effects, seed):
+    runs, truth = simulate_campaign(effects, seed=seed, duration=3.5)
+    camp = Campaign(None, [validate_run(n, c, m) for n, c, m in runs])
+    s = data_stage(camp, window_s=FIT_WINDOW_S, hypotheses=True)
+    return s, fit_null(s.rep)
+
+
+@pytest.mark.slow  # a 5-run campaign, four augmentations screened (about 2 min on 2 cores)
+@pytest.mark.parametrize("effect,params,main,seed", [
+    ("aug_lag_position_sensor", {"T": 8.0}, "T", 3301),
+    ("aug_link_rod_crank", {"k_link": 3.0e6, "m_link": 20.0}, "k_link", 3302),
+])
+def test_the_stage_keeps_the_augmentation_the_campaign_was_simulated_with(effect, params, main, seed):
+    s, null = _search({effect: params}, seed)
+    lines = []
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lines.append, names=TRIED)
+    assert rec["kept"] == effect, rec
+    assert [t["effect"] for t in rec["tried"]] == TRIED and len(lines) >= len(TRIED)
+    assert fit is not None and effect in fit.model.effects
+    assert rec["params"][main] == pytest.approx(params[main], rel=0.3)
+    lo, hi = rec["ci95"][main]
+    assert lo <= rec["params"][main] <= hi
+    assert rec["residual_x_noise_all_after"] < rec["residual_x_noise_all_before"]
+    assert rec["words"].startswith(("a first-order lag of", "a spring of"))
+
+
+@pytest.mark.slow  # as above
+def test_a_clean_campaign_keeps_no_augmentation():
+    s, null = _search(None, 3303)
+    # the gates alone (trigger 0: the stage runs however little is left) ...
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=TRIED, trigger=0.0)
+    assert fit is None and rec["kept"] is None and rec["words"] and rec["skipped"] is None, rec
+    assert len(rec["tried"]) == len(TRIED)
+    # ... and by default the stage does not run on a model the campaign leaves at the noise
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=TRIED)
+    assert fit is None and rec["tried"] == [] and "no state is looked for" in rec["skipped"]

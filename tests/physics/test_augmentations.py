@@ -1,0 +1,117 @@
+"""The generic state augmentations (ehas_env.physics.augment) against analytic truth: a first-order lag's gain and
+phase on a sine, a hose's steady drop R q and no drop at zero flow, a link's natural frequency sqrt(k / m)."""
+import math
+
+import numpy as np
+import pytest
+
+from ehas_env.physics import augment
+from ehas_env.physics.effects import REGISTRY
+from ehas_env.simulation.plant import Plant
+
+
+def _phasor(sig, t, f):
+    """The complex amplitude of ``sig`` at frequency ``f`` (whole periods of ``t``)."""
+    return 2.0 * np.mean(sig * np.exp(-2j * math.pi * f * t))
+
+
+def test_every_kind_has_a_place_registered_and_named():
+    names = augment.augmentations()
+    assert {"aug_lag_coil", "aug_lag_position_sensor", "aug_link_rod_crank", "aug_link_mount", "aug_hose_a",
+            "aug_hose_b", "backlash"} == set(names)
+    for n in names[:-1]:
+        cls = REGISTRY[n]
+        assert cls.kind == "hypothesis" and issubclass(cls, augment.Augmentation)
+        words = cls.in_words({p.name: p.default for p in cls.params},
+                             {p.name: (0.8 * p.default, 1.2 * p.default) for p in cls.params})
+        assert cls.where in words and "[" in words  # the place, and the interval
+
+
+@pytest.mark.parametrize("T_ms,freq", [(4.0, 3.0), (10.0, 6.0)])
+def test_sensor_lag_gain_and_phase_on_a_sine(T_ms, freq):
+    """The logged reading against the true piston position (the crank's angle): at the test frequency, gain
+    1 / sqrt(1 + (w T)^2) and phase lag atan(w T) -- whatever the loop does with the lagged reading."""
+    plant = Plant(disc_sets=2, effects={"aug_lag_position_sensor": {"T": T_ms}})
+    r = plant.simulate_closed_loop(amplitude_deg=5.0, freq_hz=freq, cycles=8)
+    n_per = int(round(1.0 / (freq * plant.dt)))
+    keep = slice(len(r.t) - 4 * n_per, len(r.t))  # the last four periods: the start's transient has died out
+    t = r.t[keep]
+    radius = plant.rig.radius
+    reading = radius * np.sin(np.radians(r.theta_deg[keep]))
+    true_x = radius * np.sin(np.radians(r.theta_crank_deg[keep]))
+    h = _phasor(reading, t, freq) / _phasor(true_x, t, freq)
+    wT = 2.0 * math.pi * freq * T_ms * 1e-3
+    assert abs(h) == pytest.approx(1.0 / math.sqrt(1.0 + wT ** 2), rel=0.01)
+    assert -np.angle(h) == pytest.approx(math.atan(wT), rel=0.02)
+
+
+def test_sensor_lag_reads_the_truth_at_rest():
+    plant = Plant(disc_sets=2, effects={"aug_lag_position_sensor": {"T": 20.0}})
+    r = plant.simulate(np.zeros(200), theta0_deg=12.0)
+    assert np.allclose(r.theta_deg, 12.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("hose", ["aug_hose_a", "aug_hose_b"])
+def test_hose_at_zero_flow_leaves_the_pressures(hose):
+    """No current, no motion: the line adds nothing (the chambers stay where the model without it has them)."""
+    plain = Plant(disc_sets=2).simulate(np.zeros(300), theta0_deg=5.0)
+    with_hose = Plant(disc_sets=2, effects={hose: {"V_line": 200.0, "R_line": 1.0}}).simulate(np.zeros(300),
+                                                                                             theta0_deg=5.0)
+    np.testing.assert_allclose(with_hose.p_a_bar, plain.p_a_bar, atol=1e-9)
+    np.testing.assert_allclose(with_hose.p_b_bar, plain.p_b_bar, atol=1e-9)
+
+
+def test_hose_steady_drop_is_R_times_the_flow():
+    """Clamped piston (huge inertia) with a cross-piston leak: in the steady state the valve's flow passes the hose
+    and the leak; the line's pressure is above chamber A's by R q, and the valve meters against it:
+    q = q_c sqrt((Ps - P_A - R q) / (dp_n / 2)) -- solved for q here, a quadratic."""
+    R_lpm, leak = 1.0, 1e-11
+    plant = Plant(disc_sets=1, inertia=1e9, effects={"internal_leakage": {"C_leak": leak},
+                                                     "aug_hose_a": {"V_line": 100.0, "R_line": R_lpm}})
+    assert plant.slots()["aug_hose_a.R_line"] == R_lpm * augment.BAR_PER_LPM  # resolved by the sub-step as given
+    i_mA = 4.0
+    s = plant.initial_state(0.0)
+    r = plant.simulate(np.full(4000, i_mA))
+    k = plant.model.STATE_NAMES.index("aug_hose_a.p_line")
+    # the final state: run again, returning it (simulate logs outputs only): integrate with the compiled driver
+    from ehas_env.physics import layout as K
+    out = np.zeros((4000, K.N_OUT))
+    s = s.copy()
+    plant.model.run_open_loop(s, plant.param_vector, np.full(4000, i_mA), plant.dt, plant.substeps,
+                              np.zeros(K.history_length(0.05, plant.dt)), out)
+    pa, pb = s[4], s[5]
+    dp = s[k] - pa
+    q_leak = leak * (pa - pb)  # what flows through the hose into A in the steady state, m^3/s
+    R = R_lpm * augment.BAR_PER_LPM
+    assert dp > 0.5e5 and dp == pytest.approx(R * q_leak, rel=0.01)
+    # the valve's no-load flow K i, metering against the line's pressure (P_A + dp)
+    qc = plant.slots()["K"] * i_mA
+    q_valve = qc * math.sqrt((plant.rig.supply - pa - dp) / (0.5 * plant.slots()["rated_drop"]))
+    assert q_valve == pytest.approx(q_leak, rel=0.01)
+    assert r.p_a_bar[-1] * 1e5 == pytest.approx(pa, rel=1e-3)
+
+
+@pytest.mark.parametrize("effect,states", [("aug_link_rod_crank", ("xp", "vp")),
+                                           ("aug_link_mount", ("aug_link_mount.y_body", "aug_link_mount.w_body"))])
+def test_link_natural_frequency_is_sqrt_k_over_m(effect, states):
+    """The model's own rates, linearised in the link's position and speed (pressures and crank held): the
+    eigenvalues of the spring-mass block have modulus sqrt(k / m) and damping ratio zeta."""
+    k_link, m_link = 3.0e7, 12.0
+    plant = Plant(disc_sets=4, effects={effect: {"k_link": k_link, "m_link": m_link}})
+    m = plant.model
+    s0 = plant.initial_state(10.0)
+    i0, i1 = m.STATE_NAMES.index(states[0]), m.STATE_NAMES.index(states[1])
+    J = np.zeros((2, 2))
+    for col, (k, h) in enumerate(((i0, 1e-7), (i1, 1e-4))):
+        rates = []
+        for sign in (1.0, -1.0):
+            s = s0.copy()
+            s[k] += sign * h
+            ds = np.zeros(m.N_STATES)
+            m.derivatives(s, 0.0, plant.param_vector, ds)
+            rates.append(ds[[i0, i1]])
+        J[:, col] = (rates[0] - rates[1]) / (2.0 * h)
+    lam = np.linalg.eigvals(J)
+    wn = math.sqrt(k_link / m_link)
+    assert np.abs(lam) == pytest.approx([wn, wn], rel=1e-4)
+    assert -lam.real[0] / wn == pytest.approx(0.1, rel=1e-3)  # the link's damping ratio (assumed 0.1)
