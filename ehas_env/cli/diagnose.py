@@ -245,6 +245,7 @@ def run_one(args) -> int:
         print(f"structural hypothesis kept: {h['effect']} ({h['words']})")
         for other in [n for n in res.model.effects if n != hyp and get_effect(n).kind == "hypothesis"]:
             print(f"  kept with it: {other} ({get_effect(other).in_words(res.model.effects[other])})")
+    if hyp is not None and res.proposal is None:  # (with a term proposed on top, the term's file is written)
         if args.write_effect:
             from ehas_env.measurement.hypothesis_file import write_hypothesis
 
@@ -264,6 +265,11 @@ def run_one(args) -> int:
         v = p.validation
         print(f"  residual {v['residual_x_noise_all_before']:.3g}x -> {v['residual_x_noise_all_after']:.3g}x noise, "
               f"fit {v['fit_percent_all_before']:.1f} % -> {v['fit_percent_all_after']:.1f} % (all data)")
+        for n in p.named:  # the term's shape in physical words (ehas_env.measurement.naming)
+            print(f"  named: {n['words']} ({n['kind']}, at {n['place'].replace('_', ' ')}; keeps "
+                  f"{100 * n['keeps_share']:.0f} % of the flexible term's gain)")
+        if not p.named and (p.naming or {}).get("text"):
+            print(f"  named: nothing ({p.naming['text']})")
         if args.write_effect:
             from ehas_env.measurement.proposal import write_effect
 

@@ -18,6 +18,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the test plan to write (docs/measurement-format.md, 'The test plan')")
     parser.add_argument("--campaign", default=None, metavar="DIR",
                         help="the campaign folder (default: the one the diagnosis names)")
+    parser.add_argument("--model", default=None, metavar="FILE",
+                        help="the model file the diagnosis was made on (ehas diagnose --model FILE): the plan is "
+                             "simulated on that rig and kept inside its envelope")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing PLAN.json")
 
 
@@ -25,7 +28,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from ehas_env.measurement.campaign import read_campaign
-    from ehas_env.measurement.experiment_design import check_plan, plan_test, read_diagnosis
+    from ehas_env.measurement.experiment_design import Envelope, check_plan, plan_test, read_diagnosis, rig_model
     from ehas_env.output.files import atomic_write_text
     from ehas_env.output.outputs import check_file, check_not_input
     from ehas_env.output.progress import status, working
@@ -38,6 +41,8 @@ def run(args) -> int:
     check_not_input(args.out, "--out", [args.diagnosis])
     check_file(args.out, "--out", overwrite=args.overwrite)
     doc, explanations = read_diagnosis(args.diagnosis)
+    model = rig_model(doc, args.model, args.diagnosis)
+    envelope = Envelope.for_model(model)
     folder = Path(args.campaign or doc["campaign"])
     if not folder.is_dir():
         raise FileNotFoundError(f"{args.diagnosis}: its campaign {folder} is not a folder here; give it with "
@@ -51,11 +56,14 @@ def run(args) -> int:
               + ", ".join(e.name for e in explanations[1:]))
     with working("designing the runs: simulating candidate runs inside the rig's envelope with every explanation's "
                  "model", "plan-test"):
-        plan = plan_test(doc, explanations, campaign, say=lambda msg: status(msg, "plan-test"))
+        plan = plan_test(doc, explanations, campaign, envelope=envelope, model=model,
+                         say=lambda msg: status(msg, "plan-test"))
     out = plan.to_json()
-    check_plan(out, where=str(args.out))
-    print(f"{plan.n_candidates} candidate runs simulated inside the rig's envelope"
-          + (f", {len(plan.left_out)} left out (the rig would not follow them, or their cycles would not repeat)"
+    check_plan(out, envelope, where=str(args.out))
+    print(f"{plan.n_candidates} candidate runs simulated inside the envelope of "
+          + ("the book's rig" if model is None else f"the rig of {model.label}")
+          + (f", {len(plan.left_out)} left out (the rig would not follow them, their cycles would not repeat, or a "
+             "chamber pressure would come near the tank or above the supply)"
              if plan.left_out else ""))
     for line in plan.why:
         print("  " + line)

@@ -31,7 +31,8 @@ logs resolve a difference of ``max(2 SE, MIN_SCORE)`` dB with SE = std(d_c) /
 sqrt(clusters) (two standard errors: 95 %; never finer than
 :data:`~ehas_env.measurement.fitting.MIN_SCORE`, what a candidate must score to
 beat the noise at all).  An alternative whose score is not lower than the
-reported one's by more than that is *within*: listed under ``alternatives``,
+reported one's by more than that, nor by more than :data:`SEPARATED_DB` (3 dB) over
+the campaign or on any one of its runs, is *within*: listed under ``alternatives``,
 and the verdict says these logs cannot tell them apart.  One that is lower by
 more is *decided*: the verdict says by how many dB the data rule it out.
 
@@ -52,6 +53,12 @@ import numpy as np
 from ehas_env.measurement.fitting import CI_BLOCK_S, MIN_SCORE, PENALTY_PER_PARAM, Fit, confidence, own_params
 from ehas_env.measurement.replay import COST_SIGNALS, Replayer
 from ehas_env.physics.effects import REGISTRY, get_effect
+
+#: dB: an alternative whose residual is twice the reported one's (J doubled: one more noise variance left), over the
+#: campaign or on any one run, is told apart however much the clusters' differences spread (their spread widens
+#: the resolution of the paired rule beyond 3 dB when one run separates the two and the others do not; a run's J
+#: over thousands of samples is not doubled by chance)
+SEPARATED_DB = 3.0
 
 #: pairs of effects that put the same signature into runs at one supply pressure, centred on the stroke, and why.
 #: (An effect file may also declare the library effects it can be mistaken for: ``Effect.mistaken_for``.)
@@ -83,6 +90,28 @@ CONFUSABLE = {
         "seal friction that grows with the chamber pressures grows with the load, which grows with the speed on "
         "an inertial load: a viscous force fits part of it (at another supply or disc set it does not)",
 }
+
+
+def prefers(score_difference_db: float, resolvable_db: float, per_run_db: dict) -> bool:
+    """Whether the data prefer an alternative to the reported explanation: it fits better by more than the logs
+    resolve (at most :data:`SEPARATED_DB` asked), or by more than :data:`SEPARATED_DB` on one run, and is worse by
+    more than that on none (the figures of an :class:`Alternative` or its JSON entry).
+
+    Parameters
+    ----------
+    score_difference_db, resolvable_db : float
+        The reported explanation's score less the alternative's, and what the logs resolve, dB.
+    per_run_db : dict
+        Run -> ``10 log10(J_alt / J_reported)``.
+
+    Returns
+    -------
+    bool
+    """
+    runs = list(per_run_db.values())
+    if max(runs, default=0.0) > SEPARATED_DB:
+        return False
+    return score_difference_db < -min(resolvable_db, SEPARATED_DB) or min(runs, default=0.0) < -SEPARATED_DB
 
 
 def rivals_of(effect: str) -> list[str]:
@@ -216,9 +245,17 @@ class Alternative:
     fit: Fit | None = field(default=None, repr=False)
 
     @property
+    def preferred(self) -> bool:
+        """The data prefer it to the reported explanation (:func:`prefers`): a diagnosis should report it instead."""
+        return prefers(self.score_difference_db, self.resolvable_db, self.per_run_db)
+
+    @property
     def within(self) -> bool:
-        """The logs cannot tell it from the reported one."""
-        return self.score_difference_db <= self.resolvable_db
+        """The logs cannot tell it from the reported one: the score difference within what they resolve and within
+        :data:`SEPARATED_DB`, and no run where it is worse by more than :data:`SEPARATED_DB`."""
+        if self.score_difference_db > min(self.resolvable_db, SEPARATED_DB):
+            return False
+        return max(self.per_run_db.values(), default=0.0) <= SEPARATED_DB
 
     def to_json(self) -> dict:
         """The diagnosis JSON's entry (docs/measurement-format.md)."""
@@ -228,7 +265,7 @@ class Alternative:
                 "units": {p.name: p.unit for p in get_effect(self.name).params},
                 "ci95": {k: [_round(lo), _round(hi)] for k, (lo, hi) in self.ci95.items()},
                 "score_difference_db": round(self.score_difference_db, 2),
-                "resolvable_db": round(self.resolvable_db, 2), "within": self.within,
+                "resolvable_db": round(self.resolvable_db, 2), "within": self.within, "preferred": self.preferred,
                 "model": self.model, "reason": self.reason,
                 "per_run_db": {k: round(v, 2) for k, v in self.per_run_db.items()}}
 
@@ -313,7 +350,7 @@ def find_alternatives(res, fit_null, fit_candidate, say=None) -> list[Alternativ
     Parameters
     ----------
     res : OpenDiagnosis
-        A diagnosis (:func:`ehas_env.measurement.diagnosis.diagnose_open`).
+        A diagnosis (:func:`ehas_env.measurement.open_diagnosis.diagnose_open`).
     fit_null, fit_candidate : callable
         The diagnosis' own fits (``fit_null(rep, base)``: the base recalibrated; ``fit_candidate(rep, effect,
         null, base)``: an effect on top of it), passed in so that this module does not import the diagnosis
@@ -424,11 +461,21 @@ def alternatives_text(alts: list[Alternative], reported: dict) -> str:
     for a in alts:
         rep_words = words(a.in_place_of, reported.get(a.in_place_of, {}))
         alt_words = words(a.name, a.params)
-        if a.within:
+        if a.preferred:
+            run = min(a.per_run_db, key=a.per_run_db.get, default=None)
+            on_run = (f"; on {run} {-a.per_run_db[run]:.1f} dB better" if run is not None
+                      and a.per_run_db[run] < -SEPARATED_DB else "")
+            lines.append(f"these logs prefer {a.name} ({alt_words}) to {a.in_place_of} ({rep_words}): "
+                         f"{-a.score_difference_db:.2f} dB better over the campaign (they resolve "
+                         f"{a.resolvable_db:.2f} dB){on_run}; {a.name} is the likelier explanation")
+        elif a.within:
             lines.append(f"these logs cannot tell apart {a.in_place_of} ({rep_words}) and {a.name} ({alt_words}): "
                          f"score difference {a.score_difference_db:+.2f} dB, within the {a.resolvable_db:.2f} dB "
                          f"they resolve; {a.reason}. `ehas plan-test` designs the runs that decide.")
         else:
+            run = max(a.per_run_db, key=a.per_run_db.get, default=None)
+            by_run = (f"; on {run} {a.per_run_db[run]:.1f} dB worse" if run is not None
+                      and a.per_run_db[run] > SEPARATED_DB else "")
             lines.append(f"{a.name} ({alt_words}) in place of {a.in_place_of}: ruled out by these logs, "
-                         f"{a.score_difference_db:.2f} dB worse (they resolve {a.resolvable_db:.2f} dB)")
+                         f"{a.score_difference_db:.2f} dB worse (they resolve {a.resolvable_db:.2f} dB){by_run}")
     return "\n".join(lines)

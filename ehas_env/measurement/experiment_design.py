@@ -85,10 +85,28 @@ class Envelope:
         Supplies of the valve bench runs tried (the rated test is 70 bar).
     chirp : tuple
         The bench chirp: f0 Hz, f1 Hz, amplitude mA (at most the amplifier's 20 mA).
+    stroke_deg, rated_mA : float
+        The rig's stroke end (crank angle, deg: asin(half stroke / crank radius), the book's 44.43) and amplifier
+        limit (mA, the book's 20): a model file's rig has its own (:meth:`for_model`).
     max_tracking_pct : float
         A candidate the reported model cannot follow within this RMS error (% of the amplitude) is left out.
     max_saturation : float
         ... nor one whose current sits at the amplifier's limit for more than this share of the samples.
+    pressure_margin : float
+        ... nor one where any explanation's chamber pressure falls below ``m Ps`` (m this share of the run's
+        supply) or rises above the supply, at any time (start included).  Near the tank pressure oil releases its
+        air and cavitates; above the supply the load pumps oil back against the pump's check valve: limits of a
+        real rig that no candidate model is checked against (a run planned there parts the true rig from every
+        model, not the models from each other: in the entrained-air case of results/test_plans the true rig's
+        chambers swung between 4 and 150 bar at 150 bar supply).
+    max_chamber_ratio : float
+        A mean angle off centre goes no further than where the larger chamber holds this many times the smaller's
+        oil (:attr:`offset_limit_deg`: 24 deg on the book's rig).  A sine that dwells near a stroke end holds one
+        chamber near its dead volume, where its stiffness and pressure swings grow steeply and the loop's margin
+        shrinks: the true rig of the entrained-air case of results/test_plans (10 deg about 30 deg, ratio 2.4
+        at the mean) fell into a limit cycle there that neither fitted model had.
+    rig : RigParams, optional
+        The geometry of a model file's rig (:meth:`for_model`); the book's when None.
     """
 
     disc_sets: tuple = (1, 4, 7)
@@ -98,12 +116,51 @@ class Envelope:
     supply_bar: tuple = (100.0, 250.0)
     valve_supply_bar: tuple = (140.0, 210.0)
     chirp: tuple = CHIRP
+    stroke_deg: float = STROKE_DEG
+    rated_mA: float = RATED_CURRENT
     max_tracking_pct: float = 15.0
     max_saturation: float = 0.02
+    pressure_margin: float = 0.1
+    max_chamber_ratio: float = 2.0
+    rig: object = None
+
+    @classmethod
+    def for_model(cls, model=None, **kw) -> "Envelope":
+        """The envelope of the rig a model file describes (the book's when ``model`` is None).
+
+        Parameters
+        ----------
+        model : PlantModel, optional
+            A model file read by :func:`ehas_env.simulation.model_file.load_model`.
+        **kw
+            Other fields of the envelope.
+
+        Returns
+        -------
+        Envelope
+        """
+        if model is None:
+            return cls(**kw)
+        rig = model.rig_for(1)
+        # the measurement format checks a mean angle against the book's stroke end (reference.check_offset): a
+        # rig with a longer stroke is planned within the book's
+        stroke = min(math.degrees(math.asin(min(rig.half_stroke / rig.radius, 1.0))), STROKE_DEG)
+        return cls(stroke_deg=stroke, rated_mA=float(rig.i_max), rig=rig, **kw)
+
+    @property
+    def offset_limit_deg(self) -> float:
+        """The largest mean angle off centre: where ``V_A / V_B`` reaches :attr:`max_chamber_ratio` (deg)."""
+        lo, hi = 0.0, self.stroke_deg
+        if chamber_ratio(hi, self.rig) <= self.max_chamber_ratio:
+            return hi
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if chamber_ratio(mid, self.rig) <= self.max_chamber_ratio else (lo, mid)
+        return lo
 
     def offsets(self, amplitude_deg: float) -> tuple:
         """Mean angles tried with an amplitude: centred and as far off centre both ways as the stroke allows."""
-        far = math.floor(STROKE_DEG - self.stroke_margin_deg - amplitude_deg)
+        far = math.floor(min(self.stroke_deg - self.stroke_margin_deg - amplitude_deg, self.offset_limit_deg))
         return (0.0, float(far), float(-far)) if far >= 5 else (0.0,)
 
     def supplies(self, campaign_bar: float) -> tuple:
@@ -129,15 +186,18 @@ class Envelope:
             ex = run.get("excitation") or {}
             if not (0 < run["supply_bar"] <= hi):
                 return f"supply {run['supply_bar']:g} bar beyond the {hi:g} bar the rig's filters are rated for"
-            if not 0 < ex.get("amplitude_mA", 0) <= RATED_CURRENT:
-                return f"chirp amplitude {ex.get('amplitude_mA')!r} mA beyond the amplifier's {RATED_CURRENT:g} mA"
+            if not 0 < ex.get("amplitude_mA", 0) <= self.rated_mA:
+                return f"chirp amplitude {ex.get('amplitude_mA')!r} mA beyond the amplifier's {self.rated_mA:g} mA"
             return None
         ref = run["reference"]
         reach = ref["amplitude_deg"] + abs(ref.get("offset_deg", 0.0))
         if not 1 <= run["disc_sets"] <= 7:
             return f"{run['disc_sets']} disc sets; the rig takes 1 to 7"
-        if reach > STROKE_DEG - self.stroke_margin_deg:
+        if reach > self.stroke_deg - self.stroke_margin_deg:
             return f"the sine reaches {reach:g} deg, within {self.stroke_margin_deg:g} deg of the stroke end"
+        if abs(ref.get("offset_deg", 0.0)) > self.offset_limit_deg:
+            return (f"the mean angle {ref['offset_deg']:g} deg is beyond {self.offset_limit_deg:.1f} deg, where one "
+                    f"chamber holds {self.max_chamber_ratio:g}x the other's oil")
         if not lo <= run["supply_bar"] <= hi:
             return f"supply {run['supply_bar']:g} bar outside [{lo:g}, {hi:g}] bar"
         if not 0 < ref["freq_hz"] <= max(self.freqs_hz):
@@ -217,9 +277,6 @@ def read_diagnosis(path) -> tuple[dict, list[Explanation]]:
         raise ValueError(f"{p}: a diagnosis without '{missing[0]}' (written before ehas listed alternatives); run "
                          "ehas diagnose again")
     rep = doc["reported_model"]
-    if rep.get("rig_model"):
-        raise ValueError(f"{p}: diagnosed on the model file's rig {rep['rig_model']}; ehas plan-test plans on the "
-                         "book's rig only (not yet on a model file's)")
     rows = doc.get("model", {}).get("ci95", [])
     ci = {(None if r.get("effect") in (None, "baseline") else r["effect"], r["param"]): (r["low"], r["high"])
           for r in rows}
@@ -236,6 +293,46 @@ def read_diagnosis(path) -> tuple[dict, list[Explanation]]:
                 ci_a[(None, n)] = (m[n] - (v0 - lo), m[n] + (hi - v0))
         out.append(Explanation(a["name"], _spec(m, p), ci_a, a.get("reason", "")))
     return doc, out
+
+
+def rig_model(doc: dict, model, where) -> object:
+    """The rig a diagnosis' explanations were fitted on: the model file it records (``reported_model.rig_model``,
+    its label: name and file name), given as ``model``; None for the book's rig.
+
+    Parameters
+    ----------
+    doc : dict
+        The diagnosis JSON.
+    model : str, Path or None
+        The model file the user gives (``ehas plan-test --model``).
+    where : str
+        The diagnosis file, for messages.
+
+    Returns
+    -------
+    PlantModel or None
+
+    Raises
+    ------
+    ValueError
+        The diagnosis was made on a model file's rig and none (or another) is given, or on the book's and one is.
+    """
+    from ehas_env.simulation.model_file import load_model
+
+    recorded = doc["reported_model"].get("rig_model")
+    if recorded and model is None:
+        raise ValueError(f"{where}: diagnosed on the model file's rig {recorded}; give that file with --model FILE "
+                         "(the plan is simulated on the rig the explanations were fitted on)")
+    if model is None:
+        return None
+    if not recorded:
+        raise ValueError(f"--model {model}: {where} was diagnosed on the book's rig (no --model), so its "
+                         "explanations were fitted there; plan without --model, or diagnose again with --model")
+    m = load_model(model)
+    if m.label != recorded:
+        raise ValueError(f"--model {model}: this is the model {m.label!r}, but {where} was diagnosed on "
+                         f"{recorded!r}; give that file")
+    return m
 
 
 def _spec(m: dict, path) -> ModelSpec:
@@ -470,12 +567,16 @@ def feasibility(rep: Replayer, sims, envelope: Envelope = ENVELOPE, others=()) -
         if wobble:
             out.append(wobble)
             continue
+        near = pressure_limit(case.run.meta["supply_bar"], (sim, *(o[ci] for o in others)), envelope.pressure_margin)
+        if near:
+            out.append(near)
+            continue
         th, ref = sim["theta_deg"], case.run.columns["theta_ref_deg"]
         amp = case.run.meta["reference"]["amplitude_deg"]
         steady = case.run.t - case.run.t[0] > 1.0 / case.run.meta["reference"]["freq_hz"]
         err = 100.0 * float(np.sqrt(np.mean((th[steady] - ref[steady]) ** 2))) / amp
-        sat = float(np.mean(np.abs(sim["current_mA"]) >= 0.99 * RATED_CURRENT))
-        if np.max(np.abs(th)) > STROKE_DEG - 1.0:
+        sat = float(np.mean(np.abs(sim["current_mA"]) >= 0.99 * envelope.rated_mA))
+        if np.max(np.abs(th)) > envelope.stroke_deg - 1.0:
             out.append(f"the crank would reach {np.max(np.abs(th)):.1f} deg, at the stroke end")
         elif err > envelope.max_tracking_pct:
             out.append(f"the rig would follow it with {err:.0f} % RMS error")
@@ -486,16 +587,51 @@ def feasibility(rep: Replayer, sims, envelope: Envelope = ENVELOPE, others=()) -
     return out
 
 
-def chamber_ratio(offset_deg: float) -> float:
-    """V_A / V_B at a crank angle (piston at r sin(theta) from mid-stroke; dead volumes included)."""
-    x = CRANK_RADIUS * math.sin(math.radians(offset_deg))
-    va = DEAD_VOLUME + AREA * (HALF_STROKE + x)
-    vb = DEAD_VOLUME + AREA * (HALF_STROKE - x)
+def pressure_limit(supply_bar: float, sims, margin: float) -> str | None:
+    """Why a run goes near a pressure limit no model has (None when every chamber pressure of every simulation in
+    ``sims`` stays within ``[margin Ps, Ps]``, start included).
+
+    Parameters
+    ----------
+    supply_bar : float
+        The run's supply, bar.
+    sims : iterable of dict or None
+        Simulations of the run (signal -> array; ``p_a_bar``, ``p_b_bar`` used).
+    margin : float
+        Share of the supply kept clear above the tank pressure.
+
+    Returns
+    -------
+    str or None
+    """
+    lo, hi = margin * supply_bar, supply_bar
+    for m in sims:
+        for s in ("p_a_bar", "p_b_bar"):
+            if m is None or s not in m:
+                continue
+            pmin, pmax = float(np.min(m[s])), float(np.max(m[s]))
+            if pmin < lo:
+                return f"{s} would fall to {pmin:.0f} bar, below {lo:.0f} bar ({100 * margin:g} % of the supply): " \
+                       "near tank pressure the oil releases air and cavitates, which no model has"
+            if pmax > hi:
+                return f"{s} would rise to {pmax:.0f} bar, above the {hi:.0f} bar supply: the load would pump oil " \
+                       "back against the pump's check valve, which no model has"
+    return None
+
+
+def chamber_ratio(offset_deg: float, rig=None) -> float:
+    """V_A / V_B at a crank angle (piston at r sin(theta) from mid-stroke; dead volumes included; ``rig`` a
+    :class:`~ehas_env.physics.rig.RigParams`, the book's when None)."""
+    r, dv, a, h = (CRANK_RADIUS, DEAD_VOLUME, AREA, HALF_STROKE) if rig is None else (
+        rig.radius, rig.dead_volume, rig.area, rig.half_stroke)
+    x = r * math.sin(math.radians(offset_deg))
+    va = dv + a * (h + x)
+    vb = dv + a * (h - x)
     return va / vb
 
 
-def why_text(meta: dict, campaign_supply: float, db: float, signal: str, a: str, b: str) -> str:
-    """Why a run separates two explanations, in words."""
+def why_text(meta: dict, campaign_supply: float, db: float, signal: str, a: str, b: str, rig=None) -> str:
+    """Why a run separates two explanations, in words (``rig``: the model file's, the book's when None)."""
     bits = []
     if meta["kind"] == "valve_open_loop":
         bits.append(f"the valve bench at {meta['supply_bar']:g} bar (the rated test runs at 70): the valve's flow "
@@ -503,7 +639,7 @@ def why_text(meta: dict, campaign_supply: float, db: float, signal: str, a: str,
     else:
         off = meta["reference"].get("offset_deg", 0.0)
         if off:
-            r = chamber_ratio(off)
+            r = chamber_ratio(off, rig)
             bits.append(f"at {abs(off):g} deg off centre the chamber volumes differ by {max(r, 1 / r):.1f}x: the "
                         "chambers' stiffness and pressures differ side to side (the oil's stiffness changes with the "
                         "volumes, a mount's does not), which a centred run does not show")
@@ -574,8 +710,8 @@ def choose(cands: list[Candidate], pairs: list, max_runs: int = MAX_RUNS, max_lo
     return chosen
 
 
-def plan_test(doc: dict, explanations: list[Explanation], campaign: Campaign, *, envelope: Envelope = ENVELOPE,
-              say=None) -> Plan:
+def plan_test(doc: dict, explanations: list[Explanation], campaign: Campaign, *, envelope: Envelope | None = None,
+              model=None, say=None) -> Plan:
     """Design the runs that separate the diagnosis' explanations.
 
     Parameters
@@ -586,8 +722,10 @@ def plan_test(doc: dict, explanations: list[Explanation], campaign: Campaign, *,
         The reported explanation first, then the alternatives.
     campaign : Campaign
         The campaign diagnosed (controller, supply, noise levels).
-    envelope : Envelope
-        The rig's safe envelope.
+    envelope : Envelope, optional
+        The rig's safe envelope (default: :meth:`Envelope.for_model` of ``model``).
+    model : PlantModel, optional
+        The model file's rig the diagnosis was made on (:func:`rig_model`); the book's when None.
     say : callable, optional
         Progress lines.
 
@@ -595,6 +733,7 @@ def plan_test(doc: dict, explanations: list[Explanation], campaign: Campaign, *,
     -------
     Plan
     """
+    envelope = envelope or Envelope.for_model(model)
     say = say or (lambda msg: None)
     pairs = [(0, j) for j in range(1, len(explanations))]
     names = [e.name for e in explanations]
@@ -603,7 +742,7 @@ def plan_test(doc: dict, explanations: list[Explanation], campaign: Campaign, *,
     noise, signals = campaign_noise(campaign)
     metas = candidates(campaign, envelope)
     runs = [_run_of(m, noise, signals) for m in metas]
-    rep = Replayer(Campaign(None, runs), hypotheses=True)
+    rep = Replayer(Campaign(None, runs), hypotheses=True, model=model)
     seps, own = separations(rep, explanations, pairs, say)
     feas = feasibility(rep, own[0], envelope, own[1:])
     cands = []
@@ -616,7 +755,8 @@ def plan_test(doc: dict, explanations: list[Explanation], campaign: Campaign, *,
     why = []
     for c in chosen:
         p = max(pairs, key=c.db)
-        why.append(why_text(c.meta, supply, c.db(p), c.separation[p][1], names[p[0]], names[p[1]]))
+        why.append(why_text(c.meta, supply, c.db(p), c.separation[p][1], names[p[0]], names[p[1]],
+                            None if model is None else model.rig_for(c.meta.get("disc_sets", 1))))
         reason = explanations[p[1]].reason
         c.meta["notes"] = why[-1] + (f" (why the campaign could not: {reason})" if reason else "")
     predicted = {p: _combined_db(chosen, p) for p in pairs}

@@ -354,6 +354,10 @@ def proposal_stage(s: Search) -> dict:
         return {"proposed": None, "refused": None}
     s.say("proposing the missing term")
     prop, ps, refused = propose_stage(s.rep, s.full, s.current, res.sims_all, s.parts, s.cur_val, res.grade, s.say)
+    stood_in = _term_without_hypotheses(s, prop)
+    if stood_in is not None:
+        prop, ps, refused = stood_in
+        res = s.result
     if prop is not None:
         res.proposal, res.proposal_sims = prop, ps
         res.unexplained["proposal"] = prop.to_json()
@@ -363,27 +367,114 @@ def proposal_stage(s: Search) -> dict:
     return {"proposed": None if prop is None else res.unexplained["proposal"].get("where"), "refused": refused}
 
 
-def alternatives_stage(s: Search) -> dict:
-    """The stage of the alternatives: the explanations each effect of the final model may be confused with, fitted in
-    its place; those these logs cannot tell apart are listed (:func:`ehas_env.measurement.alternatives.find_alternatives`).
+#: the term proposed on the library's model (before the structural hypotheses) replaces the hypotheses kept when
+#: its all-data residual is within this share of the term's on top of them: they stood in for the missing term
+TERM_STANDS_FOR_HYPOTHESES = 0.02
+
+
+def _term_without_hypotheses(s: Search, prop) -> tuple | None:
+    """The structural hypotheses (or a missing state) were kept and the campaign is still unexplained: the term is
+    proposed again on the model the library gave before them (``s.bare``).  When it does as well there (within
+    :data:`TERM_STANDS_FOR_HYPOTHESES` of the all-data residual), the hypotheses stood in for the missing term: the
+    library's model comes back (their steps say why), measured and graded again, with the term on top of it.
 
     Parameters
     ----------
     s : Search
-        Sets ``result.alternatives`` (skipped when ``options["alternatives"]`` is False or nothing was kept).
+        The search, after the verdict stage.
+    prop : Proposal or None
+        The term proposed on top of the model kept.
+
+    Returns
+    -------
+    tuple or None
+        (Proposal, its simulation of every run, why refused) on the library's model when that replaced the model
+        kept, else None.
+    """
+    if s.bare is None or s.bare[0] is s.current or s.full.inputs:  # (a measured input changed the replays since)
+        return None
+    b_fit, b_sims, b_val, b_base, flags = s.bare
+    g = grade(blocks_of(s.full, b_sims, COST_SIGNALS))
+    if g["verdict"] != "unexplained":
+        return None
+    s.say("proposing the term on the library's model too (without the structural hypotheses)")
+    prop_b, ps_b, refused_b = propose_stage(s.rep, s.full, b_fit, b_sims, s.parts, b_val, g, s.say)
+    if prop_b is None:
+        return None
+    x_b = prop_b.validation["residual_x_noise_all_after"]
+    if prop is not None and x_b > prop.validation["residual_x_noise_all_after"] * (1.0 + TERM_STANDS_FOR_HYPOTHESES):
+        return None
+    why = (f"the term proposed without it leaves {x_b:.3g}x noise on all data"
+           + ("" if prop is None else f", as well as with it ({prop.validation['residual_x_noise_all_after']:.3g}x)")
+           + ": it stood in for the missing term")
+    for st in s.steps[len(flags):]:
+        if st.kept:
+            st.kept = False
+            st.reason += f"; not kept in the end: {why}"
+    for st, (kept, reason) in zip(s.steps, flags):
+        st.kept, st.reason = kept, reason
+    s.say(f"  the hypotheses kept are dropped: {why}")
+    s.current, s.cur_sims, s.cur_val, s.base = b_fit, b_sims, b_val, b_base
+    measure_stage(s)
+    if s.options.get("alternatives", True) and s.result.model.effects:
+        from ehas_env.measurement.alternatives import find_alternatives
+
+        s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say)
+    per_run_parameters_stage(s)
+    verdict_stage(s)
+    return prop_b, ps_b, refused_b
+
+
+def alternatives_stage(s: Search) -> dict:
+    """The stage of the alternatives: the explanations each effect of the final model may be confused with, fitted in
+    its place (:func:`ehas_env.measurement.alternatives.find_alternatives`); those these logs cannot tell apart are
+    listed.  When the logs *prefer* one (it fits better by more than they resolve, and worse on no run by more than
+    ``SEPARATED_DB``: :func:`ehas_env.measurement.alternatives.prefers`) it becomes the reported explanation, the
+    final model is measured again, and the one it replaced is compared in its place.  It runs before the verdict,
+    the parameters per run and the proposal, which then see the explanation reported.
+
+    Parameters
+    ----------
+    s : Search
+        Sets ``result.alternatives`` (skipped when ``options["alternatives"]`` is False or nothing was kept); may
+        replace the model kept (a step says why).
 
     Returns
     -------
     dict
-        ``within``: the names of the alternatives the logs cannot tell apart.
+        ``within``: the names of the alternatives the logs cannot tell apart; ``preferred``: the explanation the
+        logs preferred and put in place of the one first reported (None when none).
     """
     res = s.result
     if not s.options.get("alternatives", True) or not res.model.effects:
-        return {"within": []}
+        return {"within": [], "preferred": None}
     from ehas_env.measurement.alternatives import find_alternatives
 
     res.alternatives = find_alternatives(res, fit_null, fit_candidate, s.say)
-    return {"within": [a.name for a in res.alternatives if a.within]}
+    better = sorted((a for a in res.alternatives if a.preferred), key=lambda a: a.score_difference_db)
+    swapped = None
+    if better:
+        a = better[0]
+        rest = {n: dict(p) for n, p in s.current.model.effects.items() if n != a.in_place_of}
+        f = a.fit
+        if f is None or set(f.model.effects) != set(rest) | {a.name}:  # compared from an earlier round: refit here
+            f = fit_candidate(s.rep, a.name, fit_null(s.rep, rest), rest)
+        sims = s.full.simulate(f.model)
+        val = _parts_cost(s.full, sims, s.parts)
+        why = (f"these logs prefer {a.name} to {a.in_place_of}: {-a.score_difference_db:.2f} dB better over the "
+               f"campaign (they resolve {a.resolvable_db:.2f} dB), and worse on no run by more than the logs allow")
+        for st in s.steps:
+            if st.effect == a.in_place_of and st.kept:
+                st.kept = False
+                st.reason += f"; replaced in the end: {why}"
+        s.steps.append(Step(a.name, True, f"put in place of {a.in_place_of}: {why}", f, f.cost, val,
+                            _held_fit(s.full, sims, s.held_idx)))
+        s.say(f"  {a.name}: reported in place of {a.in_place_of} ({why})")
+        s.keep(f, sims, val)
+        measure_stage(s)  # the final model measured again, and the explanation it replaced compared in its place
+        s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say)
+        swapped = {"name": a.name, "in_place_of": a.in_place_of, "score_difference_db": round(a.score_difference_db, 2)}
+    return {"within": [a.name for a in s.result.alternatives if a.within], "preferred": swapped}
 
 
 #: the diagnosis, in order: (name, stage); each takes the Search and returns its record (docs/diagnosis-pipeline.md)
@@ -393,10 +484,10 @@ STAGES = (
     ("measured_inputs", measured_inputs_stage),
     ("states", states_stage),
     ("measure", measure_stage),
+    ("alternatives", alternatives_stage),
     ("per_run", per_run_parameters_stage),
     ("verdict", verdict_stage),
     ("proposal", proposal_stage),
-    ("alternatives", alternatives_stage),
 )
 
 
@@ -626,4 +717,7 @@ def unexplained_text(res: OpenDiagnosis, u: dict) -> str:
     if p:
         text += (f" Proposed missing term at {', '.join(p['where'])}: {p['equation']}; residual "
                  f"{p['residual_x_noise_before']:.2f}x -> {p['residual_x_noise_after']:.2f}x noise on the fit data.")
+        if p.get("named"):
+            text += " Named: " + "; ".join(f"{n['words']} ({n['kind']}, keeps {100 * n['keeps_share']:.0f} % of "
+                                           "the flexible term's gain)" for n in p["named"]) + "."
     return text

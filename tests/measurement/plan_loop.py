@@ -43,7 +43,24 @@ CASES = {
     "coil_lag": ("valve", "current_lag", {"T": 6.0}, ("hyp_coil_lag",)),
     "lvdt_zero": ("sensors", "lvdt_offset", {"x0": 1.0}, ("hyp_position_offset",)),
     "orifice_leak": ("leakage", "turbulent_leakage", {"q100": 1.2}, ("hyp_turbulent_leakage",)),
+    "crank_zero": ("mechanics (kinematics)", "crank_offset", {"phi0": 10.0}, ("hyp_crank_offset",)),
+    "laminar_leak": ("leakage", "internal_leakage", {"C_leak": 5e-12}, ("internal_leakage",)),
+    "underlap": ("valve", "valve_underlap", {"u0": 0.7}, ("hyp_valve_underlap",)),
+    "air_mild": ("fluid", "entrained_air", {"eps": 3.0}, ("hyp_entrained_air",)),
+    "mount_stiff": ("mechanics", "load_compliance", {"k": 80000.0}, ("hyp_load_compliance",)),
+    "coil_lag_short": ("valve (command path)", "current_lag", {"T": 2.0}, ("hyp_coil_lag",)),
+    # smaller magnitudes of the same places: where a standard campaign still sees the effect but not which
+    "coulomb_small": ("mechanics (friction)", "coulomb_friction", {"Fc": 250.0}, ("coulomb_friction",)),
+    "crank_zero_small": ("mechanics (kinematics)", "crank_offset", {"phi0": 4.0}, ("hyp_crank_offset",)),
+    "lvdt_zero_mid": ("sensors", "lvdt_offset", {"x0": 0.6}, ("hyp_position_offset",)),
+    "air_mid": ("fluid", "entrained_air", {"eps": 6.0}, ("hyp_entrained_air",)),
+    "laminar_leak_small": ("leakage", "internal_leakage", {"C_leak": 2e-12}, ("internal_leakage",)),
+    "orifice_leak_small": ("leakage", "turbulent_leakage", {"q100": 0.4}, ("hyp_turbulent_leakage",)),
+    "underlap_small": ("valve", "valve_underlap", {"u0": 0.3}, ("hyp_valve_underlap",)),
+    "coulomb_rig_b": ("mechanics (friction)", "coulomb_friction", {"Fc": 600.0}, ("coulomb_friction",)),
 }
+#: cases on another rig than the book's (tests/independent_rig/rigs/NAME.json): diagnosed and planned with --model
+RIGS = {"coulomb_rig_b": "rig_b"}
 
 
 def _listed(doc: dict) -> list[str]:
@@ -95,7 +112,9 @@ def add_plan_runs(camp: Path, plan: dict, effects: dict, seed: int) -> list[str]
 
 def realised(second: dict, a: str, b: str, runs: list[str]) -> float | None:
     """The separation of a and b the planned runs realised in the second diagnosis: ``10 log10`` of the mean over the
-    runs of ``J_other / J_reported`` (the measure the plan predicts), None when the pair is not compared there."""
+    runs of ``J_other / J_reported`` (the measure the plan predicts), None when the pair is not compared there.
+    Negative when the alternative of the second diagnosis fits them better than its reported explanation; the plan
+    predicts the size of the separation, not its sign, so the table compares ``|realised|`` with the prediction."""
     for e in second.get("alternatives", []) + second.get("ruled_out", []):
         if {e["name"], e["in_place_of"]} == {a, b}:
             vals = [e["per_run_db"][r] for r in runs if r in e.get("per_run_db", {})]
@@ -104,39 +123,57 @@ def realised(second: dict, a: str, b: str, runs: list[str]) -> float | None:
     return None
 
 
-def run_case(name: str, work: Path, seed: int) -> dict:
+def run_case(name: str, work: Path, seed: int, redo_first: bool = False) -> dict:
     from tests.independent_rig.campaign import simulate, write
 
+    from tests.independent_rig.acceptance import rig_model
+
     place, gen_effect, values, truth_names = CASES[name]
+    rig = RIGS.get(name, "book")
+    mopt = ["--model", str(rig_model(rig))] if rig != "book" else []
     folder = work / name
     folder.mkdir(parents=True, exist_ok=True)
     camp = folder / "camp"
     t0 = time.time()
     if not (camp / "truth.json").exists():
-        runs, truth = simulate({gen_effect: values}, seed=seed, progress=lambda s: print(f"  [{name}] {s}",
+        runs, truth = simulate({gen_effect: values}, seed=seed, rig=rig, progress=lambda s: print(f"  [{name}] {s}",
                                                                                        flush=True))
         write(camp, runs, truth, overwrite=True)
     first, second, plan_path = folder / "first.json", folder / "second.json", folder / "plan.json"
-    for p in (first, second, plan_path):
+    for p in (second, plan_path) + ((first,) if redo_first else ()):
         p.unlink(missing_ok=True)
     for p in camp.glob("plan_*"):
         p.unlink()
-    assert _ehas(["diagnose", str(camp), "--json", str(first), "--quiet"]) == 0
+    if not first.exists():  # the first diagnosis is kept between reruns (it does not depend on the plan)
+        assert _ehas(["diagnose", str(camp), "--json", str(first), "--quiet"] + mopt) == 0
     d1 = json.loads(first.read_text())
     listed1 = _listed(d1)
-    assert _ehas(["plan-test", str(first), "--out", str(plan_path)]) == 0
+    assert _ehas(["plan-test", str(first), "--out", str(plan_path)] + mopt) == 0
     plan = json.loads(plan_path.read_text())
-    added = add_plan_runs(camp, plan, {gen_effect: values}, seed) if plan["runs"] else []
-    d2 = None
-    if added:
-        assert _ehas(["diagnose", str(camp), "--json", str(second), "--quiet"]) == 0
-        d2 = json.loads(second.read_text())
+    if plan["runs"]:
+        add_plan_runs(camp, plan, {gen_effect: values}, seed)
+        assert _ehas(["diagnose", str(camp), "--json", str(second), "--quiet"] + mopt) == 0
+    return {**record(name, folder), "rig": rig, "elapsed_s": round(time.time() - t0, 1), "seed": seed}
+
+
+def record(name: str, folder: Path) -> dict:
+    """A case's record from its diagnoses and plan in ``folder`` (first.json, plan.json, second.json)."""
+    from ehas_env.measurement.alternatives import prefers
+
+    place, gen_effect, values, truth_names = CASES[name]
+    d1 = json.loads((folder / "first.json").read_text())
+    listed1 = _listed(d1)
+    plan = json.loads((folder / "plan.json").read_text())
+    added = [r["name"] for r in plan["runs"]]
+    d2 = json.loads((folder / "second.json").read_text()) if added else None
     pairs = []
     for s in plan["separates"]:
         pairs.append({"a": s["a"], "b": s["b"], "predicted_db": s["predicted_db"],
                       "realised_db": None if d2 is None else realised(d2, s["a"], s["b"], added)})
     named2 = list(d2["reported_model"]["effects"]) if d2 else []
     left2 = [a["name"] for a in d2.get("alternatives", [])] if d2 else []
+    preferred2 = [a["name"] for a in d2.get("alternatives", [])
+                  if prefers(a["score_difference_db"], a["resolvable_db"], a.get("per_run_db") or {})] if d2 else []
     return {"case": name, "place": place, "truth": {gen_effect: values}, "truth_is": list(truth_names),
             "first": {"reported": list(d1["reported_model"]["effects"]), "verdict": d1["verdict"],
                       "alternatives": [a["name"] for a in d1.get("alternatives", [])],
@@ -144,10 +181,11 @@ def run_case(name: str, work: Path, seed: int) -> dict:
             "truth_listed_first": any(t in listed1 for t in truth_names),
             "plan": [r["name"] for r in plan["runs"]], "pairs": pairs,
             "second": None if d2 is None else {"reported": named2, "verdict": d2["verdict"],
-                                                "alternatives": [a["name"] for a in d2.get("alternatives", [])]},
+                                                "alternatives": left2, "preferred": preferred2},
             "truth_named_second": (any(t in named2 for t in truth_names) and not any(t in left2 for t in truth_names)
                                    and not left2) if d2 else None,
-            "elapsed_s": round(time.time() - t0, 1), "seed": seed}
+            "truth_preferred_second": any(t in preferred2 for t in truth_names) and not any(
+                t in preferred2 for t in left2 if t not in truth_names) if d2 else None}
 
 
 def table(results: list[dict]) -> str:
@@ -166,7 +204,8 @@ def table(results: list[dict]) -> str:
         real = ", ".join("-" if p["realised_db"] is None else f"{p['realised_db']:.1f}" for p in r["pairs"]) or "-"
         truth = ", ".join(f"{n} {v}" for n, v in r["truth"].items())
         sec = r["second"]
-        lines.append(f"| {r['case']} | {r['place']} | {truth} | {', '.join(r['first']['reported']) or 'none'} | "
+        place = r["place"] if r.get("rig", "book") == "book" else f"{r['place']} ({r['rig']})"
+        lines.append(f"| {r['case']} | {place} | {truth} | {', '.join(r['first']['reported']) or 'none'} | "
                      f"{', '.join(r['first']['alternatives']) or 'none'} | {', '.join(r['first']['ruled_out']) or 'none'} | "
                      f"{'yes' if r['truth_listed_first'] else 'no'} "
                      f"| {', '.join(r['plan']) or 'none'} | {pred} | {real} | "
@@ -178,14 +217,29 @@ def table(results: list[dict]) -> str:
         planned = [r for r in results if r["plan"]]
         named = sum(_named(r) == "yes" for r in planned)
         decided = [r["case"] for r in results if not r["plan"]]
-        agree = [abs(p["predicted_db"] - p["realised_db"]) <= 3.0 for r in results for p in r["pairs"]
+        agree = [abs(p["predicted_db"] - abs(p["realised_db"])) <= 3.0 for r in results for p in r["pairs"]
                  if p["realised_db"] is not None]
+        amb = [r for r in results if r["first"]["alternatives"]]
+        amb_named = sum(_named(r) == "yes" for r in amb if r["plan"])
+        amb_agree = [abs(p["predicted_db"] - abs(p["realised_db"])) <= 3.0 for r in amb for p in r["pairs"]
+                     if p["realised_db"] is not None]
+        lines += ["", f"Genuinely ambiguous (the first diagnosis lists an alternative these logs cannot tell from the "
+                      f"reported one): {len(amb)} of {n} cases, places: "
+                      f"{', '.join(sorted({r['place'] for r in amb})) or 'none'}. Of these: truth listed "
+                      f"{sum(r['truth_listed_first'] for r in amb)} of {len(amb)}; the second diagnosis names the "
+                      f"truth (reported, no alternative left within) in {amb_named} of {len(amb)}; predicted and "
+                      f"realised separation within 3 dB: {sum(amb_agree)} of {len(amb_agree)} pairs. The truth not reported "
+                      f"but preferred by the data in the second diagnosis' words (an alternative fitting better than "
+                      f"the reported one by more than the logs resolve): "
+                      f"{sum(bool(r.get('truth_preferred_second')) and _named(r) != 'yes' for r in amb)}."]
         lines += ["", f"Truth among the listed explanations in the first diagnosis: {listed} of {n}. Cases with a "
                       f"plan: {len(planned)}; the second diagnosis names the truth (reported, no alternative left "
                       f"within) in {named} of them. Predicted and realised separation within 3 dB: {sum(agree)} of "
                       f"{len(agree)} pairs."
                       + (f" Decided by the first diagnosis already (no alternative within, nothing to plan): "
                          f"{', '.join(decided)}." if decided else "")]
+    lines += ["", "Notes on the runs (by hand): NOTES.md. Spurious alternatives on the acceptance campaigns: "
+                  "spurious.md. `ehas plan-test`'s time: plan_test_time.md."]
     return "\n".join(lines) + "\n"
 
 
@@ -195,6 +249,9 @@ def _named(r: dict) -> str:
     if r["second"] is None:
         return "no plan needed"
     if not r["truth_named_second"]:
+        if r.get("truth_preferred_second"):
+            return (f"preferred by the data ({', '.join(r['second']['preferred'])} better than the reported "
+                    f"{', '.join(r['second']['reported'])}), not reported")
         return "no"
     left = r["second"]["alternatives"]
     return "yes" if not left else f"reported, but {', '.join(left)} still within"
@@ -204,7 +261,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="close the loop of ehas plan-test on the independent generator")
     ap.add_argument("--work", default="/tmp/ehas_test_plans", help="folder for the campaigns and diagnoses")
     ap.add_argument("--cases", default=",".join(CASES), help="cases to run, comma-separated: " + ", ".join(CASES))
-    ap.add_argument("--redo", action="store_true", help="redo cases already finished")
+    ap.add_argument("--redo", action="store_true", help="redo cases already finished (the campaign and the first "
+                    "diagnosis are kept in --work: only the plan and the second diagnosis are redone)")
+    ap.add_argument("--redo-first", action="store_true", help="with --redo: the first diagnosis too")
+    ap.add_argument("--rescore", action="store_true", help="rebuild finished cases' records from their diagnoses and "
+                    "plans in --work (nothing simulated or diagnosed)")
     a = ap.parse_args(argv)
     work = Path(a.work)
     (OUT / "cases").mkdir(parents=True, exist_ok=True)
@@ -217,11 +278,17 @@ def main(argv=None) -> int:
 
     for k, name in enumerate(names):
         path = OUT / "cases" / f"{name}.json"
+        if a.rescore:
+            if path.exists() and (work / name / "plan.json").exists():
+                old = json.loads(path.read_text())
+                atomic_write_text(path, json.dumps({**record(name, work / name), **{
+                    k: old[k] for k in ("rig", "elapsed_s", "seed") if k in old}}, indent=1) + "\n")
+            continue
         if path.exists() and not a.redo:
             print(f"[plan_loop] {name}: done before ({path})", flush=True)
             continue
         print(f"[plan_loop] {name}: simulating, diagnosing, planning, diagnosing again", flush=True)
-        res = run_case(name, work, seed=100 + list(CASES).index(name))
+        res = run_case(name, work, seed=100 + list(CASES).index(name), redo_first=a.redo_first)
         atomic_write_text(path, json.dumps(res, indent=1) + "\n")
         print(f"[plan_loop] {name}: {json.dumps(res)}", flush=True)
     results = [json.loads((OUT / "cases" / f"{n}.json").read_text()) for n in CASES
