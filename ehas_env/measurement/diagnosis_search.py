@@ -47,7 +47,7 @@ class Search:
 
     campaign: Campaign
     rep: Replayer  # the fit data: the fitted runs' windows
-    full: Replayer  # every run, full length
+    full: Replayer  # every run, full length (with the measured inputs kept, once the measured_inputs stage keeps one)
     held: list  # names of the held-out runs (``validation.holdout``)
     held_idx: list  # their indices in ``full.cases``
     train_runs: list  # the fitted runs (``validation.fit_runs``)
@@ -80,6 +80,7 @@ class Search:
     records: list = field(default_factory=list)  # one record per stage run: name, elapsed_s, what it found
     options: dict = field(default_factory=dict)  # the caller's switches of the later stages (propose, per_run ...)
     result: object = None  # the OpenDiagnosis, once the measure stage has built it
+    full_as_given: Replayer | None = None  # every run as the sidecars state them (no measured input): the start
 
     def keep(self, f: Fit, sims: list, val) -> None:
         """Make ``f`` (its simulation of every run ``sims``, validation cost ``val``) the model kept so far."""
@@ -152,6 +153,7 @@ def data_stage(campaign: Campaign, *, holdout=None, window_s: float, model=None,
                parts=parts, window_s=window_s, say=say or (lambda msg: None), candidates=candidates,
                hypotheses=hypotheses, stack=stack, progress=progress, base=with_defaults(base_effects))
     # the library's effects first; then, while the campaign is not explained, the structural hypotheses
+    s.full_as_given = full
     s.hyps = [h for h in hypothesis_effects() if h not in s.base and (candidates is None or h not in candidates)]
     s.pool = candidates
     return s

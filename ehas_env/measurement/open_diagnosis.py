@@ -268,10 +268,11 @@ def measure_stage(s: Search) -> dict:
                              validation=validation, grade=grade(blocks_of(full, sims_all, COST_SIGNALS)),
                              disturbances=disturbances_of(full, sims_all),
                              measured_inputs=sorted({q for given in full.inputs.values() for q in given}))
-    # where the search started: the baseline with beta and K recalibrated (the first round's null model), on all data
-    null = s.rounds[0].null
-    start = sims_all if null is final else full.simulate(null.model)
-    s.result.validation["residual_x_noise_recalibrated_baseline"] = grade(blocks_of(full, start,
+    # where the search started: the baseline with beta and K recalibrated (the first round's null model), on all
+    # data as the sidecars state them (a measured input kept since is part of what the search found)
+    null, given = s.rounds[0].null, s.full_as_given or full
+    start = sims_all if null is final and given is full else given.simulate(null.model)
+    s.result.validation["residual_x_noise_recalibrated_baseline"] = grade(blocks_of(given, start,
                                                                                     COST_SIGNALS))["residual_x_noise"]
     return {"effects": list(final.model.effects), "residual_x_noise": s.result.residual_x_noise,
             "residual_x_noise_recalibrated_baseline": s.result.validation["residual_x_noise_recalibrated_baseline"]}

@@ -29,7 +29,8 @@ entry of the proposal's ``named`` list (its ``form`` judged here by
 :data:`NAMED_FORM_KIND`, not by the package's own ``kind`` string, which is used
 only where the place allows one kind alone or to choose among the place's kinds
 when the form is not in the map), a disturbance the logged supply pressure carries
-(the supply boundary), and, when there is no ``named`` list, the bare proposal terms
+(the supply boundary), a logged supply pressure taken as a measured input (``measured_inputs``), and, when
+there is no ``named`` list, the bare proposal terms
 (right ingredients, but constants: never "in words").  :func:`honesty` records,
 per case, the residual before and after, whether it closed, a recommended term too
 weak to be written and a kept hypothesis that worsens the all-data residual.
@@ -344,6 +345,13 @@ def worded_items(diag: dict) -> list[dict]:
                           "kinds": sorted(form_kinds(term.get("place"), coef) or {"unknown"}),
                           "places": [place] if place else [],
                           "words": False, "source": "proposal"})
+    # a logged quantity the diagnosis took as a measured input (the supply pressure: the measured_inputs stage,
+    # whose record says it in words)
+    for q in diag.get("measured_inputs") or []:
+        rec = next((r for r in diag.get("stages") or [] if r.get("stage") == "measured_inputs"), {})
+        if q == "p_s_bar":
+            items.append({"label": f"supply pressure as a measured input: {rec.get('text', '')}"[:160],
+                          "kinds": ["supply/return"], "places": ["supply"], "words": True, "source": "measured input"})
     for d in diag.get("disturbances") or []:
         if isinstance(d, dict) and d.get("boundary"):
             items.append({"label": f"supply disturbance {d.get('frequency_hz')} Hz: {d.get('text', '')}"[:160],

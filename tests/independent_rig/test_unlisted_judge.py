@@ -92,6 +92,16 @@ def test_a_supply_line_in_the_logged_supply_is_the_supply_boundary_named():
     assert not judge_place_kind(rip, worded_items(_diag(disturbances=[{**d, "boundary": False}])))["right"]
 
 
+def test_a_supply_taken_as_a_measured_input_is_the_supply_boundary_named():
+    rip = {"supply_ripple": UNLISTED["supply_ripple"].values(1)}
+    rec = {"stage": "measured_inputs", "kept": True, "text": "the supply pressure logged varies by +-9.99 bar"}
+    d = {**_diag(), "measured_inputs": ["p_s_bar"], "stages": [rec]}
+    assert judge_place_kind(rip, worded_items(d))["right"]
+    assert not judge_place_kind(rip, worded_items({**d, "measured_inputs": []}))["right"]
+    # on a campaign without a hidden supply effect, a measured supply is a worded item of a kind no effect has
+    assert not judge_place_kind({}, worded_items(d))["right"]
+
+
 def test_a_pair_needs_both_and_a_kept_library_effect_counts_where_it_acts():
     pair = {"bearing_friction": UNLISTED["bearing_friction"].values(0),
             "coulomb_friction": {"Fc": 250.0}}

@@ -58,6 +58,9 @@ CASES = {
     "orifice_leak_small": ("leakage", "turbulent_leakage", {"q100": 0.4}, ("hyp_turbulent_leakage",)),
     "underlap_small": ("valve", "valve_underlap", {"u0": 0.3}, ("hyp_valve_underlap",)),
     "coulomb_rig_b": ("mechanics (friction)", "coulomb_friction", {"Fc": 600.0}, ("coulomb_friction",)),
+    # the compliant mount of issue 34's example, stiffer: where the standard campaign may no longer tell it from oil
+    "mount_150": ("mechanics (mount)", "load_compliance", {"k": 150000.0}, ("hyp_load_compliance",)),
+    "mount_250": ("mechanics (mount)", "load_compliance", {"k": 250000.0}, ("hyp_load_compliance",)),
 }
 #: cases on another rig than the book's (tests/independent_rig/rigs/NAME.json): diagnosed and planned with --model
 RIGS = {"coulomb_rig_b": "rig_b"}
