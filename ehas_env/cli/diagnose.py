@@ -235,9 +235,8 @@ def run_one(args) -> int:
     for line in _findings_lines(res):  # per-run drift, disturbances, fits on a bound (issue 33)
         print(line)
     written = next_line = None
-    state = res.to_json().get("state") if res.state else None
-    if state:
-        print(f"missing state kept: {state['kept']} ({state['words']})")
+    if res.state:  # a generic augmentation kept (the states stage's, or one fitted in place of a library effect)
+        print(f"missing state kept: {res.state} ({get_effect(res.state).in_words(res.model.effects[res.state])})")
     hyp = res.hypothesis
     if hyp is not None:
         h = res.hypothesis_json()

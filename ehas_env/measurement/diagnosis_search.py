@@ -34,6 +34,7 @@ from ehas_env.measurement.fitting import MIN_GAIN, Fit
 from ehas_env.measurement.honesty import worse_than_bare
 from ehas_env.measurement.replay import COST_SIGNALS, Replayer
 from ehas_env.measurement.verdict import blocks_of, grade
+from ehas_env.physics.augment import augmentations
 from ehas_env.physics.effects import get_effect
 
 
@@ -65,6 +66,8 @@ class Search:
     cur_sims: list | None = None  # ... its simulation of every run
     cur_val: float | None = None  # ... its validation residual (noise variances)
     hyps: list = field(default_factory=list)  # the structural hypotheses that may be tried
+    rivals: list = field(default_factory=list)  # ... and the missing states that say whom they may be mistaken for:
+    # fitted in place of a kept library effect of the same signature (diagnosis._rival_hypotheses)
     pool: list | None = None  # the candidates of the next round (None: the library's)
     structural: bool = False  # the structural hypotheses are being tried
     quiet: str | None = None  # they are tried on a campaign the library explains: the key of QUIET_UNITS
@@ -155,6 +158,8 @@ def data_stage(campaign: Campaign, *, holdout=None, window_s: float, model=None,
     # the library's effects first; then, while the campaign is not explained, the structural hypotheses
     s.full_as_given = full
     s.hyps = [h for h in hypothesis_effects() if h not in s.base and (candidates is None or h not in candidates)]
+    s.rivals = s.hyps + ([a for a in augmentations() if get_effect(a).mistaken_for and a not in s.base]
+                         if hypotheses else [])
     s.pool = candidates
     return s
 
@@ -229,7 +234,7 @@ def judge_round(s: Search, d: Diagnosis) -> tuple | None:
         if why is None:
             kept = (effect, f, sims, val)
             if s.hypotheses and get_effect(effect).kind != "hypothesis":
-                kept = _rival_hypotheses(rep, full, parts, s.held_idx, kept, d.null, s.cur_val, s.base, s.hyps,
+                kept = _rival_hypotheses(rep, full, parts, s.held_idx, kept, d.null, s.cur_val, s.base, s.rivals,
                                          step, s.steps, say, s.lost_rivals)
             return kept, judged, short
     return None, judged, short

@@ -149,6 +149,9 @@ class LagPositionSensor(Lag):
     name = "aug_lag_position_sensor"
     title = "first-order lag in the position sensor's reading (LVDT demodulator filter)"
     where = "the position sensor's reading"
+    #: a lagging reading makes the loop late, as a delay of its command does: the diagnosis fits it in place of a
+    #: transport delay it keeps (pressures and flow, which the sensor's lag does not touch, tell them apart)
+    mistaken_for = ("transport_delay",)
     states = (("e_read", "m", 0.0),)
     #: after the sensor's static effects (an offset, a shape): the lag filters what the conditioner outputs
     chain_order = 100

@@ -65,9 +65,9 @@ def capabilities() -> dict:
             "compare_json": "--json" in c}
 
 
-def _run(cmd: list, env=None, log=None) -> tuple:
+def _run(cmd: list, env=None, log=None, cwd=None) -> tuple:
     t0 = time.time()
-    p = subprocess.run(["nice", "-n", "5"] + cmd, capture_output=True, text=True, env=env)
+    p = subprocess.run(["nice", "-n", "5"] + cmd, capture_output=True, text=True, env=env, cwd=cwd)
     wall = time.time() - t0
     if log is not None:
         Path(log).write_text("$ " + shlex.join(cmd) + "\n" + p.stdout + "\n--- stderr\n" + p.stderr)
@@ -209,7 +209,8 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
                 k = ccmd.index("--json")
                 del ccmd[k:k + 2]
             ccmd += ["--json", str(cmp_json), "--overwrite"]
-        code, cout, cerr, cwall = _run(ccmd, log=wdir / "compare.log")
+        # in the case's own folder: the printed command's relative outputs (--save-model model.json) stay there
+        code, cout, cerr, cwall = _run(ccmd, log=wdir / "compare.log", cwd=wdir)
         rec["compare_command"] = shlex.join(ccmd)
         rec["steps"]["compare_wall_s"] = round(cwall, 1)
         if code != 0:
