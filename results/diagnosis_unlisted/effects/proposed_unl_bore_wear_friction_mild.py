@@ -1,0 +1,27 @@
+"""proposed_unl_bore_wear_friction_mild: a term proposed by ehas diagnose for /tmp/ehas_unlisted_L/unl_bore_wear_friction_mild/campaign.
+
+F_piston [N] += c_x2sv·x^2 tanh(v / v_tanh)   with c_x2sv = -3.274e+05 N/m^2 (95 % CI -3.295e+05 to -3.254e+05)
+
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.43 -> 1.11; fit 91.5 % -> 96.3 %.
+Rename the file, the class and ``name``, give the parameters physical names and documentation,
+then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+"""
+import math
+
+from ehas_env.physics.effects import Effect, Param
+
+
+class ProposedUnlBoreWearFrictionMild(Effect):
+    name = "proposed_unl_bore_wear_friction_mild"
+    title = "proposed term (piston force)"
+    params = (
+        Param("f_x2sv", "N/m^2", 327427, (0.0, 6.54854e+06),
+              "dry force that rises with position squared: per m^2, times sign(v) (fitted: -3.274e+05, 95 % CI -3.295e+05 to -3.254e+05)", typical=(163714, 654854)),
+    )
+    main_param = "f_x2sv"
+    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_x2sv·x^2 tanh(v / v_tanh) with c_x2sv = -3.274e+05 N/m^2 (95 % CI -3.295e+05 to -3.254e+05)'
+    signature = 'the residual it was fitted to: x^2 tanh(v / v_tanh)'
+
+    @staticmethod
+    def piston_force(x, v, v_tanh, f_x2sv):
+        return -(f_x2sv * x ** 2 * math.tanh(v / v_tanh))
