@@ -428,11 +428,28 @@ def keep_no_worse(full: Replayer, bare: tuple, now: tuple, steps: list, say) -> 
     why = worse_than_bare(x_bare, x_now)
     if why is None:
         return now
+    steps_back_to(steps, flags, f"with the effects kept since the hypotheses were tried, it {why}")
+    say(f"  the hypotheses kept {why}: back to the model without them")
+    return b_fit, b_sims, b_val, b_base
+
+
+def steps_back_to(steps: list, flags: list, why: str) -> None:
+    """The steps as they stood when the bare model was set aside: every step kept since is said not kept (with
+    ``why``), and the earlier steps get back their (kept, reason) of then (a library effect dropped as a stand-in
+    since is kept again).
+
+    Parameters
+    ----------
+    steps : list of Step
+        Every step judged (changed in place).
+    flags : list of (bool, str)
+        The (kept, reason) of each step when the bare model was set aside.
+    why : str
+        Why the later steps are not kept in the end.
+    """
     for st in steps[len(flags):]:
         if st.kept:
             st.kept = False
-            st.reason += f"; not kept in the end: with the effects kept since the hypotheses were tried, it {why}"
+            st.reason += f"; not kept in the end: {why}"
     for st, (kept, reason) in zip(steps, flags):
         st.kept, st.reason = kept, reason
-    say(f"  the hypotheses kept {why}: back to the model without them")
-    return b_fit, b_sims, b_val, b_base

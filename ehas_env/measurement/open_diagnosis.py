@@ -26,7 +26,8 @@ from ehas_env.measurement.campaign import Campaign
 from ehas_env.measurement.diagnosis import (
     FIT_WINDOW_S, Diagnosis, Step, _drop_stand_ins, _held_fit, _held_table, _parts_cost, _round, confidence,
     fit_candidate, fit_null, windowed)
-from ehas_env.measurement.diagnosis_search import Search, data_stage, hypotheses_stage, library_stage
+from ehas_env.measurement.diagnosis_search import (
+    Search, data_stage, hypotheses_stage, library_stage, steps_back_to)
 from ehas_env.measurement.disturbances import disturbances as disturbances_of
 from ehas_env.measurement.drift import per_run_stage
 from ehas_env.measurement.fitting import Fit, _unit, _value_of
@@ -408,12 +409,7 @@ def _term_without_hypotheses(s: Search, prop) -> tuple | None:
     why = (f"the term proposed without it leaves {x_b:.3g}x noise on all data"
            + ("" if prop is None else f", as well as with it ({prop.validation['residual_x_noise_all_after']:.3g}x)")
            + ": it stood in for the missing term")
-    for st in s.steps[len(flags):]:
-        if st.kept:
-            st.kept = False
-            st.reason += f"; not kept in the end: {why}"
-    for st, (kept, reason) in zip(s.steps, flags):
-        st.kept, st.reason = kept, reason
+    steps_back_to(s.steps, flags, why)
     s.say(f"  the hypotheses kept are dropped: {why}")
     s.current, s.cur_sims, s.cur_val, s.base = b_fit, b_sims, b_val, b_base
     measure_stage(s)
