@@ -488,22 +488,7 @@ def effect_source(proposal: Proposal, name: str, *, origin: str = "") -> str:
         sig = ", ".join(first + args + pnames)
         lines = [f"    @staticmethod", f"    def {place}({sig}):"]
         if place == "chamber_flows":
-            lines += ["        dqa = 0.0", "        dqb = 0.0"]
-            pos, neg = [], []
-            for coef, sign, pname in body:
-                c = f"{sign}{pname}" if not sign else f"(-{pname})"
-                always, negl = FLOW_CODE[coef]
-                if negl is None:
-                    lines += ["        " + ln.format(c=c) for ln in always]
-                else:
-                    pos += [ln.format(c=c) for ln in always]
-                    neg += [ln.format(c=c) for ln in negl]
-            if pos or neg:
-                lines.append("        if qc >= 0.0:")
-                lines += ["            " + ln for ln in pos] or ["            pass"]
-                lines.append("        else:")
-                lines += ["            " + ln for ln in neg] or ["            pass"]
-            lines.append("        return dqa, dqb")
+            lines += _flow_body(body)
         elif place in ("valve_current", "position_reading"):
             lines.append(f"        return {first[0]} + " + " + ".join(body))
         else:
@@ -538,6 +523,28 @@ def effect_source(proposal: Proposal, name: str, *, origin: str = "") -> str:
     if "math." not in text.split('import math', 1)[1]:
         text = text.replace("import math\n\n", "", 1)
     return text
+
+
+def _flow_body(body: list) -> list[str]:
+    """The lines of an effect file's ``chamber_flows`` method for the flow terms ``body`` ((coefficient, sign,
+    parameter name) each; :data:`FLOW_CODE` holds each form's code, by the spool's direction where it depends on
+    it)."""
+    lines = ["        dqa = 0.0", "        dqb = 0.0"]
+    pos, neg = [], []
+    for coef, sign, pname in body:
+        c = f"{sign}{pname}" if not sign else f"(-{pname})"
+        always, negl = FLOW_CODE[coef]
+        if negl is None:
+            lines += ["        " + ln.format(c=c) for ln in always]
+        else:
+            pos += [ln.format(c=c) for ln in always]
+            neg += [ln.format(c=c) for ln in negl]
+    if pos or neg:
+        lines.append("        if qc >= 0.0:")
+        lines += ["            " + ln for ln in pos] or ["            pass"]
+        lines.append("        else:")
+        lines += ["            " + ln for ln in neg] or ["            pass"]
+    return lines + ["        return dqa, dqb"]
 
 
 def write_effect(path, proposal: Proposal, *, origin: str = "", overwrite: bool = False) -> "Path":
