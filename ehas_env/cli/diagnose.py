@@ -254,7 +254,8 @@ def run_one(args) -> int:
             name = Path(args.write_effect).stem
             print(f"effect file: {args.write_effect}")
             next_line = next_command(args, campaign.path, [n for n in res.model.effects if n != hyp] + [name],
-                                     extra_path=Path(args.write_effect).parent, measured_inputs=res.measured_inputs)
+                                     extra_path=Path(args.write_effect).parent, measured_inputs=res.measured_inputs,
+                                     values=res.model.effects)
             print("next: " + next_line)
     elif res.proposal is not None:
         p = res.proposal
@@ -276,14 +277,16 @@ def run_one(args) -> int:
             name = Path(args.write_effect).stem
             print(f"effect file: {args.write_effect}")
             next_line = next_command(args, campaign.path, list(res.model.effects) + [name],
-                                     extra_path=Path(args.write_effect).parent, measured_inputs=res.measured_inputs)
+                                     extra_path=Path(args.write_effect).parent, measured_inputs=res.measured_inputs,
+                                     values=res.model.effects)
             print("next: " + next_line)
     elif args.write_effect:
         print("no effect file written: " + ("the campaign is explained" if res.unexplained is None else
                                             "no term of the dictionary lowers the residual"))
     if next_line is None and (res.model.effects or res.measured_inputs):  # the final model (a kept hypothesis is
         # a registered effect; a logged quantity kept as a measured input is given as one)
-        next_line = next_command(args, campaign.path, list(res.model.effects), measured_inputs=res.measured_inputs)
+        next_line = next_command(args, campaign.path, list(res.model.effects), measured_inputs=res.measured_inputs,
+                                 values=res.model.effects)
         print("next: " + next_line)
     elapsed = time.perf_counter() - t0
     print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
@@ -383,12 +386,13 @@ def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dic
     if doc["model"]["effects"] and effect_file is None:
         # the comparison that saves the calibrated model (run() replaces it with the one it prints, which keeps
         # the command line's --effects-path, --model and --columns)
-        doc["next"] = next_command(argparse.Namespace(), campaign_path, list(doc["model"]["effects"]))
+        doc["next"] = next_command(argparse.Namespace(), campaign_path, list(doc["model"]["effects"]),
+                                   values=doc["model"]["effects"])
     doc["elapsed_s"] = round(elapsed_s, 1)
     return doc
 
 
-def next_command(args, campaign_path, effects: list[str], extra_path=None, measured_inputs=()) -> str:
+def next_command(args, campaign_path, effects: list[str], extra_path=None, measured_inputs=(), values=None) -> str:
     """The ``ehas compare`` command that adds ``effects`` to the campaign, runnable as printed: it keeps every
     ``--effects-path`` given, the written effect file's folder, ``--model`` and ``--columns``, and always saves
     the calibrated model (``--save-model model.json``, the file ``ehas tune``/``bench --model`` take).
@@ -405,6 +409,10 @@ def next_command(args, campaign_path, effects: list[str], extra_path=None, measu
         The folder of a written effect file, added to ``--effects-path``.
     measured_inputs : sequence of str
         Logged quantities the diagnosis took as measured inputs (``--measured-input``).
+    values : dict, optional
+        {effect: {param: value}} (the parameters' units): the diagnosis' fitted values, given as
+        ``NAME:param=value`` so that ``--fit`` starts where the diagnosis ended (a fit from the typical middle
+        may stop in another valley) and reproduces its final model.
 
     Returns
     -------
@@ -425,7 +433,10 @@ def next_command(args, campaign_path, effects: list[str], extra_path=None, measu
         parts.append(f"--measured-input {q(','.join(measured_inputs))}")
     # the calibrated model file is what a user tunes and benchmarks on (--model): always offered
     if effects:
-        parts.append(f"--effects {q(','.join(effects))}")
+        vals = values or {}
+        spec = [n + (":" + ",".join(f"{k}={v:.6g}" for k, v in vals[n].items()) if vals.get(n) else "")
+                for n in effects]
+        parts.append(f"--effects {q(','.join(spec))}")
     if effects or measured_inputs:
         parts.append("--fit")
     parts += ["--out compare", "--json compare.json", "--save-model model.json"]

@@ -640,14 +640,14 @@ def sanity(f: Fit, effect: str) -> str | None:
 
 
 def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cur_val, hyp: str, steps: list,
-                    say) -> tuple:
-    """A structural hypothesis ``hyp`` was kept: each physical or recalibration effect kept before it is refitted
-    away; when the
+                    say, kinds: tuple = ("physical", "recalibration")) -> tuple:
+    """A structural hypothesis ``hyp`` was kept: each effect of ``kinds`` kept before it (physical or
+    recalibration; a missing state kept asks the structural hypotheses too) is refitted away; when the
     model without it does as well on the validation data (within :data:`VAL_GAIN`), it stood in for ``hyp``
     and goes (its step says so).  Returns the model kept (Fit, its simulation of every run, validation cost)."""
     sims = full.simulate(current.model)
     # a recalibration (valve dynamics, bulk modulus) kept before the hypothesis may have stood in for it as well
-    for step in [s for s in steps if s.kept and get_effect(s.effect).kind in ("physical", "recalibration")]:
+    for step in [s for s in steps if s.kept and s.effect != hyp and get_effect(s.effect).kind in kinds]:
         if step.effect not in current.model.effects:
             continue
         effects = {n: dict(p) for n, p in current.model.effects.items() if n != step.effect}

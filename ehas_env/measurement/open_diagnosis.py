@@ -226,7 +226,15 @@ def states_stage(s: Search) -> dict:
                             "residual's excess over the noise and lowers the validation residual", f, f.cost, val,
                             _held_fit(s.full, sims, s.held_idx)))
         s.say(f"  {name}: kept ({rec['words']})")
-        current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, name, s.steps, s.say)
+        for step in s.steps:
+            if step.kept and step.effect == rec.get("in_place_of"):
+                step.kept = False
+                step.reason = (f"stands in for {name} ({get_effect(name).title}): with {name} in its place the "
+                               f"residual on all data is {rec['residual_x_noise_all_after']:.3g}x noise and the "
+                               f"validation residual {rec['residual_x_noise_validation_after']:.3g} noise variances")
+        # an effect or a structural hypothesis kept before it may have stood in for the missing state
+        current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, name, s.steps, s.say,
+                                             kinds=("physical", "recalibration", "hypothesis"))
         s.keep(current, sims, val)
     return rec
 

@@ -7,12 +7,13 @@ put the kind's state there:
 
 * **lag** (a first-order filter ``T y' = u - y``) in a signal path: the current at the valve's coil
   (:class:`LagCoil`) and the position sensor's reading (:class:`LagPositionSensor`, an LVDT demodulator's
-  filter);
+  filter); and a **rate limit** of the coil's current (:class:`SlewCoil`, an amplifier's voltage headroom);
 * **compliance with a mass** in a mechanical link: the rod-crank joint (:class:`LinkRodCrank`, the piston a mass
   of its own on a spring) and the actuator's mount (:class:`LinkMount`, the cylinder's body a mass on a spring);
-* **volume with a resistance** in a hydraulic path: a hose between the valve's port and chamber A or B
-  (:class:`HoseA`, :class:`HoseB`: a line pressure state, the valve meters against the line's pressure, the
-  chamber fills through a laminar resistance);
+* **volume with a resistance** in a hydraulic path: a hose between the valve's port and chamber A or B, or a
+  pair alike in both lines (:class:`HoseA`, :class:`HoseB`, :class:`HoseAB`: a line pressure state, the valve
+  meters against the line's pressure -- and the flow meter at the port sees that flow -- the chamber fills
+  through a laminar resistance);
 * **play** in a joint: the library's own :mod:`ehas_env.physics.effects.backlash` (rod-crank joint).
 
 They are effects (``kind = "hypothesis"``: they live only in the model with the hypotheses, never in an
@@ -142,6 +143,52 @@ class LagCoil(Lag):
         return i_lag
 
 
+class SlewCoil(Augmentation):
+    """A rate limit in the current path: the driver cannot make the coil's current change faster than ``S``.
+
+    A servo amplifier drives the torque motor's coil through its inductance with a bounded voltage, so the current
+    rises at most (V_max - R i) / L, about constant (Jelali & Kroll 2003, the servo amplifier; Merritt 1967, the
+    torque motor).  The state is the current the coil carries, i_c' = S tanh((i - i_c) / (S T_ss)): a first-order
+    follower of time constant T_ss for small steps, never faster than S for large ones (tanh keeps the right-hand
+    side smooth for the integrator)."""
+
+    name = "aug_slew_coil"
+    title = "rate limit in the current path (command to coil)"
+    form = "a rate limit"
+    where = "the valve's current path (command to coil)"
+    shown = {"S": (1.0e-3, "mA/ms")}
+    params = (
+        Param("S", "mA/s", 2000.0, (20.0, 1.0e5),
+              "largest rate of change of the coil's current: the amplifier's voltage headroom over the coil's "
+              "inductance (assumed range: 0.02 to 100 mA/ms; a 10 mA coil of 1 H on 10 V headroom: 10 mA/ms)",
+              typical=(100.0, 20000.0), log_scale=True),
+    )
+    constants = (
+        Param("T_ss", "s", 1.0e-4, (1.0e-5, 1.0e-2),
+              "small-signal time constant of the current loop (assumed: a current-feedback amplifier's 1.6 kHz "
+              "bandwidth, faster than anything the 1-3 Hz runs resolve)"),
+    )
+    main_param = "S"
+    states = (("i_coil", "mA", 0.0),)
+    explanation = (
+        "The coil's current follows the command, but no faster than the rate S the amplifier's voltage can "
+        "drive through the coil's inductance: a step or a fast reversal of the command becomes a ramp."
+    )
+    signature = (
+        "a current residual (and a flow and pressure one after it) at the command's fast reversals, growing "
+        "with the runs' frequency and amplitude; a small sine is passed unchanged (a lag fitted to it comes out "
+        "longer on the fast, large runs)."
+    )
+
+    @staticmethod
+    def state_rates(i, i_coil, S, T_ss):
+        return S * math.tanh((i - i_coil) / (S * T_ss))
+
+    @staticmethod
+    def coil_current(i_coil):
+        return i_coil
+
+
 class LagPositionSensor(Lag):
     """The lag at the position sensor: the rig logs (and its loop sees) a filtered reading of the piston.  The
     state is the reading's error e = reading - x: e' = -e / T - v (from T y' = x - y), 0 at rest."""
@@ -258,12 +305,15 @@ class Hose(Augmentation):
 
     form = "a hose"
     params = (
-        Param("V_line", "cm^3", 100.0, (5.0, 3000.0),
+        Param("V_line", "cm^3", 10.0, (5.0, 3000.0),
               "line volume: oil between the valve's port and the resistance (assumed range: a short hose to a "
-              "long one of 3 L)", typical=(30.0, 400.0), si=1.0e-6, log_scale=True),
-        Param("R_line", "bar/(L/min)", 0.5, (0.01, 20.0),
+              "long one of 3 L; typical 0.3 to 4 m of 8 mm bore, 15 to 200 cm^3; default 10 cm^3, a short hose "
+              "that does almost nothing: where a fit starts from no effect)", typical=(15.0, 200.0),
+              si=1.0e-6, log_scale=True),
+        Param("R_line", "bar/(L/min)", 0.1, (0.01, 20.0),
               "laminar resistance: 128 mu L / (pi d^4) of a hose, or a restrictor (assumed range; a 3 m, 6 mm "
-              "hose at 32 cSt: about 0.5)", typical=(0.1, 2.0), si=BAR_PER_LPM, log_scale=True),
+              "hose at 32 cSt: about 0.5; default 0.1, nearly none)", typical=(0.1, 2.0), si=BAR_PER_LPM,
+              log_scale=True),
     )
     main_param = "R_line"
     explanation = (
@@ -307,6 +357,10 @@ class HoseA(Hose):
     def chamber_flows(q_a, pa, p_line, R_line):
         return (p_line - pa) / R_line - q_a, 0.0
 
+    @staticmethod
+    def port_pressures(pa, pb, p_line):
+        return p_line, pb
+
 
 class HoseB(Hose):
     """The hose at chamber B."""
@@ -326,6 +380,90 @@ class HoseB(Hose):
     def chamber_flows(q_b, pb, p_line, R_line):
         return 0.0, (p_line - pb) / R_line - q_b
 
+    @staticmethod
+    def port_pressures(pa, pb, p_line):
+        return pa, p_line
+
+
+class HoseAB(Hose):
+    """A hose in each line, alike (the usual pair of hoses from a valve manifold to the cylinder's ports): one volume
+    and one resistance, in a form that stays integrable however small the hose.
+
+    Each land meters against its line's pressure (the flow meter at the valve's port reads that flow,
+    :meth:`port_pressures`), and the line drains into its chamber through R: V_line / beta p_line' = q_land -
+    (p_line - p) / R.  A hose whose exchange with its chamber, R / (beta (1/V_line + 1/V_chamber)), the integrator
+    does not resolve (R below ``R_exact``) is taken quasi-static instead: the land's flow q solves
+    q = q_c sgn(d) sqrt(|d| / (dp_n / 2)) with d its drop at p_line = p + R q (a quadratic in sqrt(|d|), in closed
+    form), the line's pressure follows p + R q within ``T_min`` (a sub-step), and the chamber receives q less what
+    the line's volume stores, through a state that follows it within ``T_min`` so that the chamber's pressure never
+    sees the stiff 1 / R -- the drop R q exact, the volume's compliance kept.  (The single-line hoses
+    :class:`HoseA`, :class:`HoseB` raise such a resistance to the least resolved instead.)"""
+
+    name = "aug_hose_ab"
+    title = "volume with a resistance in each line, A and B (a pair of hoses)"
+    where = "each line from the valve to its chamber"
+    states = (("p_line_a", "Pa", 0.5 * SUPPLY_PRESSURE), ("p_line_b", "Pa", 0.5 * SUPPLY_PRESSURE),
+              ("q_in_a", "m^3/s", 0.0), ("q_in_b", "m^3/s", 0.0))
+    constants = (
+        Param("T_min", "s", 1.0e-4, (1.0e-7, 1.0),
+              "time constant of the quasi-static hose's states: the integrator's sub-step (times sqrt(V_line / "
+              "V_chamber) where the line holds more oil than the chamber), set when the model is built"),
+        Param("R_exact", "Pa s/m^3", 0.0, (0.0, 1.0e30),
+              "least resistance the line's own balance is integrated with (below it, quasi-static): the "
+              "relaxation R / (beta (1/V_line + 1/V_chamber)) at least 0.6 sub-steps, set when the model is built"),
+    )
+
+    @staticmethod
+    def state_rates(qc, ps, pa, pb, beta, rated_drop, p_line_a, p_line_b, q_in_a, q_in_b, V_line, R_line, T_min,
+                    R_exact):
+        cap = V_line / beta
+        if R_line >= R_exact:
+            # a hose the sub-step resolves: the line's own balance, the lands metering at the lines' pressures
+            # (ehas_env.physics.baseline.land_flows); the chamber's inflow (p_line - p) / R (chamber_flows)
+            da = ps - p_line_a if qc >= 0.0 else p_line_a
+            db = p_line_b if qc >= 0.0 else ps - p_line_b
+            q_va = qc * math.copysign(math.sqrt(abs(da) / (0.5 * rated_drop)), da)
+            q_vb = -qc * math.copysign(math.sqrt(abs(db) / (0.5 * rated_drop)), db)
+            in_a, in_b = (p_line_a - pa) / R_line, (p_line_b - pb) / R_line
+            return (q_va - in_a) / cap, (q_vb - in_b) / cap, -q_in_a / T_min, -q_in_b / T_min
+        else:
+            # quasi-static: |q| = 2 |d0| / (R + sqrt(R^2 + 4 |d0| / c2)) solves q^2 = c2 (d0 - R q), d0 the land's
+            # drop at the chamber's pressure, c2 = qc^2 / (dp_n / 2); the line follows p + R q within T_min
+            c2 = qc * qc / (0.5 * rated_drop)
+            d0a = ps - pa if qc >= 0.0 else pa
+            d0b = pb if qc >= 0.0 else ps - pb
+            ma = mb = 0.0
+            if c2 > 0.0:
+                ma = math.copysign(2.0 * abs(d0a) / (R_line + math.sqrt(R_line * R_line + 4.0 * abs(d0a) / c2)), d0a)
+                mb = math.copysign(2.0 * abs(d0b) / (R_line + math.sqrt(R_line * R_line + 4.0 * abs(d0b) / c2)), d0b)
+            qa = ma if qc >= 0.0 else -ma
+            qb = -mb if qc >= 0.0 else mb
+            rate_a = (pa + R_line * qa - p_line_a) / T_min
+            rate_b = (pb + R_line * qb - p_line_b) / T_min
+            in_a, in_b = qa - cap * rate_a, qb - cap * rate_b
+        return rate_a, rate_b, (in_a - q_in_a) / T_min, (in_b - q_in_b) / T_min
+
+    @staticmethod
+    def chamber_flows(q_a, q_b, pa, pb, p_line_a, p_line_b, q_in_a, q_in_b, R_line, R_exact):
+        if R_line >= R_exact:
+            return (p_line_a - pa) / R_line - q_a, (p_line_b - pb) / R_line - q_b
+        return q_in_a - q_a, q_in_b - q_b
+
+    @staticmethod
+    def port_pressures(pa, pb, p_line_a, p_line_b):
+        return p_line_a, p_line_b
+
+    @classmethod
+    def adjust(cls, slots, substep_s):
+        # the states' least time constant: a sub-step, longer where the line's oil outweighs the chamber's (the
+        # exchange of the two is then an oscillation of rate sqrt(V_line / V_chamber) / tau)
+        if slots.get(f"{cls.name}.on"):
+            v_chamber = slots["area"] * slots["half_stroke"] + slots["dead_volume"]
+            v_line = slots[f"{cls.name}.V_line"]
+            slots[f"{cls.name}.T_min"] = substep_s * max(1.0, math.sqrt(v_line / v_chamber))
+            slots[f"{cls.name}.R_exact"] = (MIN_STEPS_PER_TAU * substep_s * slots["beta"]
+                                            * (1.0 / v_line + 1.0 / v_chamber))
+
 
 #: play in a joint: the library's effect (rod-crank joint), tried by the state stage with the others
 PLAY = ("backlash",)
@@ -337,6 +475,7 @@ def augmentations() -> list[str]:
     Returns
     -------
     list of str
-        Effect names (registered): the lags, the links, the hoses, then the play.
+        Effect names (registered): the lags and the rate limit, the links, the hoses, then the play.
     """
-    return [c.name for c in (LagCoil, LagPositionSensor, LinkRodCrank, LinkMount, HoseA, HoseB)] + list(PLAY)
+    order = (LagCoil, SlewCoil, LagPositionSensor, LinkRodCrank, LinkMount, HoseAB, HoseA, HoseB)
+    return [c.name for c in order] + list(PLAY)

@@ -100,8 +100,10 @@ def measure(s, P, out):
     th = math.asin(min(max(s[7] / r, -1.0), 1.0))
     out[O_THETA] = math.asin(min(max(position_reading(s[7], P, s) / r, -1.0), 1.0))
     out[O_OMEGA] = s[8] / (r * math.cos(th))
-    qa, _, _ = land_flows(s[2], s[4], s[5], s[6], P[I_DROP])
-    out[O_FLOW] = qa + valve_side_flows(s[2], s[4], s[5], s[6], P)[0]
+    # the meter in line A sits at the valve's port: the land's flow at the port's pressures
+    pva, pvb = port_pressures(s, P)
+    qa, _, _ = land_flows(s[2], pva, pvb, s[6], P[I_DROP])
+    out[O_FLOW] = qa + valve_side_flows(s[2], pva, pvb, s[6], P)[0]
     out[O_PA] = s[4]
     out[O_PB] = s[5]
     out[O_PS] = s[6]

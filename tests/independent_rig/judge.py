@@ -58,9 +58,10 @@ LIBRARY_KIND = {
     "hyp_position_shape": {"sensor"}, "hyp_lugre_friction": {"friction"}, "hyp_coil_lag": {"command path", "valve"},
     "hyp_crank_offset": {"geometry/area"},
     # the state stage's generic augmentations (ehas_env/physics/augment.py), judged by what each is
-    "aug_lag_coil": {"command path", "valve"}, "aug_lag_position_sensor": {"sensor"},
-    "aug_link_rod_crank": {"compliance"}, "aug_link_mount": {"compliance"},
+    "aug_lag_coil": {"command path", "valve"}, "aug_slew_coil": {"command path"},
+    "aug_lag_position_sensor": {"sensor"}, "aug_link_rod_crank": {"compliance"}, "aug_link_mount": {"compliance"},
     "aug_hose_a": {"compliance", "leakage/flow"}, "aug_hose_b": {"compliance", "leakage/flow"},
+    "aug_hose_ab": {"compliance", "leakage/flow"},
 }
 
 #: kinds of the proposal's forms, "place.coefficient" (ehas_env/measurement/proposal_terms.py's dictionary as
@@ -162,9 +163,9 @@ LIBRARY_PLACE = {
     "hyp_position_offset": {"position_reading"}, "hyp_position_shape": {"position_reading"},
     "hyp_lugre_friction": {"piston_force"}, "hyp_coil_lag": {"coil_current", "valve_current"},
     "hyp_crank_offset": {"crank_torque", "position_reading"},
-    "aug_lag_coil": {"coil_current", "valve_current"}, "aug_lag_position_sensor": {"position_reading"},
-    "aug_link_rod_crank": {"piston_force", "crank_torque"}, "aug_link_mount": {"piston_force"},
-    "aug_hose_a": {"chamber_flows"}, "aug_hose_b": {"chamber_flows"},
+    "aug_lag_coil": {"coil_current", "valve_current"}, "aug_slew_coil": {"coil_current", "valve_current"},
+    "aug_lag_position_sensor": {"position_reading"}, "aug_link_rod_crank": {"piston_force", "crank_torque"}, "aug_link_mount": {"piston_force"},
+    "aug_hose_a": {"chamber_flows"}, "aug_hose_b": {"chamber_flows"}, "aug_hose_ab": {"chamber_flows"},
 }
 #: words of the package's own kind strings -> kinds (used only to choose among a place's kinds)
 KIND_WORDS = (("fric", "friction"), ("damp", "friction"), ("leak", "leakage/flow"), ("flow", "leakage/flow"),

@@ -178,3 +178,14 @@ def test_when_nothing_is_named_the_text_says_where_what_and_no_term():
     text = N._none_text(flexible, after=3.2)
     assert "land flows" in text and "c_sup" in text and "supply pressure offset" in text
     assert "3.3x" in text and "no term was found" in text
+
+
+@pytest.mark.parametrize("key", sorted(N.POSITIVE))
+def test_a_form_fitted_against_its_words_sign_is_flagged(key):
+    """A dry friction, a damping, a leak, a resistance, a friction that rises ... fitted negative would be named in
+    words that say the opposite of the data: wrong_sign flags it (and only then)."""
+    form = next(f for f in N.FORMS if f.key == key)
+    for value, flagged in ((1.0, False), (-1.0, True)):
+        # every signed parameter at +-1 in its own sense, the others at zero
+        terms = {coef: value * sign for name, coef, sign in form.params if name in N.POSITIVE[key]}
+        assert bool(N.wrong_sign([form], terms)) == flagged, (key, value)

@@ -67,3 +67,34 @@ def test_a_clean_campaign_keeps_no_augmentation():
     # ... and by default the stage does not run on a model the campaign leaves at the noise
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=TRIED)
     assert fit is None and rec["tried"] == [] and "no state is looked for" in rec["skipped"]
+
+
+@pytest.mark.slow  # a 5-run campaign, a delay fitted, then the rate limit screened and refitted (about 2 min)
+def test_a_state_that_fails_on_top_of_its_stand_in_is_kept_in_its_place():
+    """A campaign simulated with a rate-limited coil current (the package's synthetic writer): a transport delay
+    fitted first stands in for it.  The stage keeps the rate limit -- on top of the delay when that passes the
+    gates, else in its place (``in_place_of``) with the delay gone -- and finds S."""
+    from ehas_env.measurement.diagnosis import fit_candidate
+
+    s, null = _search({"aug_slew_coil": {"S": 250.0}}, 3308)
+    delayed = fit_candidate(s.rep, "transport_delay", null)
+    assert delayed.cost < null.cost  # the delay does stand in for part of it
+    fit, rec = state_stage(s.rep, s.full, delayed, s.parts, lambda m: None, names=["aug_slew_coil"], trigger=0.0)
+    assert rec["kept"] == "aug_slew_coil", rec
+    assert rec["params"]["S"] == pytest.approx(250.0, rel=0.3)
+    assert ("transport_delay" in fit.model.effects) == (rec["in_place_of"] is None)
+    assert rec["residual_x_noise_all_after"] < rec["residual_x_noise_all_before"]
+
+
+@pytest.mark.slow
+def test_in_place_of_refits_the_model_without_the_effect():
+    from ehas_env.measurement.diagnosis import fit_candidate
+    from ehas_env.measurement.state_search import in_place_of
+
+    s, null = _search({"aug_slew_coil": {"S": 250.0}}, 3308)
+    both = fit_candidate(s.rep, "aug_slew_coil", fit_candidate(s.rep, "transport_delay", null),
+                         {"transport_delay": {}})
+    g = in_place_of(s.rep, both, "transport_delay")
+    assert set(g.model.effects) == set(both.model.effects) - {"transport_delay"}
+    # without the stand-in the rate limit alone explains the campaign it made (to the noise, 1 = noise)
+    assert g.cost < 1.5

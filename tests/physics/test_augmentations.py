@@ -17,8 +17,8 @@ def _phasor(sig, t, f):
 
 def test_every_kind_has_a_place_registered_and_named():
     names = augment.augmentations()
-    assert {"aug_lag_coil", "aug_lag_position_sensor", "aug_link_rod_crank", "aug_link_mount", "aug_hose_a",
-            "aug_hose_b", "backlash"} == set(names)
+    assert {"aug_lag_coil", "aug_slew_coil", "aug_lag_position_sensor", "aug_link_rod_crank", "aug_link_mount",
+            "aug_hose_ab", "aug_hose_a", "aug_hose_b", "backlash"} == set(names)
     for n in names[:-1]:
         cls = REGISTRY[n]
         assert cls.kind == "hypothesis" and issubclass(cls, augment.Augmentation)
@@ -51,7 +51,7 @@ def test_sensor_lag_reads_the_truth_at_rest():
     assert np.allclose(r.theta_deg, 12.0, atol=1e-6)
 
 
-@pytest.mark.parametrize("hose", ["aug_hose_a", "aug_hose_b"])
+@pytest.mark.parametrize("hose", ["aug_hose_a", "aug_hose_b", "aug_hose_ab"])
 def test_hose_at_zero_flow_leaves_the_pressures(hose):
     """No current, no motion: the line adds nothing (the chambers stay where the model without it has them)."""
     plain = Plant(disc_sets=2).simulate(np.zeros(300), theta0_deg=5.0)
@@ -115,3 +115,82 @@ def test_link_natural_frequency_is_sqrt_k_over_m(effect, states):
     wn = math.sqrt(k_link / m_link)
     assert np.abs(lam) == pytest.approx([wn, wn], rel=1e-4)
     assert -lam.real[0] / wn == pytest.approx(0.1, rel=1e-3)  # the link's damping ratio (assumed 0.1)
+
+
+@pytest.mark.parametrize("S,n_steps", [(2000.0, 2), (500.0, 6)])
+def test_slew_limited_coil_current_ramps_at_S_then_settles(S, n_steps):
+    """A command step far larger than S T_ss: the coil's current rises as the ramp S t (analytic), then holds the
+    command once the ramp reaches it."""
+    from ehas_env.physics import layout as K
+
+    step = 8.0
+    plant = Plant(disc_sets=2, effects={"aug_slew_coil": {"S": S}})
+    k = plant.model.STATE_NAMES.index("aug_slew_coil.i_coil")
+
+    def coil_after(n):
+        s = plant.initial_state(0.0).copy()
+        plant.model.run_open_loop(s, plant.param_vector, np.full(n, step), plant.dt, plant.substeps,
+                                  np.zeros(K.history_length(0.05, plant.dt)), np.zeros((n, K.N_OUT)))
+        return s[k]
+
+    t = n_steps * plant.dt
+    assert S * t < step - 1.0  # still on the ramp
+    # the tanh's small-signal start costs S T_ss ln 2-ish of a mA-ms: well inside 2 %
+    assert coil_after(n_steps) == pytest.approx(S * t, rel=0.02)
+    assert coil_after(int(3 * step / S / plant.dt) + 5) == pytest.approx(step, abs=1e-3)
+
+
+def test_flow_meter_at_the_port_reads_the_land_flow_at_the_line_pressure():
+    """With a hose, the meter in line A (at the valve's port) reads the land's flow against the line's pressure,
+    q_c sqrt((P_S - p_line) / (dp_n / 2)) -- not the chamber's: checked on the model's own output against the
+    state, mid-run, on both sides of a pair of hoses' flow reversal."""
+    from ehas_env.physics import layout as K
+
+    plant = Plant(disc_sets=2, effects={"aug_hose_ab": {"V_line": 60.0, "R_line": 2.0}})
+    m = plant.model
+    ka = m.STATE_NAMES.index("aug_hose_ab.p_line_a")
+    n = 60
+    cmd = np.concatenate([np.full(n // 2, 3.0), np.full(n - n // 2, -3.0)])
+    for steps in (n // 2 - 5, n - 5):
+        s = plant.initial_state(0.0).copy()
+        out = np.zeros((steps, K.N_OUT))
+        m.run_open_loop(s, plant.param_vector, cmd[:steps], plant.dt, plant.substeps,
+                        np.zeros(K.history_length(0.05, plant.dt)), out)
+        o = np.zeros(K.N_OUT)
+        m.measure(s, plant.param_vector, o)
+        qc, p_line, pa, ps = s[2], s[ka], s[4], s[6]
+        drop = 0.5 * plant.slots()["rated_drop"]
+        d = ps - p_line if qc >= 0 else p_line
+        assert o[K.O_FLOW] == pytest.approx(qc * math.copysign(math.sqrt(abs(d) / drop), d), rel=1e-9)
+        d_chamber = ps - pa if qc >= 0 else pa
+        assert abs(p_line - pa) > 2e5  # the line's drop is there, so the two readings differ
+        assert o[K.O_FLOW] != pytest.approx(qc * math.copysign(math.sqrt(abs(d_chamber) / drop), d_chamber),
+                                            rel=1e-3)
+
+
+@pytest.mark.parametrize("V_cm3,R_lpm", [(100.0, 1.0), (5.0, 0.05)])
+def test_pair_of_hoses_steady_drop_is_R_times_the_flow(V_cm3, R_lpm):
+    """Both regimes of the pair of hoses -- integrated (100 cm^3, 1 bar/LPM) and quasi-static (5 cm^3,
+    0.05 bar/LPM: an exchange the sub-step does not resolve) -- in the steady state of a clamped piston with a
+    leak across it: line A above chamber A by R q, line B below chamber B by R q, the valve metering
+    q = q_c sqrt((P_S - p_line_A) / (dp_n / 2)) (analytic, as for the single hose)."""
+    from ehas_env.physics import layout as K
+
+    leak = 1e-11
+    plant = Plant(disc_sets=1, inertia=1e9, effects={"internal_leakage": {"C_leak": leak},
+                                                     "aug_hose_ab": {"V_line": V_cm3, "R_line": R_lpm}})
+    slots = plant.slots()
+    quasi = slots["aug_hose_ab.R_line"] < slots["aug_hose_ab.R_exact"]
+    assert quasi == (V_cm3 < 10.0)  # each case runs the branch it is meant to
+    i_mA, n = 4.0, 4000
+    s = plant.initial_state(0.0).copy()
+    plant.model.run_open_loop(s, plant.param_vector, np.full(n, i_mA), plant.dt, plant.substeps,
+                              np.zeros(K.history_length(0.05, plant.dt)), np.zeros((n, K.N_OUT)))
+    names = plant.model.STATE_NAMES
+    pa, pb = s[4], s[5]
+    la, lb = s[names.index("aug_hose_ab.p_line_a")], s[names.index("aug_hose_ab.p_line_b")]
+    q = leak * (pa - pb)
+    R = R_lpm * augment.BAR_PER_LPM
+    assert la - pa == pytest.approx(R * q, rel=0.01) and pb - lb == pytest.approx(R * q, rel=0.01)
+    q_valve = slots["K"] * i_mA * math.sqrt((plant.rig.supply - la) / (0.5 * slots["rated_drop"]))
+    assert q_valve == pytest.approx(q, rel=0.01)

@@ -35,6 +35,10 @@ PLACES = {
     "position_reading": ("the piston position the position sensor (LVDT) reads, m (gets the reading so far as "
                          "argument x; the angle the rig logs and its controller sees is asin(reading / r); it "
                          "may read the effect's own states: a lag of the reading)"),
+    "port_pressures": ("(pressure at the valve's port A, at its port B), Pa: where the flow meter in line A "
+                       "meters the land's flow (gets the ports' pressures so far as arguments pa, pb, the "
+                       "chambers' unless an effect puts something between; it may read the effect's own states: "
+                       "a hose's line pressure)"),
 }
 #: quantities a term may take as arguments, besides its own parameters and constants and the
 #: baseline slots (``layout.BASE_SLOTS``): SI values at the current instant
@@ -54,6 +58,7 @@ PLACE_QUANTITIES = {place: frozenset(_AT_RATES) for place in PLACES}
 PLACE_QUANTITIES["valve_current"] = frozenset({"i"})
 PLACE_QUANTITIES["position_reading"] = frozenset({"x"})
 PLACE_QUANTITIES["coil_current"] = frozenset({"i"})
+PLACE_QUANTITIES["port_pressures"] = frozenset({"pa", "pb"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
 #: the quantities a valve-side chamber_flows term (``Effect.valve_side``) may take: the valve's own, known
 #: wherever a flow is metered (a run's line A, the valve bench)
@@ -61,7 +66,7 @@ VALVE_SIDE_QUANTITIES = ("qc", "pa", "pb", "ps", "p_load", "q_a", "q_b", "q_supp
 #: what an effect is (Effect.kind)
 KINDS = ("physical", "recalibration", "hypothesis")
 #: how many numbers a term returns at each place (state_rates: one per state, a number for one state)
-RETURNS = {"chamber_flows": 2}
+RETURNS = {"chamber_flows": 2, "port_pressures": 2}
 #: the only outside names a term's body may use: the compiled model copies the body alone into a module
 #: that imports these (ehas_env.physics.codegen)
 TERM_GLOBALS = ("math", "np")
