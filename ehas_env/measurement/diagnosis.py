@@ -263,14 +263,27 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
     reopened = [fp for n in null.model.effects if reopens_baseline(n) for fp in own_params(n)
                 if fp.name == get_effect(n).main_param]
     if reopened:
-        # from the typical start, not from the scan's end: with the number held, the scan runs to the bound
-        start2 = {**start, **{(fp.effect, fp.name): null.model.effects[fp.effect][fp.name] for fp in reopened}}
-        g = fit(rep, free + reopened, start2, null.model, max_nfev=SCREEN_NFEV * (len(free) + 1), tol=1e-3,
-                null_cost=null.cost)
-        if g.cost < f.cost:
-            f = g
-            if f.cost < null.cost * 10.0 ** (-MIN_SCORE / 10.0):
-                return f
+        # from the typical start, not from the scan's end: with the number held, the scan runs to the bound; and,
+        # for an effect that asks it (``screen_from_defaults``: the generic states), from its defaults (nearly no
+        # effect), where a state that adds a compliance starts from the one the re-opened number took over (a hose
+        # beside a bulk modulus fitted soft for it)
+        held_values = {(fp.effect, fp.name): null.model.effects[fp.effect][fp.name] for fp in reopened}
+        starts = [{**start, **held_values}]
+        if getattr(get_effect(effect), "screen_from_defaults", False):
+            # the state at its defaults, the re-opened number given back what it took (the baseline's beta, K)
+            first = {}
+            for fp in free + reopened:
+                v = (get_effect(effect).param(fp.name).default if fp.effect == effect
+                     else getattr(null.model, fp.name, held_values[(fp.effect, fp.name)]))
+                first[(fp.effect, fp.name)] = min(max(v, fp.lo), fp.hi)
+            starts.append(first)
+        for first in starts:
+            g = fit(rep, free + reopened, first, null.model, max_nfev=SCREEN_NFEV * (len(free) + 1), tol=1e-3,
+                    null_cost=null.cost)
+            if g.cost < f.cost:
+                f = g
+        if f.cost < null.cost * 10.0 ** (-MIN_SCORE / 10.0):
+            return f
     # the recalibrated beta and K may have absorbed part of the effect (friction in position-only logs helps
     # only with beta and K moved back): scan again from the centre of their ranges
     rp = {fp.name for fp in recal_params(null.model.effects)}

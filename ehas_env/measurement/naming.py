@@ -40,10 +40,6 @@ PENALTY_PER_TERM_DB = 0.2
 ADD_TERM_DB = 1.0
 MAX_NAMED = 2  # forms per named set
 FLEX_NFEV = 8  # least-squares steps of the flexible fit
-#: a second place is looked at when the forms named leave more than this (x noise; the state stage's trigger)
-SECOND_PLACE_ABOVE = 1.5
-#: ... at the places of the first this many other screened forms (or sparse terms), the best named kept
-SECOND_PLACES = 2
 NAMED_NFEV = 8  # ... of a named set's refit
 
 
@@ -499,8 +495,7 @@ class Naming:
                                   "term removes which the named forms keep"}
 
 
-def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confidence=None, say=None,
-               more_classes=None) -> Naming:
+def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confidence=None, say=None) -> Naming:
     """Fit the flexible term at each place of ``terms`` inside the model, then name it.
 
     Parameters
@@ -521,9 +516,6 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
         confidence(rep, fit) -> {(effect, name): (low, high)} for the named forms' intervals.
     say : callable, optional
         Progress text.
-    more_classes : sequence of str, optional
-        Further term classes, best first (the screened forms' places): where a flexible term is fitted on top of
-        the forms named when these leave more than :data:`SECOND_PLACE_ABOVE` x noise.
 
     Returns
     -------
@@ -607,72 +599,11 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
     text = (f"named: {words}; it keeps {100 * share:.0f} % of what the flexible term at "
             f"{cls.replace('proposal_', '').replace('_', ' ')} removes (residual {before:.3g}x -> "
             f"{x_noise(flex_cost):.3g}x noise flexible, {after:.3g}x named)")
-    sets = [(kept, share, removed)]
     ci = {}
     if confidence is not None:
         ci = {name: lohi for (eff, name), lohi in confidence(rep, named).items() if eff == D.TERM}
-    # what is left may sit at another place (two missing physics at once): a flexible term there, on top of the
-    # forms named, named in turn when its forms remove the share honesty rule 1 asks of what the first left
-    if after > SECOND_PLACE_ABOVE:
-        tried = {}
-        for cls2 in [c for c in dict.fromkeys(list(more_classes or ()) + classes) if c != cls][:SECOND_PLACES]:
-            second = _name_on_top(rep, named, cls2, ranges, by_name, flexible, say)
-            if second is not None:
-                tried[cls2] = second
-        if tried:
-            cls2 = min(tried, key=lambda c: tried[c][1].cost)
-            kept2, named2, flex2_cost = tried[cls2]
-            share2 = keeps_share(named.cost, flex2_cost, named2.cost)
-            removed2 = share_removed(after, x_noise(named2.cost))
-            words2 = "; ".join(f"{f.words} ({f.law}, {f.kind}, at {f.place.replace('_', ' ')})" for f in kept2)
-            text += (f"; and on top of it, at {cls2.replace('proposal_', '').replace('_', ' ')}: {words2} (residual "
-                     f"{after:.3g}x -> {x_noise(named2.cost):.3g}x noise)")
-            sets.append((kept2, share2, removed2))
-            named = named2
-            if confidence is not None:  # the second set's intervals (the first's held while it was fitted)
-                ci.update({name: lohi for (eff, name), lohi in confidence(rep, named).items() if eff == D.TERM})
-    entries = [e for combo, sh, rm in sets for e in named_entry(combo, named.model.terms, ci, sh, rm)]
+    entries = named_entry(kept, named.model.terms, ci, share, removed)
     return Naming(entries, flexible, text, dict(named.model.terms), named.cost, named)
-
-
-def _name_on_top(rep, named, cls: str, ranges: dict, by_name: dict, flexible: list, say):
-    """The flexible term at the place ``cls``, fitted on top of the model ``named`` (its forms held), and the forms
-    that name it: (forms kept, their refit, the flexible fit's cost), or None when none passes the noise gate and
-    honesty rule 1 against what ``named`` leaves."""
-    from ehas_env.measurement import fitting as D
-    from ehas_env.measurement.replay import ModelSpec
-
-    keys = [f"{cls}.{p.name}" for p in by_name[cls].params if ranges.get(f"{cls}.{p.name}", 0.0) > 0]
-    if not keys:
-        return None
-    say(f"  flexible term at {cls.replace('proposal_', '')}, on top of the forms named: {len(keys)} coefficients")
-    m = named.model
-    fixed = ModelSpec(effects=m.effects, beta=m.beta, K=m.K, terms=dict(m.terms))
-    free = [D.FreeParam(D.TERM, k, -ranges[k], ranges[k], False) for k in keys]
-    flex = D.fit(rep, free, {(D.TERM, k): 0.0 for k in keys}, fixed, max_nfev=FLEX_NFEV)
-    obj = D.Objective(rep, free, fixed)
-    u_flex = np.array([fp.u(flex.model.terms[fp.name]) for fp in free])
-    u_zero = np.array([fp.u(0.0) for fp in free])
-    w = obj.weights(u_flex)
-    predict = linear_predictor(obj.jacobian(u_flex, w), obj.weighted(u_flex, w), u_flex, u_zero, keys,
-                               [b.size for b in obj.blocks([u_flex])[0]], w)
-    flexible.append({"class": cls, "coefficients": {k: float(f"{flex.model.terms[k]:.4g}") for k in keys},
-                     "residual_x_noise_before": round(x_noise(named.cost), 3),
-                     "residual_x_noise_after": round(x_noise(flex.cost), 3),
-                     "follows": max(keys, key=lambda k: predict([c for c in keys if c != k])[0]),
-                     "on_top_of_named": True})
-    combo, _ = select(candidates(forms_of(cls)), lambda ks: predict(ks)[0], named.cost)
-    if not combo:
-        return None
-    ks = coefs_of(combo)
-    _, u_sub = predict(ks)
-    nfree = [fp for fp in free if fp.name in ks]
-    named2 = D.fit(rep, nfree, {(D.TERM, fp.name): fp.value(u_sub[keys.index(fp.name)]) for fp in nfree}, fixed,
-                   max_nfev=NAMED_NFEV)
-    kept = honest_forms(combo, named.cost, named2.cost, lambda k: predict(k)[0])
-    if len(kept) != len(combo) or wrong_sign(kept, named2.model.terms):
-        return None  # a form that carries nothing of its own, or whose sign belies its words: not named here
-    return kept, named2, flex.cost
 
 
 def honest_forms(combo, base_cost: float, named_cost: float, predict) -> list:

@@ -217,21 +217,27 @@ def states_stage(s: Search) -> dict:
     """
     if not s.options.get("states", True):
         return {"skipped": "not asked for", "kept": None}
-    f, rec = state_stage(s.rep, s.full, s.current, s.parts, s.say)
+    bare = s.bare[0] if s.bare is not None and not s.full.inputs else None
+    f, rec = state_stage(s.rep, s.full, s.current, s.parts, s.say, bare=bare)
     if f is not None:
         name = rec["kept"]
         sims = s.full.simulate(f.model)
         val = _parts_cost(s.full, sims, s.parts)
+        replaced = rec.get("in_place_of") or []
+        why = (f"stands in for {name} ({get_effect(name).title}): with {name} in its place the residual on all "
+               f"data is {rec['residual_x_noise_all_after']:.3g}x noise and the validation residual "
+               f"{rec['residual_x_noise_validation_after']:.3g} noise variances")
+        if replaced and set(replaced) == set(s.current.model.effects) - set(bare.model.effects if bare else ()):
+            steps_back_to(s.steps, s.bare[4], why)  # the library's model back, the hypotheses said not kept
+            s.base = s.bare[3]
+        else:
+            for step in s.steps:
+                if step.kept and step.effect in replaced:
+                    step.kept, step.reason = False, why
         s.steps.append(Step(name, True, f"{rec['words']}; a missing state: removes at least a tenth of the "
                             "residual's excess over the noise and lowers the validation residual", f, f.cost, val,
                             _held_fit(s.full, sims, s.held_idx)))
         s.say(f"  {name}: kept ({rec['words']})")
-        for step in s.steps:
-            if step.kept and step.effect == rec.get("in_place_of"):
-                step.kept = False
-                step.reason = (f"stands in for {name} ({get_effect(name).title}): with {name} in its place the "
-                               f"residual on all data is {rec['residual_x_noise_all_after']:.3g}x noise and the "
-                               f"validation residual {rec['residual_x_noise_validation_after']:.3g} noise variances")
         # an effect or a structural hypothesis kept before it may have stood in for the missing state
         current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, name, s.steps, s.say,
                                              kinds=("physical", "recalibration", "hypothesis"))

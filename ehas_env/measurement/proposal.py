@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.measurement import fitting as D
-from ehas_env.measurement.naming import ADD_TERM_DB, PENALTY_PER_TERM_DB, class_of, name_terms
+from ehas_env.measurement.naming import ADD_TERM_DB, PENALTY_PER_TERM_DB, name_terms
 from ehas_env.measurement.proposal_terms import TERM_CLASSES, term_param
 from ehas_env.measurement.replay import ModelSpec, Replayer
 from ehas_env.physics.rig import BAR, LPM, RigParams
@@ -438,9 +438,7 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
                     fit_before=base.table.overall, fit_after=best.table.overall, fit=best,
                     screened=[(k, j) for k, j, _ in screened], sparse=sparse)
     if name:
-        more = list(dict.fromkeys([class_of(k) for k, _, _ in screened] + [class_of(k) for k in sparse]))
-        nm = name_terms(rep, base, prop.terms, ranges, fixed_model=best.model, confidence=confidence, say=say,
-                        more_classes=more)
+        nm = name_terms(rep, base, prop.terms, ranges, fixed_model=best.model, confidence=confidence, say=say)
         prop.named = nm.named
         prop.naming = nm.to_json()
         prop.named_model = nm.fit.model if nm.named and nm.fit is not None else None

@@ -121,7 +121,7 @@ def _words(name: str, values: dict, ci: dict) -> str:
 
 
 def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, names=None,
-                trigger: float = STATE_TRIGGER) -> tuple:
+                trigger: float = STATE_TRIGGER, bare: Fit | None = None) -> tuple:
     """Try each generic augmentation on top of the final model; keep the best when it passes :func:`judge`.
 
     Parameters
@@ -140,6 +140,9 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     trigger : float
         Run only when the final model's all-data residual is above this (x what does not repeat); the record
         then says ``skipped``.
+    bare : Fit, optional
+        The library's model before the structural hypotheses: each augmentation is screened on it too, and one
+        kept there replaces the hypotheses (``in_place_of``).
 
     Returns
     -------
@@ -149,8 +152,9 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         ``params`` and ``ci95`` (of the kept one, in its parameters' units), ``residual_x_noise_all_before`` /
         ``_after``, ``residual_x_noise_validation_before`` / ``_after``, ``words`` (the augmentation in
         physical words, or why none was kept), ``skipped`` (why the stage did not run, or None), ``in_place_of``
-        (the effect kept before that the augmentation replaces -- refitted away because on top of it the
-        augmentation fails :func:`judge` and in its place passes -- or None).
+        (the effects kept before that the augmentation replaces -- the structural hypotheses, when it did best on
+        the library's model ``bare``; or one effect refitted away because on top of it the augmentation fails
+        :func:`judge` and in its place passes -- or None).
     """
     held = set(final.model.effects)
     names = [n for n in (augmentations() if names is None else names) if n not in held]
@@ -167,31 +171,43 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         say(f"  states: {record['skipped']}")
         return None, record
     screened = {}
+    # on the final model; and on the library's model before the structural hypotheses (``bare``), whose kept
+    # hypotheses may have stood in for the state (a dead volume where a hose is) and do not compose with it
+    bases = [(final, None)]
+    if bare is not None and set(bare.model.effects) != held:
+        bases.append((bare, sorted(held - set(bare.model.effects))))
     for k, name in enumerate(names, 1):
         cls = get_effect(name)
         say(f"  states {k}/{len(names)}: {cls.title}")
-        f = screen_candidate(rep, name, final)
-        screened[name] = f
-        record["tried"].append({"effect": name, "where": getattr(cls, "where", cls.title),
-                                "cost_ratio": _r(f.cost / final.cost, 4)})
-    better = {n: f for n, f in screened.items() if f.cost < final.cost}
+        entry = {"effect": name, "where": getattr(cls, "where", cls.title)}
+        for base, dropped in bases:
+            if name in base.model.effects:
+                continue
+            f = screen_candidate(rep, name, base)
+            screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
+            entry["cost_ratio" if dropped is None else "cost_ratio_without_hypotheses"] = _r(f.cost / final.cost, 4)
+        record["tried"].append(entry)
+    better = {key: fb for key, fb in screened.items() if fb[0].cost < final.cost}
     if not better:
         record["words"] = "no augmentation lowers the fit's residual"
         say(f"  states: {record['words']}")
         return None, record
-    best = min(better, key=lambda n: better[n].cost)
-    f = refine_candidate(rep, best, better[best], final, dict(final.model.effects))
+    key = min(better, key=lambda kk: better[kk][0].cost)
+    (best, dropped), (f, base) = key, better[key]
+    f = refine_candidate(rep, best, f, base, dict(base.model.effects))
     for _ in range(REFINE_ROUNDS):
-        g = refine_candidate(rep, best, f, final, dict(final.model.effects))
+        g = refine_candidate(rep, best, f, base, dict(base.model.effects))
         gain = 1.0 - g.cost / f.cost
         f = g if g.cost < f.cost else f
         if gain <= REFINE_GAIN:
             break
+    if dropped:
+        record["in_place_of"] = list(dropped)
     sims1 = full.simulate(f.model)
     all1 = grade(blocks_of(full, sims1, COST_SIGNALS))["residual_x_noise"]
     val1 = _parts_cost(full, sims1, parts)
     why = judge(all0, all1, val0, val1)
-    if why is not None:
+    if why is not None and not dropped:
         # on top of the model it fails; an effect kept before may have stood in for the missing state (a delay
         # of the command fitted where the coil's current is rate-limited): the state in its place
         for other in list(final.model.effects):
@@ -199,7 +215,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
             gs = full.simulate(g.model)
             a, v = grade(blocks_of(full, gs, COST_SIGNALS))["residual_x_noise"], _parts_cost(full, gs, parts)
             if judge(all0, a, val0, v) is None and (record["in_place_of"] is None or v < val1):
-                f, all1, val1, record["in_place_of"] = g, a, v, other
+                f, all1, val1, record["in_place_of"] = g, a, v, [other]
                 say(f"  states: {best} in place of {other}: residual {all0:.3g}x -> {a:.3g}x noise")
         if record["in_place_of"] is not None:
             why = None

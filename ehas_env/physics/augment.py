@@ -61,6 +61,9 @@ class Augmentation(Effect):
     the kinds below and their places are."""
 
     kind = "hypothesis"
+    #: screened also from its defaults (nearly no effect) when a kept effect re-opened beta or K
+    #: (:func:`ehas_env.measurement.diagnosis.screen_candidate`): a state may add what that number took over
+    screen_from_defaults: ClassVar[bool] = True
     #: the kind, in words ("a first-order lag")
     form: ClassVar[str] = ""
     #: the place, in words ("the position sensor's reading")
