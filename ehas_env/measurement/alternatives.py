@@ -89,6 +89,22 @@ CONFUSABLE = {
     frozenset({"viscous_friction", "hyp_pressure_friction"}):
         "seal friction that grows with the chamber pressures grows with the load, which grows with the speed on "
         "an inertial load: a viscous force fits part of it (at another supply or disc set it does not)",
+    frozenset({"viscous_friction", "hyp_quadratic_drag"}):
+        "a drag growing with the square of the speed and a viscous one growing with the speed fit alike over the "
+        "one range of speeds of a campaign's runs (on a run much slower or faster than those they part)",
+    frozenset({"hyp_crank_unbalance", "hyp_crank_spring"}):
+        "an unbalanced load's weight and a spring both pull the crank back toward a rest angle with a torque "
+        "that grows with the angle; over the angles of runs centred on the stroke sin(theta) is nearly theta "
+        "(off centre the weight's torque bends away from the spring's line)",
+    frozenset({"stribeck_friction", "hyp_lugre_friction"}):
+        "a LuGre friction's steady state is a Stribeck curve (with a viscous part: Canudas de Wit et al. 1995); in "
+        "runs that keep the seal sliding they fit alike, the bristles' presliding spring shows only in the small "
+        "motions about a reversal or at rest (a slow, small run)",
+    frozenset({"piston_mass", "hyp_load_compliance"}):
+        "a stiff spring in the load path lets the load lag the piston the loop moves: on a sine of one frequency "
+        "and one disc set the force it adds is that of a heavier piston (about M^2 w^2 / k, M the load's mass "
+        "at the piston); the mass it stands for grows with the frequency squared and the load's mass squared, so "
+        "runs at another frequency or disc set part them",
 }
 
 

@@ -32,7 +32,11 @@ any kind decides, not by their physics).
 
 **Choice.** The best run for each pair first, then the runs that raise the
 weakest pair's separation most, while the plan stays within its limits; a run's
-separation must reach :data:`MIN_SEPARATION_DB` to be chosen at all.
+separation must reach :data:`MIN_SEPARATION_DB` to be chosen at all.  A pair that
+no chosen run separates by :data:`~ehas_env.measurement.alternatives.SEPARATED_DB`
+(what one run decides alone) is decided by the second diagnosis over the whole
+campaign, where the planned runs are a share of the data: its next-best runs fill
+the plan's limits.
 
 The plan (:func:`plan_json`) is one JSON object: ``format`` ``"ehas-test-plan"``,
 ``version`` 1, ``campaign``, ``separates`` ``[{a, b, predicted_db}]`` and
@@ -50,6 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ehas_env.measurement.alternatives import SEPARATED_DB
 from ehas_env.measurement.campaign import Campaign, CampaignError, validate_meta, validate_run
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
 from ehas_env.measurement.synthetic import CHIRP, chirp_current
@@ -640,13 +645,15 @@ def why_text(meta: dict, campaign_supply: float, db: float, signal: str, a: str,
         off = meta["reference"].get("offset_deg", 0.0)
         if off:
             r = chamber_ratio(off, rig)
-            bits.append(f"at {abs(off):g} deg off centre the chamber volumes differ by {max(r, 1 / r):.1f}x: the "
-                        "chambers' stiffness and pressures differ side to side (the oil's stiffness changes with the "
-                        "volumes, a mount's does not), which a centred run does not show")
+            amp = meta["reference"]["amplitude_deg"]
+            bits.append(f"at {abs(off):g} deg off centre the crank swings between {off - amp:g} and {off + amp:g} deg "
+                        f"and the chamber volumes differ by {max(r, 1 / r):.1f}x at the mean angle: what changes with "
+                        "the angle or with the chambers' volumes (the oil's stiffness, a torque that follows the "
+                        "angle, a lever's length) departs from what does not, which a centred run does not show")
         if meta["supply_bar"] != campaign_supply:
             bits.append(f"at {meta['supply_bar']:g} bar supply (campaign {campaign_supply:g}) the chambers sit near "
-                        f"{meta['supply_bar'] / 2:g} bar: air in the oil and friction that grows with the pressures "
-                        "change, a constant oil and a constant friction do not")
+                        f"{meta['supply_bar'] / 2:g} bar: what grows with the pressures (air in the oil, seal friction "
+                        "that grows with them, an orifice's leak) changes, what does not stays")
         bits.append(f"{meta['disc_sets']} disc sets, {meta['reference']['amplitude_deg']:g} deg at "
                     f"{meta['reference']['freq_hz']:g} Hz")
     return (f"{meta['name']}: {a} vs {b}: {db:.1f} dB over the campaign's noise after refitting each within its "
@@ -707,6 +714,14 @@ def choose(cands: list[Candidate], pairs: list, max_runs: int = MAX_RUNS, max_lo
                 best.db(weakest) <= max((c.db(weakest) for c in chosen), default=0.0):
             break
         chosen.append(best)
+    # a pair no chosen run separates by SEPARATED_DB is decided by the second diagnosis over the whole campaign,
+    # where the planned runs are a share of the data: its next-best runs fill the plan's limits
+    for p in pairs:
+        if max((c.db(p) for c in chosen), default=0.0) >= SEPARATED_DB:
+            continue
+        for c in sorted((c for c in ok if c.db(p) >= MIN_SEPARATION_DB), key=lambda c: -c.db(p)):
+            if fits(c):
+                chosen.append(c)
     return chosen
 
 
@@ -758,7 +773,7 @@ def plan_test(doc: dict, explanations: list[Explanation], campaign: Campaign, *,
         why.append(why_text(c.meta, supply, c.db(p), c.separation[p][1], names[p[0]], names[p[1]],
                             None if model is None else model.rig_for(c.meta.get("disc_sets", 1))))
         reason = explanations[p[1]].reason
-        c.meta["notes"] = why[-1] + (f" (why the campaign could not: {reason})" if reason else "")
+        c.meta["notes"] = why[-1] = why[-1] + (f" (why the campaign could not: {reason})" if reason else "")
     predicted = {p: _combined_db(chosen, p) for p in pairs}
     return Plan(str(doc.get("campaign")), names, pairs, chosen, predicted, why, len(cands),
                 [(c.name, c.feasible) for c in cands if c.feasible])

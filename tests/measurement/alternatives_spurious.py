@@ -38,7 +38,7 @@ DEFAULT = ("clean_book_s0", "clean_book_s1", "clean_rig_b_s0", "clean_rig_c_s0",
            "ool_return_pressure_strong", "clean_book_s2", "clean_book_s3", "ool_load_compliance_strong",
            "ool_crank_offset_strong", "ool_current_lag_strong", "ool_turbulent_leakage_strong",
            "ool_valve_underlap_strong", "ool_entrained_air_strong", "ool_single_rod_strong",
-           "ool_supply_line_loss_strong")
+           "ool_supply_line_loss_strong", "ool_crank_unbalance_strong")
 
 
 def spurious(doc: dict, limit_db: float = SEPARATED_DB) -> list[dict]:

@@ -160,3 +160,135 @@ def test_an_alternative_the_data_prefer_is_said_so():
     text = alternatives_text([alt], {"coulomb_friction": {"Fc": 300.0}})
     assert "these logs prefer hyp_pressure_friction" in text and "on plan_valve_210bar 5.7 dB better" in text
     assert "cannot tell apart" not in text
+
+
+def _lstsq(columns: list, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares coefficients of ``y`` on ``columns`` and the RMS of what is left."""
+    a = np.column_stack(columns)
+    c, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return c, float(np.sqrt(np.mean((y - a @ c) ** 2)))
+
+
+def test_a_load_weight_and_a_crank_spring_are_rivals_alike_centred_and_part_off_centre():
+    """An unbalanced load's torque -(T_sin sin(theta) + T_cos cos(theta)) and a spring's -k theta + T_0: over a centred
+    sine theta = A sin(phi) the best spring is k = T_sin 2 J1(A) / A and T_0 = -T_cos J0(A) (Bessel: the Jacobi-Anger
+    expansion; k -> T_sin, T_0 -> -T_cos as A -> 0), left with the weight's curvature; off centre that curvature
+    grows (results/test_plans, case unbalance_small: the diagnosis fitted k = 5.81 N m/rad, T_0 = -9.89 N m where
+    the generator hid T_sin = 6.0, T_cos = 10.4 N m)."""
+    from scipy.special import j0, j1
+
+    from ehas_env.physics.effects import get_effect
+
+    assert "hyp_crank_spring" in rivals_of("hyp_crank_unbalance")
+    assert "hyp_crank_unbalance" in rivals_of("hyp_crank_spring")
+    weight, spring = get_effect("hyp_crank_unbalance"), get_effect("hyp_crank_spring")
+    t_sin, t_cos = 6.0, 10.4
+    t = np.linspace(0.0, 1.0, 2001)
+
+    def misfit(amplitude_deg, offset_deg):
+        theta = np.radians(offset_deg + amplitude_deg * np.sin(2.0 * np.pi * t))
+        y = np.array([weight.crank_torque(th, t_sin, t_cos) for th in theta])
+        (k, t0), rms = _lstsq([-theta, np.ones_like(theta)], y)
+        # the fitted spring is the law's own: its torque at the fitted k, T_0
+        assert np.allclose([spring.crank_torque(th, k, t0) for th in theta[:5]], -k * theta[:5] + t0)
+        return k, t0, rms
+
+    k, t0, centred = misfit(35.0, 0.0)
+    a = math.radians(35.0)
+    assert math.isclose(k, t_sin * 2.0 * j1(a) / a, rel_tol=1e-3) and math.isclose(t0, -t_cos * j0(a), rel_tol=1e-3)
+    assert centred < 0.07 * t_cos  # the rest: the curvature, below 7 % of the weight's torque
+    # the spring fitted to the centred run, on a run 15 deg off centre: the weight bends away from it
+    theta = np.radians(15.0 + 25.0 * np.sin(2.0 * np.pi * t))
+    off = np.array([weight.crank_torque(th, t_sin, t_cos) - spring.crank_torque(th, k, t0) for th in theta])
+    assert float(np.sqrt(np.mean(off ** 2))) > centred
+    within = np.array([weight.crank_torque(th, t_sin, t_cos) - spring.crank_torque(th, k, t0)
+                       for th in np.radians(np.linspace(-35.0, 35.0, 141))])
+    assert float(np.max(np.abs(off))) > float(np.max(np.abs(within)))  # beyond the campaign's angles it grows
+
+
+def test_a_quadratic_drag_and_a_viscous_one_are_rivals_fitted_by_the_speed_of_the_run():
+    """A drag T_10 (omega / 10)^2 sign(omega) seen through one run of peak rate W is a viscous torque of
+    b = T_10 / 100 * W * 8 / (3 pi) (least squares on a sine: the mean of |sin|^3 over that of sin^2); on a run twice
+    as fast b doubles: one campaign's speeds fit a viscous force, runs of other speeds tell them apart."""
+    from ehas_env.physics.effects import get_effect
+
+    assert "hyp_quadratic_drag" in rivals_of("viscous_friction")
+    assert "viscous_friction" in rivals_of("hyp_quadratic_drag")
+    drag = get_effect("hyp_quadratic_drag")
+    t = np.linspace(0.0, 1.0, 4001)
+    bs = []
+    for w in (2.0, 4.0):
+        omega = w * np.sin(2.0 * np.pi * t)
+        y = np.array([drag.crank_torque(o, 20.0) for o in omega])
+        (b,), rms = _lstsq([-omega], y)
+        assert math.isclose(b, 20.0 / 100.0 * w * 8.0 / (3.0 * math.pi), rel_tol=2e-3)
+        assert rms < 0.2 * float(np.max(np.abs(y)))  # within one run the viscous line fits the drag closely
+        bs.append(b)
+    assert math.isclose(bs[1] / bs[0], 2.0, rel_tol=1e-6)
+
+
+def test_a_stiff_load_path_spring_is_a_piston_mass_at_one_frequency_and_not_at_two():
+    """The loop moves the piston (the LVDT reads it) by a sine x_p of angular frequency w; a spring k joins it to a
+    load of mass M (the discs seen at the piston): M x_L'' = k (x_p - x_L) gives x_L = x_p / (1 - (w / w_L)^2),
+    w_L^2 = k / M, and the force on the piston F = m x_p'' + M x_L'' = -w^2 x_p (m + M / (1 - (w / w_L)^2)).  At one
+    w that is a rigid load with a piston heavier by dm = M (w / w_L)^2 / (1 - (w / w_L)^2) (about M^2 w^2 / k): a
+    piston mass fits it exactly; the dm needed grows as w^2 and M^2, so runs at another frequency or disc set part
+    them (results/test_plans, mount_150: a 150 N/um load path was reported as a 4.9 kg piston mass until the
+    alternatives fitted the spring in its place; the campaign's 1-3 Hz runs on 1-7 disc sets prefer the spring by
+    0.55 dB)."""
+    assert "hyp_load_compliance" in rivals_of("piston_mass") and "piston_mass" in rivals_of("hyp_load_compliance")
+    m, k = 5.0, 1.5e8  # kg (the generator's piston), N/m
+
+    def force(w, big_m, x_p=1.0):
+        """Steady-state force on the piston of the two-body load path (the closed form above)."""
+        x_l = x_p / (1.0 - big_m * w ** 2 / k)
+        return -w ** 2 * (m * x_p + big_m * x_l)
+
+    def added_mass(w, big_m):
+        """The piston mass a rigid load path needs to give the same force at w."""
+        return force(w, big_m) / (-w ** 2) - (m + big_m)
+
+    for big_m in (300.0, 3000.0):  # light and heavy disc sets (assumed)
+        w1, w3 = 2.0 * math.pi * 1.0, 2.0 * math.pi * 3.0
+        r1 = big_m * w1 ** 2 / k
+        assert math.isclose(added_mass(w1, big_m), big_m * r1 / (1.0 - r1), rel_tol=1e-9)
+        # a piston mass fitted at 1 Hz leaves the 3 Hz run's force wrong by the difference: 9x the mass needed
+        assert math.isclose(added_mass(w3, big_m) / added_mass(w1, big_m), 9.0, rel_tol=0.01)
+    # and the heavy set needs (3000 / 300)^2 = 100x the light one's
+    assert math.isclose(added_mass(w1, 3000.0) / added_mass(w1, 300.0), 100.0, rel_tol=0.01)
+
+
+def test_a_planned_runs_why_states_its_conditions_not_another_pairs_physics():
+    """The why of an off-centre run at another supply says what the run changes (the angles it swings through, the
+    chambers' volumes, the pressures), not the physics of one pair (an off-centre run decides a weight vs a spring as
+    it decides an oil vs a mount); the pair's own reason (:data:`CONFUSABLE`) is what the plan adds to it."""
+    from ehas_env.measurement.experiment_design import chamber_ratio, why_text
+
+    meta = {"name": "plan_x", "kind": "closed_loop", "supply_bar": 150.0, "disc_sets": 4,
+            "reference": {"amplitude_deg": 25.0, "freq_hz": 3.0, "offset_deg": 15.0}}
+    text = why_text(meta, 220.0, 1.1, "p_b_bar", "hyp_crank_unbalance", "hyp_crank_spring")
+    assert "between -10 and 40 deg" in text
+    r = chamber_ratio(15.0)
+    assert f"differ by {max(r, 1 / r):.1f}x" in text and "at 150 bar supply (campaign 220)" in text
+    assert "a mount's does not" not in text and "a constant friction do not" not in text
+
+
+def test_a_pair_no_run_decides_alone_gets_the_plans_other_runs():
+    """A planned run that separates a pair by 3 dB (SEPARATED_DB) decides it alone in the second diagnosis; one
+    that separates it by 1 dB is diluted among the campaign's runs (results/test_plans, coil_lag_faint: one bench
+    run of 0.75 dB left the coil lag within), so the plan adds the pair's next-best runs up to its limits (at most
+    4 runs, 30 s), each still separating it by MIN_SEPARATION_DB, and none for a pair decided by one run."""
+    from ehas_env.measurement.experiment_design import MAX_RUNS, MIN_SEPARATION_DB, Candidate, choose
+
+    def cand(name, db_weak, db_strong=0.0):
+        sep = {(0, 1): (10.0 ** (db_weak / 10.0) - 1.0, "p_a_bar"),
+               (0, 2): (10.0 ** (db_strong / 10.0) - 1.0, "p_a_bar")}
+        return Candidate(meta={"name": name, "duration_s": 3.0}, separation=sep)
+
+    weak = [cand(f"w{k}", db) for k, db in enumerate((1.0, 0.8, 0.6, 0.5, 0.4, 0.2))]
+    chosen = choose(weak, [(0, 1)])
+    assert [c.name for c in chosen] == ["w0", "w1", "w2", "w3"] and len(chosen) == MAX_RUNS
+    assert all(c.db((0, 1)) >= MIN_SEPARATION_DB for c in chosen)
+    strong = [cand("s0", 0.0, 6.0), cand("s1", 0.0, 2.0)]
+    assert [c.name for c in choose(strong, [(0, 2)])] == ["s0"]  # one run decides it alone
+    assert [c.name for c in choose([cand("x", 0.2)], [(0, 1)])] == []  # nothing worth logging

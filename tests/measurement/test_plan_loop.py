@@ -26,6 +26,23 @@ def test_every_case_is_a_generator_effect_whose_ehas_name_has_rivals():
     assert {"fluid", "mechanics", "sensors", "valve", "leakage"} <= places
 
 
+def test_a_case_of_another_campaign_names_the_generators_options_and_says_so():
+    """A case whose campaign is not the standard one (CAMPAIGNS) passes options the generator has, and its record
+    and row say which campaign it was."""
+    import inspect
+
+    from tests.independent_rig.campaign import simulate
+    from tests.measurement.plan_loop import CAMPAIGNS
+
+    known = set(inspect.signature(simulate).parameters)
+    for name, (options, words) in CAMPAIGNS.items():
+        assert name in CASES and set(options) <= known and words, name
+    row = table([_case(campaign="the closed-loop runs only, no valve bench run")]).split("\n")[-8]
+    assert "(campaign: the closed-loop runs only, no valve bench run)" in table(
+        [_case(campaign="the closed-loop runs only, no valve bench run")])
+    assert "(campaign:" not in table([_case(campaign="standard")]) and row
+
+
 def test_the_realised_separation_is_the_mean_ratio_over_the_planned_runs():
     second = {"alternatives": [], "ruled_out": [
         {"name": "b", "in_place_of": "a", "per_run_db": {"plan_1": 10 * math.log10(2.0), "plan_2": 0.0,
@@ -64,6 +81,11 @@ def test_the_table_counts_named_and_agreeing_cases():
     assert "Genuinely ambiguous (the first diagnosis lists an alternative these logs cannot tell from the reported " \
         "one): 2 of 3 cases" in text
     assert "names the truth (reported, no alternative left within) in 1 of 2" in text
+    # distinct pairs: the same two explanations in two cases count once, another pair once more
+    other = _case(case="v", first={"reported": ["s"], "alternatives": ["u"], "ruled_out": []})
+    assert "2 of 3 cases, 1 distinct pairs or triples (t vs u)" in text
+    assert "3 of 4 cases, 2 distinct pairs or triples (s vs u; t vs u)" in table([good, left, decided, other])
+    assert "| 9e76d75 |" in table([_case(commit="9e76d75")]) and "| unknown |" in text
 
 
 def test_an_alternative_the_data_separate_is_spurious():
