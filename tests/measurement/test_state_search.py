@@ -98,3 +98,22 @@ def test_in_place_of_refits_the_model_without_the_effect():
     assert set(g.model.effects) == set(both.model.effects) - {"transport_delay"}
     # without the stand-in the rate limit alone explains the campaign it made (to the noise, 1 = noise)
     assert g.cost < 1.5
+
+
+@pytest.mark.slow  # a 5-run campaign, a bulk modulus fitted, then a pair of hoses screened on two models
+def test_a_state_behind_a_stand_in_is_found_on_the_model_without_it():
+    """A campaign simulated with a pair of small hoses (the package's synthetic writer): a soft bulk modulus takes
+    over part of the lines' compliance first.  Screened on that model alone the hoses do not fit (what they add
+    the bulk modulus holds); screened also on the model without it (``bare``) they are kept in its place, with
+    their volume and resistance near the campaign's."""
+    from ehas_env.measurement.diagnosis import fit_candidate
+
+    s, null = _search({"aug_hose_ab": {"V_line": 15.0, "R_line": 0.2}}, 3309)
+    soft = fit_candidate(s.rep, "bulk_modulus", null)
+    assert soft.cost < null.cost  # the bulk modulus does stand in for part of it
+    fit, rec = state_stage(s.rep, s.full, soft, s.parts, lambda m: None, names=["aug_hose_ab"], trigger=0.0,
+                           bare=null)
+    assert rec["kept"] == "aug_hose_ab", rec
+    assert rec["in_place_of"] == ["bulk_modulus"] and "bulk_modulus" not in fit.model.effects
+    assert rec["params"]["R_line"] == pytest.approx(0.2, rel=0.3)
+    assert "cost_ratio_without_hypotheses" in rec["tried"][0]
