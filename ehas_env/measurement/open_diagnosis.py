@@ -224,9 +224,10 @@ def states_stage(s: Search) -> dict:
         sims = s.full.simulate(f.model)
         val = _parts_cost(s.full, sims, s.parts)
         replaced = rec.get("in_place_of") or []
+        val_after = rec["residual_x_noise_validation_after"]  # None: the campaign has no validation samples
         why = (f"stands in for {name} ({get_effect(name).title}): with {name} in its place the residual on all "
-               f"data is {rec['residual_x_noise_all_after']:.3g}x noise and the validation residual "
-               f"{rec['residual_x_noise_validation_after']:.3g} noise variances")
+               f"data is {rec['residual_x_noise_all_after']:.3g}x noise"
+               + ("" if val_after is None else f" and the validation residual {val_after:.3g} noise variances"))
         if replaced and set(replaced) == set(s.current.model.effects) - set(bare.model.effects if bare else ()):
             steps_back_to(s.steps, s.bare[4], why)  # the library's model back, the hypotheses said not kept
             s.base = s.bare[3]
