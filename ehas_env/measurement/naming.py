@@ -82,6 +82,9 @@ def _f(key, kind, law, words, *params):
 
 _PF, _CT, _CF, _LF = "proposal_piston_force", "proposal_crank_torque", "proposal_chamber_flows", "proposal_land_flows"
 _VC, _PR = "proposal_valve_current", "proposal_position_reading"
+#: the two places of one mechanical load (the piston's force, the crank's torque through the lever r cos theta):
+#: the naming fits the flexible term at both when the proposal's terms sit at one (:func:`name_terms`)
+MECHANICAL_TWIN = {_PF: _CT, _CT: _PF}
 #: every named form: its place, kind, law, words and coefficients, in one table
 FORMS = (
     # piston force
@@ -506,7 +509,7 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
         The model without any proposed term (the diagnosis' final model).
     terms : dict
         The proposal's sparse terms {coefficient: SI value}: where the flexible term is fitted (their classes, at
-        most two) and its start.
+        most two, and the other place of a mechanical load, :data:`MECHANICAL_TWIN`) and its start.
     ranges : dict
         The largest coefficient magnitude of each coefficient (:func:`ehas_env.measurement.proposal.coefficient_range`).
     fixed_model : ModelSpec, optional
@@ -533,6 +536,12 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
         if class_of(k) not in classes:
             classes.append(class_of(k))
     classes = classes[:2]
+    # the piston's force and the crank's torque are one mechanical load seen at two places (through the lever
+    # r cos theta): where the terms sit at one, the flexible term is fitted at the other too and the data choose
+    for cls in list(classes):
+        twin = MECHANICAL_TWIN.get(cls)
+        if twin is not None and twin not in classes:
+            classes.append(twin)
     by_name = {c.name: c for c in TERM_CLASSES.values()}
     flexible, best = [], None
     for cls in classes:
