@@ -652,6 +652,29 @@ def sanity(f: Fit, effect: str) -> str | None:
     return None
 
 
+def refit_without(rep: Replayer, f: Fit, other: str) -> Fit:
+    """The model ``f`` without the effect ``other``, refitted: every number left free (the effects' own, beta and
+    K), from ``f``'s.
+
+    Parameters
+    ----------
+    rep : Replayer
+        The fit data.
+    f : Fit
+        A fitted model holding ``other``.
+    other : str
+        The effect taken out.
+
+    Returns
+    -------
+    Fit
+    """
+    effects = {n: dict(p) for n, p in f.model.effects.items() if n != other}
+    fixed = ModelSpec(effects=effects, beta=f.model.beta, K=f.model.K, terms=dict(f.model.terms))
+    free = [fp for n in effects for fp in own_params(n)] + recal_params(effects)
+    return fit(rep, free, {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}, fixed)
+
+
 def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cur_val, hyp: str, steps: list,
                     say, kinds: tuple = ("physical", "recalibration")) -> tuple:
     """A structural hypothesis ``hyp`` was kept: each effect of ``kinds`` kept before it (physical or
@@ -663,10 +686,7 @@ def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cu
     for step in [s for s in steps if s.kept and s.effect != hyp and get_effect(s.effect).kind in kinds]:
         if step.effect not in current.model.effects:
             continue
-        effects = {n: dict(p) for n, p in current.model.effects.items() if n != step.effect}
-        fixed = ModelSpec(effects=effects, beta=current.model.beta, K=current.model.K, terms=dict(current.model.terms))
-        free = [fp for n in effects for fp in own_params(n)] + recal_params(effects)
-        g = fit(rep, free, {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}, fixed)
+        g = refit_without(rep, current, step.effect)
         gs = full.simulate(g.model)
         val = _parts_cost(full, gs, parts)
         if val is not None and cur_val is not None and not lowers_validation(val, cur_val):

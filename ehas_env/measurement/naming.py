@@ -531,41 +531,15 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
     say = say or (lambda _msg: None)
     held = fixed_model if fixed_model is not None else base.model
     fixed = ModelSpec(effects=held.effects, beta=held.beta, K=held.K)
-    classes = []
-    for k in sorted(terms, key=lambda k: -abs(terms[k]) / max(ranges.get(k, 1.0), 1e-300)):
-        if class_of(k) not in classes:
-            classes.append(class_of(k))
-    classes = classes[:2]
-    # the piston's force and the crank's torque are one mechanical load seen at two places (through the lever
-    # r cos theta): where the terms sit at one, the flexible term is fitted at the other too and the data choose
-    for cls in list(classes):
-        twin = MECHANICAL_TWIN.get(cls)
-        if twin is not None and twin not in classes:
-            classes.append(twin)
     by_name = {c.name: c for c in TERM_CLASSES.values()}
     flexible, best = [], None
-    for cls in classes:
+    for cls in _places(terms, ranges):
         keys = [f"{cls}.{p.name}" for p in by_name[cls].params if ranges.get(f"{cls}.{p.name}", 0.0) > 0]
         if not keys:
             continue
         say(f"  flexible term at {cls.replace('proposal_', '')}: {len(keys)} coefficients fitted together")
         free = [D.FreeParam(D.TERM, k, -ranges[k], ranges[k], False) for k in keys]
-        start = {(D.TERM, k): float(np.clip(terms.get(k, 0.0), -ranges[k], ranges[k])) for k in keys}
-        flex = D.fit(rep, free, start, fixed, max_nfev=FLEX_NFEV)
-        if flex.cost >= base.cost and any(start.values()):
-            # the sparse terms of this class alone can be a poor start: the proposal may have found them together
-            # with another place's (a damping at the piston and its opposite at the crank that together make
-            # one rising toward the stroke's ends); then start where the term is zero, the model as it stands
-            zero = D.fit(rep, free, {key: 0.0 for key in start}, fixed, max_nfev=FLEX_NFEV)
-            flex = zero if zero.cost < flex.cost else flex
-        obj = D.Objective(rep, free, fixed)
-        u_flex = np.array([fp.u(flex.model.terms[fp.name]) for fp in free])
-        u_zero = np.array([fp.u(0.0) for fp in free])
-        w = obj.weights(u_flex)
-        r0 = obj.weighted(u_flex, w)
-        J = obj.jacobian(u_flex, w)
-        sizes = [b.size for b in obj.blocks([u_flex])[0]]
-        predict = linear_predictor(J, r0, u_flex, u_zero, keys, sizes, w)
+        flex, predict = _flexible_fit(rep, base, free, terms, fixed)
         flex_cost = flex.cost
         # what the flexible term follows: the coefficient whose removal costs most
         follows = max(keys, key=lambda k: predict([c for c in keys if c != k])[0])
@@ -583,10 +557,10 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
         say(f"  naming it: {', '.join(f.key for f in combo)} refitted in the model")
         named = D.fit(rep, nfree, nstart, fixed, max_nfev=NAMED_NFEV)
         if best is None or named.cost < best[2].cost:
-            best = (cls, combo, named, flex_cost, predict, keys)
+            best = (cls, combo, named, flex_cost, predict)
     if best is None:
         return Naming([], flexible, _none_text(flexible), {})
-    cls, combo, named, flex_cost, predict, keys = best
+    cls, combo, named, flex_cost, predict = best
     before, after = x_noise(base.cost), x_noise(named.cost)
     kept = honest_forms(combo, base.cost, named.cost, lambda ks: predict(ks)[0])
     bad = wrong_sign(kept, named.model.terms)
@@ -613,6 +587,44 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
         ci = {name: lohi for (eff, name), lohi in confidence(rep, named).items() if eff == D.TERM}
     entries = named_entry(kept, named.model.terms, ci, share, removed)
     return Naming(entries, flexible, text, dict(named.model.terms), named.cost, named)
+
+
+def _places(terms: dict, ranges: dict) -> list:
+    """The term classes where the flexible term is fitted: those of the two largest sparse terms (relative to
+    their ranges), and the other place of a mechanical load (:data:`MECHANICAL_TWIN`) -- the piston's force and the
+    crank's torque are one load seen through the lever r cos theta: where the terms sit at one, the data choose."""
+    classes = []
+    for k in sorted(terms, key=lambda k: -abs(terms[k]) / max(ranges.get(k, 1.0), 1e-300)):
+        if class_of(k) not in classes:
+            classes.append(class_of(k))
+    classes = classes[:2]
+    for cls in list(classes):
+        twin = MECHANICAL_TWIN.get(cls)
+        if twin is not None and twin not in classes:
+            classes.append(twin)
+    return classes
+
+
+def _flexible_fit(rep, base, free: list, terms: dict, fixed) -> tuple:
+    """Every coefficient of one place fitted together inside the model (the flexible term), from the sparse terms;
+    returns (its Fit, the linear predictor of any subset's cost around it, :func:`linear_predictor`)."""
+    from ehas_env.measurement import fitting as D
+
+    keys = [fp.name for fp in free]
+    start = {(D.TERM, fp.name): float(np.clip(terms.get(fp.name, 0.0), fp.lo, fp.hi)) for fp in free}
+    flex = D.fit(rep, free, start, fixed, max_nfev=FLEX_NFEV)
+    if flex.cost >= base.cost and any(start.values()):
+        # the sparse terms of this class alone can be a poor start: the proposal may have found them together
+        # with another place's (a damping at the piston and its opposite at the crank that together make
+        # one rising toward the stroke's ends); then start where the term is zero, the model as it stands
+        zero = D.fit(rep, free, {key: 0.0 for key in start}, fixed, max_nfev=FLEX_NFEV)
+        flex = zero if zero.cost < flex.cost else flex
+    obj = D.Objective(rep, free, fixed)
+    u_flex = np.array([fp.u(flex.model.terms[fp.name]) for fp in free])
+    u_zero = np.array([fp.u(0.0) for fp in free])
+    w = obj.weights(u_flex)
+    sizes = [b.size for b in obj.blocks([u_flex])[0]]
+    return flex, linear_predictor(obj.jacobian(u_flex, w), obj.weighted(u_flex, w), u_flex, u_zero, keys, sizes, w)
 
 
 def honest_forms(combo, base_cost: float, named_cost: float, predict) -> list:

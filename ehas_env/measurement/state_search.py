@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import math
 
-from ehas_env.measurement.diagnosis import _parts_cost, lowers_validation, refine_candidate, screen_candidate
-from ehas_env.measurement.fitting import Fit, _value_of, confidence, fit, own_params, recal_params
+from ehas_env.measurement.diagnosis import (
+    _parts_cost, lowers_validation, refine_candidate, refit_without, screen_candidate)
+from ehas_env.measurement.fitting import Fit, confidence
 from ehas_env.measurement.honesty import term_refused
-from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
+from ehas_env.measurement.replay import COST_SIGNALS, Replayer
 from ehas_env.measurement.verdict import blocks_of, grade
 from ehas_env.physics.augment import augmentations
 from ehas_env.physics.effects import get_effect
@@ -83,29 +84,6 @@ def judge(all_before: float, all_after: float, val_before: float | None, val_aft
         return (f"the validation residual goes from {val_before:.3g} to {val_after:.3g} noise variances: not lower "
                 "by the share every kept effect must remove")
     return None
-
-
-def in_place_of(rep: Replayer, f: Fit, other: str) -> Fit:
-    """The model ``f`` (an augmentation on top of the final model) without the effect ``other``, refitted: every
-    number left free (the effects' own, beta and K), from ``f``'s.
-
-    Parameters
-    ----------
-    rep : Replayer
-        The fit data.
-    f : Fit
-        The final model with the augmentation.
-    other : str
-        An effect of ``f``'s model kept before the augmentation.
-
-    Returns
-    -------
-    Fit
-    """
-    effects = {n: dict(p) for n, p in f.model.effects.items() if n != other}
-    fixed = ModelSpec(effects=effects, beta=f.model.beta, K=f.model.K, terms=dict(f.model.terms))
-    free = [fp for n in effects for fp in own_params(n)] + recal_params(effects)
-    return fit(rep, free, {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}, fixed)
 
 
 def _words(name: str, values: dict, ci: dict) -> str:
@@ -210,12 +188,15 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     if why is not None and not dropped:
         # on top of the model it fails; an effect kept before may have stood in for the missing state (a delay
         # of the command fitted where the coil's current is rate-limited): the state in its place
+        best_in_place = None  # the best in place by the validation residual (the all-data one without samples)
+        on_top = f  # each effect is taken out of the model on top, one at a time
         for other in list(final.model.effects):
-            g = in_place_of(rep, f, other)
+            g = refit_without(rep, on_top, other)
             gs = full.simulate(g.model)
             a, v = grade(blocks_of(full, gs, COST_SIGNALS))["residual_x_noise"], _parts_cost(full, gs, parts)
-            if judge(all0, a, val0, v) is None and (record["in_place_of"] is None or v < val1):
-                f, all1, val1, record["in_place_of"] = g, a, v, [other]
+            rank = a if v is None else v
+            if judge(all0, a, val0, v) is None and (best_in_place is None or rank < best_in_place):
+                best_in_place, (f, all1, val1, record["in_place_of"]) = rank, (g, a, v, [other])
                 say(f"  states: {best} in place of {other}: residual {all0:.3g}x -> {a:.3g}x noise")
         if record["in_place_of"] is not None:
             why = None

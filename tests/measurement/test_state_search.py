@@ -87,14 +87,14 @@ def test_a_state_that_fails_on_top_of_its_stand_in_is_kept_in_its_place():
 
 
 @pytest.mark.slow
-def test_in_place_of_refits_the_model_without_the_effect():
+def test_refit_without_refits_the_model_without_the_effect():
     from ehas_env.measurement.diagnosis import fit_candidate
-    from ehas_env.measurement.state_search import in_place_of
+    from ehas_env.measurement.diagnosis import refit_without
 
     s, null = _search({"aug_slew_coil": {"S": 250.0}}, 3308)
     both = fit_candidate(s.rep, "aug_slew_coil", fit_candidate(s.rep, "transport_delay", null),
                          {"transport_delay": {}})
-    g = in_place_of(s.rep, both, "transport_delay")
+    g = refit_without(s.rep, both, "transport_delay")
     assert set(g.model.effects) == set(both.model.effects) - {"transport_delay"}
     # without the stand-in the rate limit alone explains the campaign it made (to the noise, 1 = noise)
     assert g.cost < 1.5
