@@ -1,4 +1,4 @@
-"""proposed_unl_bearing_friction_strong: a term proposed by ehas diagnose for /tmp/lx/workG/unl_bearing_friction_strong/campaign.
+"""proposed_unl_bearing_friction_strong: a term proposed by ehas diagnose for /tmp/unl-work/unl_bearing_friction_strong/campaign.
 
 T_crank [N m] += c_jsw·|p_A - p_B| r |cos theta| tanh(r omega / v_tanh)   with c_jsw = -7.554e-05 m^3 (95 % CI -7.83e-05 to -7.279e-05)
 

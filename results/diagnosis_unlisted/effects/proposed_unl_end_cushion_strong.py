@@ -1,4 +1,4 @@
-"""proposed_unl_end_cushion_strong: a term proposed by ehas diagnose for /tmp/lx/workG/unl_end_cushion_strong/campaign.
+"""proposed_unl_end_cushion_strong: a term proposed by ehas diagnose for /tmp/unl-work/unl_end_cushion_strong/campaign.
 
 T_crank [N m] += c_w·omega   with c_w = -203.4 N m s/rad (95 % CI -213 to -193.7)
 F_piston [N] += c_x2v·x^2 v + c_v·v   with c_x2v = 3.818e+07 N s/m^3 (95 % CI 3.62e+07 to 4.016e+07); c_v = 8.116e+04 N s/m (95 % CI 7.733e+04 to 8.499e+04)
@@ -23,7 +23,7 @@ class ProposedUnlEndCushionStrong(Effect):
     )
     main_param = "f_x2v"
     explanation = 'Proposed by the diagnosis, not yet a physical explanation: T_crank [N m] += c_w·omega with c_w = -203.4 N m s/rad (95 % CI -213 to -193.7); F_piston [N] += c_x2v·x^2 v + c_v·v with c_x2v = 3.818e+07 N s/m^3 (95 % CI 3.62e+07 to 4.016e+07); c_v = 8.116e+04 N s/m (95 % CI 7.733e+04 to 8.499e+04)'
-    signature = 'the residual it was fitted to: x^2 v, omega, v'
+    signature = 'the residual it was fitted to: omega, x^2 v, v'
 
     @staticmethod
     def crank_torque(omega, t_w):

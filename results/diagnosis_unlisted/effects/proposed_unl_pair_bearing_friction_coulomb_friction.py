@@ -1,4 +1,4 @@
-"""proposed_unl_pair_bearing_friction_coulomb_friction: a term proposed by ehas diagnose for /tmp/lx/workG/unl_pair_bearing_friction+coulomb_friction/campaign.
+"""proposed_unl_pair_bearing_friction_coulomb_friction: a term proposed by ehas diagnose for /tmp/unl-work/unl_pair_bearing_friction+coulomb_friction/campaign.
 
 T_crank [N m] += c_sw·tanh(r omega / v_tanh)   with c_sw = -13.44 N m (95 % CI -13.7 to -13.17)
 

@@ -1,4 +1,4 @@
-"""proposed_unl_pair_hose_line_bore_wear_friction: a term proposed by ehas diagnose for /tmp/lx/workG/unl_pair_hose_line+bore_wear_friction/campaign.
+"""proposed_unl_pair_hose_line_bore_wear_friction: a term proposed by ehas diagnose for /tmp/unl-work/unl_pair_hose_line+bore_wear_friction/campaign.
 
 T_crank [N m] += c_th2sw·theta^2 tanh(r omega / v_tanh)   with c_th2sw = -30.79 N m/rad^2 (95 % CI -31.29 to -30.29)
 

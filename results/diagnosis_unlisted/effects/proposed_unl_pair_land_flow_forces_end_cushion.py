@@ -1,4 +1,4 @@
-"""proposed_unl_pair_land_flow_forces_end_cushion: a term proposed by ehas diagnose for /tmp/lx/workG/unl_pair_land_flow_forces+end_cushion/campaign.
+"""proposed_unl_pair_land_flow_forces_end_cushion: a term proposed by ehas diagnose for /tmp/unl-work/unl_pair_land_flow_forces+end_cushion/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_lam·each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop   with c_lam = -0.04932 - (95 % CI -0.0573 to -0.04134)
 
