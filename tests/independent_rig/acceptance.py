@@ -484,7 +484,9 @@ def readme(recs: list[dict], summ: dict, caps: dict, command: str) -> str:
             missing[c["group"]] = missing.get(c["group"], 0) + 1
     L += [f"Cases here: {len(have)}; of the full set ({len(full)} cases) not yet run: "
           + (", ".join(f"{g} {n}" for g, n in missing.items()) or "none")
-          + ".  Figures below are over the cases here only.", ""]
+          + ".  Figures below are over the cases here only; diagnosed with ehas at commit "
+          + (", ".join(sorted({str(r.get("ehas_commit")) for r in recs})) or "-")
+          + " (a case run on another commit is rerun with `--redo --only ID`).", ""]
     L += ["## Summary against the acceptance thresholds", ""]
     o = summ.get("ool")
     if o:

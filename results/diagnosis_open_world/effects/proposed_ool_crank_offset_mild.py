@@ -1,4 +1,4 @@
-"""proposed_ool_crank_offset_mild: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ehas_open_world/ool_crank_offset_mild/campaign.
+"""proposed_ool_crank_offset_mild: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ow-work/ool_crank_offset_mild/campaign.
 
 The crank arm stands +4.01 deg off the perpendicular at the piston's mid-stroke (its lever is r cos(theta +4.01 deg)).
 phi0 = 4.012 deg (95 % CI 3.958 to 4.067)

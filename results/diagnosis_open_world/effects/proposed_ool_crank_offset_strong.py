@@ -1,4 +1,4 @@
-"""proposed_ool_crank_offset_strong: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ehas_open_world/ool_crank_offset_strong/campaign.
+"""proposed_ool_crank_offset_strong: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ow-work/ool_crank_offset_strong/campaign.
 
 The crank arm stands +10 deg off the perpendicular at the piston's mid-stroke (its lever is r cos(theta +10 deg)).
 phi0 = 10.01 deg (95 % CI 9.985 to 10.03)

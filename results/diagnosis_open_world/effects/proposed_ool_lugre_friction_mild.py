@@ -1,4 +1,4 @@
-"""proposed_ool_lugre_friction_mild: dynamic (LuGre) seal friction with a presliding bristle state, found by ehas diagnose on /tmp/ehas_open_world/ool_lugre_friction_mild/campaign.
+"""proposed_ool_lugre_friction_mild: dynamic (LuGre) seal friction with a presliding bristle state, found by ehas diagnose on /tmp/ow-work/ool_lugre_friction_mild/campaign.
 
 The seals' friction has a presliding state (LuGre): 150 N sliding, breakaway 1.18 x that, built up over 158 um of travel after a reversal, plus 300 N s/m viscous.
 Fc = 149.8 N (95 % CI 148.2 to 151.4)

@@ -1,4 +1,4 @@
-"""proposed_ool_lvdt_nonlinearity_mild: gain error and nonlinearity of the position sensor (LVDT), found by ehas diagnose on /tmp/ehas_open_world/ool_lvdt_nonlinearity_mild/campaign.
+"""proposed_ool_lvdt_nonlinearity_mild: gain error and nonlinearity of the position sensor (LVDT), found by ehas diagnose on /tmp/ow-work/ool_lvdt_nonlinearity_mild/campaign.
 
 The position sensor's scale is off by -0.0018 % and its reading bends by +1 % of the half stroke at the stroke ends.
 gain = -0.00182 % (95 % CI -0.01461 to 0.01097)

@@ -1,4 +1,4 @@
-"""proposed_ool_lvdt_nonlinearity_strong: gain error and nonlinearity of the position sensor (LVDT), found by ehas diagnose on /tmp/ehas_open_world/ool_lvdt_nonlinearity_strong/campaign.
+"""proposed_ool_lvdt_nonlinearity_strong: gain error and nonlinearity of the position sensor (LVDT), found by ehas diagnose on /tmp/ow-work/ool_lvdt_nonlinearity_strong/campaign.
 
 The position sensor's scale is off by -0.0029 % and its reading bends by +3 % of the half stroke at the stroke ends.
 gain = -0.002911 % (95 % CI -0.02028 to 0.01446)

@@ -1,4 +1,4 @@
-"""proposed_ool_lvdt_offset_strong: zero offset of the position sensor (LVDT), found by ehas diagnose on /tmp/ehas_open_world/ool_lvdt_offset_strong/campaign.
+"""proposed_ool_lvdt_offset_strong: zero offset of the position sensor (LVDT), found by ehas diagnose on /tmp/ow-work/ool_lvdt_offset_strong/campaign.
 
 The position sensor reads +1.05 mm at the piston's true mid-stroke (a zero offset of the LVDT).
 x0 = 1.055 mm (95 % CI 0.989 to 1.121)

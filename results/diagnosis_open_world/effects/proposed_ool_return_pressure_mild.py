@@ -1,4 +1,4 @@
-"""proposed_ool_return_pressure_mild: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ehas_open_world/ool_return_pressure_mild/campaign.
+"""proposed_ool_return_pressure_mild: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow-work/ool_return_pressure_mild/campaign.
 
 The return line is at 5 bar at the valve's return lands (the baseline: 0 bar).
 p_t = 4.997 bar (95 % CI 4.989 to 5.006)

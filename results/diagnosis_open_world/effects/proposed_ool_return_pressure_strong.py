@@ -1,4 +1,4 @@
-"""proposed_ool_return_pressure_strong: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ehas_open_world/ool_return_pressure_strong/campaign.
+"""proposed_ool_return_pressure_strong: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow-work/ool_return_pressure_strong/campaign.
 
 The return line is at 15 bar at the valve's return lands (the baseline: 0 bar).
 p_t = 15 bar (95 % CI 14.99 to 15.01)

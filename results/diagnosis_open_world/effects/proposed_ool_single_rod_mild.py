@@ -1,4 +1,4 @@
-"""proposed_ool_single_rod_mild: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ehas_open_world/ool_single_rod_mild/campaign.
+"""proposed_ool_single_rod_mild: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow-work/ool_single_rod_mild/campaign.
 
 Chamber B's piston area is 0.90 of chamber A's.
 d_area = 0.09985 - (95 % CI 0.09979 to 0.09991)

@@ -1,4 +1,4 @@
-"""proposed_ool_single_rod_strong: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ehas_open_world/ool_single_rod_strong/campaign.
+"""proposed_ool_single_rod_strong: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow-work/ool_single_rod_strong/campaign.
 
 Chamber B's piston area is 0.75 of chamber A's.
 d_area = 0.2486 - (95 % CI 0.2475 to 0.2497)

@@ -1,4 +1,4 @@
-"""proposed_ool_turbulent_leakage_mild: turbulent (orifice-law) leakage across the piston, found by ehas diagnose on /tmp/ehas_open_world/ool_turbulent_leakage_mild/campaign.
+"""proposed_ool_turbulent_leakage_mild: turbulent (orifice-law) leakage across the piston, found by ehas diagnose on /tmp/ow-work/ool_turbulent_leakage_mild/campaign.
 
 Oil leaks across the piston as through an orifice: 0.399 LPM at 100 bar load pressure, growing with the square root of the pressure.
 q_100 = 0.3992 LPM (95 % CI 0.3985 to 0.4)

@@ -1,4 +1,4 @@
-"""proposed_ool_turbulent_leakage_strong: turbulent (orifice-law) leakage across the piston, found by ehas diagnose on /tmp/ehas_open_world/ool_turbulent_leakage_strong/campaign.
+"""proposed_ool_turbulent_leakage_strong: turbulent (orifice-law) leakage across the piston, found by ehas diagnose on /tmp/ow-work/ool_turbulent_leakage_strong/campaign.
 
 Oil leaks across the piston as through an orifice: 1.2 LPM at 100 bar load pressure, growing with the square root of the pressure.
 q_100 = 1.2 LPM (95 % CI 1.198 to 1.203)

@@ -1,4 +1,4 @@
-"""proposed_ool_valve_direction_gain_mild: valve gain per spool direction, found by ehas diagnose on /tmp/ehas_open_world/ool_valve_direction_gain_mild/campaign.
+"""proposed_ool_valve_direction_gain_mild: valve gain per spool direction, found by ehas diagnose on /tmp/ow-work/ool_valve_direction_gain_mild/campaign.
 
 The valve's gain for negative current is 0.89 of its gain for positive current.
 g_dir = 0.06 - (95 % CI 0.05994 to 0.06006)

@@ -1,4 +1,4 @@
-"""proposed_ool_valve_direction_gain_strong: valve gain per spool direction, found by ehas diagnose on /tmp/ehas_open_world/ool_valve_direction_gain_strong/campaign.
+"""proposed_ool_valve_direction_gain_strong: valve gain per spool direction, found by ehas diagnose on /tmp/ow-work/ool_valve_direction_gain_strong/campaign.
 
 The valve's gain for negative current is 0.74 of its gain for positive current.
 g_dir = 0.15 - (95 % CI 0.1499 to 0.1501)

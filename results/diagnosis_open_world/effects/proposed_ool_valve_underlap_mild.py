@@ -1,4 +1,4 @@
-"""proposed_ool_valve_underlap_mild: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ehas_open_world/ool_valve_underlap_mild/campaign.
+"""proposed_ool_valve_underlap_mild: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow-work/ool_valve_underlap_mild/campaign.
 
 The valve is underlapped by the flow of 0.187 mA: around null its supply and return lands are open together.
 i_u = 0.1874 mA (95 % CI 0.1859 to 0.1889)

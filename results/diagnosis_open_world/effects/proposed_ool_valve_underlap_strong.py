@@ -1,4 +1,4 @@
-"""proposed_ool_valve_underlap_strong: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ehas_open_world/ool_valve_underlap_strong/campaign.
+"""proposed_ool_valve_underlap_strong: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow-work/ool_valve_underlap_strong/campaign.
 
 The valve is underlapped by the flow of 0.549 mA: around null its supply and return lands are open together.
 i_u = 0.5492 mA (95 % CI 0.5454 to 0.553)

@@ -1,4 +1,4 @@
-"""proposed_pair_current_lag_turbulent_leakage: lag of the valve's coil current behind the command (torque-motor inductance), found by ehas diagnose on /tmp/ehas_open_world/pair_current_lag+turbulent_leakage/campaign.
+"""proposed_pair_current_lag_turbulent_leakage: lag of the valve's coil current behind the command (torque-motor inductance), found by ehas diagnose on /tmp/ow-work2/pair_current_lag+turbulent_leakage/campaign.
 
 The valve's coil current lags the command: a first-order lag of 2 ms (corner 79.5 Hz), the torque motor's inductance against its drive.
 T = 2.003 ms (95 % CI 1.997 to 2.009)

@@ -1,4 +1,4 @@
-"""proposed_pair_load_compliance_valve_underlap: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ehas_open_world/pair_load_compliance+valve_underlap/campaign.
+"""proposed_pair_load_compliance_valve_underlap: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow-work2/pair_load_compliance+valve_underlap/campaign.
 
 The valve is underlapped by the flow of 0.232 mA: around null its supply and return lands are open together.
 i_u = 0.232 mA (95 % CI 0.2296 to 0.2344)

@@ -1,4 +1,4 @@
-"""proposed_pair_return_pressure_lugre_friction: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ehas_open_world/pair_return_pressure+lugre_friction/campaign.
+"""proposed_pair_return_pressure_lugre_friction: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow-work/pair_return_pressure+lugre_friction/campaign.
 
 The return line is at 5 bar at the valve's return lands (the baseline: 0 bar).
 p_t = 5.003 bar (95 % CI 4.994 to 5.011)

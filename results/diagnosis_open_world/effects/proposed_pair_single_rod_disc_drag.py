@@ -1,4 +1,4 @@
-"""proposed_pair_single_rod_disc_drag: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ehas_open_world/pair_single_rod+disc_drag/campaign.
+"""proposed_pair_single_rod_disc_drag: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow-work2/pair_single_rod+disc_drag/campaign.
 
 Chamber B's piston area is 0.90 of chamber A's.
 d_area = 0.09975 - (95 % CI 0.09966 to 0.09984)

@@ -1,4 +1,4 @@
-"""proposed_pair_valve_direction_gain_crank_unbalance: valve gain per spool direction, found by ehas diagnose on /tmp/ehas_open_world/pair_valve_direction_gain+crank_unbalance/campaign.
+"""proposed_pair_valve_direction_gain_crank_unbalance: valve gain per spool direction, found by ehas diagnose on /tmp/ow-work2/pair_valve_direction_gain+crank_unbalance/campaign.
 
 The valve's gain for negative current is 0.89 of its gain for positive current.
 g_dir = 0.05994 - (95 % CI 0.05986 to 0.06002)
