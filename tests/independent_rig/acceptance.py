@@ -484,9 +484,7 @@ def readme(recs: list[dict], summ: dict, caps: dict, command: str) -> str:
             missing[c["group"]] = missing.get(c["group"], 0) + 1
     L += [f"Cases here: {len(have)}; of the full set ({len(full)} cases) not yet run: "
           + (", ".join(f"{g} {n}" for g, n in missing.items()) or "none")
-          + ".  Figures below are over the cases here only; diagnosed with ehas at commit "
-          + (", ".join(sorted({str(r.get("ehas_commit")) for r in recs})) or "-")
-          + " (a case run on another commit is rerun with `--redo --only ID`).", ""]
+          + ".  Figures below are over the cases here only; " + commits_of(recs), ""]
     L += ["## Summary against the acceptance thresholds", ""]
     o = summ.get("ool")
     if o:
@@ -686,6 +684,13 @@ def main(argv=None) -> int:
 def _commit() -> str:
     p = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
     return p.stdout.strip()
+
+
+def commits_of(recs: list[dict]) -> str:
+    """The sentence of a results README naming the commits its cases were diagnosed at (each record's
+    ``ehas_commit``, written by :func:`_commit`)."""
+    return ("diagnosed with ehas at commit " + (", ".join(sorted({str(r.get("ehas_commit")) for r in recs})) or "-")
+            + " (a case run on another commit is rerun with `--redo --only ID`).")
 
 
 if __name__ == "__main__":

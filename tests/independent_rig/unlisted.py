@@ -129,9 +129,7 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
          "the column beside it.", "",
          f"Cases here: {len(have)} of {len(full)}"
          + (f"; not yet run: {', '.join(c['id'] for c in full if c['id'] not in have)}" if len(have) < len(full)
-            else "") + ".  Figures are over the cases here only; diagnosed with ehas at commit "
-         + (", ".join(sorted({str(r.get("ehas_commit")) for r in recs})) or "-")
-         + " (a case run on another commit is rerun with `--redo --only ID`).", "",
+            else "") + ".  Figures are over the cases here only; " + acc.commits_of(recs), "",
          "## Summary against the issue's thresholds", "",
          f"* Right place and right kind named in physical words: {summ['right_place_kind']}/"
          f"{summ['campaigns'] - summ['errors']} ({_pct(summ['right_place_kind_share'])}; threshold >= 75 %); "

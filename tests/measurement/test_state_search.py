@@ -88,8 +88,7 @@ def test_a_state_that_fails_on_top_of_its_stand_in_is_kept_in_its_place():
 
 @pytest.mark.slow
 def test_refit_without_refits_the_model_without_the_effect():
-    from ehas_env.measurement.diagnosis import fit_candidate
-    from ehas_env.measurement.diagnosis import refit_without
+    from ehas_env.measurement.diagnosis import fit_candidate, refit_without
 
     s, null = _search({"aug_slew_coil": {"S": 250.0}}, 3308)
     both = fit_candidate(s.rep, "aug_slew_coil", fit_candidate(s.rep, "transport_delay", null),
