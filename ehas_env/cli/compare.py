@@ -226,13 +226,15 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
         ``before``), ``fitted`` (value, ci95 [low, high], unit per parameter), ``command``, ``elapsed_s``.
     """
     from ehas_env.measurement.replay import COST_SIGNALS
-    from ehas_env.measurement.verdict import blocks_of, grade
+    from ehas_env.measurement.verdict import blocks_json, blocks_of, grade
 
     def side(label):
         t = tables[label]
-        g = grade(blocks_of(rep, sims[label], COST_SIGNALS))
+        blocks = blocks_of(rep, sims[label], COST_SIGNALS)
+        g = grade(blocks)
         return {"model": label, "residual_x_noise": g["residual_x_noise"], "verdict": g["verdict"],
-                "worst": g["worst"], "residual_x_sensor_noise": round(rep.log_cost(sims[label]), 3),
+                "worst": g["worst"], "blocks": blocks_json(blocks),
+                "residual_x_sensor_noise": round(rep.log_cost(sims[label]), 3),
                 "fit_percent": round(t.overall, 2),
                 "per_signal": {k: round(v, 2) for k, v in t.per_signal.items()},
                 "per_run": {r: {k: round(v, 2) for k, v in d.items()} for r, d in t.per_run.items()}}
@@ -365,12 +367,14 @@ def fit_markdown(tables: dict) -> str:
 
 
 def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command: str, after_label=None,
-                 after_model=None, fitted=False, diagnosis=None, title="Model vs measurement", ci=None) -> Path:
+                 after_model=None, fitted=False, diagnosis=None, title="Model vs measurement", ci=None,
+                 holdout=()) -> Path:
     """Write report.md and its PNGs into ``out``; return the report's path.
 
     ``sims``/``tables`` map model labels (first: the baseline) to simulated runs
     and :class:`~ehas_env.measurement.replay.FitTable`; ``diagnosis`` (optional) adds the
-    ranking of every effect tried.
+    ranking of every effect tried; ``holdout`` names the runs a diagnosis held out for validation (every
+    figure that shows one marks it).
     """
     from ehas_env.measurement import diagnosis_plots as plots
     from ehas_env.output.files import atomic_write_text
@@ -406,7 +410,7 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
         case = rep.cases[worst_run]
         shown_signals = _worst_signals(case, sims[ref_label][worst_run])
         p = plots.overlay(out / "overlay_before.png", case, {l: sims[l][worst_run] for l in [base_label]},
-                          signals=shown_signals)
+                          signals=shown_signals, holdout=holdout)
         figs.append(p)
         lines += [f"![overlay before]({p.name})", "",
                   f"*{case.run.name}, the run the baseline fits worst: measured (grey) and the baseline model "
@@ -417,12 +421,12 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
         if regs:
             p = plots.residual_scatter(out / "residual_vs_regressors.png", rep,
                                        {l: sims[l] for l in ([ref_label] + ([after_label] if after_label else []))},
-                                       worst.signal, regs)
+                                       worst.signal, regs, holdout=holdout)
             lines += [f"![residual vs regressors]({p.name})", "",
                       f"*Residual of {worst.signal} against the physical regressors it tracks most "
                       f"({', '.join(regs)}), closed-loop runs pooled.*", ""]
     if any(c.run.kind == "closed_loop" and "load_kN" in c.measured for c in rep.cases):
-        p = plots.hysteresis(out / "load_vs_velocity.png", rep, {l: sims[l] for l in shown})
+        p = plots.hysteresis(out / "load_vs_velocity.png", rep, {l: sims[l] for l in shown}, holdout=holdout)
         lines += [f"![load vs velocity]({p.name})", "",
                   "*Load against crank velocity over the steady cycles: friction shows as a step at zero "
                   "velocity, viscous friction as a tilt, extra mass as a wider loop.*", ""]
@@ -462,14 +466,15 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
         if worst_run is not None:
             case = rep.cases[worst_run]
             p = plots.overlay(out / "overlay_after.png", case, {l: sims[l][worst_run] for l in shown},
-                              signals=_worst_signals(case, sims[shown[-1]][worst_run]))
+                              signals=_worst_signals(case, sims[shown[-1]][worst_run]), holdout=holdout)
             lines += [f"![overlay after]({p.name})", "",
                       f"*{case.run.name}: measured (grey), baseline (red, dashed) and the model with the added "
                       "effects (blue); residuals in the signal's units below each; right: zoom on the stretch where "
                       "the model with the added effects fails most in this run.*", ""]
         for i, case in enumerate(rep.cases):
             if case.run.kind == "valve_open_loop":
-                p = plots.valve_overlay(out / f"valve_{case.run.name}.png", case, {l: sims[l][i] for l in shown})
+                p = plots.valve_overlay(out / f"valve_{case.run.name}.png", case, {l: sims[l][i] for l in shown},
+                                        holdout=holdout)
                 lines += [f"![valve run]({p.name})", ""]
         lines += ["Residual signatures after:", "", "```", where_it_fails(rep, sims[after_label], after_label), "```",
                   ""]

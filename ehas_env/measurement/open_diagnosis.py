@@ -38,7 +38,7 @@ from ehas_env.measurement.state_search import state_stage
 from ehas_env.physics.augment import Augmentation
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
 from ehas_env.measurement.residuals import follows as follows_of
-from ehas_env.measurement.verdict import blocks_of, grade
+from ehas_env.measurement.verdict import BLOCK_NAMED_X, blocks_above, blocks_json, blocks_of, grade
 from ehas_env.physics.effects import get_effect
 
 
@@ -68,6 +68,7 @@ class OpenDiagnosis:
     drift: list = field(default_factory=list)  # parameters that differ between runs, related to the sidecars
     disturbances: list = field(default_factory=list)  # residual lines at no harmonic of the test frequency
     grade: dict = field(default_factory=dict)
+    blocks: list = field(default_factory=list)  # the final model's verdict.Block of every run and judged signal
     measured_inputs: list = field(default_factory=list)  # logged quantities replayed as inputs (the supply pressure)
     stages: list = field(default_factory=list)  # one record per stage run (STAGES): stage, elapsed_s, what it found
     elapsed_s: float = 0.0
@@ -123,6 +124,7 @@ class OpenDiagnosis:
         doc["residual_x_noise"] = self.residual_x_noise
         doc["residual_x_sensor_noise"] = round(self.cost_all, 3)
         doc["grade"] = self.grade
+        doc["blocks"] = blocks_json(self.blocks)  # every run and signal judged: figure, floor, where the floor came from
         # beta and K are fitted relative to the book's rig (replay.Replayer.absolute): report the rig's own numbers
         rig = self.full.absolute(self.model)
         scale = {"beta": rig.beta / self.model.beta if self.model.beta else 1.0,
@@ -263,6 +265,7 @@ def measure_stage(s: Search) -> dict:
     full, final = s.full, s.current
     sims_all = s.cur_sims
     baseline_all = full.simulate(ModelSpec(effects=s.options.get("base_effects") or {}))
+    blocks = blocks_of(full, sims_all, COST_SIGNALS)
     run_costs = {}
     for i, case in enumerate(full.cases):
         c = _parts_cost(full, sims_all, {i: 0})
@@ -281,7 +284,7 @@ def measure_stage(s: Search) -> dict:
                              sims_all=sims_all, baseline_all=baseline_all, full=full, train=s.rep, holdout=s.held,
                              cost_all=full.log_cost(sims_all), run_costs=run_costs, unexplained=None,
                              follows=follows_of(full, sims_all), ci=confidence(s.rep, final) if final.free else {},
-                             validation=validation, grade=grade(blocks_of(full, sims_all, COST_SIGNALS)),
+                             validation=validation, blocks=blocks, grade=grade(blocks),
                              disturbances=disturbances_of(full, sims_all),
                              measured_inputs=sorted({q for given in full.inputs.values() for q in given}))
     # where the search started: the baseline with beta and K recalibrated (the first round's null model), on all
@@ -292,6 +295,58 @@ def measure_stage(s: Search) -> dict:
                                                                                     COST_SIGNALS))["residual_x_noise"]
     return {"effects": list(final.model.effects), "residual_x_noise": s.result.residual_x_noise,
             "residual_x_noise_recalibrated_baseline": s.result.validation["residual_x_noise_recalibrated_baseline"]}
+
+
+def no_worse_stage(s: Search) -> dict:
+    """The stage that keeps the promise of the noise figure: the model reported is never worse on it than the book's
+    rig (the model the campaign was compared with before anything was fitted: the baseline with the ``--with``
+    effects at their values) or than the recalibrated baseline (beta and K fitted, where the search started).  When
+    the model the stages kept is worse than either, the better of the two is reported instead, every step kept is
+    said not kept with why, and the model is measured again (a second ``measure`` record).
+
+    Parameters
+    ----------
+    s : Search
+        Reads ``result`` (after :func:`measure_stage`); may replace the model kept.
+
+    Returns
+    -------
+    dict
+        ``residual_x_noise`` of the model the stages kept, ``book_model`` and ``recalibrated_baseline`` (the two
+        figures it is held to), ``replaced_by`` (``"book model"``, ``"recalibrated baseline"`` or None).
+    """
+    from ehas_env.measurement.fitting import Fit
+
+    res = s.result
+    x = res.residual_x_noise
+    book_x = grade(blocks_of(s.full, res.baseline_all, COST_SIGNALS))["residual_x_noise"]
+    res.validation["residual_x_noise_book_model"] = book_x
+    rec = {"residual_x_noise": x, "book_model": book_x,
+           "recalibrated_baseline": res.validation.get("residual_x_noise_recalibrated_baseline"), "replaced_by": None}
+    null = s.rounds[0].null
+    options = [("book model", book_x)]
+    if (s.full_as_given or s.full) is s.full and rec["recalibrated_baseline"] is not None:  # same replays as the final
+        options.append(("recalibrated baseline", rec["recalibrated_baseline"]))
+    name, best = min(options, key=lambda kv: kv[1])
+    if not x > best:
+        return rec
+    if name == "recalibrated baseline":
+        f, sims = null, s.full.simulate(null.model)
+    else:
+        spec = ModelSpec(effects={n: dict(p) for n, p in (s.options.get("base_effects") or {}).items()})
+        train = s.rep.simulate(spec)
+        f, sims = Fit(spec, s.rep.log_cost(train), [], train, s.rep.fit_table(train)), res.baseline_all
+    why = (f"the model the search kept leaves {x:.3g}x what does not repeat, worse than the {name} "
+           f"({best:.3g}x): the {name} is reported")
+    for st in s.steps:
+        if st.kept:
+            st.kept, st.reason = False, st.reason + f"; not kept in the end: {why}"
+    s.say(f"  {why}")
+    s.keep(f, sims, _parts_cost(s.full, sims, s.parts))
+    s.records.append({"stage": "measure", "elapsed_s": 0.0, "again_because": why, **measure_stage(s)})
+    s.result.validation["residual_x_noise_book_model"] = book_x
+    rec["replaced_by"] = name
+    return rec
 
 
 def per_run_parameters_stage(s: Search) -> dict:
@@ -339,6 +394,7 @@ def verdict_stage(s: Search) -> dict:
         worst_run = max(res.run_costs.items(), key=lambda kv: kv[1]) if res.run_costs else ("", 0.0)
         g = res.grade
         res.unexplained = {"residual_x_noise": g["residual_x_noise"], "structured_db": g["structured_db"],
+                           "blocks_above": blocks_above(res.blocks, BLOCK_NAMED_X),
                            "threshold": g["thresholds"]["unexplained"], "worst": g["worst"],
                            "worst_run": {"run": worst_run[0], "residual_x_sensor_noise": round(worst_run[1], 3)},
                            "where": [{"signal": k, "rms_x_noise": v} for k, v in where],
@@ -389,11 +445,48 @@ def proposal_stage(s: Search) -> dict:
 TERM_STANDS_FOR_HYPOTHESES = 0.02
 
 
+def term_replaces_kept(prop, prop_b, x_kept: float) -> bool:
+    """Whether the term proposed on the library's model (``prop_b``) may replace the structural hypotheses (or the
+    missing state) kept: only a term found on both models, doing as well without them as with them (within
+    :data:`TERM_STANDS_FOR_HYPOTHESES`), and better than the model kept.  A model the stages kept is never set
+    aside for a term that was not found on top of it (issue 46: a hypothesis kept at 1.3x was reported as the
+    library's model at 5x because nothing was proposable on top of it).
+
+    Parameters
+    ----------
+    prop, prop_b : Proposal or None
+        The term proposed on top of the model kept, and on the library's model.
+    x_kept : float
+        The model kept's noise figure on all data (:data:`~ehas_env.measurement.verdict.FIGURE_KEY`).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as NS
+    >>> term = lambda x: NS(validation={"residual_x_noise_all_after": x})
+    >>> term_replaces_kept(None, term(1.2), 1.33)  # nothing found on top of the kept hypothesis: it stays
+    False
+    >>> term_replaces_kept(term(1.10), term(1.11), 1.33)  # the term alone does as well: it stood in for it
+    True
+    >>> term_replaces_kept(term(1.10), term(1.50), 1.33)
+    False
+    """
+    if prop is None or prop_b is None:
+        return False
+    x_b = prop_b.validation["residual_x_noise_all_after"]
+    return (x_b <= prop.validation["residual_x_noise_all_after"] * (1.0 + TERM_STANDS_FOR_HYPOTHESES)
+            and x_b < x_kept)
+
+
 def _term_without_hypotheses(s: Search, prop) -> tuple | None:
     """The structural hypotheses (or a missing state) were kept and the campaign is still unexplained: the term is
     proposed again on the model the library gave before them (``s.bare``).  When it does as well there (within
-    :data:`TERM_STANDS_FOR_HYPOTHESES` of the all-data residual), the hypotheses stood in for the missing term: the
-    library's model comes back (their steps say why), measured and graded again, with the term on top of it.
+    :data:`TERM_STANDS_FOR_HYPOTHESES` of the all-data residual) and better than the model kept
+    (:func:`term_replaces_kept`), the hypotheses stood in for the missing term: the library's model comes back
+    (their steps say why), measured and graded again (a second ``measure`` record), with the term on top of it.
 
     Parameters
     ----------
@@ -416,18 +509,17 @@ def _term_without_hypotheses(s: Search, prop) -> tuple | None:
         return None
     s.say("proposing the term on the library's model too (without the structural hypotheses)")
     prop_b, ps_b, refused_b = propose_stage(s.rep, s.full, b_fit, b_sims, s.parts, b_val, g, s.say)
-    if prop_b is None:
+    if not term_replaces_kept(prop, prop_b, s.result.residual_x_noise):
         return None
     x_b = prop_b.validation["residual_x_noise_all_after"]
-    if prop is not None and x_b > prop.validation["residual_x_noise_all_after"] * (1.0 + TERM_STANDS_FOR_HYPOTHESES):
-        return None
     why = (f"the term proposed without it leaves {x_b:.3g}x noise on all data"
            + ("" if prop is None else f", as well as with it ({prop.validation['residual_x_noise_all_after']:.3g}x)")
            + ": it stood in for the missing term")
     steps_back_to(s.steps, flags, why)
     s.say(f"  the hypotheses kept are dropped: {why}")
     s.current, s.cur_sims, s.cur_val, s.base = b_fit, b_sims, b_val, b_base
-    measure_stage(s)
+    # the model reported changed: measured again, and the record says so (the reported figure is the last measure's)
+    s.records.append({"stage": "measure", "elapsed_s": 0.0, "again_because": why, **measure_stage(s)})
     if s.options.get("alternatives", True) and s.result.model.effects:
         from ehas_env.measurement.alternatives import find_alternatives
 
@@ -483,7 +575,9 @@ def alternatives_stage(s: Search) -> dict:
                             _held_fit(s.full, sims, s.held_idx)))
         s.say(f"  {a.name}: reported in place of {a.in_place_of} ({why})")
         s.keep(f, sims, val)
-        measure_stage(s)  # the final model measured again, and the explanation it replaced compared in its place
+        # the final model measured again (a second measure record: the reported figure is the last measure's), and
+        # the explanation it replaced compared in its place
+        s.records.append({"stage": "measure", "elapsed_s": 0.0, "again_because": why, **measure_stage(s)})
         s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say)
         swapped = {"name": a.name, "in_place_of": a.in_place_of, "score_difference_db": round(a.score_difference_db, 2)}
     return {"within": [a.name for a in s.result.alternatives if a.within], "preferred": swapped}
@@ -496,6 +590,7 @@ STAGES = (
     ("measured_inputs", measured_inputs_stage),
     ("states", states_stage),
     ("measure", measure_stage),
+    ("no_worse", no_worse_stage),
     ("alternatives", alternatives_stage),
     ("per_run", per_run_parameters_stage),
     ("verdict", verdict_stage),
@@ -707,15 +802,21 @@ def unexplained_text(res: OpenDiagnosis, u: dict) -> str:
     where = ", ".join(f"{w['signal']} {w['rms_x_noise']:.1f}x" for w in u["where"][:3])
     fol = ", ".join(f"{n} ({100 * s:.0f} %)" for n, s in list(u["follows_shares"].items())[:3]) or "no listed quantity"
     w = u["worst"] or {}
-    head = ("unexplained: no effect of the library explains this campaign" if res.verdict == "unexplained" else
-            "small structured residual: the library's model leaves a repeatable residual above what does not repeat, "
+    found = "the best model found" if res.model.effects else "the baseline (no effect kept)"
+    head = (f"unexplained: {found} leaves more than what does not repeat" if res.verdict == "unexplained" else
+            f"small structured residual: {found} leaves a repeatable residual above what does not repeat, "
             "but not enough to call the campaign unexplained")
+    above = u.get("blocks_above", [])
     text = (f"{head}. The best model found ({what}) leaves residuals at {u['residual_x_noise']:.2f}x what does not "
             f"repeat from cycle to cycle (sensor noise, disturbances; geometric mean over runs and signals; "
             f"explained up to {res.grade['thresholds']['explained']:g}x, unexplained above {u['threshold']:g}x"
             + (f"; structured part {u['structured_db']:+.1f} dB against it" if u["structured_db"] is not None else "")
             + f"), worst {w.get('signal', '')} in run {w.get('run', '')} at {w.get('residual_x_noise', 0.0):.2f}x; "
             f"residual RMS in sensor-noise units: {where}. What is left follows {fol}.")
+    if above:
+        text += (f" Above {BLOCK_NAMED_X:g}x: " + ", ".join(f"{b['signal']} in run {b['run']} ({b['residual_x_noise']:.1f}x)"
+                                                           for b in above[:5])
+                 + (f" and {len(above) - 5} more run and signal pairs" if len(above) > 5 else "") + ".")
     p = u.get("proposal")
     if res.verdict != "unexplained":
         text += (" No term is proposed at this level: a residual this small may come from the numerics of two "

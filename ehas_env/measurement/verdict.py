@@ -1,16 +1,20 @@
 """Is a campaign explained?  The verdict from the data itself: what repeats against what does not.
 
-A model of a rig can only be asked to reproduce what the rig does every cycle.
-What does not repeat from one cycle of a sine run to the next (sensor noise,
-quantisation, disturbances, a knock in a joint) is the floor no model can go
-below.  So each closed-loop sine run's steady cycles (after the ramp and one
-settling cycle) are laid over each other, and the measured signal's own
-*non-repeatable* energy (its scatter around its cycle-locked mean) is that
-run and signal's floor.  The floor is never below the sensor noise.  A run that
-is not periodic (a valve chirp driven by its logged current, a run with fewer
-than :data:`MIN_CYCLES` steady cycles) has the sensor-noise level as its floor.
+A model of a rig can only be asked to reproduce what the rig does every cycle
+and what the rig's inputs make it do (a start from rest, a step): what does
+not repeat from one cycle of a sine run to the next and no input explains
+(sensor noise, quantisation, disturbances, a knock in a joint) is the floor no
+model can go below.  Every sample of a run is judged, its start included; the
+floor is the *residual's* own part that does not repeat, its change from one
+cycle to the next over the run's repeating stretch (after the fade-in and one
+settling cycle, :func:`residual_floor`): a deterministic response the model
+reproduces (a slow settling) has left the residual and is not in it, and a
+floor cannot be far above the residual it judges.  The floor is never below the
+sensor noise.  A run that is not periodic (a valve chirp driven by its logged
+current, a run with fewer than :data:`MIN_CYCLES` cycles in its repeating
+stretch) has the sensor-noise level as its floor.
 
-The model's residual energy on the same samples, divided by the floor, is the
+The model's residual energy over every judged sample, divided by the floor, is the
 ``residual_x_noise`` of the diagnosis: 1 means "nothing left but what does
 not repeat"; its excess over 1 is the *structured* residual, the part a
 physical term could remove.  Small structural differences between two
@@ -163,7 +167,11 @@ def repeat_floor(y: np.ndarray, dt: float, freq_hz: float, start_s: float) -> fl
 
 @dataclass
 class Block:
-    """One run and signal: residual and floor energies (in squared noise levels), samples, and where."""
+    """One run and signal: residual and floor energies (in squared noise levels), samples, and where.
+
+    ``judged_from_s``: the first sample judged (every sample from it on is); ``floor_from_s`` / ``floor_to_s``:
+    the stretch whose cycle-to-cycle change of the residual set the floor (None: the sensor noise set it).
+    """
 
     run: str
     signal: str
@@ -171,6 +179,9 @@ class Block:
     floor: float  # what does not repeat (mean square), same unit
     n: int
     periodic: bool
+    judged_from_s: float = 0.0
+    floor_from_s: float | None = None
+    floor_to_s: float | None = None
 
     @property
     def x(self) -> float:
@@ -178,9 +189,64 @@ class Block:
         return self.residual / max(self.floor, 1e-300)
 
 
+def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float) -> tuple[float, float, float] | None:
+    """What does not repeat in a residual: the mean-square change of ``e`` from one cycle to the next, halved.
+
+    A deterministic response the model reproduces has left the residual, and a part of the residual that repeats
+    every cycle (the model's miss) cancels in the change; what is left is the part that does not repeat (sensor
+    noise, quantisation, disturbances).  Taken from ``start_s`` on (after the start, the stretch that repeats), one
+    period apart at the exact period (linear interpolation where the period is not a whole number of samples, its
+    smoothing of white noise divided out).
+
+    Parameters
+    ----------
+    e : ndarray
+        The residual (measured - simulated) in noise units, at times k * dt.
+    dt : float
+        Sample period, s.
+    freq_hz : float
+        The run's sine frequency, Hz.
+    start_s : float
+        Where the stretch that sets the floor starts, s.
+
+    Returns
+    -------
+    (float, float, float) or None
+        (mean-square floor, stretch start s, stretch end s); None when the stretch holds fewer than
+        :data:`MIN_CYCLES` cycles.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> t = np.arange(0, 4, 1e-3)
+    >>> e = 5 * np.sin(2 * np.pi * 3 * t) + rng.standard_normal(t.size)  # a repeating miss + unit noise
+    >>> f, a, b = residual_floor(e, 1e-3, 3.0, 1 / 3)
+    >>> 0.9 < f < 1.1
+    True
+    """
+    period = 1.0 / freq_hz
+    k0 = int(math.ceil(start_s / dt - 1e-9))
+    lag = period / dt
+    m = int(math.floor(lag))
+    a = lag - m
+    n = e.size - k0 - m - 1
+    if n <= 0 or (e.size - k0) * dt < MIN_CYCLES * period - 1e-9:
+        return None
+    now = e[k0:k0 + n]
+    later = (1.0 - a) * e[k0 + m:k0 + m + n] + a * e[k0 + m + 1:k0 + m + 1 + n]
+    d = later - now
+    gain = 1.0 + (1.0 - a) ** 2 + a**2  # variance of the change of white noise of unit variance
+    return float(np.mean(d**2)) / gain, k0 * dt, (k0 + m + n) * dt
+
+
 def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
                 signal: str = "", freq_hz: float | None = None, start_s: float = 0.0, skip: int = 0) -> Block:
     """The residual of one run and signal against its floor.
+
+    Every sample from ``skip`` on is judged, the start of the run included: a transient is data (what the model
+    reproduces of a start from rest, a step, a knock, it is asked to reproduce).  The floor is the residual's own
+    part that does not repeat (:func:`residual_floor`) over the run's repeating stretch, never below the sensor
+    noise: a slow settling the model reproduces is not in it, and it cannot be far above the residual it judges.
 
     Parameters
     ----------
@@ -193,27 +259,22 @@ def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: f
     freq_hz : float, optional
         The sine's frequency for a periodic run (None: the floor is the noise level).
     start_s : float
-        For a periodic run: where its steady cycles start.
+        For a periodic run: where the stretch that sets the floor starts (after the fade-in and the settling).
     skip : int
-        Samples left out at the start of a non-periodic run (a warm-up).
+        Samples left out at the start (a warm-up the fit leaves out too: a window cut from a longer run).
 
     Returns
     -------
     Block
     """
     e = (measured - simulated) / noise
+    judged = e[skip:]
+    res = float(np.mean(judged**2))
     if freq_hz is not None:
-        ce = cycles(e, dt, freq_hz, start_s)
-        floor = repeat_floor(measured / noise, dt, freq_hz, start_s)
-        if ce is not None and floor is not None:
-            # never below the sensor noise.  (What the model's own response does not repeat is not taken off:
-            # a limit cycle both rig and model have, at phases that drift apart, would then count as
-            # structured; a transient both have leaves x below 1, which is explained all the same.)
-            floor = max(floor, 1.0)
-            # the residual on the same phase grid as the floor (the interpolation smooths both alike)
-            return Block(run, signal, float(np.mean(ce**2)), floor, ce.size, True)
-    e = e[skip:]
-    return Block(run, signal, float(np.mean(e**2)), 1.0, e.size, False)
+        fl = residual_floor(e, dt, freq_hz, max(start_s, skip * dt))
+        if fl is not None:
+            return Block(run, signal, res, max(fl[0], 1.0), judged.size, True, skip * dt, fl[1], fl[2])
+    return Block(run, signal, res, 1.0, judged.size, False, skip * dt)
 
 
 def overall_x(blocks: list[Block]) -> float:
@@ -268,6 +329,60 @@ def grade(blocks: list[Block]) -> dict:
             "thresholds": {"explained": 1.0 + EXPLAINED_X, "unexplained": 1.0 + UNEXPLAINED_X,
                            "block_explained": 1.0 + BLOCK_EXPLAINED_X,
                            "block_unexplained": 1.0 + BLOCK_UNEXPLAINED_X}}
+
+
+def blocks_json(blocks: list[Block]) -> list[dict]:
+    """Each run and signal as the JSON states it: its figure, its floor, the samples judged and the stretch that set
+    the floor (what a test engineer checks when a figure surprises).
+
+    Parameters
+    ----------
+    blocks : list of Block
+
+    Returns
+    -------
+    list of dict
+        ``run``, ``signal``, ``residual_x_noise``, ``floor_x_sensor_noise`` (the floor in sensor-noise variances),
+        ``samples``, ``judged_from_s``, ``floor_from_s``, ``floor_to_s`` (null: the sensor noise is the floor),
+        ``periodic``.
+
+    Examples
+    --------
+    >>> blocks_json([Block("r", "p_a_bar", 2.0, 1.25, 3000, True, 0.0, 0.333, 2.999)])[0]["floor_from_s"]
+    0.333
+    """
+    return [{"run": b.run, "signal": b.signal, FIGURE_KEY: round(b.x, 3), "floor_x_sensor_noise": round(b.floor, 3),
+             "samples": b.n, "judged_from_s": round(b.judged_from_s, 4),
+             "floor_from_s": None if b.floor_from_s is None else round(b.floor_from_s, 4),
+             "floor_to_s": None if b.floor_to_s is None else round(b.floor_to_s, 4), "periodic": b.periodic}
+            for b in blocks]
+
+
+#: a run and signal whose residual is above this many floors is named in an unexplained verdict's words
+BLOCK_NAMED_X = 4.0
+
+
+def blocks_above(blocks: list[Block], x: float = BLOCK_NAMED_X) -> list[dict]:
+    """The runs and signals whose residual is above ``x`` floors, worst first (what an unexplained verdict names).
+
+    Parameters
+    ----------
+    blocks : list of Block
+    x : float
+        Floors.
+
+    Returns
+    -------
+    list of dict
+        ``run``, ``signal``, ``residual_x_noise`` (rounded to 3 decimals).
+
+    Examples
+    --------
+    >>> blocks_above([Block("a", "p_A", 5.0, 1.0, 10, True), Block("b", "p_A", 2.0, 1.0, 10, True)])
+    [{'run': 'a', 'signal': 'p_A', 'residual_x_noise': 5.0}]
+    """
+    return [{"run": b.run, "signal": b.signal, "residual_x_noise": round(b.x, 3)}
+            for b in sorted(blocks, key=lambda b: b.x, reverse=True) if b.x > x]
 
 
 def blocks_of(rep, sims, cost_signals) -> list[Block]:

@@ -14,8 +14,8 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "diagnosis-pipeline.md"
 
 def test_the_stages_are_named_functions_in_the_documented_order():
     names = [n for n, _ in STAGES]
-    assert names == ["library", "hypotheses", "measured_inputs", "states", "measure", "alternatives", "per_run",
-                     "verdict", "proposal"]
+    assert names == ["library", "hypotheses", "measured_inputs", "states", "measure", "no_worse", "alternatives",
+                     "per_run", "verdict", "proposal"]
     text = DOC.read_text()
     for n, fn in STAGES:  # each stage is drawn and tabled in the docs, by name and function
         assert f"| {n} |" in text and fn.__name__ in text, n
@@ -34,7 +34,7 @@ def test_the_documented_example_runs_and_a_stage_of_ones_own_is_recorded():
     res = ns["res"]
     stages = [r["stage"] for r in res.stages]
     assert stages == ["data", "library", "hypotheses", "measured_inputs", "states", "measure", "worst_run",
-                      "alternatives", "per_run", "verdict", "proposal"]
+                      "no_worse", "alternatives", "per_run", "verdict", "proposal"]
     rec = res.to_json()["stages"][6]
     assert rec["worst_run"] in res.run_costs and rec["residual_x_sensor_noise"] == pytest.approx(
         max(res.run_costs.values()), abs=1e-3)
