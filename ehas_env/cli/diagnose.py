@@ -314,7 +314,8 @@ def run_one(args) -> int:
             model = res.model
         with outputs as tmp:
             path = write_report(tmp, res.full, sims, tabs, campaign=campaign, command=command, after_label=label,
-                                after_model=model, fitted=True, diagnosis=first, title="Diagnosis")
+                                after_model=model, fitted=True, diagnosis=first, title="Diagnosis",
+                                holdout=res.holdout)
             extra = ["## 6. Stacking, confidence and validation", "", "```", _stack_text(res), "",
                      _model_text(res), "", _validation_text(res), "```", "",
                      "## 7. Verdict and what is left", "",
@@ -339,14 +340,15 @@ def run_one(args) -> int:
             from ehas_env.measurement.diagnosis_plots import verdict_bars
             from ehas_env.measurement.verdict import blocks_of
 
-            verdict_bars(tmp / "verdict.png", blocks_of(res.full, res.sims_all, COST_SIGNALS), res.grade)
+            verdict_bars(tmp / "verdict.png", blocks_of(res.full, res.sims_all, COST_SIGNALS), res.grade,
+                         holdout=res.holdout)
             with open(path, "a") as fh:
                 fh.write("\n".join(extra) + "\n")
             atomic_write_text(tmp / "diagnosis.json", json.dumps(doc, indent=2) + "\n")
             if getattr(args, "html", False):
-                from ehas_env.cli.report import build_page
+                from ehas_env.cli.report import build_page, report_command
 
-                build_page(doc, tmp, command=f"ehas report {shlex.quote(str(args.out))}").write(tmp / "report.html")
+                build_page(doc, tmp, command=report_command(args.out)).write(tmp / "report.html")
         print(f"report: {Path(args.out) / path.name}" + (f", {Path(args.out) / 'report.html'}" if args.html else ""))
     return 0
 

@@ -45,18 +45,10 @@ def run(args) -> int:
     out = Path(args.out) if args.out else folder / "report.html"
     check_file(out, "--out", overwrite=args.overwrite, suffix=".html")
     doc = read_doc(src)
-    command = "ehas report " + " ".join(shlex.quote(a) for a in _argv())
-    page = build_page(doc, folder, command=command)
+    page = build_page(doc, folder, command=report_command(args.folder, args.json, args.out))
     page.write(out)
     print(f"report: {out} ({len(page.parts)} parts, {sum(map(len, page.parts)) // 1024} kB; opens offline)")
     return 0
-
-
-def _argv() -> list[str]:
-    import sys
-
-    argv = sys.argv[1:]
-    return argv[1:] if argv and argv[0] == "report" else argv
 
 
 def read_doc(path) -> dict:
@@ -116,101 +108,346 @@ def _model_of(doc: dict) -> dict | None:
     return {"effects": effects, **base, "ci95": ci}
 
 
-def _cell(v) -> str:
-    if isinstance(v, float):
-        return f"{v:.5g}"
-    if isinstance(v, (dict, list)):
-        return json.dumps(v, separators=(", ", ": "))
-    return "" if v is None else str(v)
+def report_command(folder, json_file=None, out=None) -> str:
+    """The ``ehas report`` command that rewrites a page, runnable as printed from the folder it was run in.
+
+    The page already exists when a reader sees the command, so it carries ``--overwrite`` (without it ``ehas
+    report`` refuses to replace the page).
+
+    Parameters
+    ----------
+    folder : str or Path
+        FOLDER as the user gave it (relative to where they ran the command).
+    json_file, out : str or Path, optional
+        ``--json FILE`` and ``--out FILE.html`` as the user gave them.
+
+    Returns
+    -------
+    str
+        One shell command line.
+
+    Examples
+    --------
+    >>> report_command("runs/diag nosis/")
+    "ehas report 'runs/diag nosis/' --overwrite"
+    """
+    words = ["ehas", "report", str(folder)]
+    if json_file is not None:
+        words += ["--json", str(json_file)]
+    if out is not None:
+        words += ["--out", str(out)]
+    return " ".join(shlex.quote(w) for w in words + ["--overwrite"])
 
 
-def _records(page, items) -> None:
-    """A list of flat-ish records (``alternatives``, ``per_run``) as one table, columns in first-seen order."""
-    if isinstance(items, dict):
-        items = [{"run": k, **(v if isinstance(v, dict) else {"value": v})} for k, v in items.items()]
-    items = [i for i in items if isinstance(i, dict)]
-    cols = []
-    for i in items:
-        cols += [k for k in i if k not in cols]
-    page.table(cols, [[_cell(i.get(c)) for c in cols] for i in items])
+def _num(v, digits: int = 4) -> str:
+    """A number as a table shows it (``digits`` significant digits); ``""`` for None or what is no number."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return ""
+    return f"{0.0 if v == 0 else v:.{digits}g}"  # no "-0"
+
+
+def _interval(low, high) -> str:
+    """A 95 % interval as words, ``1.2 to 1.4`` (a side the data do not bound: ``unbounded``)."""
+    return " to ".join("unbounded" if v is None else _num(v) for v in (low, high))
+
+
+def _param_unit(name: str) -> str:
+    """The unit of ``effect.param`` (a library effect's parameter); ``""`` when it is no registered effect's."""
+    from ehas_env.physics.effects import get_effect
+
+    effect, _, param = name.partition(".")
+    try:
+        return get_effect(effect).param(param).unit
+    except Exception:  # a hypothesis or term the library does not register: no unit known
+        return ""
+
+
+def _shown(name: str, unit: str) -> tuple[str, float]:
+    """The unit a parameter is shown in and the factor from its JSON unit (``baseline.beta``: Pa -> GPa, as the
+    model's difference from the book's rig shows it)."""
+    from ehas_env.measurement.model_difference import BASELINE
+
+    for slot, _, shown, scale in BASELINE:
+        if name in (slot, f"baseline.{slot}"):
+            return shown, scale
+    return unit, 1.0
+
+
+def _values_text(params: dict, units: dict | None = None, ci95: dict | None = None) -> str:
+    """Fitted values as words, ``Fc = 419.4 N (95 %: 418.4 to 420.5)``, one parameter after another."""
+    out = []
+    for k, v in (params or {}).items():
+        unit = (units or {}).get(k, "")
+        text = f"{k} = {_num(v)}" + (f" {unit}" if unit not in ("", "-") else "")
+        ci = (ci95 or {}).get(k)
+        if isinstance(ci, (list, tuple)) and len(ci) == 2:
+            text += f" (95 %: {_interval(*ci)})"
+        out.append(text)
+    return "; ".join(out)
+
+
+def held_out(doc: dict) -> list[str]:
+    """The runs a diagnosis held out for validation (``validation.holdout``); ``[]`` when none or not a diagnosis.
+
+    Parameters
+    ----------
+    doc : dict
+        A diagnosis or comparison JSON.
+
+    Returns
+    -------
+    list of str
+    """
+    v = doc.get("validation")
+    runs = v.get("holdout") if isinstance(v, dict) else None
+    return [str(r) for r in runs] if isinstance(runs, list) else []
+
+
+def _role(run: str, held: list[str]) -> str:
+    from ehas_env.measurement.diagnosis_plots import HELD_OUT
+
+    return HELD_OUT if run in held else "fitted"
+
+
+def _per_run_records(per_run) -> tuple[str, dict, list[dict]]:
+    """The JSON's ``per_run`` as (order, units, runs), each run ``{run, recorded, params: {name: {value, low,
+    high, at_range_end}}}``; an older shape (``{run: {name: value or [value, low, high]}}``) read the same way."""
+    if isinstance(per_run, dict) and isinstance(per_run.get("runs"), list):
+        order, units, runs = per_run.get("order") or "", dict(per_run.get("units") or {}), per_run["runs"]
+    elif isinstance(per_run, dict):
+        order, units = "", {}
+        runs = [{"run": k, "params": v} for k, v in per_run.items() if isinstance(v, dict)]
+    else:
+        return "", {}, []
+    out = []
+    for r in runs:
+        if not isinstance(r, dict):
+            continue
+        params = {}
+        for name, p in (r.get("params") or {}).items():
+            if isinstance(p, dict):
+                params[name] = p
+            elif isinstance(p, (list, tuple)) and len(p) == 3:
+                params[name] = {"value": p[0], "low": p[1], "high": p[2]}
+            else:
+                params[name] = {"value": p}
+            units.setdefault(name, _param_unit(name))
+        out.append({"run": str(r.get("run", "")), "recorded": r.get("recorded"), "params": params})
+    return order, units, out
+
+
+def _per_run_table(page, per_run, held: list[str]) -> None:
+    """Parameters fitted on each run alone: one row per run (its role: fitted or held out for validation), one
+    column per parameter with its unit, and one with its 95 % interval."""
+    order, units, runs = _per_run_records(per_run)
+    if not runs:
+        return
+    names = []
+    for r in runs:
+        names += [n for n in r["params"] if n not in names]
+    shown = {n: _shown(n, units.get(n, "")) for n in names}
+    recorded = any(r.get("recorded") not in (None, "") for r in runs)
+    header = ["run", "role"] + (["recorded"] if recorded else [])
+    for n in names:
+        unit = shown[n][0]
+        header += [f"{n} [{unit}]" if unit else n, f"{n}, 95 % interval [{unit}]" if unit else f"{n}, 95 % interval"]
+    rows = []
+    for r in runs:
+        row = [r["run"], _role(r["run"], held)] + ([str(r.get("recorded") or "")] if recorded else [])
+        for n in names:
+            p, scale = r["params"].get(n) or {}, shown[n][1]
+            v = p.get("value")
+            row.append(_num(v * scale) if isinstance(v, (int, float)) else "")
+            lo, hi = (p.get(k) for k in ("low", "high"))
+            text = _interval(*(None if x is None else x * scale for x in (lo, hi))) if "low" in p or "high" in p else ""
+            row.append(text + (" (at its fit range's end)" if p.get("at_range_end") else ""))
+        rows.append(row)
+    page.paragraph("The final model's parameters (and those of the best effects judged but not kept) refitted on "
+                   "each closed-loop run alone" + (f", runs in {order}" if order else "") + ":")
+    page.table(header, rows, marked=[r["run"] in held for r in runs])
+
+
+def _alternatives(page, alts: list, held: list[str], title: str, intro: str) -> None:
+    """Alternatives (or those ruled out): one row each with its fitted values in words, the score difference in
+    dB; what each says and why it looks alike; the per-run score differences as their own table."""
+    alts = [a for a in alts if isinstance(a, dict)]
+    if not alts:
+        return
+    page.heading(title)
+    page.paragraph(intro)
+    page.table(["alternative", "in place of", "fitted values", "score difference [dB]", "resolvable [dB]",
+                "preferred by the data"],
+               [[a.get("name"), a.get("in_place_of"), _values_text(a.get("params"), a.get("units"), a.get("ci95")),
+                 _num(a.get("score_difference_db"), 3), _num(a.get("resolvable_db"), 3),
+                 "yes" if a.get("preferred") else "no"] for a in alts])
+    for a in alts:
+        words = ". ".join(str(a[k]) for k in ("title", "words") if a.get(k))
+        if a.get("reason"):
+            words += f". Why it looks alike: {a['reason']}"
+        if words:
+            page.paragraph(f"{a.get('name')}: {words}")
+    per_run = [a for a in alts if isinstance(a.get("per_run_db"), dict)]
+    if per_run:
+        runs = []
+        for a in per_run:
+            runs += [r for r in a["per_run_db"] if r not in runs]
+        page.paragraph("Score difference per run, 10 log10 of the alternative's residual energy over the reported "
+                       "model's (positive: the reported model fits that run better):")
+        page.table(["run", "role"] + [f"{a.get('name')} [dB]" for a in per_run],
+                   [[r, _role(r, held)] + [_num(a["per_run_db"].get(r), 3) for a in per_run] for r in runs],
+                   marked=[r in held for r in runs])
+
+
+def _validation(page, doc: dict, held: list[str]) -> None:
+    """Which runs were fitted and which held out for validation, and how the model does on the held-out ones."""
+    from ehas_env.measurement.diagnosis_plots import HELD_OUT
+
+    page.heading("Validation: the runs held out")
+    v = doc.get("validation") if isinstance(doc.get("validation"), dict) else None
+    if v is None:
+        page.paragraph(f"{HELD_OUT}: none (a comparison fits and judges every run of the campaign)",
+                       id="held-out", data={"runs": ""})
+        return
+    if not held:
+        page.paragraph(f"{HELD_OUT}: none (fewer than 4 runs, or --holdout none)", id="held-out", data={"runs": ""})
+    else:
+        page.paragraph(f"{HELD_OUT}: {', '.join(held)} (not fitted; the model kept must lower the residual on it)",
+                       id="held-out", data={"runs": ",".join(held)})
+    fitted = [str(r) for r in v.get("fit_runs") or []]
+    runs = fitted + [r for r in held if r not in fitted]
+    window = v.get("fit_window_s")
+    if runs:
+        page.table(["run", "role"], [[r, _role(r, held)] for r in runs], marked=[r in held for r in runs])
+    if isinstance(window, (int, float)):
+        page.paragraph(f"Closed-loop runs fitted over their first {window:g} s; the rest of each run is validation "
+                       "data too.")
+    cols = [("holdout_fit_percent_baseline", "fit of the held-out runs, baseline [%]"),
+            ("holdout_fit_percent_model", "fit of the held-out runs, final model [%]"),
+            ("residual_x_noise_validation", "final model's residual on the validation data [x noise]")]
+    cols = [(k, h) for k, h in cols if isinstance(v.get(k), (int, float))]
+    if cols:
+        page.table([h for _, h in cols], [[_num(v[k]) for k, _ in cols]])
 
 
 def build_page(doc: dict, folder, command: str = ""):
     """The HTML page of a diagnosis or comparison JSON and its figures.
 
+    Every table holds values, a number's unit in its column's heading (or in a ``unit`` column); the run held
+    out for validation is named near the top and in every per-run table; every command on the page runs as
+    written from the folder the user ran the diagnosis (or ``ehas report``) from.
+
     Parameters
     ----------
     doc : dict
-        The JSON (``ehas diagnose --json`` or ``ehas compare --json``).
+        The JSON (``ehas diagnose --json`` or ``ehas compare --json``); keys other than ``verdict`` and
+        ``residual_x_noise`` are read when present and of the expected shape.
     folder : str or Path
         The folder whose PNGs are embedded.
     command : str
-        The command that writes the page (printed on it).
+        The command that rewrites the page (:func:`report_command`; printed on it).
 
     Returns
     -------
     ehas_env.output.html.Page
     """
-    from ehas_env.measurement.model_difference import interval_text, model_difference
+    from ehas_env.measurement.model_difference import model_difference
     from ehas_env.measurement.verdict import FIGURE_KEY, figure_text
     from ehas_env.output.html import Page
 
     folder = Path(folder)
     kind = "Diagnosis" if "ranking" in doc or "stack" in doc else "Comparison"
+    held = held_out(doc)
     page = Page(f"{kind}: {doc.get('campaign', folder)}")
     if command:
-        page.paragraph(f"Regenerate: {command}")
+        page.command(command, intro="Regenerate this page (run from the folder the "
+                                    f"{kind.lower()} was run in):")
     page.heading("Verdict")
     x = float(doc[FIGURE_KEY])
     page.paragraph(f"{doc['verdict']}: residual {figure_text(x)} (the noise figure: the model's residual against what "
                    "does not repeat from cycle to cycle; docs/measurement-format.md)",
                    id="verdict-figure", cls="figure", data={"value": repr(x), "verdict": doc["verdict"]})
     g = doc.get("grade") or (doc.get("after") or {})
-    if isinstance(g.get("thresholds"), dict):
-        t = g["thresholds"]
+    t = g.get("thresholds") if isinstance(g, dict) else None
+    if isinstance(t, dict) and all(isinstance(t.get(k), (int, float)) for k in
+                                   ("explained", "block_explained", "unexplained", "block_unexplained")):
         page.paragraph(f"explained up to {t['explained']:g}x overall (and {t['block_explained']:g}x in every run and "
                        f"signal); unexplained above {t['unexplained']:g}x (or {t['block_unexplained']:g}x in one)")
     if isinstance(doc.get("unexplained"), dict) and doc["unexplained"].get("text"):
         page.paragraph(doc["unexplained"]["text"])
     if "before" in doc and "after" in doc:
-        page.table(["model", "residual", "verdict", "fit %"],
-                   [[s.get("model"), figure_text(s[FIGURE_KEY]), s.get("verdict"), s.get("fit_percent")]
-                    for s in (doc["before"], doc.get("recalibrated"), doc["after"]) if s])
+        sides = [s for s in (doc["before"], doc.get("recalibrated"), doc["after"]) if isinstance(s, dict)]
+        page.table(["model", "residual [x what does not repeat]", "verdict", "fit [%]"],
+                   [[s.get("model"), _num(s.get(FIGURE_KEY), 3), s.get("verdict"), _num(s.get("fit_percent"))]
+                    for s in sides])
+    _validation(page, doc, held)
 
     model = _model_of(doc)
     if model is not None:
         rows = model.get("difference") or model_difference(model)
         page.heading("The model: what differs from the book's rig")
         if rows:
-            page.table(["quantity", "book", "value", "95 % interval", "unit", "note"],
-                       [[r["quantity"], "off" if r["book"] is None else f"{r['book']:.5g}",
-                         "" if r["value"] is None else f"{r['value']:.5g}",
-                         interval_text(r), r["unit"], r["note"]]
+            def bound(r, side):
+                v = r.get(side)
+                return "unbounded" if v is None and r.get("fitted", r.get("low") is not None) else _num(v)
+
+            page.table(["quantity", "what it is", "book", "value", "95 % low", "95 % high", "unit", "note"],
+                       [[r.get("quantity"), r.get("words", ""), "off" if r.get("book") is None else _num(r["book"]),
+                         _num(r.get("value")), bound(r, "low"), bound(r, "high"), r.get("unit"), r.get("note")]
                         for r in rows])
         else:
             page.paragraph("nothing: the book's rig as it is")
-    if doc.get("alternatives"):
-        page.heading("Alternatives: other models that explain the data about as well")
-        _records(page, doc["alternatives"])
+    hyp = doc.get("hypothesis")
+    if isinstance(hyp, dict):
+        page.heading("Structural hypothesis kept")
+        page.paragraph(". ".join(str(hyp[k]) for k in ("title", "words") if hyp.get(k)) + ". Fitted: "
+                       + _values_text(hyp.get("params"), hyp.get("units"), hyp.get("ci95")))
+    state = doc.get("state")
+    if isinstance(state, dict) and state.get("words"):
+        page.heading("Missing state kept")
+        page.paragraph(f"{state.get('kept', '')}: {state['words']}")
+    _alternatives(page, doc.get("alternatives") or [], held,
+                  "Alternatives: other models that explain the data about as well",
+                  "These logs cannot tell these explanations from the reported one (their score difference is "
+                  "within what the logs resolve); ehas plan-test designs the runs that decide.")
+    _alternatives(page, doc.get("ruled_out") or [], held, "Ruled out: explanations these logs tell apart",
+                  "Fitted in place of the reported explanation and worse by more than the logs resolve.")
     if doc.get("per_run"):
         page.heading("Per-run parameters")
-        _records(page, doc["per_run"])
-    if doc.get("ranking"):
-        page.heading("Effects tried (first round, ranked)")
-        page.table(["rank", "effect", "fitted", "score dB", "fit %", "evidence"],
-                   [[i + 1, e.get("effect"), _cell(e.get("params")), e.get("score"), e.get("fit_percent"),
-                     e.get("evidence")] for i, e in enumerate(doc["ranking"])])
-    if doc.get("stack"):
+        _per_run_table(page, doc["per_run"], held)
+    for key, title in (("drift", "Drift between runs"), ("disturbances", "Disturbances in the residual")):
+        texts = [d["text"] for d in doc.get(key) or [] if isinstance(d, dict) and d.get("text")]
+        if texts:
+            page.heading(title)
+            for text in texts:
+                page.paragraph(text)
+    if isinstance(doc.get("ranking"), list) and doc["ranking"]:
+        page.heading("Effects tried (first round, ranked best first)")
+        ranking = [e for e in doc["ranking"] if isinstance(e, dict)]
+        page.table(["effect", "fitted", "score [dB]", "fit [%]", "evidence"],
+                   [[e.get("effect"),
+                     _values_text(e.get("params"), {k: _param_unit(f"{e.get('effect')}.{k}") for k in e.get("params") or {}}),
+                     _num(e.get("score"), 3), _num(e.get("fit_percent")), e.get("evidence")] for e in ranking])
+    if isinstance(doc.get("stack"), list) and doc["stack"]:
         page.heading("Stacking: which effects were kept, and why")
-        page.table(["effect", "kept", "reason"], [[s.get("effect"), "yes" if s.get("kept") else "no", s.get("reason")]
-                                                 for s in doc["stack"]])
+        page.table(["effect", "kept", "reason", "residual, fit data [x noise]", "residual, validation data [x noise]",
+                    "fit of the held-out runs [%]"],
+                   [[s.get("effect"), "yes" if s.get("kept") else "no", s.get("reason"),
+                     _num(s.get("residual_x_noise_fit")), _num(s.get("residual_x_noise_validation")),
+                     _num(s.get("fit_percent_validation"))] for s in doc["stack"] if isinstance(s, dict)])
     figs = _figures(folder)
     if figs:
         page.heading("Figures")
+        if held:
+            page.paragraph(f"{'Runs' if len(held) > 1 else 'Run'} {', '.join(held)}: held out for validation, "
+                           "so marked in every figure that shows it.")
         for p, caption in figs:
             page.figure(p, caption)
     page.heading("Next step")
-    page.pre(next_step(doc))
+    nxt = next_step(doc)
+    if nxt.startswith("ehas "):
+        page.command(nxt, intro="Run from the same folder:")
+    else:
+        page.paragraph(nxt)
     return page
 
 
@@ -232,5 +469,5 @@ def next_step(doc: dict) -> str:
         if doc.get("effect_file"):
             return f"add the effect file {doc['effect_file']} with ehas compare --effects-path (see the console's next:)"
         return "nothing to add: the book's rig explains the campaign as it is"
-    return ("ehas bench results/controllers/*.json --model model.json --out bench   # with the model saved by "
-            "ehas compare ... --save-model model.json")
+    return ("save the calibrated model with ehas compare CAMPAIGN --effects ... --fit --save-model FILE, then run "
+            "the controllers on it with ehas bench results/controllers/*.json --model FILE")

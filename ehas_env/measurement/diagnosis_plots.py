@@ -11,7 +11,9 @@
   its thresholds, the overall figure in the title (and in the PNG's
   ``Description`` text chunk).
 
-Every function writes one PNG atomically and returns its path.
+Every function writes one PNG atomically and returns its path.  A function that shows runs takes
+``holdout`` (the names of the runs a diagnosis held out for validation) and marks each such run "held out
+for validation" (:data:`HELD_OUT`) wherever it names it.
 """
 from __future__ import annotations
 
@@ -32,6 +34,8 @@ OVERLAY_SIGNALS = ("theta_deg", "current_mA", "load_kN", "flow_lpm")
 REGRESSOR_UNITS = {"velocity": "deg/s", "sign(velocity)": "-", "position": "deg", "acceleration": "deg/s^2",
                    "load pressure": "bar", "mean chamber pressure": "bar", "|flow|": "LPM", "current": "mA",
                    "sign(current)": "-", "current rate": "mA/s", "supply pressure": "bar"}
+#: how a figure or table marks a run that a diagnosis held out of the fit for validation
+HELD_OUT = "held out for validation"
 NAMES = {"theta_deg": "angle", "current_mA": "current", "load_kN": "load", "flow_lpm": "flow A",
          "p_a_bar": "pressure A", "p_b_bar": "pressure B", "p_s_bar": "supply pressure"}
 
@@ -40,6 +44,26 @@ def regressor_label(name: str) -> str:
     """``velocity [deg/s]``; lagged currents ``current 5 ms earlier [mA]``."""
     unit = REGRESSOR_UNITS.get(name, "mA" if name.startswith("current ") else "")
     return f"{name} [{unit}]" if unit else name
+
+
+def run_label(name: str, holdout=(), text: str = "") -> str:
+    """A run's name as a figure shows it: ``cl_5sets (3 sets, 30 deg, 2 Hz; held out for validation)``.
+
+    Parameters
+    ----------
+    name : str
+        The run's name.
+    holdout : iterable of str
+        The runs held out for validation.
+    text : str
+        Words about the run (its label), in the brackets.
+
+    Returns
+    -------
+    str
+    """
+    words = [w for w in (text, HELD_OUT if name in set(holdout or ()) else "") if w]
+    return f"{name} ({'; '.join(words)})" if words else name
 
 
 def _figure(nrows, ncols=1, size=(9.0, 2.2)):
@@ -102,7 +126,7 @@ def failure_window(case, sim: dict, signals, width_s: float) -> tuple[float, flo
     return float(t[k]), float(t[min(k + n, t.size - 1)])
 
 
-def overlay(path, case, models: dict[str, dict], signals=None, window_s: float | None = None) -> Path:
+def overlay(path, case, models: dict[str, dict], signals=None, window_s: float | None = None, holdout=()) -> Path:
     """Measured and modelled signals of one run with their residuals (in the signal's units), whole run and zoom.
 
     ``models`` maps a label (``baseline``, ``+ coulomb_friction``) to that model's
@@ -112,7 +136,8 @@ def overlay(path, case, models: dict[str, dict], signals=None, window_s: float |
     default one reference period or 0.5 s).  Left column: the whole run; right
     column: the window where that model's residuals in this run are largest
     (shaded on the left), its title naming the model.  Each signal has its
-    residual panel underneath, with the band of +-2 noise levels in grey.
+    residual panel underneath, with the band of +-2 noise levels in grey.  ``holdout``: the runs held out
+    for validation (the title says so when this is one).
     """
     from matplotlib.gridspec import GridSpec
 
@@ -155,7 +180,7 @@ def overlay(path, case, models: dict[str, dict], signals=None, window_s: float |
                 axr.set_ylabel(f"residual [{unit}]", fontsize=8)
             if k == 0:
                 ax.set_title("whole run (gold: the zoom window)" if col == 0 else
-                             f"zoom: where the {judged} model fails most in this run, t = {w0:.2f}-{w1:.2f} s",
+                             f"zoom, t = {w0:.2f}-{w1:.2f} s: where the {judged} model\nfails most in this run",
                              fontsize=9)
             ax.tick_params(labelbottom=False, labelsize=8)
             axr.tick_params(labelsize=8, labelbottom=(k == len(signals) - 1))
@@ -163,17 +188,20 @@ def overlay(path, case, models: dict[str, dict], signals=None, window_s: float |
                 axr.set_xlabel("t [s]", fontsize=9)
             ax.grid(alpha=0.25)
             axr.grid(alpha=0.25)
-    fig.suptitle(f"{run.name} ({run.label()}): measured vs model; residual = measured - model "
-                 "(grey band: +-2 noise levels)", fontsize=10, y=0.995)
+    h_in = fig.get_figheight()
+    fig.suptitle(f"{run_label(run.name, holdout, run.label())}: measured vs model; residual = measured - model "
+                 "(grey band: +-2 noise levels)", fontsize=10, y=1.0 - 0.08 / h_in, va="top")
     fig.legend(handles=handles, labels=[h.get_label() for h in handles], loc="upper center", ncol=len(handles),
-               fontsize=9, frameon=False, bbox_to_anchor=(0.5, 0.975))
-    fig.subplots_adjust(left=0.07, right=0.99, top=1.0 - 0.75 / fig.get_figheight(), bottom=0.5 / fig.get_figheight())
+               fontsize=9, frameon=False, bbox_to_anchor=(0.5, 1.0 - 0.3 / h_in))
+    fig.subplots_adjust(left=0.07, right=0.99, top=1.0 - 1.05 / h_in, bottom=0.5 / h_in)
     fig._ehas_layout = True
     return _save(plt, fig, path)
 
 
-def residual_scatter(path, rep, sims_by_label: dict[str, list], signal: str, regressor_names: list[str]) -> Path:
-    """Residual of ``signal`` (closed-loop runs pooled) against each regressor, per model."""
+def residual_scatter(path, rep, sims_by_label: dict[str, list], signal: str, regressor_names: list[str],
+                     holdout=()) -> Path:
+    """Residual of ``signal`` (closed-loop runs pooled) against each regressor, per model; the legend names
+    each run, ``holdout`` ones as held out for validation."""
     from ehas_env.measurement.residuals import regressors
 
     labels = list(sims_by_label)
@@ -188,7 +216,7 @@ def residual_scatter(path, rep, sims_by_label: dict[str, list], signal: str, reg
                 if reg_name not in reg:
                     continue
                 e = case.measured[signal] - sim[signal]
-                ax.plot(reg[reg_name][::3], e[::3], ".", ms=1.5, alpha=0.5, label=case.run.name)
+                ax.plot(reg[reg_name][::3], e[::3], ".", ms=1.5, alpha=0.5, label=run_label(case.run.name, holdout))
             ax.set_xlabel(regressor_label(reg_name), fontsize=8)
             ax.set_ylabel(f"{signal} residual [{UNITS[signal]}]", fontsize=8)
             ax.axhline(0.0, color="0.5", lw=0.6)
@@ -209,12 +237,14 @@ def residual_scatter(path, rep, sims_by_label: dict[str, list], signal: str, reg
     return _save(plt, fig, path)
 
 
-def hysteresis(path, rep, sims_by_label: dict[str, list], run_index: int | None = None) -> Path:
-    """Load vs crank velocity loops (steady cycles), measured and per model, one panel per closed-loop run."""
+def hysteresis(path, rep, sims_by_label: dict[str, list], run_index: int | None = None, holdout=()) -> Path:
+    """Load vs crank velocity loops (steady cycles), measured and per model, one panel per closed-loop run (its
+    title the run's name and label; ``holdout`` ones marked held out for validation)."""
     idx = [i for i, c in enumerate(rep.cases) if c.run.kind == "closed_loop" and "load_kN" in c.measured]
     if run_index is not None:
         idx = [run_index]
-    plt, fig, axes = _figure(1, max(len(idx), 1), size=(3.4 * max(len(idx), 1), 3.2))
+    # at least 6.5 in wide: a single run's panel holds its legend (the models' labels) and the title's lines
+    plt, fig, axes = _figure(1, max(len(idx), 1), size=(max(3.4 * len(idx), 6.5), 3.4))
     for col, i in enumerate(idx):
         ax = axes[0, col]
         case = rep.cases[i]
@@ -227,11 +257,12 @@ def hysteresis(path, rep, sims_by_label: dict[str, list], run_index: int | None 
         ax.plot(w, case.measured["load_kN"][steady], ".", color="k", ms=1.2, alpha=0.35, label="measured", zorder=3)
         ax.set_xlabel("crank velocity [deg/s]", fontsize=8)
         ax.set_ylabel("load [kN]", fontsize=8)
-        ax.set_title(case.run.label(), fontsize=9)
+        name = case.run.name + (f"\n{HELD_OUT}" if case.run.name in set(holdout or ()) else "")
+        ax.set_title(f"{case.run.label()}\n{name}", fontsize=8)
         if col == 0:
             ax.legend(fontsize=7, markerscale=5)
     fig.suptitle("actuator load against crank velocity over the steady cycles (after the first): measured (black dots) "
-                 "and each model, one panel per closed-loop run", fontsize=9)
+                 "and each model, one panel per closed-loop run", fontsize=9)  # wrapped to the width by save_figure
     return _save(plt, fig, path)
 
 
@@ -262,12 +293,13 @@ def fit_bars(path, tables: dict, title: str = "") -> Path:
     return _save(plt, fig, path)
 
 
-def valve_overlay(path, case, models: dict[str, dict], window_s: float = 0.4) -> Path:
+def valve_overlay(path, case, models: dict[str, dict], window_s: float = 0.4, holdout=()) -> Path:
     """A valve run: flow in two zoomed windows (the slowest and the fastest part of a chirp), residuals below.
 
     The whole record of a chirp is a tangle at page scale; the two windows show the
     shape (and any lag) of measured and modelled flow, and the residual over the
-    whole record shows where the model fails (LPM, grey band: +-2 noise levels).
+    whole record shows where the model fails (LPM, grey band: +-2 noise levels).  ``holdout``: the runs
+    held out for validation (the title says so when this is one).
     """
     import matplotlib
 
@@ -304,7 +336,7 @@ def valve_overlay(path, case, models: dict[str, dict], window_s: float = 0.4) ->
                   "levels)", fontsize=9)
     axr.tick_params(labelsize=8)
     axr.grid(alpha=0.25)
-    fig.suptitle(f"{case.run.name} ({case.run.label()}): valve on the flow bench", fontsize=10)
+    fig.suptitle(f"{run_label(case.run.name, holdout, case.run.label())}: valve on the flow bench", fontsize=10)
     fig.legend(handles=handles, labels=[h.get_label() for h in handles], loc="upper center", ncol=len(handles),
                fontsize=9, frameon=False, bbox_to_anchor=(0.5, 0.955))
     fig.subplots_adjust(left=0.07, right=0.99, top=0.86, bottom=0.08)
@@ -312,7 +344,7 @@ def valve_overlay(path, case, models: dict[str, dict], window_s: float = 0.4) ->
     return _save(plt, fig, path)
 
 
-def verdict_bars(path, blocks, grading: dict, label: str = "final model") -> Path:
+def verdict_bars(path, blocks, grading: dict, label: str = "final model", holdout=()) -> Path:
     """The verdict as a figure: each run and signal's residual in what does not repeat, against the thresholds.
 
     Parameters
@@ -325,22 +357,31 @@ def verdict_bars(path, blocks, grading: dict, label: str = "final model") -> Pat
         :func:`ehas_env.measurement.verdict.grade` of those blocks (the verdict, its figure, thresholds).
     label : str
         What the model is called.
+    holdout : iterable of str
+        The runs held out for validation: their bars hatched, their names marked "held out for validation".
 
     Returns
     -------
     Path
     """
+    from matplotlib.patches import Patch
+
     from ehas_env.measurement.verdict import FIGURE_KEY, figure_text
 
     text = f"{label}: {grading['verdict']}, residual {figure_text(grading[FIGURE_KEY])}"
     t = grading["thresholds"]
-    names = [f"{b.run} {b.signal}" for b in blocks]
+    held = set(holdout or ())
+    names = [f"{b.run} {b.signal}" + (f" ({HELD_OUT})" if b.run in held else "") for b in blocks]
     xs = np.array([b.x for b in blocks], dtype=float)
-    plt, fig, axes = _figure(1, size=(9.0, 0.8 + 0.22 * max(len(blocks), 4)))
+    plt, fig, axes = _figure(1, size=(9.0, 1.2 + 0.22 * max(len(blocks), 4)))
     ax = axes[0, 0]
     colors = ["tab:green" if v <= t["block_explained"] else "tab:orange" if v <= t["block_unexplained"] else "tab:red"
               for v in xs]
-    ax.barh(np.arange(len(xs)), np.maximum(xs, 1e-3), color=colors)
+    bars = ax.barh(np.arange(len(xs)), np.maximum(xs, 1e-3), color=colors)
+    for bar, b in zip(bars, blocks):
+        if b.run in held:
+            bar.set_hatch("///")
+            bar.set_edgecolor("0.2")
     ax.set_yticks(np.arange(len(xs)))
     ax.set_yticklabels(names, fontsize=7)
     ax.invert_yaxis()
@@ -351,7 +392,11 @@ def verdict_bars(path, blocks, grading: dict, label: str = "final model") -> Pat
         ax.axvline(v, color="0.4", ls=st, lw=1.0, label=f"{what}: {v:g}x")
     ax.axvline(grading[FIGURE_KEY], color="k", lw=1.4, label=f"overall: {figure_text(grading[FIGURE_KEY])}")
     ax.set_xlabel("residual / what does not repeat from cycle to cycle (1 = nothing structured left)", fontsize=8)
-    ax.legend(fontsize=7, loc="lower right")
+    handles = ax.get_legend_handles_labels()[0]
+    if held & {b.run for b in blocks}:
+        handles.append(Patch(facecolor="white", edgecolor="0.2", hatch="///",
+                             label=f"hatched: {', '.join(sorted(held & {b.run for b in blocks}))}, {HELD_OUT}"))
+    ax.legend(handles=handles, fontsize=7, loc="lower right")
     ax.set_title(text, fontsize=10)
     ax.grid(alpha=0.25, axis="x")
     fig.tight_layout()

@@ -22,9 +22,20 @@ from pathlib import Path
 #: inline style (no external sheet, no font from the network)
 STYLE = ("body{font-family:sans-serif;max-width:70em;margin:1.5em auto;padding:0 1em;color:#222}"
          "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;padding:.2em .5em;"
-         "text-align:left;vertical-align:top;font-size:90%}th{background:#eee}"
+         "text-align:left;vertical-align:top;font-size:90%}th{background:#eee}td.num{text-align:right;"
+         "white-space:nowrap}tr.held td{background:#fff4d6}"
          "pre{background:#f6f6f6;padding:.6em;overflow-x:auto;font-size:85%}img{max-width:100%}"
+         "code.command{display:block;background:#f6f6f6;padding:.4em .6em;font-size:90%;overflow-x:auto;"
+         "white-space:pre}figure{margin:1em 0}figcaption{font-size:90%;color:#444}"
          ".figure{font-size:110%;font-weight:bold}")
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 class Page:
@@ -66,6 +77,29 @@ class Page:
         attrs += "".join(f' data-{html.escape(k)}="{html.escape(str(v))}"' for k, v in (data or {}).items())
         self.parts.append(f"<p{attrs}>{html.escape(text)}</p>")
 
+    def subheading(self, text: str) -> None:
+        """Add a heading under a section's.
+
+        Parameters
+        ----------
+        text : str
+            The heading's words.
+        """
+        self.parts.append(f"<h3>{html.escape(text)}</h3>")
+
+    def command(self, text: str, intro: str = "") -> None:
+        """Add a shell command the reader can copy and run as written (``<code class="command">``).
+
+        Parameters
+        ----------
+        text : str
+            One command line (escaped).
+        intro : str
+            Words before it (escaped), e.g. where to run it from.
+        """
+        lead = f"{html.escape(intro)}<br>" if intro else ""
+        self.parts.append(f'<p>{lead}<code class="command">{html.escape(text)}</code></p>')
+
     def pre(self, text: str) -> None:
         """Add preformatted text (console output, an equation).
 
@@ -76,21 +110,26 @@ class Page:
         """
         self.parts.append(f"<pre>{html.escape(text)}</pre>")
 
-    def table(self, header: list[str], rows: list[list]) -> None:
-        """Add a table.
+    def table(self, header: list[str], rows: list[list], marked: list[bool] | None = None) -> None:
+        """Add a table: numbers right-aligned, each row one record.
 
         Parameters
         ----------
         header : list of str
-            Column headings.
+            Column headings (a number's unit belongs here, e.g. ``Fc [N]``, or in a ``unit`` column).
         rows : list of list
-            Cells, shown with ``str`` (None as an empty cell).
+            Cells, shown with ``str`` (None as an empty cell); a cell that reads as a number is right-aligned.
+        marked : list of bool, optional
+            Rows to highlight (``class="held"``: a run held out for validation), one flag per row.
         """
         def cell(v):
-            return "" if v is None else html.escape(str(v))
+            text = "" if v is None else str(v)
+            return f'<td class="num">{html.escape(text)}</td>' if _is_number(text) else f"<td>{html.escape(text)}</td>"
 
-        head = "".join(f"<th>{cell(h)}</th>" for h in header)
-        body = "".join("<tr>" + "".join(f"<td>{cell(v)}</td>" for v in r) + "</tr>" for r in rows)
+        marked = marked or [False] * len(rows)
+        head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
+        body = "".join(("<tr class=\"held\">" if m else "<tr>") + "".join(cell(v) for v in r) + "</tr>"
+                       for r, m in zip(rows, marked))
         self.parts.append(f"<table><tr>{head}</tr>{body}</table>")
 
     def figure(self, png: Path, caption: str = "") -> None:
