@@ -342,6 +342,7 @@ CONTROLLER_TYPES: dict[str, Callable[[dict], Controller]] = {}
 LOADERS: dict[str, Callable | str] = {}
 #: modules imported before loading so that they can register their types/loaders
 PLUGIN_MODULES: list[str] = ["ehas_controllers.piff", "ehas_controllers.ilc", "ehas_controllers.harmonic",
+                               "ehas_controllers.drive",  # drive files replayed (ehas export-drive)
                                "ehas_train.agent"]  # ehas_train.agent: learned agents
 
 

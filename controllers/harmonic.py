@@ -49,15 +49,20 @@ class HarmonicCanceller(CycleLearner):
         Model file the first estimates come from; None: the book's model.
     name : str
         Label in tables and files.
+    guard : dict, optional
+        The guard's settings (:data:`~.learning.GUARD_DEFAULTS`); None: the defaults.
+    learned : list of dict, optional
+        What earlier runs learned (the JSON's ``learned``), kept as data for drive files.
     """
 
     def __init__(self, base, *, harmonics: int = 10, gain: float = 0.5, adapt: float = 0.3, start_cycle: int = 1,
-                 design_model: str | None = None, name: str = "harmonic"):
+                 design_model: str | None = None, name: str = "harmonic", guard: dict | None = None,
+                 learned: list | None = None):
         who = "harmonic"
         self.harmonics = int(check_number(harmonics, "harmonics", 1, 50, who, integer=True))
         self.gain = check_number(gain, "gain", 0.0, 10.0, who, lo_open=True)
         self.adapt = check_number(adapt, "adapt", 0.0, 1.0, who)
-        self._layer(base, start_cycle, design_model, name, who)
+        self._layer(base, start_cycle, design_model, name, who, guard, learned)
 
     def design(self, amplitude_deg: float, freq_hz: float) -> np.ndarray:
         """The model's P_h (deg/mA) at harmonics 1..k, after the convergence check.
@@ -88,10 +93,10 @@ class HarmonicCanceller(CycleLearner):
                              f"design model: |1 - gain| = {rho:.3g} >= 1; use a gain in (0, 1]")
         return P
 
-    def reset(self) -> None:
-        if self._loop is not None:
-            self._loop.reset()
-        self._table = None
+    def _reset_learning(self) -> None:
+        self._U = None
+        self._dU = None
+        self._E = None
 
     def _feedforward(self, t: float) -> float:
         x = (t * self._table.freq_hz) % 1.0
@@ -119,6 +124,28 @@ class HarmonicCanceller(CycleLearner):
         self._U = self._U + self._dU
         self._E = E
 
+    # -- what the guard and the drive files need ---------------------------------------------
+    def _snapshot(self):
+        return self._U.copy()
+
+    def _restore(self, snapshot) -> None:
+        self._U = np.array(snapshot, dtype=complex)
+        self._dU = self._E = None
+
+    def _scale(self, factor: float) -> None:
+        self._U = self._U * factor
+        self._dU = self._E = None
+
+    @property
+    def _feedforward_state(self):
+        return self._U.copy()
+
+    def _table_of(self, feedforward, table: CycleTable) -> np.ndarray:
+        U = np.asarray(feedforward, dtype=complex)
+        x = np.arange(table.n) / table.n
+        h = np.arange(1, U.size + 1)
+        return np.real(np.exp(2j * np.pi * np.outer(x, h)) @ U)
+
     def to_dict(self) -> dict:
         """JSON-able description; :meth:`from_dict` rebuilds the controller from it.
 
@@ -126,11 +153,16 @@ class HarmonicCanceller(CycleLearner):
         -------
         dict
             ``type`` ``"harmonic"``, ``kind``, ``name``, ``base`` (the fixed-gain loop), ``harmonics``,
-            ``gain``, ``adapt``, ``start_cycle``, ``design_model``.
+            ``gain``, ``adapt``, ``start_cycle``, ``design_model``, ``guard`` (the guard's settings,
+            :data:`~.learning.GUARD_DEFAULTS`) and, once it has run, ``learned``
+            (:meth:`~.learning.CycleLearner.learned_state`).
         """
-        return {"type": "harmonic", "kind": self.kind, "name": self.name, "base": base_to_dict(self.base),
-                "harmonics": self.harmonics, "gain": self.gain, "adapt": self.adapt,
-                "start_cycle": self.start_cycle, "design_model": self.design_model}
+        d = {"type": "harmonic", "kind": self.kind, "name": self.name, "base": base_to_dict(self.base),
+             "harmonics": self.harmonics, "gain": self.gain, "adapt": self.adapt,
+             "start_cycle": self.start_cycle, "design_model": self.design_model, "guard": self.guard_to_dict()}
+        if self._memory:
+            d["learned"] = self.learned_state()
+        return d
 
     @classmethod
     def from_dict(cls, data: dict) -> "HarmonicCanceller":
@@ -149,9 +181,10 @@ class HarmonicCanceller(CycleLearner):
         if "base" not in data:
             raise ValueError("harmonic: no 'base' field; expected \"base\": {\"type\": \"piff\" or \"schedule\", ...}")
         allowed = ("type", "kind", "name", "base", "harmonics", "gain", "adapt", "start_cycle", "design_model",
-                   "format", "version", "command", "metrics", "notes", "mean_rms_error_pct")
+                   "guard", "learned", "format", "version", "command", "metrics", "notes", "mean_rms_error_pct")
         sub_object({"harmonic": data}, "harmonic", allowed)
-        kw = {k: data[k] for k in ("harmonics", "gain", "adapt", "start_cycle", "design_model", "name") if k in data}
+        kw = {k: data[k] for k in ("harmonics", "gain", "adapt", "start_cycle", "design_model", "name", "guard",
+                                   "learned") if k in data}
         return cls(base_from_dict(data["base"], "harmonic"), **kw)
 
     def __repr__(self) -> str:

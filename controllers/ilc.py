@@ -13,7 +13,10 @@ control", IEEE Control Systems 26(3))::
   times a learning gain (``"inverse"``), or a gain with a phase lead of
   ``lead_ms`` (``"lead"``, the classic phase-lead ILC);
 * ``Q``, the robustness filter: a Butterworth low-pass applied forwards and
-  backwards, zero phase (:func:`~.learning.q_filter`);
+  backwards, zero phase (:func:`~.learning.q_filter`), and optionally nothing at all above
+  ``stop_hz`` (``q_filter.stop_hz``): where the plant's response has fallen far, ``L = gain / P``
+  is large and what does not repeat there (sample instants that wander, sensor noise) would be
+  learned into a large current that a wandering hold turns into more of it;
 * both applied non-causally over the whole recorded cycle, on its harmonics.
 
 Before a run learns anything the monotonic-convergence condition
@@ -63,6 +66,8 @@ class ILC(CycleLearner):
         Corner of the zero-phase Butterworth Q filter, Hz.
     q_order : int
         Order of the Butterworth (the zero-phase filter has twice the order).
+    q_stop_hz : float, optional
+        Harmonics above this frequency, Hz, are not learned at all (Q = 0 there); None: the Butterworth alone.
     start_cycle : int
         First cycle (0 = the fade-in cycle) whose error is learned from.
     design_model : str, optional
@@ -70,11 +75,18 @@ class ILC(CycleLearner):
         the book's reference model.
     name : str
         Label in tables and files.
+    guard : dict, optional
+        The guard's settings (:data:`~.learning.GUARD_DEFAULTS`: ``enabled``, ``patience`` in cycles,
+        ``growth`` (-), ``floor_pct`` (%), ``halvings``, ``base_error_pct`` (% or None)); None: the defaults.
+    learned : list of dict, optional
+        What earlier runs learned (the JSON's ``learned``, :meth:`~.learning.CycleLearner.learned_state`),
+        kept as data for drive files; a run always starts learning from zero.
     """
 
     def __init__(self, base, *, gain: float = 0.8, learning: str = "inverse", lead_ms: float = 0.0,
-                 q_cutoff_hz: float = 40.0, q_order: int = 2, start_cycle: int = 1,
-                 design_model: str | None = None, name: str = "ILC"):
+                 q_cutoff_hz: float = 40.0, q_order: int = 2, q_stop_hz: float | None = None, start_cycle: int = 1,
+                 design_model: str | None = None, name: str = "ILC", guard: dict | None = None,
+                 learned: list | None = None):
         who = "ilc"
         if learning not in FILTERS:
             raise ValueError(f"{who}: 'learning.filter' must be one of {', '.join(FILTERS)}, got {learning!r}")
@@ -83,7 +95,9 @@ class ILC(CycleLearner):
         self.lead_ms = check_number(lead_ms, "learning.lead_ms", 0.0, 100.0, who)
         self.q_cutoff_hz = check_number(q_cutoff_hz, "q_filter.cutoff_hz", 0.0, 500.0, who, lo_open=True)
         self.q_order = int(check_number(q_order, "q_filter.order", 1, 8, who, integer=True))
-        self._layer(base, start_cycle, design_model, name, who)
+        self.q_stop_hz = (None if q_stop_hz is None else
+                          check_number(q_stop_hz, "q_filter.stop_hz", 0.0, 500.0, who, lo_open=True))
+        self._layer(base, start_cycle, design_model, name, who, guard, learned)
 
     # -- design ---------------------------------------------------------------------
     def design(self, amplitude_deg: float, freq_hz: float, rate_hz: float = 1000.0) -> dict:
@@ -122,6 +136,8 @@ class ILC(CycleLearner):
         else:
             L[1:] = self.gain * np.exp(2j * np.pi * fk[1:] * self.lead_ms * 1e-3)
         Q = q_filter(fk, self.q_cutoff_hz, self.q_order)
+        if self.q_stop_hz is not None:
+            Q = np.where(fk > self.q_stop_hz, 0.0, Q)
         rho = np.abs(Q[1:] * (1.0 - L[1:] * P[1:]))
         k = int(np.argmax(rho)) + 1
         out = {"L": L, "Q": Q, "harmonic_hz": fk, "contraction": float(rho[k - 1]), "worst_hz": float(fk[k])}
@@ -134,13 +150,9 @@ class ILC(CycleLearner):
         return out
 
     # -- the law ------------------------------------------------------------------------
-    def reset(self) -> None:
-        if self._loop is not None:
-            self._loop.reset()
-        self._table = None
+    def _reset_learning(self) -> None:
         self._u = None
         self._plan = None
-        self._checked = False
         self.cycle_log: list[float] = []  # rms of the table's update per learned cycle, mA
 
     def _begin(self, amplitude_deg: float, freq_hz: float) -> None:
@@ -157,6 +169,27 @@ class ILC(CycleLearner):
         self.cycle_log.append(float(np.sqrt(np.mean((new - self._u) ** 2))))
         self._u = new
 
+    # -- what the guard and the drive files need ---------------------------------------------
+    def _snapshot(self):
+        return self._u.copy()
+
+    def _restore(self, snapshot) -> None:
+        self._u = np.array(snapshot, dtype=float)
+
+    def _scale(self, factor: float) -> None:
+        self._u = self._u * factor
+
+    @property
+    def _feedforward_state(self):
+        return self._u.copy()
+
+    def _table_of(self, feedforward, table: CycleTable) -> np.ndarray:
+        u = np.asarray(feedforward, dtype=float)
+        if u.size == table.n:
+            return u.copy()
+        # learned at another rate: the periodic table at the new bins' phases, linearly interpolated
+        return np.interp(np.arange(table.n) / table.n, np.arange(u.size) / u.size, u, period=1.0)
+
     # -- file ------------------------------------------------------------------------------
     def to_dict(self) -> dict:
         """JSON-able description; :meth:`from_dict` rebuilds the controller from it.
@@ -166,12 +199,19 @@ class ILC(CycleLearner):
         dict
             ``type`` ``"ilc"``, ``kind``, ``name``, ``base`` (the fixed-gain loop's description),
             ``learning`` (``filter``, ``gain``, ``lead_ms`` in ms), ``q_filter`` (``cutoff_hz`` in Hz,
-            ``order``), ``start_cycle`` and ``design_model`` (a model file's path or null).
+            ``order``, and ``stop_hz`` in Hz when set), ``start_cycle``, ``design_model`` (a model file's path or null), ``guard`` (the
+            guard's settings, :data:`~.learning.GUARD_DEFAULTS`) and, once it has run, ``learned``
+            (:meth:`~.learning.CycleLearner.learned_state`).
         """
-        return {"type": "ilc", "kind": self.kind, "name": self.name, "base": base_to_dict(self.base),
-                "learning": {"filter": self.learning, "gain": self.gain, "lead_ms": self.lead_ms},
-                "q_filter": {"cutoff_hz": self.q_cutoff_hz, "order": self.q_order},
-                "start_cycle": self.start_cycle, "design_model": self.design_model}
+        d = {"type": "ilc", "kind": self.kind, "name": self.name, "base": base_to_dict(self.base),
+             "learning": {"filter": self.learning, "gain": self.gain, "lead_ms": self.lead_ms},
+             "q_filter": {"cutoff_hz": self.q_cutoff_hz, "order": self.q_order},
+             "start_cycle": self.start_cycle, "design_model": self.design_model, "guard": self.guard_to_dict()}
+        if self.q_stop_hz is not None:
+            d["q_filter"]["stop_hz"] = self.q_stop_hz
+        if self._memory:
+            d["learned"] = self.learned_state()
+        return d
 
     @classmethod
     def from_dict(cls, data: dict) -> "ILC":
@@ -196,22 +236,24 @@ class ILC(CycleLearner):
         """
         if "base" not in data:
             raise ValueError("ilc: no 'base' field; expected \"base\": {\"type\": \"piff\" or \"schedule\", ...}")
-        allowed = ("type", "kind", "name", "base", "learning", "q_filter", "start_cycle", "design_model",
-                   "format", "version", "command", "metrics", "notes", "mean_rms_error_pct")
+        allowed = ("type", "kind", "name", "base", "learning", "q_filter", "start_cycle", "design_model", "guard",
+                   "learned", "format", "version", "command", "metrics", "notes", "mean_rms_error_pct")
         sub_object({"ilc": data}, "ilc", allowed)
         base = base_from_dict(data["base"], "ilc")
         learning = sub_object(data, "learning", ("filter", "gain", "lead_ms"))
-        q = sub_object(data, "q_filter", ("cutoff_hz", "order"))
+        q = sub_object(data, "q_filter", ("cutoff_hz", "order", "stop_hz"))
         kw = {"learning": learning.get("filter", "inverse"), "gain": learning.get("gain", 0.8),
               "lead_ms": learning.get("lead_ms", 0.0), "q_cutoff_hz": q.get("cutoff_hz", 40.0),
-              "q_order": q.get("order", 2), "start_cycle": data.get("start_cycle", 1),
-              "design_model": data.get("design_model"), "name": data.get("name", "ILC")}
+              "q_order": q.get("order", 2), "q_stop_hz": q.get("stop_hz"), "start_cycle": data.get("start_cycle", 1),
+              "design_model": data.get("design_model"), "name": data.get("name", "ILC"),
+              "guard": data.get("guard"), "learned": data.get("learned")}
         return cls(base, **kw)
 
     def __repr__(self) -> str:
         law = (f"L = {self.gain:g} / P (model inverse)" if self.learning == "inverse"
                else f"L = {self.gain:g} mA/deg, lead {self.lead_ms:g} ms")
         src = self.design_model or "book model"
-        return (f"ILC '{self.name}': {law}, zero-phase Q Butterworth {self.q_cutoff_hz:g} Hz order {self.q_order}, "
+        stop = f", nothing above {self.q_stop_hz:g} Hz" if self.q_stop_hz is not None else ""
+        return (f"ILC '{self.name}': {law}, zero-phase Q Butterworth {self.q_cutoff_hz:g} Hz order {self.q_order}{stop}, "
                 f"designed on {src}, on {self.base.name!r}")
 

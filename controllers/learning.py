@@ -18,7 +18,16 @@ error of the cycle before.  Three pieces are common to them and live here, once:
   from, its design model, its name, and a fresh copy per plant (:meth:`CycleLearner.for_plant`);
 * :func:`q_filter` - the robustness filter, zero phase: a Butterworth low-pass
   run forwards and backwards over the periodic signal (``filtfilt``), i.e. its
-  magnitude squared ``1 / (1 + (f / f_c)^(2 n))`` on each harmonic of the cycle.
+  magnitude squared ``1 / (1 + (f / f_c)^(2 n))`` on each harmonic of the cycle;
+* the **guard** (:class:`CycleLearner`, :data:`GUARD_DEFAULTS`): learning that watches itself.  The
+  rms % error of every cycle (the project's metric, :func:`ehas_env.simulation.metrics.percent_errors`,
+  on the error the controller sees) is compared with the base loop's (the cycles before the first
+  learned one, or ``guard.base_error_pct``) and with the best cycle so far; when it stays above
+  ``min(growth x best, base) + floor_pct`` for ``patience`` cycles the controller stops learning and
+  restores the feed-forward of its best cycle; when even that stays worse than the base loop for
+  ``patience`` cycles it halves the feed-forward, again and again, and after ``halvings`` halvings
+  drops it (the base loop alone); worse than ``growth`` x the base loop's error, it drops it at once.  Each step is an event in ``guard_log`` (and in the controller's
+  JSON state, ``learned``).
 
 The design model is the book's plant (``design_model`` None) or a model file of
 the rig (docs/model-file.md), read as data.
@@ -32,6 +41,19 @@ from functools import lru_cache
 import numpy as np
 
 from .base import Controller
+
+#: the guard's parameters (``"guard"`` object of a learning controller's JSON) and their defaults
+GUARD_DEFAULTS = {
+    "enabled": True,          # - : watch the per-cycle error (false: learn whatever happens)
+    "patience": 3,            # cycles: consecutive bad cycles before the guard acts
+    "growth": 2.0,            # - : a cycle is bad above growth x the best cycle so far (or the base loop's error)
+    "floor_pct": 0.02,        # % : absolute slack on top (an error this small is never bad)
+    "halvings": 3,            # - : halvings of the feed-forward before it is dropped (base loop alone)
+    "base_error_pct": None,   # % : the base loop's per-cycle rms error if measured; None: its own first cycles
+}
+#: what each guard field allows: (low, high, integer); growth > 1, base_error_pct > 0 or null
+_GUARD_RANGES = {"patience": (1, 100, True), "growth": (1.0, 100.0, False), "floor_pct": (0.0, 100.0, False),
+                 "halvings": (0, 30, True), "base_error_pct": (0.0, 1e6, False)}
 
 
 def check_number(value, name: str, lo: float, hi: float, who: str, *, lo_open: bool = False,
@@ -87,6 +109,50 @@ def sub_object(data: dict, key: str, allowed) -> dict:
     if unknown:
         raise ValueError(f"unknown key(s) {', '.join(unknown)} in '{key}'; expected some of {', '.join(allowed)}")
     return sub
+
+
+def guard_settings(guard, who: str) -> dict:
+    """The guard's settings (:data:`GUARD_DEFAULTS` with what ``guard`` gives), checked.
+
+    Parameters
+    ----------
+    guard : dict or None
+        The ``"guard"`` object of a learning controller (some of :data:`GUARD_DEFAULTS`' keys), None
+        for the defaults.
+    who : str
+        The controller type, for the message.
+
+    Returns
+    -------
+    dict
+        Every guard field: ``enabled`` (bool), ``patience`` (cycles), ``growth`` (-), ``floor_pct`` (%),
+        ``halvings`` (-), ``base_error_pct`` (% or None).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``guard.FIELD`` and what it allows.
+    """
+    guard = sub_object({"guard": {} if guard is None else guard}, "guard", tuple(GUARD_DEFAULTS))
+    out = dict(GUARD_DEFAULTS)
+    for key, value in guard.items():
+        if key == "enabled":
+            if not isinstance(value, bool):
+                raise ValueError(f"{who}: 'guard.enabled' must be true or false, got {value!r}")
+            out[key] = value
+        elif key == "base_error_pct" and value is None:
+            out[key] = None
+        else:
+            lo, hi, integer = _GUARD_RANGES[key]
+            v = check_number(value, f"guard.{key}", lo, hi, who, integer=integer,
+                             lo_open=key in ("growth", "base_error_pct"))
+            out[key] = int(v) if integer else float(v)
+    return out
+
+
+def condition_key(disc_sets: int, amplitude_deg: float, freq_hz: float) -> str:
+    """The key of one condition in a learning controller's ``learned`` state: ``"7 sets 30 deg 3 Hz"``."""
+    return f"{int(disc_sets)} sets {float(amplitude_deg):g} deg {float(freq_hz):g} Hz"
 
 
 def base_from_dict(data, who: str):
@@ -277,6 +343,24 @@ class CycleTable:
         b, w = self.bin, self.frac
         return float((1.0 - w) * table[b] + w * table[(b + 1) % self.n])
 
+    def at(self, t: float, table: np.ndarray) -> tuple[int, float]:
+        """(cycle index, the per-bin ``table`` at the phase of ``t`` s, linearly interpolated) without recording.
+
+        Parameters
+        ----------
+        t : float
+            Time, s (phase 0 at t = 0).
+        table : ndarray
+            One value per bin (length N).
+
+        Returns
+        -------
+        tuple of (int, float)
+            The cycle ``t`` falls in and the interpolated value.
+        """
+        c, b, w = self.locate(t)
+        return c, float((1.0 - w) * table[b] + w * table[(b + 1) % self.n])
+
     def _finish(self) -> np.ndarray:
         hit = self._count > 1e-9
         e = np.zeros(self.n)
@@ -293,14 +377,33 @@ class CycleTable:
 
 class CycleLearner(Controller):
     """What a controller that learns the cycle holds besides its law: a fixed-gain base loop, the cycle it
-    starts learning from, its design model and its name; and a fresh copy per plant.
+    starts learning from, its design model and its name; a fresh copy per plant; and the **guard**.
 
-    Subclasses call :meth:`_layer` from their ``__init__`` (it checks and sets these, then ``reset()``).
+    The guard (module docstring; parameters :data:`GUARD_DEFAULTS`) is one law for every learning
+    controller: at the end of each cycle the cycle's rms % error (``cycle_error_pct``, the error the
+    controller sees: reference minus sensed angle) is compared with the base loop's (``base_error_pct``:
+    the cycles run on the base loop alone, 1..``start_cycle``, or ``guard.base_error_pct``) and the best
+    so far; its states are ``"learning"``, ``"stopped"`` (the best cycle's feed-forward restored, no more
+    learning), ``"halved"`` (a fraction ``scale`` of it) and ``"base"`` (none: the base loop alone).
+    While learning, a cycle is bad above ``min(growth x best, base) + floor_pct``; once stopped, above
+    ``base + floor_pct`` (a halving); ``patience`` bad cycles in a row make one step.  One cycle above
+    ``growth x base + floor_pct`` (far worse than the base loop: never noise) is enough: learning stops at
+    once, and once stopped the feed-forward is dropped at once.
+    Every step is appended to ``guard_log`` (dicts: ``cycle``, ``event``, ``cycle_error_pct``,
+    ``best_error_pct``, ``base_error_pct``, ``scale``, ``why``).
+
+    What each run learned is kept per condition (:func:`condition_key`) in a record shared by the
+    controller and its :meth:`for_plant` copies and written by :meth:`learned_state` into the JSON
+    (``"learned"``): the final feed-forward, the per-cycle errors and the guard's events.
+
+    Subclasses call :meth:`_layer` from their ``__init__`` (it checks and sets these, then ``reset()``) and
+    implement ``_begin``, ``_learn``, ``_feedforward``, ``_snapshot`` / ``_restore`` (the learned signal),
+    ``_scale`` and ``_feedforward_table`` (the signal over one period, for drive files).
     """
 
     kind = "classical"
 
-    def _layer(self, base, start_cycle, design_model, name, who: str) -> None:
+    def _layer(self, base, start_cycle, design_model, name, who: str, guard=None, learned=None) -> None:
         """Check and set the layer's common parameters (one-line errors naming ``who`` and the field)."""
         self._who = who
         from .piff import GainSchedule, PIFF
@@ -315,6 +418,10 @@ class CycleLearner(Controller):
         if not isinstance(name, str) or not name.strip():
             raise ValueError(f"{who}: 'name' must be a non-empty text, got {name!r}")
         self.name = name
+        self.guard = guard_settings(guard, who)
+        self._memory: dict = {}  # condition key -> what was learned there; shared with the for_plant copies
+        if learned is not None:
+            self._memory.update(read_learned(learned, who))
         self.disc_sets: int | None = None
         self._loop = base if isinstance(base, PIFF) else None
         self.reset()
@@ -330,7 +437,8 @@ class CycleLearner(Controller):
         Returns
         -------
         CycleLearner
-            A fresh copy (same type) whose base loop is ``base.for_plant(disc_sets)``.
+            A fresh copy (same type) whose base loop is ``base.for_plant(disc_sets)``; what it learns is
+            recorded in this controller's ``learned`` state too.
         """
         new = copy.copy(self)
         new._loop = copy.deepcopy(self.base.for_plant(disc_sets))
@@ -338,11 +446,35 @@ class CycleLearner(Controller):
         new.reset()
         return new
 
+    def reset(self) -> None:
+        """Forget the run: the base loop's state, the table, what was learned and the guard's state."""
+        if self._loop is not None:
+            self._loop.reset()
+        self._table = None
+        self._reset_guard()
+        self._reset_learning()
+
+    def _reset_guard(self) -> None:
+        self.cycle_error_pct: list[float] = []  # rms % error of each finished cycle (the controller's view)
+        self.guard_log: list[dict] = []
+        self.guard_state = "learning"
+        self.base_error_pct = self.guard["base_error_pct"]
+        self._best = (math.inf, None, -1)  # (error %, snapshot, cycle)
+        self._bad = 0
+        self._halvings = 0
+        self.scale = 1.0
+        self._sums = [0.0, 0, 0.0]  # sum e^2 (deg^2), samples, max|e| (deg) of the running cycle
+        self._amp = self._freq = None
+
+    def _reset_learning(self) -> None:
+        """Clear the subclass's learned signal (called by :meth:`reset`)."""
+
     def act(self, measurement: dict) -> float:
         """Current command, mA: the base loop's, plus the learned feed-forward at this phase of the cycle.
 
-        The cycle's error is recorded sample by sample; at the end of each cycle from ``start_cycle`` on,
-        the subclass learns from it (``_learn``).
+        The cycle's error is recorded sample by sample; at the end of each cycle its rms % error goes to
+        the guard, and from ``start_cycle`` on, while the guard lets it, the subclass learns from it
+        (``_learn``).
 
         Parameters
         ----------
@@ -358,12 +490,155 @@ class CycleLearner(Controller):
         m = measurement
         if self._table is None:
             self._start(m)
-        done = self._table.add(m["t"], m["theta_ref_deg"] - m["theta_deg"])
-        if done is not None and done[0] >= self.start_cycle:
-            self._learn(done[1])
+        e = m["theta_ref_deg"] - m["theta_deg"]
+        done = self._table.add(m["t"], e)
+        if done is not None:
+            self._end_of_cycle(done[0], done[1])
+        sums = self._sums
+        sums[0] += e * e
+        sums[1] += 1
+        if abs(e) > sums[2]:
+            sums[2] = abs(e)
         u = self._loop.act(m) + self._feedforward(m["t"])
         lim = self._loop.i_max
         return min(max(u, -lim), lim)
+
+    def _end_of_cycle(self, cycle: int, e: np.ndarray) -> None:
+        """A cycle finished: its error to the guard, then (if the guard lets it) to the learning law."""
+        from ehas_env.simulation.metrics import percent_errors
+
+        s2, n, peak = self._sums
+        self._sums = [0.0, 0, 0.0]
+        err = percent_errors(s2, n, peak, self._amp)["rms_error_pct"]
+        self.cycle_error_pct.append(err)
+        if cycle < self.start_cycle:
+            return
+        if cycle == self.start_cycle:  # the last cycle on the base loop alone: its error is the base loop's
+            if self.guard["base_error_pct"] is None:
+                base = self.cycle_error_pct[1:cycle + 1] or self.cycle_error_pct[:1]
+                self.base_error_pct = float(np.sqrt(np.mean(np.square(base))))
+            self._best = (err, self._snapshot(), cycle)
+        elif self.guard["enabled"]:
+            self._watch(cycle, err)
+        if self.guard_state == "learning":
+            self._learn(e)
+        self._remember(cycle)
+
+    def _watch(self, cycle: int, err: float) -> None:
+        """The guard's law (class docstring) after cycle ``cycle`` whose rms error was ``err`` %."""
+        g, base = self.guard, self.base_error_pct
+        if self.guard_state == "learning" and err < self._best[0]:
+            self._best = (err, self._snapshot(), cycle)
+        best = self._best[0]
+        if self.guard_state == "learning":
+            limit = min(g["growth"] * best, base) + g["floor_pct"]
+        else:  # stopped or halved: only worse than the base loop calls for more
+            limit = base + g["floor_pct"]
+        if self.guard_state == "base" or err <= limit:
+            self._bad = 0
+            return
+        gross = err > g["growth"] * base + g["floor_pct"]  # far worse than the base loop: no waiting
+        self._bad = g["patience"] if gross else self._bad + 1
+        if self._bad < g["patience"]:
+            return
+        self._bad = 0
+        if self.guard_state == "learning":
+            self._restore(self._best[1])
+            self.guard_state = "stopped"
+            why = (f"a cycle at {err:.4g} %, above {g['growth']:g} x the base loop's {base:.4g} % + "
+                   f"{g['floor_pct']:g} %" if gross else
+                   f"{g['patience']} cycles above {limit:.4g} % (the smaller of {g['growth']:g} x the best "
+                   f"{best:.4g} % and the base loop's {base:.4g} %, + {g['floor_pct']:g} %)")
+            self._event(cycle, "stop", err, f"{why}: learning stopped, the feed-forward of cycle {self._best[2]} "
+                        "restored")
+        elif gross:  # far worse than the base loop even so: no halving steps
+            self.scale = 0.0
+            self._scale(0.0)
+            self.guard_state = "base"
+            self._event(cycle, "base", err, f"above {g['growth']:g} x the base loop's {base:.4g} % (+ "
+                        f"{g['floor_pct']:g} %) after the stop: feed-forward dropped, the base loop alone")
+        elif self._halvings < g["halvings"]:
+            self._halvings += 1
+            self.scale *= 0.5
+            self._scale(0.5)
+            self.guard_state = "halved"
+            self._event(cycle, "halve", err, f"{g['patience']} cycles worse than the base loop ({base:.4g} % + "
+                        f"{g['floor_pct']:g} %): feed-forward halved (x{self.scale:g})")
+        else:
+            self.scale = 0.0
+            self._scale(0.0)
+            self.guard_state = "base"
+            self._event(cycle, "base", err, f"{g['patience']} cycles worse than the base loop after "
+                        f"{g['halvings']} halvings: feed-forward dropped, the base loop alone")
+
+    def _event(self, cycle: int, event: str, err: float, why: str) -> None:
+        self.guard_log.append({"cycle": int(cycle), "event": event, "cycle_error_pct": float(err),
+                               "best_error_pct": float(self._best[0]), "base_error_pct": float(self.base_error_pct),
+                               "scale": float(self.scale), "why": why})
+
+    def _remember(self, cycle: int) -> None:
+        """Record this run's state for its condition in the shared ``learned`` record."""
+        key = condition_key(self.disc_sets, self._amp, self._freq)
+        self._memory[key] = {"disc_sets": int(self.disc_sets), "amplitude_deg": float(self._amp),
+                             "freq_hz": float(self._freq), "cycles": int(cycle) + 1,
+                             "cycle_error_pct": list(self.cycle_error_pct),
+                             "base_error_pct": self.base_error_pct, "guard_state": self.guard_state,
+                             "scale": self.scale, "events": list(self.guard_log),
+                             "feedforward": self._feedforward_state}
+
+    @property
+    def _feedforward_state(self):
+        """The learned signal as stored (a copy; the subclass's form), for :meth:`learned_state`."""
+        raise NotImplementedError
+
+    def learned_state(self) -> list[dict]:
+        """What each run learned, one record per condition (the JSON's ``"learned"``).
+
+        Returns
+        -------
+        list of dict
+            Per condition: ``disc_sets``, ``amplitude_deg`` (deg), ``freq_hz`` (Hz), ``cycles`` (cycles
+            run), ``cycle_error_pct`` (rms % per cycle, the controller's view), ``base_error_pct`` (%),
+            ``guard_state``, ``scale`` (-), ``events`` (the guard's) and ``feedforward`` (the subclass's
+            learned signal: ``{"table_mA": [...]}`` over the period's phase bins, or
+            ``{"harmonics": [[re, im] mA, ...]}``).
+        """
+        out = []
+        for key in sorted(self._memory, key=lambda k: (self._memory[k]["disc_sets"], self._memory[k]["freq_hz"],
+                                                       self._memory[k]["amplitude_deg"])):
+            rec = dict(self._memory[key])
+            ff = rec["feedforward"]
+            rec["feedforward"] = ({"table_mA": [float(f"{x:.9g}") for x in np.asarray(ff)]} if not np.iscomplexobj(ff)
+                                  else {"harmonics": [[float(z.real), float(z.imag)] for z in np.asarray(ff)]})
+            rec["cycle_error_pct"] = [float(f"{x:.6g}") for x in rec["cycle_error_pct"]]
+            out.append(rec)
+        return out
+
+    def feedforward_table(self, key: str, rate_hz: float | None = None) -> np.ndarray:
+        """The feed-forward learned at one condition over one period, mA per phase bin (a drive file's table).
+
+        Parameters
+        ----------
+        key : str
+            The condition (:func:`condition_key`), one of the ``learned`` records.
+        rate_hz : float, optional
+            Control rate, Hz (the table has ``round(rate / f)`` bins); default: the base loop's.
+
+        Returns
+        -------
+        ndarray
+            The current at phase ``k / N`` of the period, k = 0..N-1, mA (after the guard's scale).
+        """
+        if key not in self._memory:
+            raise ValueError(f"{self._who} '{self.name}': nothing learned at {key}; learned at: "
+                             f"{', '.join(sorted(self._memory)) or 'no condition (run it first)'}")
+        rec = self._memory[key]
+        rate = float(rate_hz) if rate_hz is not None else self.base.for_plant(rec["disc_sets"]).rate_hz
+        return self._table_of(rec["feedforward"], CycleTable(rec["freq_hz"], rate))
+
+    def _table_of(self, feedforward, table: "CycleTable") -> np.ndarray:
+        """The stored learned signal as a table over ``table``'s phase bins, mA."""
+        raise NotImplementedError
 
     def _start(self, m: dict) -> None:
         """The first sample of a run: check the plant and the measurement, then the subclass's ``_begin``."""
@@ -376,6 +651,7 @@ class CycleLearner(Controller):
             raise ValueError(f"{type(self).__name__}.act: measurement has no 'freq_hz'/'amplitude_deg'; a learning "
                              "controller needs the reference's period (Plant.simulate_closed_loop passes them)")
         self._table = CycleTable(float(m["freq_hz"]), self._loop.rate_hz)
+        self._amp, self._freq = float(m["amplitude_deg"]), float(m["freq_hz"])
         try:
             self._begin(float(m["amplitude_deg"]), float(m["freq_hz"]))
         except BaseException:
@@ -393,3 +669,76 @@ class CycleLearner(Controller):
     def _feedforward(self, t: float) -> float:
         """The learned current at time ``t``, mA."""
         raise NotImplementedError
+
+    def _snapshot(self):
+        """A copy of the learned signal (what :meth:`_restore` puts back)."""
+        raise NotImplementedError
+
+    def _restore(self, snapshot) -> None:
+        """Put back a learned signal taken by :meth:`_snapshot`."""
+        raise NotImplementedError
+
+    def _scale(self, factor: float) -> None:
+        """Multiply the learned signal by ``factor``."""
+        raise NotImplementedError
+
+    def guard_to_dict(self) -> dict:
+        """The guard's settings as written in the JSON (``"guard"``)."""
+        return dict(self.guard)
+
+
+def read_learned(learned, who: str) -> dict:
+    """A learning controller's ``"learned"`` records (:meth:`CycleLearner.learned_state`), read back as data.
+
+    Parameters
+    ----------
+    learned : list of dict
+        The records.
+    who : str
+        The controller type, for the message.
+
+    Returns
+    -------
+    dict
+        Condition key -> record (``feedforward`` as an ndarray: real table or complex harmonics).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``learned[i].FIELD``.
+    """
+    from ehas_env.ranges import check_field
+
+    if not isinstance(learned, list):
+        raise ValueError(f"{who}: 'learned' must be a list of records (disc_sets, amplitude_deg, freq_hz, "
+                         f"feedforward, ...), got {type(learned).__name__}")
+    out = {}
+    for i, rec in enumerate(learned):
+        where = f"{who}: 'learned[{i}]"
+        if not isinstance(rec, dict):
+            raise ValueError(f"{where}' must be an object, got {rec!r}")
+        for k in ("disc_sets", "amplitude_deg", "freq_hz", "feedforward"):
+            if k not in rec:
+                raise ValueError(f"{where}' has no '{k}'")
+        n = check_field("disc_sets", rec["disc_sets"], f"{where}.disc_sets'")
+        a = check_field("amplitude_deg", rec["amplitude_deg"], f"{where}.amplitude_deg'")
+        f = check_field("freq_hz", rec["freq_hz"], f"{where}.freq_hz'")
+        ff = rec["feedforward"]
+        try:
+            if isinstance(ff, dict) and set(ff) == {"table_mA"}:
+                arr = np.asarray(ff["table_mA"], dtype=float)
+                ok = arr.ndim == 1 and arr.size >= 8
+            elif isinstance(ff, dict) and set(ff) == {"harmonics"}:
+                h = np.asarray(ff["harmonics"], dtype=float)
+                ok = h.ndim == 2 and h.shape[1] == 2 and h.shape[0] >= 1
+                arr = h[:, 0] + 1j * h[:, 1] if ok else h
+            else:
+                ok = False
+        except (TypeError, ValueError):
+            ok = False
+        if not ok or not np.all(np.isfinite(arr)):
+            raise ValueError(f"{where}.feedforward' must be {{\"table_mA\": [>= 8 finite numbers]}} or "
+                             f"{{\"harmonics\": [[re, im], ...]}} (mA)")
+        out[condition_key(n, a, f)] = {**rec, "disc_sets": int(n), "amplitude_deg": float(a), "freq_hz": float(f),
+                                       "feedforward": arr}
+    return out

@@ -15,6 +15,13 @@ loop, the others (learning controllers, learned agents) through ``act`` in Pytho
 Outputs (:func:`run_long_test`, into ``OUT/long_test/``): ``long_test.csv`` (one row per
 controller and condition, with the per-cycle rms), ``long_test.md`` (summary, per-condition
 tables, the regenerating command) and ``heatmap_long_<controller>.png``.
+
+A learning controller's **guard** (:mod:`.learning`) is reported beside it: per run the number of
+guard events and the state it ended in (``learning``, ``stopped``, ``halved``, ``base``), and per
+controller the runs where the guard acted and the runs that **ended worse than the base loop**
+(:func:`worse_than_base`).  :func:`guard_long_test` runs learning controllers on a list of plants
+(the book's, plants built to break them, the sensor layer over several noise seeds) and writes
+``guard_long_test.csv`` / ``.md`` / ``.json`` with the median and worst seed.
 """
 from __future__ import annotations
 
@@ -41,9 +48,14 @@ ROBUST_AMPLITUDES = (10.0, 30.0)
 #: a run is divergent when its steady error exceeds this multiple of the best five cycles it reached before
 DIVERGENCE_RATIO = 2.0
 DIVERGENCE_FLOOR_PCT = 0.05
+#: a learning run ends worse than its base loop when its steady rms exceeds the base loop's by this fraction
+#: plus the base loop's own wander (the standard deviation of its last five cycles' rms): a periodic orbit
+#: reached again after a fall-back matches the base loop's own run far below a per cent; a base loop that
+#: oscillates without repeating (a valve gain twice the design's) wanders by per cents from cycle to cycle
+WORSE_TOLERANCE = 0.01
 CSV_COLUMNS = ("controller", "kind", "disc_sets", "freq_hz", "amplitude_deg", "steady_rms_pct", "steady_peak_pct",
                "settle_cycles", "worst_cycle_pct", "worst_cycle", "base_worst_cycle_pct", "transient_flag",
-               "hit_stroke_end", "max_current_mA", "cycle_rms_pct")
+               "hit_stroke_end", "max_current_mA", "guard_events", "guard_state", "cycle_rms_pct")
 
 
 def run_condition(controller, cond: Condition, *, cycles: int = DEFAULT_CYCLES, plant_kwargs: dict | None = None) -> dict:
@@ -80,7 +92,49 @@ def run_condition(controller, cond: Condition, *, cycles: int = DEFAULT_CYCLES, 
     row.update(long_test_metrics(res.t, res.theta_ref_deg, res.theta_deg, cond.amplitude_deg, cond.freq_hz))
     row["hit_stroke_end"] = res.hit_stroke_end
     row["max_current_mA"] = float(np.abs(res.current_mA).max())
+    row.update(guard_fields(sub))
     return row
+
+
+def guard_fields(sub) -> dict:
+    """A learning controller's guard after a run: ``guard_events`` (count), ``guard_state``, ``guard_log``.
+
+    Parameters
+    ----------
+    sub : Controller
+        The copy that ran (:meth:`~.learning.CycleLearner.for_plant`); a controller without a guard gives {}.
+
+    Returns
+    -------
+    dict
+        The three fields, or {}.
+    """
+    log = getattr(sub, "guard_log", None)
+    if log is None:
+        return {}
+    return {"guard_events": len(log), "guard_state": sub.guard_state, "guard_log": list(log)}
+
+
+def worse_than_base(row, base_row) -> bool:
+    """A learning run that ended worse than its fixed-gain base loop on the same plant and condition.
+
+    Parameters
+    ----------
+    row, base_row : dict
+        The learning controller's and the base loop's rows (``steady_rms_pct``, %).
+
+    Returns
+    -------
+    bool
+        ``steady > (1 + WORSE_TOLERANCE) x the base loop's steady + std(the base loop's last five cycles' rms)``.
+    """
+    return bool(row["steady_rms_pct"] > worse_limit(base_row))
+
+
+def worse_limit(base_row) -> float:
+    """The steady rms % above which a learning run ended worse than the base loop of ``base_row``."""
+    wander = float(np.std(np.asarray(base_row["cycle_rms_pct"], dtype=float)[-STEADY_CYCLES:]))
+    return (1.0 + WORSE_TOLERANCE) * base_row["steady_rms_pct"] + wander
 
 
 def evaluate_long(controller, conditions, *, cycles: int = DEFAULT_CYCLES, plant_kwargs: dict | None = None,
@@ -279,7 +333,10 @@ def summarise(rows) -> dict:
             "max_settle_cycles": int(settle.max()), "worst_cycle_pct": float(max(r["worst_cycle_pct"] for r in rows)),
             "transient_flags": int(sum(bool(r.get("transient_flag")) for r in rows)),
             "divergent": int(sum(bool(r.get("divergent")) for r in rows)),
-            "stroke_end_hits": int(sum(bool(r["hit_stroke_end"]) for r in rows))}
+            "stroke_end_hits": int(sum(bool(r["hit_stroke_end"]) for r in rows)),
+            "guarded_runs": int(sum(bool(r.get("guard_events")) for r in rows)),
+            "fallbacks_to_base": int(sum(r.get("guard_state") == "base" for r in rows)),
+            "worse_than_base": int(sum(bool(r.get("worse_than_base")) for r in rows))}
 
 
 def run_long_test(controllers, out_dir, *, cycles: int = DEFAULT_CYCLES, plant_kwargs: dict | None = None,
@@ -335,6 +392,8 @@ def run_long_test(controllers, out_dir, *, cycles: int = DEFAULT_CYCLES, plant_k
             for r, b in zip(results[name], base_rows[key]):
                 r["base_worst_cycle_pct"] = b["worst_cycle_pct"]
                 r["transient_flag"] = r["worst_cycle_pct"] > TRANSIENT_LIMIT * b["worst_cycle_pct"]
+                r["base_steady_rms_pct"] = b["steady_rms_pct"]
+                r["worse_than_base"] = worse_than_base(r, b)
     for name in names:
         for r in results[name]:
             r["divergent"] = divergent(r)
@@ -390,7 +449,8 @@ def _csv(controllers, names, results, command, cycles) -> str:
                         f"{r['steady_rms_pct']:.6g}", f"{r['steady_peak_pct']:.6g}", r["settle_cycles"],
                         f"{r['worst_cycle_pct']:.6g}", r["worst_cycle"], "" if base is None else f"{base:.6g}",
                         int(bool(r.get("transient_flag"))), int(bool(r["hit_stroke_end"])),
-                        f"{r['max_current_mA']:.4g}", ";".join(f"{x:.4g}" for x in r["cycle_rms_pct"])])
+                        f"{r['max_current_mA']:.4g}", r.get("guard_events", ""), r.get("guard_state", ""),
+                        ";".join(f"{x:.4g}" for x in r["cycle_rms_pct"])])
     return buf.getvalue()
 
 
@@ -421,17 +481,24 @@ def _markdown(names, results, summary, pngs, command, cycles, plant_label, disc_
              "cycle by more than 50 %. The 4-cycle benchmark (`benchmark.md`) is unchanged beside it.", "",
              "## Summary", "",
              "| controller | kind | mean steady rms % | worst steady rms % | mean settle cycle | max settle cycle | "
-             "worst cycle % | flagged transients | divergent runs | stroke-end hits |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "worst cycle % | flagged transients | divergent runs | stroke-end hits | guard events: runs / fallbacks "
+             "to base | ended worse than base |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name in names:
         s = summary[name]
+        learning = any("guard_state" in r for r in results[name])
+        guard = f"{s['guarded_runs']} / {s['fallbacks_to_base']}" if learning else "-"
+        worse = str(s["worse_than_base"]) if learning else "-"
         lines.append(f"| {name} | {s['kind']} | {s['mean_steady_rms_pct']:.4f} | {s['worst_steady_rms_pct']:.4f} | "
                      f"{s['mean_settle_cycles']:.1f} | {s['max_settle_cycles']} | {s['worst_cycle_pct']:.3g} | "
-                     f"{s['transient_flags']} | {s['divergent']} | {s['stroke_end_hits']} |")
+                     f"{s['transient_flags']} | {s['divergent']} | {s['stroke_end_hits']} | {guard} | {worse} |")
     lines += ["", f"A run is **divergent** when its steady error (last {STEADY_CYCLES} cycles) exceeds "
               f"{DIVERGENCE_RATIO:g} × the best {STEADY_CYCLES} consecutive cycles it reached before (and "
               f"{DIVERGENCE_FLOOR_PCT:g} %): an error that grows back, from a learning that does not converge or a "
-              "loop that oscillates."]
+              "loop that oscillates. **Guard events**: runs where the learning controller's guard acted "
+              "(docs/learning-control.md) / runs it ended on the base loop alone; **ended worse than base**: steady "
+              f"rms above {1 + WORSE_TOLERANCE:g} × its fixed-gain base loop's on the same condition plus that loop's "
+              f"own wander (the standard deviation of its last {STEADY_CYCLES} cycles' rms)."]
     if robust:
         lines += ["", "## Robustness: designed on the book's model, run on other plants", "",
                   f"Each learning controller on {len({r['plant'] for r in robust})} plants, ±30 % on β, K and friction, "
@@ -453,3 +520,167 @@ def _markdown(names, results, summary, pngs, command, cycles, plant_label, disc_
         lines += _table(results[name], "worst_cycle_pct", lambda x: f"{x:.3g}", disc_sets)
         lines += ["", f"![steady-state heat map]({Path(pngs[name]).name})"]
     return "\n".join(lines) + "\n"
+
+
+GUARD_FILES = ("guard_long_test.csv", "guard_long_test.md", "guard_long_test.json", "learned_*.json")
+
+
+def plant_runner(kwargs_of):
+    """A :func:`guard_long_test` plant from ``Plant`` arguments: ``kwargs_of(disc_sets, seed) -> dict``.
+
+    Parameters
+    ----------
+    kwargs_of : callable
+        ``(disc_sets, seed) -> Plant keyword arguments`` (effects, sensors, inertia, seed, ...).
+
+    Returns
+    -------
+    callable
+        ``(controller, cond, cycles, seed) -> row`` (:func:`run_condition`).
+    """
+    def run(controller, cond, cycles, seed):
+        return run_condition(controller, cond, cycles=cycles, plant_kwargs=kwargs_of(cond.disc_sets, seed))
+
+    return run
+
+
+def guard_long_test(controllers, plants, out_dir, *, conditions=None, cycles: int = DEFAULT_CYCLES,
+                    command: str = "", progress: bool = True, save_learned: str | None = None) -> dict:
+    """Learning controllers and their base loops on several plants (and noise seeds): do they end worse?
+
+    Parameters
+    ----------
+    controllers : list of CycleLearner
+        Learning controllers (each with a fixed-gain ``base``).
+    plants : list of dict
+        ``name``, ``what`` (words), ``run`` (``(controller, cond, cycles, seed) -> row`` with the long-test
+        figures, e.g. :func:`plant_runner`) and ``seeds`` (list of int: the noise seeds it is run with).
+    out_dir : str or path
+        Folder for ``guard_long_test.csv``, ``.md``, ``.json`` (and ``learned_<controller>.json``).
+    conditions : list of Condition, optional
+        Default: the 63 conditions.
+    cycles : int
+        Reference cycles per run.
+    command : str
+        The regenerating command, written into the files.
+    progress : bool
+        Progress bars.
+    save_learned : str, optional
+        A plant's name: after its first seed, each controller is saved with what it learned there
+        (``learned_<controller>.json``, the input of ``ehas export-drive``).
+
+    Returns
+    -------
+    dict
+        ``summary``: one dict per controller and plant (``controller``, ``plant``, ``seeds``,
+        ``seed_means`` (% per seed), ``median_seed_mean_pct``, ``worst_seed_mean_pct``, ``worst_run_pct``,
+        ``base_mean_pct`` (median over seeds), ``runs``, ``worse_than_base``, ``worse_on_base_alone`` (of
+        those, the runs that ended with the learned signal dropped: the base loop alone, in another of its
+        own oscillations than its own run's), ``guarded_runs``, ``fallbacks_to_base``); ``rows``: every run.
+    """
+    from ehas_env.output.files import atomic_write_text
+    from ehas_env.output.progress import bar
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    controllers = list(controllers)
+    names = _unique_names(controllers)
+    conds = list(conditions) if conditions is not None else grid(DISC_SETS, FREQS, AMPLITUDES)
+    rows, summary, base_cache = [], [], {}
+    for plant in plants:
+        for ctrl, name in zip(controllers, names):
+            per_seed = []
+            for seed in plant["seeds"]:
+                if hasattr(ctrl, "_memory"):
+                    ctrl._memory.clear()  # what it learned: this plant and seed only
+                mine, base = [], []
+                for c in bar(conds, desc=f"{plant['name']} seed {seed}: {name}", unit="run", disable=not progress):
+                    r = plant["run"](ctrl, c, cycles, seed)
+                    key = (plant["name"], seed, json.dumps(ctrl.base.to_dict(), sort_keys=True, default=str), c)
+                    if key not in base_cache:  # the base loop once per plant, seed and condition
+                        base_cache[key] = plant["run"](ctrl.base, c, cycles, seed)
+                    b = base_cache[key]
+                    r = {k: v for k, v in r.items() if k != "controller"}
+                    r.update(controller=name, plant=plant["name"], seed=seed, disc_sets=c.disc_sets, freq_hz=c.freq_hz,
+                             amplitude_deg=c.amplitude_deg, base_steady_rms_pct=b["steady_rms_pct"],
+                             worse_than_base=worse_than_base(r, b))
+                    mine.append(r)
+                    base.append(b)
+                rows += mine
+                per_seed.append((mine, base))
+                if save_learned == plant["name"] and seed == plant["seeds"][0] and hasattr(ctrl, "learned_state"):
+                    ctrl.save(out / f"learned_{_slug(name)}.json", command=command,
+                              notes={"learned_on": f"{plant['name']}: {plant['what']}, noise seed {seed}, "
+                                                   f"{cycles} cycles per condition"})
+            means = [float(np.mean([r["steady_rms_pct"] for r in m])) for m, _ in per_seed]
+            all_rows = [r for m, _ in per_seed for r in m]
+            summary.append({
+                "controller": name, "plant": plant["name"], "what": plant["what"], "seeds": list(plant["seeds"]),
+                "seed_means": means, "median_seed_mean_pct": float(np.median(means)),
+                "worst_seed_mean_pct": float(max(means)),
+                "worst_run_pct": float(max(r["steady_rms_pct"] for r in all_rows)),
+                "base_mean_pct": float(np.median([np.mean([x["steady_rms_pct"] for x in b]) for _, b in per_seed])),
+                "runs": len(all_rows), "worse_than_base": int(sum(r["worse_than_base"] for r in all_rows)),
+                "worse_on_base_alone": int(sum(r["worse_than_base"] and r.get("guard_state") == "base"
+                                               for r in all_rows)),
+                "guarded_runs": int(sum(bool(r.get("guard_events")) for r in all_rows)),
+                "fallbacks_to_base": int(sum(r.get("guard_state") == "base" for r in all_rows))})
+    atomic_write_text(out / "guard_long_test.csv", _guard_csv(rows, command, cycles))
+    atomic_write_text(out / "guard_long_test.json", json.dumps({"command": command, "cycles": cycles,
+                                                                "conditions": len(conds), "summary": summary},
+                                                               indent=2) + "\n")
+    atomic_write_text(out / "guard_long_test.md", _guard_markdown(summary, plants, command, cycles, len(conds)))
+    return {"summary": summary, "rows": rows}
+
+
+def _guard_csv(rows, command, cycles) -> str:
+    buf = io.StringIO()
+    buf.write(f"# guard long test ({cycles} cycles from rest per run), regenerate with: {command}\n")
+    buf.write("# steady_rms_pct: 100 RMS(theta_ref - theta)/amplitude over the last 5 cycles (the true angle); "
+              "base_steady_rms_pct: the fixed-gain base loop's on the same plant, condition and seed; "
+              f"worse_than_base: steady > {1 + WORSE_TOLERANCE:g} x base + the std of the base loop's last "
+              f"{STEADY_CYCLES} cycles' rms; guard_events: cycle:event of the guard "
+              "(stop: learning stopped and the best cycle's feed-forward restored; halve; base: feed-forward dropped)\n")
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["controller", "plant", "seed", "disc_sets", "freq_hz", "amplitude_deg", "steady_rms_pct",
+                "base_steady_rms_pct", "worse_than_base", "guard_state", "guard_events", "cycle_rms_pct"])
+    for r in rows:
+        ev = ";".join(f"{e['cycle']}:{e['event']}" for e in r.get("guard_log", []))
+        w.writerow([r["controller"], r["plant"], r["seed"], r["disc_sets"], f"{r['freq_hz']:g}",
+                    f"{r['amplitude_deg']:g}", f"{r['steady_rms_pct']:.6g}", f"{r['base_steady_rms_pct']:.6g}",
+                    int(r["worse_than_base"]), r.get("guard_state", ""), ev,
+                    ";".join(f"{x:.4g}" for x in r["cycle_rms_pct"])])
+    return buf.getvalue()
+
+
+def _guard_markdown(summary, plants, command, cycles, n_conds) -> str:
+    lines = ["# Guard long test: learning controllers on the book's model and on plants built to break them", "",
+             f"Regenerate with `{command}`.", "",
+             f"Each learning controller and its fixed-gain base loop run {n_conds} conditions × {cycles} reference "
+             "cycles from rest on each plant (noise seeds as listed). Steady rms % = 100 · RMS(θ_ref − θ)/θ_amp over "
+             f"the last {STEADY_CYCLES} cycles, on the true angle (docs/metric.md). A run **ended worse than its base "
+             f"loop** when its steady rms exceeds {1 + WORSE_TOLERANCE:g} × the base loop's on the same plant, "
+             f"condition and seed plus the base loop's own wander (the standard deviation of its last {STEADY_CYCLES} "
+             "cycles' rms: 0 for a loop that repeats, per cents where it oscillates without repeating). **Guard**: runs where the guard acted (stopped learning and restored the best "
+             "cycle's feed-forward, halved it, or dropped it) / runs that ended on the base loop alone "
+             "(docs/learning-control.md). With several seeds, the mean over the conditions is taken per seed and "
+             "the median and worst seed are given. A run that ended worse *on the base loop alone* had its learned "
+             "signal dropped by the guard: it ran the base loop's law exactly, in another of that loop's own "
+             "oscillations than the base loop's own run (a loop that has more than one, like the base loop on a "
+             "valve with twice the design's gain).", "",
+             "| plant | what |", "|---|---|"]
+    lines += [f"| {p['name']} | {p['what']} (seeds {', '.join(map(str, p['seeds']))}) |" for p in plants]
+    lines += ["", "| controller | plant | seeds | mean steady rms %: median seed | worst seed | worst run % | "
+              "base loop's mean % | runs | ended worse than base (on the base loop alone) | guard acted / fell back "
+              "to base |",
+              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for s in summary:
+        lines.append(f"| {s['controller']} | {s['plant']} | {len(s['seeds'])} | {s['median_seed_mean_pct']:.4f} | "
+                     f"{s['worst_seed_mean_pct']:.4f} | {s['worst_run_pct']:.4f} | {s['base_mean_pct']:.4f} | "
+                     f"{s['runs']} | {s['worse_than_base']} ({s['worse_on_base_alone']}) | {s['guarded_runs']} / "
+                     f"{s['fallbacks_to_base']} |")
+    total = sum(s["worse_than_base"] for s in summary)
+    alone = sum(s["worse_on_base_alone"] for s in summary)
+    lines += ["", f"Runs that ended worse than their base loop, all plants and controllers: **{total}** of "
+              f"{sum(s['runs'] for s in summary)}; with learned feed-forward still on: **{total - alone}**.", ""]
+    return "\n".join(lines)

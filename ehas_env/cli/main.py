@@ -203,6 +203,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "report": ("ehas_env.cli.report", "one self-contained HTML page of a diagnosis or comparison folder"),
     "train": ("ehas_train.train_cli", "train a learned controller with stable-baselines3"),
     "model": ("ehas_env.cli.model", "read, write and compare model files: the plant as one file (docs/model-file.md)"),
+    "export-drive": ("ehas_env.cli.export_drive", "write a learning controller's learned feed-forward as drive files "
+                                                  "(CSV + JSON sidecar)"),
 }
 
 
