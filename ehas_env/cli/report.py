@@ -77,14 +77,16 @@ def read_doc(path) -> dict:
 
 
 def _figures(folder: Path) -> list[tuple[Path, str]]:
-    """The PNGs of ``folder`` in the order its report.md shows them (with their alt text), then any other."""
+    """The PNGs of ``folder`` in the order its report.md shows them, each with the italic line under it there (else
+    its alt text), then any other."""
     shown = []
     md = folder / "report.md"
     if md.is_file():
-        for alt, name in re.findall(r"!\[([^\]]*)\]\(([^)\s]+\.png)\)", md.read_text(encoding="utf-8")):
+        for alt, name, words in re.findall(r"!\[([^\]]*)\]\(([^)\s]+\.png)\)(?:\s*\n\s*\n\*([^*\n]+)\*)?",
+                                           md.read_text(encoding="utf-8")):
             p = folder / name
             if p.is_file() and p not in [q for q, _ in shown]:
-                shown.append((p, alt))
+                shown.append((p, words or alt))
     rest = [(p, p.stem.replace("_", " ")) for p in sorted(folder.glob("*.png")) if p not in [q for q, _ in shown]]
     return shown + rest
 
@@ -236,35 +238,47 @@ def _per_run_records(per_run) -> tuple[str, dict, list[dict]]:
     return order, units, out
 
 
-def _per_run_table(page, per_run, held: list[str]) -> None:
-    """Parameters fitted on each run alone: one row per run (its role: fitted or held out for validation), one
-    column per parameter with its unit, and one with its 95 % interval."""
+def _per_run_table(page, per_run, held: list[str], final: dict | None = None) -> None:
+    """Parameters fitted on each run alone, one table per effect (``baseline`` for beta and K): one row per run
+    (its role: fitted or held out for validation), one column per parameter with its unit and one with its
+    95 % interval.  ``final``: the final model's effects (an effect not in it is marked "judged, not kept")."""
     order, units, runs = _per_run_records(per_run)
     if not runs:
         return
     names = []
     for r in runs:
         names += [n for n in r["params"] if n not in names]
-    shown = {n: _shown(n, units.get(n, "")) for n in names}
-    recorded = any(r.get("recorded") not in (None, "") for r in runs)
-    header = ["run", "role"] + (["recorded"] if recorded else [])
+    groups: dict[str, list[str]] = {}
     for n in names:
-        unit = shown[n][0]
-        header += [f"{n} [{unit}]" if unit else n, f"{n}, 95 % interval [{unit}]" if unit else f"{n}, 95 % interval"]
-    rows = []
-    for r in runs:
-        row = [r["run"], _role(r["run"], held)] + ([str(r.get("recorded") or "")] if recorded else [])
-        for n in names:
-            p, scale = r["params"].get(n) or {}, shown[n][1]
-            v = p.get("value")
-            row.append(_num(v * scale) if isinstance(v, (int, float)) else "")
-            lo, hi = (p.get(k) for k in ("low", "high"))
-            text = _interval(*(None if x is None else x * scale for x in (lo, hi))) if "low" in p or "high" in p else ""
-            row.append(text + (" (at its fit range's end)" if p.get("at_range_end") else ""))
-        rows.append(row)
+        groups.setdefault(n.partition(".")[0] if "." in n else "baseline", []).append(n)
+    recorded = any(r.get("recorded") not in (None, "") for r in runs)
     page.paragraph("The final model's parameters (and those of the best effects judged but not kept) refitted on "
                    "each closed-loop run alone" + (f", runs in {order}" if order else "") + ":")
-    page.table(header, rows, marked=[r["run"] in held for r in runs])
+    for effect, group in groups.items():
+        if final is not None:
+            kept = effect == "baseline" or effect in final
+            page.subheading(f"{effect} ({'final model' if kept else 'judged, not kept'})")
+        else:
+            page.subheading(effect)
+        shown = {n: _shown(n, units.get(n, "")) for n in group}
+        header = ["run", "role"] + (["recorded"] if recorded else [])
+        for n in group:
+            short, unit = n.partition(".")[2] or n, shown[n][0]
+            header += [f"{short} [{unit}]" if unit else short,
+                       f"{short}, 95 % interval [{unit}]" if unit else f"{short}, 95 % interval"]
+        rows = []
+        for r in runs:
+            row = [r["run"], _role(r["run"], held)] + ([str(r.get("recorded") or "")] if recorded else [])
+            for n in group:
+                p, scale = r["params"].get(n) or {}, shown[n][1]
+                v = p.get("value")
+                row.append(_num(v * scale) if isinstance(v, (int, float)) else "")
+                lo, hi = (p.get(k) for k in ("low", "high"))
+                text = (_interval(*(None if x is None else x * scale for x in (lo, hi)))
+                        if "low" in p or "high" in p else "")
+                row.append(text + (" (at its fit range's end)" if p.get("at_range_end") else ""))
+            rows.append(row)
+        page.table(header, rows, marked=[r["run"] in held for r in runs])
 
 
 def _alternatives(page, alts: list, held: list[str], title: str, intro: str) -> None:
@@ -413,7 +427,8 @@ def build_page(doc: dict, folder, command: str = ""):
                   "Fitted in place of the reported explanation and worse by more than the logs resolve.")
     if doc.get("per_run"):
         page.heading("Per-run parameters")
-        _per_run_table(page, doc["per_run"], held)
+        model_effects = (doc.get("model") or {}).get("effects") if isinstance(doc.get("model"), dict) else None
+        _per_run_table(page, doc["per_run"], held, model_effects if isinstance(model_effects, dict) else None)
     for key, title in (("drift", "Drift between runs"), ("disturbances", "Disturbances in the residual")):
         texts = [d["text"] for d in doc.get(key) or [] if isinstance(d, dict) and d.get("text")]
         if texts:

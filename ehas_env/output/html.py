@@ -26,7 +26,7 @@ STYLE = ("body{font-family:sans-serif;max-width:70em;margin:1.5em auto;padding:0
          "white-space:nowrap}tr.held td{background:#fff4d6}"
          "pre{background:#f6f6f6;padding:.6em;overflow-x:auto;font-size:85%}img{max-width:100%}"
          "code.command{display:block;background:#f6f6f6;padding:.4em .6em;font-size:90%;overflow-x:auto;"
-         "white-space:pre}figure{margin:1em 0}figcaption{font-size:90%;color:#444}"
+         "white-space:pre}div.wide{overflow-x:auto}figure{margin:1em 0}figcaption{font-size:90%;color:#444}"
          ".figure{font-size:110%;font-weight:bold}")
 
 
@@ -130,7 +130,7 @@ class Page:
         head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
         body = "".join(("<tr class=\"held\">" if m else "<tr>") + "".join(cell(v) for v in r) + "</tr>"
                        for r, m in zip(rows, marked))
-        self.parts.append(f"<table><tr>{head}</tr>{body}</table>")
+        self.parts.append(f'<div class="wide"><table><tr>{head}</tr>{body}</table></div>')
 
     def figure(self, png: Path, caption: str = "") -> None:
         """Embed a PNG file as a base64 data URI (the page needs no file beside it).

@@ -244,15 +244,19 @@ def test_the_page_is_tables_of_values_with_units_and_names_the_held_out_run(tmp_
     check_page(page, [HELD])
     headers = [t["header"] for t in page.tables]
     # the per-run parameters: one row per run, one column per parameter with its unit (beta as the model shows it)
-    per_run = next(t for t in page.tables if "coulomb_friction.Fc [N]" in t["header"])
+    # (one table per effect: coulomb_friction, then the baseline's beta and K)
+    per_run = next(t for t in page.tables if "Fc [N]" in t["header"])
     assert [r[0] for r in per_run["rows"]] == [r["run"] for r in doc["per_run"]["runs"]]
     h = per_run["header"]
-    assert "baseline.beta [GPa]" in h and "baseline.K [LPM/mA]" in h
+    assert h == ["run", "role", "Fc [N]", "Fc, 95 % interval [N]"]
     row = {r[0]: r for r in per_run["rows"]}
-    assert float(row[HELD][h.index("coulomb_friction.Fc [N]")]) == 302.0
-    assert float(row[HELD][h.index("baseline.beta [GPa]")]) == 1.0
+    assert float(row[HELD][h.index("Fc [N]")]) == 302.0
+    assert row[HELD][h.index("Fc, 95 % interval [N]")] == "300 to 304"
     assert row[HELD][h.index("role")] == HELD_WORDS
     assert row["cl_1set_35deg_3hz"][h.index("role")] == "fitted"
+    base = next(t for t in page.tables if "beta [GPa]" in t["header"])
+    assert "K [LPM/mA]" in base["header"]
+    assert float(base["rows"][2][base["header"].index("beta [GPa]")]) == 1.0  # 1.0e9 Pa, shown in GPa
     # the alternatives' per-run score differences: a table too, the held-out run marked
     assert ["run", "role", "hyp_pressure_friction [dB]"] in headers
     # every command is shown once, as written
@@ -277,8 +281,8 @@ def test_an_older_per_run_shape_and_a_comparison_are_read_as_tables(tmp_path):
     doc["per_run"] = {"cl_a": {"coulomb_friction.Fc": [300.0, 296.0, 304.0]}, HELD: {"coulomb_friction.Fc": 301.0}}
     page = parse(build_page(doc, tmp_path, command="").write(tmp_path / "p.html"))
     check_page(page, [HELD])
-    t = next(t for t in page.tables if "coulomb_friction.Fc [N]" in t["header"])  # the unit from the library
-    assert t["rows"][0][t["header"].index("coulomb_friction.Fc, 95 % interval [N]")] == "296 to 304"
+    t = next(t for t in page.tables if "Fc [N]" in t["header"])  # the unit from the library
+    assert t["rows"][0][t["header"].index("Fc, 95 % interval [N]")] == "296 to 304"
     comparison = {"campaign": "camp", "residual_x_noise": 1.1, "verdict": "explained",
                   "before": {"model": "baseline", "residual_x_noise": 5.2, "verdict": "unexplained", "fit_percent": 76.0},
                   "after": {"model": "+ coulomb_friction", "residual_x_noise": 1.1, "verdict": "explained",
