@@ -6,11 +6,17 @@
 (``ehas compare --json``), and the figures of FOLDER (``--out`` of
 ``diagnose`` or ``compare``, in the order its report.md shows them), and
 writes one self-contained page (default ``FOLDER/report.html``): the verdict
-with its noise figure, the model as a difference from the book's rig,
-the alternatives and per-run parameters when the JSON has them, the figures
-(embedded), and the next step.  No script, nothing from the network
-(:mod:`ehas_env.output.html`).  ``ehas diagnose --out DIR --html`` writes the
-same page into DIR.
+with its noise figure, the runs held out for validation, the model as a
+difference from the book's rig, the alternatives and per-run parameters when
+the JSON has them, the figures (embedded), and the next step.  No script,
+nothing from the network (:mod:`ehas_env.output.html`).  ``ehas diagnose --out
+DIR --html`` writes the same page into DIR.
+
+The page is read by a person: every table holds values (nested records become
+tables of their own: one row per run, one column per parameter), each number's
+unit in its column's heading; the runs held out for validation are named on it
+and in every per-run table; its commands (``Regenerate``: :func:`report_command`,
+and the next step) run as written from the folder the user ran from.
 """
 from __future__ import annotations
 
@@ -343,38 +349,10 @@ def _validation(page, doc: dict, held: list[str]) -> None:
         page.table([h for _, h in cols], [[_num(v[k]) for k, _ in cols]])
 
 
-def build_page(doc: dict, folder, command: str = ""):
-    """The HTML page of a diagnosis or comparison JSON and its figures.
-
-    Every table holds values, a number's unit in its column's heading (or in a ``unit`` column); the run held
-    out for validation is named near the top and in every per-run table; every command on the page runs as
-    written from the folder the user ran the diagnosis (or ``ehas report``) from.
-
-    Parameters
-    ----------
-    doc : dict
-        The JSON (``ehas diagnose --json`` or ``ehas compare --json``); keys other than ``verdict`` and
-        ``residual_x_noise`` are read when present and of the expected shape.
-    folder : str or Path
-        The folder whose PNGs are embedded.
-    command : str
-        The command that rewrites the page (:func:`report_command`; printed on it).
-
-    Returns
-    -------
-    ehas_env.output.html.Page
-    """
-    from ehas_env.measurement.model_difference import model_difference
+def _verdict(page, doc: dict) -> None:
+    """The verdict with its noise figure, the thresholds, the unexplained rest in words; a comparison's models."""
     from ehas_env.measurement.verdict import FIGURE_KEY, figure_text
-    from ehas_env.output.html import Page
 
-    folder = Path(folder)
-    kind = "Diagnosis" if "ranking" in doc or "stack" in doc else "Comparison"
-    held = held_out(doc)
-    page = Page(f"{kind}: {doc.get('campaign', folder)}")
-    if command:
-        page.command(command, intro="Regenerate this page (run from the folder the "
-                                    f"{kind.lower()} was run in):")
     page.heading("Verdict")
     x = float(doc[FIGURE_KEY])
     page.paragraph(f"{doc['verdict']}: residual {figure_text(x)} (the noise figure: the model's residual against what "
@@ -393,7 +371,11 @@ def build_page(doc: dict, folder, command: str = ""):
         page.table(["model", "residual [x what does not repeat]", "verdict", "fit [%]"],
                    [[s.get("model"), _num(s.get(FIGURE_KEY), 3), s.get("verdict"), _num(s.get("fit_percent"))]
                     for s in sides])
-    _validation(page, doc, held)
+
+
+def _model(page, doc: dict) -> None:
+    """The final model as its difference from the book's rig; a structural hypothesis or missing state kept."""
+    from ehas_env.measurement.model_difference import model_difference
 
     model = _model_of(doc)
     if model is not None:
@@ -419,6 +401,59 @@ def build_page(doc: dict, folder, command: str = ""):
     if isinstance(state, dict) and state.get("words"):
         page.heading("Missing state kept")
         page.paragraph(f"{state.get('kept', '')}: {state['words']}")
+
+
+def _search(page, doc: dict) -> None:
+    """What the search tried: the first round's ranking and the stacking, numbers with units in the headings."""
+    if isinstance(doc.get("ranking"), list) and doc["ranking"]:
+        page.heading("Effects tried (first round, ranked best first)")
+        ranking = [e for e in doc["ranking"] if isinstance(e, dict)]
+        page.table(["effect", "fitted", "score [dB]", "fit [%]", "evidence"],
+                   [[e.get("effect"),
+                     _values_text(e.get("params"), {k: _param_unit(f"{e.get('effect')}.{k}") for k in e.get("params") or {}}),
+                     _num(e.get("score"), 3), _num(e.get("fit_percent")), e.get("evidence")] for e in ranking])
+    if isinstance(doc.get("stack"), list) and doc["stack"]:
+        page.heading("Stacking: which effects were kept, and why")
+        page.table(["effect", "kept", "reason", "residual, fit data [x noise]", "residual, validation data [x noise]",
+                    "fit of the held-out runs [%]"],
+                   [[s.get("effect"), "yes" if s.get("kept") else "no", s.get("reason"),
+                     _num(s.get("residual_x_noise_fit")), _num(s.get("residual_x_noise_validation")),
+                     _num(s.get("fit_percent_validation"))] for s in doc["stack"] if isinstance(s, dict)])
+
+
+def build_page(doc: dict, folder, command: str = ""):
+    """The HTML page of a diagnosis or comparison JSON and its figures.
+
+    Every table holds values, a number's unit in its column's heading (or in a ``unit`` column); the run held
+    out for validation is named near the top and in every per-run table; every command on the page runs as
+    written from the folder the user ran the diagnosis (or ``ehas report``) from.
+
+    Parameters
+    ----------
+    doc : dict
+        The JSON (``ehas diagnose --json`` or ``ehas compare --json``); keys other than ``verdict`` and
+        ``residual_x_noise`` are read when present and of the expected shape.
+    folder : str or Path
+        The folder whose PNGs are embedded.
+    command : str
+        The command that rewrites the page (:func:`report_command`; printed on it).
+
+    Returns
+    -------
+    ehas_env.output.html.Page
+    """
+    from ehas_env.output.html import Page
+
+    folder = Path(folder)
+    kind = "Diagnosis" if "ranking" in doc or "stack" in doc else "Comparison"
+    held = held_out(doc)
+    page = Page(f"{kind}: {doc.get('campaign', folder)}")
+    if command:
+        page.command(command, intro="Regenerate this page (run from the folder the "
+                                    f"{kind.lower()} was run in):")
+    _verdict(page, doc)
+    _validation(page, doc, held)
+    _model(page, doc)
     _alternatives(page, doc.get("alternatives") or [], held,
                   "Alternatives: other models that explain the data about as well",
                   "These logs cannot tell these explanations from the reported one (their score difference is "
@@ -435,20 +470,7 @@ def build_page(doc: dict, folder, command: str = ""):
             page.heading(title)
             for text in texts:
                 page.paragraph(text)
-    if isinstance(doc.get("ranking"), list) and doc["ranking"]:
-        page.heading("Effects tried (first round, ranked best first)")
-        ranking = [e for e in doc["ranking"] if isinstance(e, dict)]
-        page.table(["effect", "fitted", "score [dB]", "fit [%]", "evidence"],
-                   [[e.get("effect"),
-                     _values_text(e.get("params"), {k: _param_unit(f"{e.get('effect')}.{k}") for k in e.get("params") or {}}),
-                     _num(e.get("score"), 3), _num(e.get("fit_percent")), e.get("evidence")] for e in ranking])
-    if isinstance(doc.get("stack"), list) and doc["stack"]:
-        page.heading("Stacking: which effects were kept, and why")
-        page.table(["effect", "kept", "reason", "residual, fit data [x noise]", "residual, validation data [x noise]",
-                    "fit of the held-out runs [%]"],
-                   [[s.get("effect"), "yes" if s.get("kept") else "no", s.get("reason"),
-                     _num(s.get("residual_x_noise_fit")), _num(s.get("residual_x_noise_validation")),
-                     _num(s.get("fit_percent_validation"))] for s in doc["stack"] if isinstance(s, dict)])
+    _search(page, doc)
     figs = _figures(folder)
     if figs:
         page.heading("Figures")
