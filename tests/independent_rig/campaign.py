@@ -7,14 +7,25 @@ sine runs over disc sets, amplitudes and frequencies, and a valve chirp
 ``RUN.csv`` + ``RUN.json``; ``truth.json`` (which campaign readers skip: a
 ``.json`` without its ``.csv``) records what was simulated.
 
+Start conditions as rigs record them (options of :func:`simulate`, the defaults
+being ehas's own plan): runs that start from rest without a fade-in
+(``ramp_cycles=0``, the sidecar stating it or leaving the key out), a reference
+that starts mid-stroke (``phase_rad``, the rig at rest at 0 or where the reference
+starts), a mid-run bump on one run's crank (``bump``) and a run cut short
+(``cut``: the last cycle incomplete).  docs/independent-generator.md, "Start
+conditions".
+
 Run as a script to write one::
 
     python -m tests.independent_rig.campaign OUT --effects return_pressure:p_t=10 --seed 3 [--rig rig_b]
+        [--ramp-cycles 0 [--omit-ramp]] [--phase-deg 90 --rest start]
+        [--bump cl_1set_35deg_3hz,1.5,0.03,20] [--cut cl_1set_35deg_3hz,0.15] [--exact-bounds]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import tempfile
@@ -26,7 +37,7 @@ import numpy as np
 from .effects import ALL, to_si
 from .rig import Rig, book_rig, read_rig
 from .sensors import Chain
-from .simulate import DT, chirp, closed_loop, valve_bench
+from .simulate import DT, Bump, chirp, closed_loop, valve_bench
 
 PLAN = ((3, 20.0, 1.0), (5, 30.0, 2.0), (1, 35.0, 3.0), (7, 10.0, 3.0))  # (disc sets, amplitude deg, Hz)
 DURATION = 3.0  # s per run
@@ -60,7 +71,8 @@ SCHEDULE_STEP_MIN = 40.0
 
 def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", duration: float = DURATION,
              plan=PLAN, perturb: bool = True, valve: bool = True, chain: Chain | None = None, progress=None,
-             schedule: dict | None = None):
+             schedule: dict | None = None, ramp_cycles: float = 1, state_ramp: bool = True, phase_rad: float = 0.0,
+             rest: str = "zero", bump: dict | None = None, cut: dict | None = None, exact_bounds: bool = False):
     """Simulate a campaign in memory.
 
     Parameters
@@ -89,6 +101,27 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
         the rig's beta and K, after the perturbation).  The valve chirp, recorded last, takes the last run's.
         With a schedule, each sidecar records its start time (``recorded``, ISO 8601; the runs
         :data:`SCHEDULE_STEP_MIN` minutes apart).
+    ramp_cycles : float
+        Every closed-loop run's fade-in, reference periods (0: the run starts from rest without one).
+    state_ramp : bool
+        The sidecars state ``ramp_cycles`` (False: the key is left out, which the format reads as 0; only with
+        ``ramp_cycles`` 0).
+    phase_rad : float
+        The reference sine's phase, rad: without a fade-in every run's reference starts at A sin(phase), away
+        from mid-stroke.
+    rest : str
+        Where each closed-loop run's rig rests at t = 0: ``"zero"`` (mid-stroke) or ``"start"`` (where the
+        reference starts).
+    bump : dict, optional
+        A mid-run knock on one run's crank: ``{"run": run name, "t_s": s, "width_s": s, "torque_Nm": N m}``
+        (:class:`.simulate.Bump`).
+    cut : dict, optional
+        One run cut short: ``{"run": run name, "short_s": s}``, its log ending ``short_s`` before the planned
+        duration (the same samples up to there; the last cycle incomplete).
+    exact_bounds : bool
+        Chamber pressures held within [0, Ps] inside the integration too, not only between its pieces
+        (:class:`.physics.RigModel`; for runs that drive a chamber to 0 bar or Ps, such as starts from rest
+        without a fade-in).
 
     Returns
     -------
@@ -96,6 +129,15 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
     truth : dict
     """
     base, path = rig_named(rig)
+    names = [run_name(*p) for p in plan]
+    for what, opt in (("bump", bump), ("cut", cut)):
+        if opt is not None and opt.get("run") not in names:
+            raise ValueError(f"{what}: run {opt.get('run')!r} is not a closed-loop run of the plan; one of "
+                             f"{', '.join(names)}")
+    if cut is not None and not 0.0 < float(cut["short_s"]) < duration:
+        raise ValueError(f"cut: short_s must be in (0, {duration:g}) s, got {cut['short_s']!r}")
+    knock = (Bump(float(bump["t_s"]), float(bump["width_s"]), float(bump["torque_Nm"])) if bump is not None
+             else None)
     chain = chain or Chain()
     rng = np.random.default_rng(seed)
     fb = 1.0 + (rng.uniform(-BETA_SPREAD, BETA_SPREAD) if perturb else 0.0)
@@ -108,12 +150,18 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
         t0 = time.time()
         actual, eff_si = _scheduled(nominal, effects, schedule, k)
         # the controller's gains are the nominal rig's (the engineer tuned on the model file), not the actual's
+        name = run_name(sets, amp, freq)
         cols, _, meta = closed_loop(actual, int(sets), float(amp), float(freq), duration, eff_si, chain, rng,
-                                    gains=base.controller_gains())
+                                    gains=base.controller_gains(), ramp_cycles=ramp_cycles, phase_rad=phase_rad,
+                                    rest=rest, bump=knock if bump is not None and bump["run"] == name else None,
+                                    state_ramp=state_ramp, exact_bounds=exact_bounds)
         meta["notes"] = f"independent generator (tests/independent_rig), seed {seed}"
+        if cut is not None and cut["run"] == name:
+            keep = int(round((duration - float(cut["short_s"])) / DT))
+            cols = {k: np.asarray(v)[:keep] for k, v in cols.items()}
         if schedule:
             meta["recorded"] = _recorded(k)
-        runs.append((run_name(sets, amp, freq), cols, meta))
+        runs.append((name, cols, meta))
         if progress:
             progress(f"{runs[-1][0]} {time.time() - t0:.1f} s")
     if valve:
@@ -136,6 +184,16 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
     truth["controller"] = base.controller_gains()
     if schedule:
         truth["schedule"] = schedule
+    start = {k: v for k, v in (("ramp_cycles", ramp_cycles), ("state_ramp", state_ramp), ("phase_rad", phase_rad),
+                               ("rest", rest), ("exact_bounds", exact_bounds))
+             if v != {"ramp_cycles": 1, "state_ramp": True, "phase_rad": 0.0, "rest": "zero",
+                      "exact_bounds": False}[k]}
+    if bump is not None:
+        start["bump"] = {"run": bump["run"], **knock.to_dict()}
+    if cut is not None:
+        start["cut"] = {"run": cut["run"], "short_s": float(cut["short_s"])}
+    if start:  # recorded only when the runs do not start as ehas plans them (older campaigns stay as they were)
+        truth["start"] = start
     return runs, truth
 
 
@@ -199,6 +257,22 @@ def parse_effects(text: str) -> dict:
     return out
 
 
+def _fields(text: str, n: int, option: str) -> list:
+    """``RUN,x,y,...`` -> [RUN, float, ...] (n fields), or ValueError naming the option."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != n:
+        raise ValueError(f"{option}: expected {n} comma-separated fields, got {text!r}")
+    try:
+        return [parts[0]] + [float(p) for p in parts[1:]]
+    except ValueError:
+        raise ValueError(f"{option}: the fields after the run name must be numbers, got {text!r}") from None
+
+
+def _whole(x: float):
+    """x as an int when it is whole (the sidecar writes 1, as ehas's plan does, not 1.0)."""
+    return int(x) if float(x).is_integer() else float(x)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="write a campaign of the independent rig")
     ap.add_argument("out")
@@ -208,9 +282,28 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=DURATION)
     ap.add_argument("--no-perturb", action="store_true")
     ap.add_argument("--overwrite", action="store_true")
+    ap.add_argument("--ramp-cycles", type=float, default=1.0,
+                    help="fade-in of every closed-loop run, reference periods (0: start from rest without one)")
+    ap.add_argument("--omit-ramp", action="store_true",
+                    help="leave ramp_cycles out of the sidecars (the format's default 0; with --ramp-cycles 0)")
+    ap.add_argument("--phase-deg", type=float, default=0.0, help="the reference sine's phase, deg")
+    ap.add_argument("--rest", choices=("zero", "start"), default="zero",
+                    help="where the rig rests at t = 0: mid-stroke or where the reference starts")
+    ap.add_argument("--bump", default="", help="RUN,T_S,WIDTH_S,TORQUE_NM: a torque pulse on that run's crank")
+    ap.add_argument("--cut", default="", help="RUN,SHORT_S: that run's log ends SHORT_S s early")
+    ap.add_argument("--exact-bounds", action="store_true",
+                    help="hold the chamber pressures within [0, Ps] inside the integration too (runs that reach them)")
     a = ap.parse_args(argv)
-    runs, truth = simulate(parse_effects(a.effects), seed=a.seed, rig=a.rig, duration=a.duration,
-                           perturb=not a.no_perturb, progress=lambda s: print("  " + s, flush=True))
+    try:
+        bump = dict(zip(("run", "t_s", "width_s", "torque_Nm"), _fields(a.bump, 4, "--bump"))) if a.bump else None
+        cut = dict(zip(("run", "short_s"), _fields(a.cut, 2, "--cut"))) if a.cut else None
+        runs, truth = simulate(parse_effects(a.effects), seed=a.seed, rig=a.rig, duration=a.duration,
+                               perturb=not a.no_perturb, progress=lambda s: print("  " + s, flush=True),
+                               ramp_cycles=_whole(a.ramp_cycles), state_ramp=not a.omit_ramp,
+                               phase_rad=math.radians(a.phase_deg), rest=a.rest, bump=bump, cut=cut,
+                               exact_bounds=a.exact_bounds)
+    except ValueError as e:
+        raise SystemExit(f"campaign: {e}") from None
     truth["command"] = "python -m tests.independent_rig.campaign " + " ".join(sys.argv[1:] if argv is None else argv)
     print(f"wrote {write(a.out, runs, truth, overwrite=a.overwrite)}")
     return 0

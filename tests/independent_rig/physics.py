@@ -22,6 +22,11 @@ The driver (:mod:`.simulate`) holds the amplifier's command constant over each
 piece of a control period and integrates these rates with an adaptive
 Runge-Kutta method; the end stops (spool, stroke, pressures within [0, Ps]) are
 applied between pieces, as the reference model applies them between its steps.
+Between pieces (up to 1 ms apart) a chamber pressure can run past 0 or Ps inside a
+piece; with ``exact_bounds`` the pressure's rate is also zeroed outward at its bound
+inside the right-hand side (the limit "held within [0, Ps]" tends to as the steps
+shrink), which matters only where a run drives a chamber to a bound (a start from
+rest without a fade-in): docs/independent-generator.md, "Start conditions".
 """
 from __future__ import annotations
 
@@ -64,10 +69,14 @@ class RigModel:
         Number of disc sets, 1-7.
     effects : dict
         ``{name: {param: SI value}}``.
+    exact_bounds : bool
+        Hold the chamber (and hose-port) pressures within [0, Ps] inside the right-hand side too (their rate
+        zeroed outward at a bound), not only between the driver's pieces.
     """
 
-    def __init__(self, rig: Rig, disc_sets: int, effects: dict | None = None):
+    def __init__(self, rig: Rig, disc_sets: int, effects: dict | None = None, exact_bounds: bool = False):
         self.rig = rig
+        self.exact_bounds = exact_bounds
         self.inertia = rig.inertia_per_set * disc_sets
         e = dict(effects or {})
         self.e = e
@@ -277,6 +286,11 @@ class RigModel:
             if self.mur:
                 torque -= self.mur * abs(f) * math.tanh(omega / BEARING_W_TANH)
             dy[1] = (f * lever + torque) / self.inertia
+        if self.exact_bounds:
+            top = rig.supply + self.ripple
+            for j in (4, 5) + ((self.i_hose, self.i_hose + 1) if self.i_hose is not None else ()):
+                if (y[j] <= 0.0 and dy[j] < 0.0) or (y[j] >= top and dy[j] > 0.0):
+                    dy[j] = 0.0
         return dy
 
     def initial_state(self) -> list:

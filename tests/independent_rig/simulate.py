@@ -11,8 +11,15 @@ The controller (docs/reference-model.md §9), re-implemented from the docs:
 ``i = Kp e + Ki I + Kv r' + Ka r''``, ``e = r - theta_sensed`` in deg, ``I``
 the rectangle-rule integral of e that stops while the output is clipped and e
 would drive it further, clipped to +-i_max, then the 12-bit DAC.  Reference
-``r = A s(t/T) sin(2 pi f t)`` with the smoothstep ``s = 10x^3 - 15x^4 + 6x^5``
-over the first period T = 1/f, derivatives by the product rule.
+``r = s(t/T) (offset + A sin(2 pi f t + phase))`` with the smoothstep
+``s = 10x^3 - 15x^4 + 6x^5`` over the fade-in T = ramp_cycles / f (by default one
+period; none with ramp_cycles 0), derivatives by the product rule.
+
+Start conditions as rigs record them (:func:`closed_loop`'s options; the defaults
+are the runs ehas plans): a run that starts from rest without a fade-in
+(``ramp_cycles=0``), a reference that starts away from 0 (``phase_rad``, with the
+rig at rest at 0 or where the reference starts, ``rest="start"``), and a short
+external torque pulse on the crank that no model knows of (:class:`Bump`).
 """
 from __future__ import annotations
 
@@ -32,11 +39,13 @@ RTOL = 1.0e-7
 ATOL = np.array([1e-10, 1e-8, 1e-12, 1e-10, 1e-2, 1e-2, 1e-8, 1e-11, 1e-9, 1e-12])
 
 
-def reference(t: float, amp: float, freq: float, offset: float = 0.0) -> tuple:
+def reference(t: float, amp: float, freq: float, offset: float = 0.0, ramp_cycles: float = 1.0,
+              phase: float = 0.0) -> tuple:
     """(r, r', r'') in deg, deg/s, deg/s^2: the sine about the mean angle ``offset`` (the sidecar's
-    ``reference.offset_deg``, docs/measurement-format.md), mean angle and amplitude faded in over the first period."""
+    ``reference.offset_deg``, docs/measurement-format.md), mean angle and amplitude faded in over the first
+    ``ramp_cycles`` periods (0: no fade-in, the sine from t = 0), the sine's phase ``phase`` in rad."""
     w = 2.0 * math.pi * freq
-    T = 1.0 / freq
+    T = ramp_cycles / freq
     if t < T:
         x = t / T
         s = x ** 3 * (10.0 - 15.0 * x + 6.0 * x * x)
@@ -44,11 +53,114 @@ def reference(t: float, amp: float, freq: float, offset: float = 0.0) -> tuple:
         s2 = (60.0 * x - 180.0 * x ** 2 + 120.0 * x ** 3) / T ** 2
     else:
         s, s1, s2 = 1.0, 0.0, 0.0
-    sn, cs = math.sin(w * t), math.cos(w * t)
+    sn, cs = math.sin(w * t + phase), math.cos(w * t + phase)
     r = amp * s * sn + offset * s
     r1 = amp * (s1 * sn + s * w * cs) + offset * s1
     r2 = amp * (s2 * sn + 2.0 * s1 * w * cs - s * w * w * sn) + offset * s2
     return r, r1, r2
+
+
+@dataclass(frozen=True)
+class Bump:
+    """A short external torque pulse on the crank (a knock on the discs) that no model of the rig holds.
+
+    ``torque_Nm sin(pi (t - t_s) / width_s)`` over ``[t_s, t_s + width_s)``, zero elsewhere (a half sine: a
+    knock's force rises and falls).  ``t_s`` and ``width_s`` are rounded to the 1 ms control period, so the
+    pulse's edges fall where the integration restarts.
+
+    Parameters
+    ----------
+    t_s : float
+        Start of the pulse, s from the run's start.
+    width_s : float
+        Its length, s (20-50 ms: a knock, not a change of the rig).
+    torque_Nm : float
+        Its peak torque on the crank, N m (positive: toward rising angle).
+    """
+
+    t_s: float
+    width_s: float
+    torque_Nm: float
+
+    def __post_init__(self):
+        if not (self.t_s >= 0.0 and self.width_s >= DT and math.isfinite(self.torque_Nm)):
+            raise ValueError(f"bump: t_s >= 0 s, width_s >= {DT:g} s and a finite torque_Nm, got {self}")
+
+    @property
+    def k0(self) -> int:
+        """First control period of the pulse."""
+        return int(round(self.t_s / DT))
+
+    @property
+    def periods(self) -> int:
+        """Its length in control periods."""
+        return max(1, int(round(self.width_s / DT)))
+
+    def torque(self, t: float) -> float:
+        """The pulse's torque at t, N m."""
+        a, w = self.k0 * DT, self.periods * DT
+        return self.torque_Nm * math.sin(math.pi * (t - a) / w) if a <= t < a + w else 0.0
+
+    def to_dict(self) -> dict:
+        return {"t_s": self.k0 * DT, "width_s": self.periods * DT, "torque_Nm": self.torque_Nm}
+
+
+class _Bumped:
+    """A :class:`.physics.RigModel` with a :class:`Bump` on its crank (every other method is the model's)."""
+
+    def __init__(self, model: RigModel, bump: Bump):
+        self._m = model
+        self._bump = bump
+
+    def __getattr__(self, name):
+        return getattr(self._m, name)
+
+    def rates(self, y, i_cmd: float, t: float = 0.0) -> list:
+        dy = self._m.rates(y, i_cmd, t)
+        dy[1] += self._bump.torque(t) / self._m.inertia
+        return dy
+
+
+def rest_at(model: RigModel, angle_deg: float) -> list:
+    """The state at rest where the LVDT reads ``angle_deg`` (noise aside), both chambers at Ps/2.
+
+    The piston position whose reading is ``angle_deg`` (through the sensor effects: offset, nonlinearity) is
+    found by bisection; the crank, the piston of a compliant load path and a lagging reading all sit there.
+
+    Parameters
+    ----------
+    model : RigModel
+    angle_deg : float
+        The reading, deg, inside the stroke.
+
+    Returns
+    -------
+    list
+        The state vector.
+    """
+    from scipy.optimize import brentq
+
+    rig = model.rig
+    y = model.initial_state()
+    h = rig.half_stroke
+
+    def reading(x):
+        z = list(y)
+        z[0] = math.asin(min(1.0, max(-1.0, x / rig.radius + math.sin(model.phi0)))) - model.phi0
+        z[7] = x
+        if model.i_xr is not None:
+            z[model.i_xr] = x
+        return model.lvdt_angle_deg(z) - angle_deg
+
+    if reading(-h) * reading(h) > 0.0:
+        raise ValueError(f"rest at {angle_deg:g} deg: outside the readings of the stroke")
+    x = brentq(reading, -h, h, xtol=1e-12)
+    y[0] = math.asin(min(1.0, max(-1.0, x / rig.radius + math.sin(model.phi0)))) - model.phi0
+    if model.two_body:
+        y[7] = x
+    if model.i_xr is not None:
+        y[model.i_xr] = x
+    return y
 
 
 class PIFF:
@@ -110,7 +222,8 @@ class Run:
 
 def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, duration: float, effects_si: dict,
                 chain: Chain, rng: np.random.Generator, gains: dict | None = None, progress=None,
-                offset_deg: float = 0.0) -> tuple:
+                offset_deg: float = 0.0, ramp_cycles: float = 1, phase_rad: float = 0.0, rest: str = "zero",
+                bump: Bump | None = None, state_ramp: bool = True, exact_bounds: bool = False) -> tuple:
     """A closed-loop sine run.
 
     Parameters
@@ -135,6 +248,21 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
         Called with the fraction done every 500 periods.
     offset_deg : float
         The sine's mean angle, deg (0: centred on the stroke).
+    ramp_cycles : float
+        The fade-in, reference periods (0: the sine from t = 0, a start from rest without a fade-in).
+    phase_rad : float
+        The sine's phase, rad (with ``ramp_cycles`` 0 the reference starts at offset + A sin(phase)).
+    rest : str
+        Where the rig is at rest at t = 0: ``"zero"`` (mid-stroke, as ehas's runs) or ``"start"`` (where the
+        reference starts: the operator jogged it there before switching the sine on).
+    bump : Bump, optional
+        An external torque pulse on the crank during the run.
+    state_ramp : bool
+        The sidecar states ``ramp_cycles`` (False: the key is left out, the format's default 0; only with
+        ``ramp_cycles`` 0).
+    exact_bounds : bool
+        The chamber pressures held within [0, Ps] inside the integration too (:class:`.physics.RigModel`), not only
+        between pieces: for runs that drive a chamber to a bound.
 
     Returns
     -------
@@ -145,11 +273,21 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
     meta : dict
         The sidecar.
     """
-    model = RigModel(rig, disc_sets, effects_si)
+    if rest not in ("zero", "start"):
+        raise ValueError(f"rest must be 'zero' or 'start', got {rest!r}")
+    if not state_ramp and ramp_cycles:
+        raise ValueError(f"state_ramp=False leaves ramp_cycles out of the sidecar (read as 0): ramp_cycles must be "
+                         f"0, got {ramp_cycles!r}")
+    model = RigModel(rig, disc_sets, effects_si, exact_bounds=exact_bounds)
     gains = dict(gains or rig.controller_gains())
     ctrl = PIFF(gains, rig.i_max)
     n = int(round(duration / DT))
-    y = np.array(model.initial_state())
+    if rest == "start":
+        y = np.array(rest_at(model, reference(0.0, amplitude_deg, freq_hz, offset_deg, ramp_cycles, phase_rad)[0]))
+    else:
+        y = np.array(model.initial_state())
+    if bump is not None:
+        model = _Bumped(model, bump)
     cols = {k: np.zeros(n) for k in ("t", "current_mA", "theta_deg", "theta_ref_deg", "flow_lpm", "p_a_bar",
                                      "p_b_bar", "p_s_bar")}
     true = {k: np.zeros(n) for k in ("theta_deg", "flow_lpm", "p_a_bar", "p_b_bar")}
@@ -158,7 +296,7 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
         t = k * DT
         th_true = model.lvdt_angle_deg(y)
         th = chain.angle(th_true, rig, rng)
-        r, r1, r2 = reference(t, amplitude_deg, freq_hz, offset_deg)
+        r, r1, r2 = reference(t, amplitude_deg, freq_hz, offset_deg, ramp_cycles, phase_rad)
         u = chain.dac(ctrl(r - th, r1, r2))
         cmds.append(u)
         out = model.outputs(y, t)
@@ -180,7 +318,8 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
                                      np.array([model.supply(k * DT) for k in range(n)]) / BAR, rng)
     cols["load_kN"] = rig.area * (cols["p_a_bar"] - cols["p_b_bar"]) * BAR * 1e-3
     meta = {"kind": "closed_loop", "disc_sets": int(disc_sets), "supply_bar": rig.supply / BAR,
-            "reference": {"amplitude_deg": amplitude_deg, "freq_hz": freq_hz, "phase_rad": 0.0, "ramp_cycles": 1,
+            "reference": {"amplitude_deg": amplitude_deg, "freq_hz": freq_hz, "phase_rad": phase_rad,
+                          **({"ramp_cycles": ramp_cycles} if state_ramp else {}),
                           **({"offset_deg": offset_deg} if offset_deg else {})},
             "controller": {k: float(v) for k, v in gains.items()}}
     return cols, true, meta

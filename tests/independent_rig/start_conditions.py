@@ -1,0 +1,562 @@
+"""The verdict on campaigns as rigs record them (issue 42, point 3 and the first acceptance point).
+
+For every hidden class of the independent generator (:data:`.effects.ALL`: out of library, library, the check
+and the unlisted classes) at its strong magnitude, and a clean campaign on each of the three rigs, the same
+campaign (same seed, rig, effects and noise draws) is generated in :data:`VARIANTS`:
+
+* ``fade``: every closed-loop run faded in over one period (ehas's own plan; the reference);
+* ``rest``: from rest without a fade-in, the sidecars leaving ``ramp_cycles`` out (the format's default 0);
+* ``rest_bump``: ``rest`` with a knock on the 1-set run's crank at mid-run (:func:`bump_of`);
+* ``mid``: without a fade-in, the reference starting at A sin(60 deg) with the rig at rest there;
+* ``rest_cut``: ``rest`` with the 1-set 3 Hz run's log ending 0.15 s early (its last cycle incomplete).
+
+(a) The verdict figure of the book model on each: ``ehas compare CAMP --json F`` (no fit), ``after.residual_x_noise``
+and ``after.verdict``, with its per-block numbers; the acceptance: every variant's figure within
+:data:`AGREE` of the ``fade`` one.
+
+(b) The full diagnosis of the ``rest`` variant (``ehas diagnose CAMP --json F``): verdict, figure, what it added
+to the book model (:func:`.judge.worded_items`), and whether a campaign whose hidden effect rises
+:data:`VISIBLE_DB` or more above the noise on a key signal (:func:`effect_db`) is called explained with nothing
+added (must be 0), and clean campaigns called unexplained (must be 0).
+
+Checkpoints: each finished case is ``OUT/cases/ID.json`` (part a, and part b once run); a rerun skips what is
+there (Ctrl-C and rerun resumes).  Campaigns go to ``--work``.
+
+    python -m tests.independent_rig.start_conditions --out results/verdict_start_conditions
+        [--part a|b|ab] [--only ID[,ID]] [--limit N] [--jobs N] [--work DIR] [--readme-only] [--redo]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shlex
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import acceptance as acc
+from . import campaign as gen
+from .effects import ALL
+from .judge import kept_effects, worded_items
+from .rig import BAR
+from .sensors import Chain
+
+COMMAND = "python -m tests.independent_rig.start_conditions --out results/verdict_start_conditions"
+#: the acceptance: a variant's verdict figure within this share of the faded-in campaign's
+AGREE = 0.10
+#: a hidden effect "rises above the noise" on a key signal from this many dB (its own contribution's energy over
+#: a whole run, in the sensor's noise variance)
+VISIBLE_DB = 10.0
+#: the bump: on this run, at mid-run, this long, its peak torque this share of the rig's stall torque A Ps r
+BUMP_RUN = gen.run_name(1, 35.0, 3.0)
+BUMP_WIDTH_S = 0.03
+BUMP_STALL_SHARE = 0.02
+#: the run cut short and by how much (its last cycle incomplete: 0.45 of a 3 Hz period)
+CUT_RUN = gen.run_name(1, 35.0, 3.0)
+CUT_SHORT_S = 0.15
+#: the phase of the mid-stroke start, rad: the reference starts at A sin(60 deg) = 0.87 A, moving
+MID_PHASE_RAD = math.radians(60.0)
+#: the variants and their options of :func:`.campaign.simulate` (the bump filled in per rig by :func:`options`)
+VARIANTS = ("fade", "rest", "rest_bump", "mid", "rest_cut")
+#: the key signals of the effect's measure (the logged transducers; current_mA is the controller's own output)
+KEY_SIGNALS = ("theta_deg", "p_a_bar", "p_b_bar", "flow_lpm", "load_kN")
+GUESS_A_S = 150.0  # a case's first guess of time for part a, s (6 generations, 5 compares)
+GUESS_B_S = 480.0  # and for part b (one diagnosis)
+
+
+def cases() -> list[dict]:
+    """Every hidden class at its strong magnitude on the book rig, then a clean campaign on each rig.
+
+    Returns
+    -------
+    list of dict
+        ``id``, ``effects`` ({name: {param: value}}), ``seed``, ``rig``, ``duration`` (s per run).
+    """
+    out = [{"id": name, "effects": {name: spec.values(1)}, "seed": 900 + i, "rig": "book", "duration": 3.0}
+           for i, (name, spec) in enumerate(ALL.items())]
+    out += [{"id": f"clean_{rig}", "effects": {}, "seed": 990 + j, "rig": rig, "duration": 3.0}
+            for j, rig in enumerate(("book", "rig_b", "rig_c"))]
+    return out
+
+
+def bump_of(rig: str, duration: float) -> dict:
+    """The knock of the ``rest_bump`` variant: a half-sine torque pulse of :data:`BUMP_WIDTH_S` at mid-run on
+    :data:`BUMP_RUN`, its peak :data:`BUMP_STALL_SHARE` of the rig's stall torque A Ps r (book rig: 16.8 N m,
+    about 10x the sensor noise at its peak on the angle and the pressures: clearly visible, and a knock, not a
+    change of the rig)."""
+    r, _ = gen.rig_named(rig)
+    stall = r.area * r.supply * r.radius
+    return {"run": BUMP_RUN, "t_s": round(duration / 2.0, 3), "width_s": BUMP_WIDTH_S,
+            "torque_Nm": round(BUMP_STALL_SHARE * stall, 2)}
+
+
+def options(variant: str, rig: str, duration: float) -> dict:
+    """The options of :func:`.campaign.simulate` that make ``variant``.
+
+    Every variant, ``fade`` included, holds the chamber pressures within [0, Ps] inside the integration
+    (``exact_bounds``): the starts from rest drive chambers to 0 bar and Ps for about 20 ms, where the generator's
+    default (the bounds applied only between its pieces, up to 1 ms apart) is 30-60 bar off the converged
+    solution of the documented model (docs/independent-generator.md, "Start conditions")."""
+    rest = {"ramp_cycles": 0, "state_ramp": False}
+    v = {"fade": {}, "rest": rest, "rest_bump": {**rest, "bump": bump_of(rig, duration)},
+         "mid": {"ramp_cycles": 0, "phase_rad": MID_PHASE_RAD, "rest": "start"},
+         "rest_cut": {**rest, "cut": {"run": CUT_RUN, "short_s": CUT_SHORT_S}}}[variant]
+    return {**v, "exact_bounds": True}
+
+
+def noise_sigma(signal: str, rig, chain: Chain) -> float:
+    """The generator's own noise level of a logged signal (white noise and its converter's step), in its unit."""
+    q = 2.0 ** -chain.adc_bits if chain.adc_bits else 0.0
+    if signal == "theta_deg":  # position noise and ADC over 2h, seen as an angle at mid-stroke
+        return math.degrees(math.hypot(chain.lvdt_noise_m, 2.0 * rig.half_stroke * q / math.sqrt(12.0)) / rig.radius)
+    p = math.hypot(chain.pressure_noise_bar, 400.0 * q / math.sqrt(12.0))
+    if signal in ("p_a_bar", "p_b_bar"):
+        return p
+    if signal == "load_kN":  # A (p_a - p_b), two independent transducers
+        return rig.area * math.sqrt(2.0) * p * BAR * 1e-3
+    if signal == "flow_lpm":
+        return math.hypot(chain.flow_noise_lpm, 80.0 * q / math.sqrt(12.0))
+    raise KeyError(signal)
+
+
+def effect_db(with_runs: list, without_runs: list, rig: str, chain: Chain | None = None) -> dict:
+    """The hidden effect's own contribution on each run and key signal, dB above the sensor noise.
+
+    The campaign with the effect minus the same campaign without it (same seed, so the same noise draws): its
+    mean-square energy over the whole run, in the signal's noise variance (:func:`noise_sigma`), in dB.
+
+    Parameters
+    ----------
+    with_runs, without_runs : list of (name, columns, sidecar)
+        :func:`.campaign.simulate`'s runs, with and without the effect.
+    rig : str
+        The rig's name (its geometry sets the angle's and the load's noise).
+    chain : Chain, optional
+        The measurement chain (default: the generator's).
+
+    Returns
+    -------
+    dict
+        ``best_db``, ``best`` ({run, signal}), ``per`` ({run: {signal: dB}}).
+    """
+    chain = chain or Chain()
+    r, _ = gen.rig_named(rig)
+    per, best = {}, (-math.inf, None)
+    for (name, a, _), (name0, b, _) in zip(with_runs, without_runs):
+        assert name == name0, (name, name0)
+        for s in KEY_SIGNALS:
+            if s not in a or s not in b:
+                continue
+            d = (np.asarray(a[s], float) - np.asarray(b[s], float)) / noise_sigma(s, r, chain)
+            e = float(np.mean(d * d))
+            db = 10.0 * math.log10(e) if e > 0 else -math.inf
+            per.setdefault(name, {})[s] = round(db, 2) if math.isfinite(db) else None
+            if db > best[0]:
+                best = (db, {"run": name, "signal": s})
+    return {"best_db": round(best[0], 2) if math.isfinite(best[0]) else None, "best": best[1], "per": per}
+
+
+def _generate(case: dict, variant: str, camp: Path, effects=None) -> tuple:
+    """Write ``case``'s campaign in ``variant`` to ``camp`` (kept when its truth.json is this one's); returns
+    (runs or None when reused, seconds)."""
+    eff = case["effects"] if effects is None else effects
+    opts = options(variant, case["rig"], case["duration"])
+    key = {"effects": eff, "seed": case["seed"], "rig": case["rig"], "duration_s": case["duration"],
+           "variant": variant, "start": json.loads(json.dumps(opts))}
+    if (camp / "truth.json").exists():
+        t = json.loads((camp / "truth.json").read_text())
+        if {k: t.get(k) for k in key} == key:
+            return None, 0.0
+    t0 = time.time()
+    runs, truth = gen.simulate(eff, seed=case["seed"], rig=case["rig"], duration=case["duration"], **opts)
+    truth["variant"] = variant
+    truth["start"] = opts  # the options as given (simulate records the ones that differ from the plan)
+    gen.write(camp, runs, truth, overwrite=True)
+    return runs, time.time() - t0
+
+
+def _read_runs(camp: Path) -> list:
+    """A written campaign's runs back as (name, columns, sidecar), in the plan's order (the valve chirp last)."""
+    truth = json.loads((camp / "truth.json").read_text())
+    names = [gen.run_name(*p) for p in truth["plan"]] + ["valve_chirp"]
+    out = []
+    for n in names:
+        p = camp / f"{n}.csv"
+        if not p.exists():
+            continue
+        head = p.read_text().splitlines()[0].split(",")
+        data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
+        out.append((n, {c: data[:, k] for k, c in enumerate(head)}, json.loads((camp / f"{n}.json").read_text())))
+    return out
+
+
+#: the models each variant is judged with: the rig's model file as it is (the book's numbers), and the same at the
+#: campaign's own beta and K (what a perfect recalibration reaches: truth.json's beta_Pa and K_lpm_per_mA)
+MODELS = ("book", "true_bk")
+
+
+def true_bk_model(camp: Path, rig: str, path: Path) -> Path:
+    """Write the rig's model file (docs/model-file.md) with the campaign's own beta and K (its truth.json) to
+    ``path``; returns it."""
+    truth = json.loads((camp / "truth.json").read_text())
+    src = acc.rig_model(rig)
+    doc = (json.loads(Path(src).read_text()) if src else
+           {"format": "ehas-model", "version": 2, "kind": "plant", "name": "book rig", "rig": {},
+            "valve": {"model": "grey_box"}})
+    doc["name"] = f"{doc.get('name', rig)} at the campaign's beta and K"
+    doc["rig"]["bulk_modulus_Pa"] = truth["beta_Pa"]
+    doc["valve"]["K_lpm_per_mA"] = truth["K_lpm_per_mA"]
+    doc.pop("provenance", None)
+    path.write_text(json.dumps(doc, indent=1) + "\n")
+    return path
+
+
+def compare(camp: Path, rig: str, wdir: Path, tag: str, model: Path | None = None) -> dict:
+    """A model's verdict on ``camp``: ``ehas compare CAMP --json F [--model FILE]`` (no fit; default: the rig's
+    model file, the book's numbers)."""
+    out = wdir / f"compare_{tag}.json"
+    model = model or acc.rig_model(rig)
+    cmd = [acc.ehas_exe(), "compare", str(camp), "--json", str(out), "--overwrite"] + (
+        ["--model", str(model)] if model else [])
+    code, stdout, stderr, wall = acc._run(cmd, log=wdir / f"compare_{tag}.log")
+    if code != 0 or not out.exists():
+        return {"error": f"compare exited {code}: {(stderr or stdout).strip().splitlines()[-1:]}",
+                "command": shlex.join(cmd)}
+    after = json.loads(out.read_text())["after"]
+    return {"residual_x_noise": after["residual_x_noise"], "verdict": after["verdict"], "worst": after.get("worst"),
+            "residual_x_sensor_noise": after.get("residual_x_sensor_noise"), "blocks": after.get("blocks") or [],
+            "command": shlex.join(cmd), "wall_s": round(wall, 1)}
+
+
+def part_a(case: dict, work: Path) -> dict:
+    """Generate every variant (and, with an effect, the ``rest`` campaign without it), measure each's figure."""
+    t0 = time.time()
+    wdir = work / case["id"]
+    wdir.mkdir(parents=True, exist_ok=True)
+    rec = {"variants": {}, "true_bk": {}, "gen_s": {}}
+    for v in VARIANTS:
+        camp = wdir / v
+        _, s = _generate(case, v, camp)
+        rec["gen_s"][v] = round(s, 1)
+        rec["variants"][v] = {**compare(camp, case["rig"], wdir, v),
+                              "options": {k: (round(x, 6) if isinstance(x, float) else x)
+                                          for k, x in options(v, case["rig"], case["duration"]).items()}}
+        rec["true_bk"][v] = compare(camp, case["rig"], wdir, f"{v}_true_bk",
+                                    true_bk_model(camp, case["rig"], wdir / f"model_true_bk_{v}.json"))
+    for key in ("variants", "true_bk"):
+        side = rec[key]
+        base = side["fade"].get("residual_x_noise")
+        for v in VARIANTS:
+            x = side[v].get("residual_x_noise")
+            side[v]["ratio_to_fade"] = round(x / base, 4) if x is not None and base else None
+        tag = "" if key == "variants" else "_true_bk"
+        rec["agree" + tag] = all(side[v]["ratio_to_fade"] is not None and abs(side[v]["ratio_to_fade"] - 1.0)
+                                 <= AGREE for v in VARIANTS)
+        rec["agree_bump" + tag] = all(side[v]["ratio_to_fade"] is not None and
+                                      abs(side[v]["ratio_to_fade"] - 1.0) <= AGREE for v in ("rest", "rest_bump"))
+    if case["effects"]:
+        clean = wdir / "rest_without_effect"
+        _generate(case, "rest", clean, effects={})
+        rec["effect"] = effect_db(_read_runs(wdir / "rest"), _read_runs(clean), case["rig"])
+    else:
+        rec["effect"] = {"best_db": None, "best": None, "per": {}}
+    rec["a_s"] = round(time.time() - t0, 1)
+    return rec
+
+
+def part_b(case: dict, work: Path, out: Path) -> dict:
+    """The full diagnosis of the ``rest`` variant."""
+    t0 = time.time()
+    wdir = work / case["id"]
+    camp = wdir / "rest"
+    _generate(case, "rest", camp)
+    diag_json = wdir / "diag_rest.json"
+    if diag_json.exists():
+        diag_json.unlink()
+    model = acc.rig_model(case["rig"])
+    cmd = [acc.ehas_exe(), "diagnose", str(camp), "--json", str(diag_json), "--quiet", "--overwrite"] + (
+        ["--model", str(model)] if model else [])
+    code, stdout, stderr, wall = acc._run(cmd, log=wdir / "diagnose_rest.log")
+    rec = {"command": shlex.join(cmd), "wall_s": round(wall, 1)}
+    if code != 0 or not diag_json.exists():
+        rec["error"] = f"diagnose exited {code}: {(stderr or stdout).strip().splitlines()[-1:]}"
+        return rec
+    diag = json.loads(diag_json.read_text())
+    (out / "diag").mkdir(exist_ok=True)
+    (out / "diag" / f"{case['id']}.json").write_text(json.dumps(diag, indent=1) + "\n")
+    items = worded_items(diag)
+    rec.update({"verdict": diag.get("verdict"), "residual_x_noise": diag.get("residual_x_noise"),
+                "kept": kept_effects(diag), "named": [i["label"] for i in items],
+                "added_nothing": not items and not kept_effects(diag),
+                "alternatives": [a.get("effect") or a.get("name") or a.get("label")
+                                 for a in diag.get("alternatives") or [] if isinstance(a, dict)],
+                "elapsed_s": diag.get("elapsed_s"), "b_s": round(time.time() - t0, 1)})
+    return rec
+
+
+def _side(recs: list[dict], key: str) -> dict:
+    """Part a's figures of one model (``variants``: the book's; ``true_bk``: at the campaign's beta and K)."""
+    a = [r for r in recs if key in (r.get("a") or {})]
+    tag = "" if key == "variants" else "_true_bk"
+
+    def ratio(r, v):
+        return r["a"][key][v].get("ratio_to_fade")
+
+    worst = {v: max((abs(ratio(r, v) - 1.0) for r in a if ratio(r, v) is not None), default=None)
+             for v in VARIANTS[1:]}
+    return {"cases": len(a),
+            "agree_all_variants": sum(1 for r in a if r["a"]["agree" + tag]),
+            "agree_fade_rest_bump": sum(1 for r in a if r["a"]["agree_bump" + tag]),
+            "disagree": {v: [r["id"] for r in a if ratio(r, v) is None or abs(ratio(r, v) - 1.0) > AGREE]
+                         for v in VARIANTS[1:]},
+            "largest_relative_difference": {v: (round(x, 4) if x is not None else None) for v, x in worst.items()},
+            "verdict_changed": {v: [r["id"] for r in a if r["a"][key][v].get("verdict")
+                                    != r["a"][key]["fade"].get("verdict")] for v in VARIANTS[1:]},
+            "clean_unexplained": {v: [r["id"] for r in a if not r["effects"]
+                                      and r["a"][key][v].get("verdict") == "unexplained"] for v in VARIANTS}}
+
+
+def summarise(recs: list[dict]) -> dict:
+    """The figures against the issue's acceptance over the cases here."""
+    b = [r for r in recs if "b" in r and "error" not in r["b"]]
+    visible = [r for r in b if r["effects"] and (r["a"]["effect"]["best_db"] or -1e9) >= VISIBLE_DB]
+    s = {"cases": len(recs), "book": _side(recs, "variants"), "true_bk": _side(recs, "true_bk"),
+         "part_b": len(b), "part_b_errors": sum(1 for r in recs if "b" in r and "error" in r["b"]),
+         "visible_effects_diagnosed": len(visible),
+         "visible_explained_nothing_added": [r["id"] for r in visible
+                                             if r["b"]["verdict"] == "explained" and r["b"]["added_nothing"]],
+         "clean_diagnosed": sum(1 for r in b if not r["effects"]),
+         "clean_unexplained": [r["id"] for r in b if not r["effects"] and r["b"]["verdict"] == "unexplained"]}
+    s["meets"] = {"agree_within_10pct_book": bool(s["book"]["cases"])
+                  and s["book"]["agree_all_variants"] == s["book"]["cases"],
+                  "agree_within_10pct_true_bk": bool(s["true_bk"]["cases"])
+                  and s["true_bk"]["agree_all_variants"] == s["true_bk"]["cases"],
+                  "visible_explained_nothing_added_0": not s["visible_explained_nothing_added"],
+                  "clean_unexplained_0": not s["clean_unexplained"]}
+    return s
+
+
+def _f(x, nd=3):
+    return "-" if x is None else (("yes" if x else "no") if isinstance(x, bool) else
+                                  f"{x:.{nd}g}" if isinstance(x, (int, float)) else str(x))
+
+
+def readme(recs: list[dict], summ: dict, command: str) -> str:
+    """The README of OUT: what, how judged, the summary, every case."""
+    full = cases()
+    have = {r["id"] for r in recs}
+    nb = sum(1 for r in recs if "b" in r)
+    L = ["# The verdict on campaigns as rigs record them (issue 42, point 3)", "",
+         f"Regenerate (resumable; finished cases in `cases/` are kept): `{command}` (part a and b; "
+         "`--part a` for the figures alone).", "",
+         "## What", "",
+         "Campaigns of the independent generator (`tests/independent_rig/`, plain NumPy/SciPy sharing no code with "
+         "the package; `docs/independent-generator.md`, \"Start conditions\"): every hidden class of the generator "
+         f"({len(ALL)}: out of library, library, the backlash check and the unlisted classes) at its strong "
+         "magnitude on the book rig, and a clean campaign on each of the three rigs (4 closed-loop sine runs and "
+         "the valve chirp, 3 s each). Each campaign is generated in five variants, the same seed (the same noise "
+         "draws, beta and K) otherwise:", "",
+         "| variant | what the rig did |", "|---|---|",
+         "| `fade` | every closed-loop run faded in over one period (ehas's own plan; the reference) |",
+         "| `rest` | started from rest without a fade-in; the sidecars leave `ramp_cycles` out (the format's "
+         "default 0) |",
+         f"| `rest_bump` | `rest`, and a knock on `{BUMP_RUN}`'s crank at mid-run: a half-sine torque pulse of "
+         f"{BUMP_WIDTH_S * 1e3:g} ms, its peak {100 * BUMP_STALL_SHARE:g} % of the rig's stall torque A Ps r (book: "
+         f"{bump_of('book', 3.0)['torque_Nm']:g} N m, about 10x the sensor noise at its peak on the angle and the "
+         "pressures) |",
+         f"| `mid` | without a fade-in, the reference starting mid-stroke at A sin({math.degrees(MID_PHASE_RAD):g} deg), "
+         "moving, with the rig at rest there (the operator jogged it there); `ramp_cycles` 0 stated |",
+         f"| `rest_cut` | `rest`, with `{CUT_RUN}`'s log ending {CUT_SHORT_S:g} s early (its last cycle "
+         "incomplete) |", "",
+         "## How it is judged", "",
+         "* (a) The verdict figure of the book model (the rig's model file, no fit) on each variant: `ehas compare "
+         "CAMP --json F`, `after.residual_x_noise` and `after.verdict`. The acceptance: every variant's figure "
+         f"within {100 * AGREE:g} % of the `fade` one.",
+         "* (b) The full diagnosis of the `rest` variant (the start-from-rest campaign of the issue): `ehas diagnose "
+         "CAMP --json F`; its verdict, figure and what it added to the book model (kept library effects, hypotheses, "
+         "states, named terms, disturbances: `judge.worded_items`). The acceptance: 0 campaigns whose hidden effect "
+         f"rises >= {VISIBLE_DB:g} dB above the noise on a key signal called explained with nothing added; 0 clean "
+         "campaigns called unexplained.",
+         "* The effect's own measure (the generator's terms, `start_conditions.effect_db`): the `rest` campaign with "
+         "the effect minus the same campaign without it (same seed, same noise draws), its mean-square energy over "
+         "each whole run in the signal's sensor-noise variance (the generator's chain: 9 um LVDT, 0.25 bar, 0.06 "
+         "LPM, their 16-bit converters; the load as A (p_a - p_b)), in dB; the best run and key signal (angle, "
+         "pressures, flow, load) counts.", "",
+         f"Cases here: {len(have)} of {len(full)} in part a, {nb} in part b"
+         + (f"; not yet run (a): {', '.join(c['id'] for c in full if c['id'] not in have)}"
+            if len(have) < len(full) else "") + ". " + _commits(recs), "",
+         "## Summary against the issue's thresholds", ""]
+    for key, words in (("book", "the rig's model file as it is (the book's beta and K)"),
+                       ("true_bk", "the rig's model at the campaign's own beta and K (a perfect recalibration)")):
+        m = summ[key]
+        L += [f"(a), {words}:", "",
+              f"* Figure within {100 * AGREE:g} % of the faded-in campaign's in every variant: "
+              f"{m['agree_all_variants']}/{m['cases']}; in `rest` and `rest_bump` (the acceptance's two): "
+              f"{m['agree_fade_rest_bump']}/{m['cases']}.",
+              "* Largest relative difference from `fade`: " + ", ".join(
+                  f"`{v}` {_pct(x)}" for v, x in m["largest_relative_difference"].items()) + ".",
+              "* Campaigns beyond 10 %: " + "; ".join(f"`{v}`: {', '.join(ids) or 'none'}"
+                                                     for v, ids in m["disagree"].items()) + ".",
+              "* Verdict words that changed from `fade`: " + "; ".join(
+                  f"`{v}`: {', '.join(ids) or 'none'}" for v, ids in m["verdict_changed"].items()) + ".",
+              "* Clean campaigns `compare` calls unexplained: " + "; ".join(
+                  f"`{v}`: {len(ids)}" for v, ids in m["clean_unexplained"].items()) + ".", ""]
+    L += [f"(b) Diagnosed (`rest`): {summ['part_b']} ({summ['part_b_errors']} failed to run); with the hidden "
+          f"effect >= {VISIBLE_DB:g} dB above the noise: {summ['visible_effects_diagnosed']}; of those called "
+          f"explained with nothing added to the book model: {len(summ['visible_explained_nothing_added'])} "
+          f"({', '.join(summ['visible_explained_nothing_added']) or 'none'}; threshold 0). Clean campaigns "
+          f"diagnosed: {summ['clean_diagnosed']}; called unexplained: {len(summ['clean_unexplained'])} "
+          "(threshold 0).", "",
+          "## Every campaign", "",
+          "Each cell: `residual_x_noise` (x what does not repeat) of the book model / of the model at the "
+          "campaign's beta and K, each with its verdict (e explained, s small structured residual, u unexplained) "
+          "and, beside `fade`, its ratio to the `fade` figure. Effect dB: the hidden effect's own contribution on "
+          "its best run and key signal.", "",
+          "| case | rig | hidden | effect dB (where) | fade | rest | rest_bump | mid | rest_cut | within 10 % "
+          "(book, true) | diagnosis of rest: verdict, figure | added to the book model | s (a, b) |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in recs:
+        hidden = "; ".join(f"{n}: " + ", ".join(f"{k}={v:g} {_unit(n, k)}" for k, v in p.items())
+                           for n, p in r["effects"].items()) or "none"
+        a = r.get("a") or {}
+        e = a.get("effect") or {}
+        where = f" ({e['best']['run']} {e['best']['signal']})" if e.get("best") else ""
+        cells = []
+        for v in VARIANTS:
+            parts = []
+            for key in ("variants", "true_bk"):
+                x = (a.get(key) or {}).get(v) or {}
+                parts.append("error" if "error" in x else
+                             f"{_f(x.get('residual_x_noise'))} {(x.get('verdict') or '?')[0]}"
+                             + (f" ({x['ratio_to_fade']:.2f})" if v != "fade" and x.get("ratio_to_fade") else ""))
+            cells.append(" / ".join(parts))
+        b = r.get("b") or {}
+        diag = ("-" if not b else f"error: {b['error']}" if "error" in b else
+                f"{b['verdict']} {_f(b['residual_x_noise'])}")
+        added = "-" if not b or "error" in b else ("nothing" if b["added_nothing"] else
+                                                   ", ".join(b["named"] or b["kept"]).replace("|", "/"))
+        L.append(f"| {r['id']} | {r['rig']} | {hidden} | {_f(e.get('best_db'))}{where} | " + " | ".join(cells)
+                 + f" | {_f(a.get('agree'))}, {_f(a.get('agree_true_bk'))} | {diag} | {added} "
+                 f"| {_f(a.get('a_s'), 4)}, {_f(b.get('b_s'), 4)} |")
+    L += ["", "Per-block numbers (`after.blocks` of each compare: run, signal, residual_x_noise, "
+          "floor_x_sensor_noise, floor_from_s, floor_to_s) are in `cases/ID.json`, `a.variants.VARIANT.blocks` "
+          "(book model) and `a.true_bk.VARIANT.blocks`.", ""]
+    return "\n".join(L) + "\n"
+
+
+def _commits(recs: list[dict]) -> str:
+    cs = sorted({r.get("ehas_commit") for r in recs if r.get("ehas_commit")} |
+                {(r.get("b") or {}).get("ehas_commit") for r in recs if (r.get("b") or {}).get("ehas_commit")})
+    return f"The cases ran at commit{'s' if len(cs) > 1 else ''} {', '.join(cs) or '?'} of this repository."
+
+
+def _pct(x):
+    return "-" if x is None else f"{100 * x:.1f} %"
+
+
+def _unit(name: str, param: str) -> str:
+    return next((p.unit for p in ALL[name].params if p.name == param), "")
+
+
+def _atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="the verdict on campaigns as rigs record them (issue 42, point 3)")
+    ap.add_argument("--out", default="results/verdict_start_conditions")
+    ap.add_argument("--work", default=os.path.join(tempfile.gettempdir(), "ehas_start_conditions"),
+                    help="campaigns and compare/diagnosis files (large; not committed)")
+    ap.add_argument("--part", choices=("a", "b", "ab"), default="ab",
+                    help="a: the figures of every variant; b: the diagnosis of the rest variant")
+    ap.add_argument("--only", default="", help="case ids, comma-separated")
+    ap.add_argument("--limit", type=int, default=0, help="run at most this many new cases")
+    ap.add_argument("--jobs", type=int, default=1, help="cases run at once")
+    ap.add_argument("--readme-only", action="store_true", help="rewrite README.md and results.json from cases/")
+    ap.add_argument("--redo", action="store_true", help="rerun the parts already checkpointed")
+    a = ap.parse_args(argv)
+    out, work = Path(a.out), Path(a.work)
+    (out / "cases").mkdir(parents=True, exist_ok=True)
+    selected = cases()
+    if a.only:
+        only = set(a.only.split(","))
+        unknown = only - {c["id"] for c in selected}
+        if unknown:
+            raise SystemExit(f"--only: unknown case id(s) {', '.join(sorted(unknown))}; known: "
+                             f"{', '.join(c['id'] for c in selected)}")
+        selected = [c for c in selected if c["id"] in only]
+
+    def stored(cid):
+        p = out / "cases" / f"{cid}.json"
+        return json.loads(p.read_text()) if p.exists() else None
+
+    todo = []
+    if not a.readme_only:
+        for c in selected:
+            rec = stored(c["id"]) or {}
+            need = [p for p in a.part if a.redo or p not in rec]
+            if need:
+                todo.append((c, need))
+    if a.limit:
+        todo = todo[:a.limit]
+    guess = sum((GUESS_A_S if "a" in n else 0) + (GUESS_B_S if "b" in n else 0) for _, n in todo)
+    print(f"[start] {len(selected)} cases selected, {len(todo)} to run; about {guess / 60 / max(1, a.jobs):.0f} min "
+          f"(first guess {GUESS_A_S:.0f} s part a, {GUESS_B_S:.0f} s part b)", flush=True)
+
+    def one(item):
+        c, need = item
+        rec = stored(c["id"]) or dict(c)
+        for part in need:
+            if part == "a":
+                rec["a"] = part_a(c, work)
+                rec["ehas_commit"] = acc._commit()
+            else:
+                rec["b"] = {**part_b(c, work, out), "ehas_commit": acc._commit()}
+            tmp = out / "cases" / f".{c['id']}.json.tmp"
+            tmp.write_text(json.dumps(rec, indent=1) + "\n")
+            os.replace(tmp, out / "cases" / f"{c['id']}.json")
+        return rec
+
+    try:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max(1, a.jobs)) as pool:
+            for k, ((c, need), rec) in enumerate(zip(todo, pool.map(one, todo)), 1):
+                v = (rec.get("a") or {}).get("variants") or {}
+                tv = (rec.get("a") or {}).get("true_bk") or {}
+                figs = ", ".join(f"{n} {_f(x.get('residual_x_noise'))}/{_f((tv.get(n) or {}).get('residual_x_noise'))}"
+                                 for n, x in v.items())
+                b = rec.get("b") or {}
+                print(f"[start] {k}/{len(todo)} {c['id']} ({'+'.join(need)}): {figs}; effect "
+                      f"{_f((rec.get('a') or {}).get('effect', {}).get('best_db'))} dB"
+                      + (f"; diagnosis {b.get('verdict', b.get('error'))} {_f(b.get('residual_x_noise'))}, added "
+                         f"{b.get('named') or b.get('kept') or 'nothing'}" if b else ""), flush=True)
+    except KeyboardInterrupt:
+        print("[start] interrupted: finished cases are kept; rerun the same command to resume", flush=True)
+    order = {c["id"]: i for i, c in enumerate(cases())}
+    recs = sorted((json.loads(p.read_text()) for p in (out / "cases").glob("*.json")),
+                  key=lambda r: order.get(r["id"], 1e9))
+    summ = summarise(recs)
+    command = COMMAND if str(a.out) == "results/verdict_start_conditions" else \
+        f"python -m tests.independent_rig.start_conditions --out {a.out}"
+    slim = [{k: v for k, v in r.items() if k != "a"} | {"a": {
+        **{k: v for k, v in r["a"].items() if k not in ("variants", "true_bk")},
+        **{side: {n: {k: x for k, x in v.items() if k != "blocks"} for n, v in r["a"][side].items()}
+           for side in ("variants", "true_bk")}}}
+        if "a" in r else r for r in recs]
+    _atomic(out / "results.json", json.dumps({"command": command, "agree": AGREE, "visible_db": VISIBLE_DB,
+                                              "variants": list(VARIANTS), "summary": summ, "cases": slim},
+                                             indent=1) + "\n")
+    _atomic(out / "README.md", readme(recs, summ, command))
+    print(f"[start] wrote {out / 'README.md'} and results.json ({len(recs)} cases)", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
