@@ -205,6 +205,10 @@ class CTranslator:
                                     and a.id not in f.arrays):
                                 f.arrays.add(a.id)
                                 changed = True
+                            # and an array passed on is an array in the callee, used there or not
+                            if (isinstance(a, ast.Name) and a.id in f.arrays and p not in callee.arrays):
+                                callee.arrays.add(p)
+                                changed = True
         changed = True
         while changed:  # return kinds (a function returning another's result takes its kind)
             changed = False
