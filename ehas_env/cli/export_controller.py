@@ -163,7 +163,7 @@ def controller_c(ctrl, name: str | None = None) -> tuple[str, str, str]:
     header = f"""/* {cname}.h -- {kind} '{getattr(ctrl, 'name', cname)}' exported by ehas (ehas export-controller --format c).
  *
  * Fixed step, no allocation, no global state: one {p}state per control loop, owned by the caller.
- * Call {p}init() once before a run, then {p}step() once per control period (1 / {p}RATE_HZ s),
+ * Call {p}init() once before a run, then {p}step() once per control period (1 / {p.upper()}RATE_HZ s),
  * at t_s = 0, dt, 2 dt, ... from the start of the reference (phase 0: the sine crosses its mean rising).
  *
  * What runs here:
@@ -272,9 +272,12 @@ def _what_runs(ctrl, rule: str, rows: list) -> str:
     if rule == "condition":
         conds = "; ".join(f"{int(r['disc_sets'])} sets {r['amplitude_deg']:g} deg {r['freq_hz']:g} Hz "
                           f"({len(r['table'])} bins)" for r in rows)
+        import textwrap
+
         lines += [" *   plus the learned feed-forward table of the condition given to init, played back by phase",
                   " *   (linear interpolation between bins) from its start cycle on, the sum clipped to +-i_max;",
-                  f" *   tables for: {conds}."]
+                  " *   tables for:"]
+        lines += [" *     " + ln for ln in textwrap.wrap(conds + ".", 100)]
         if isinstance(ctrl, CycleLearner):
             lines += [" * What stays in ehas: the learning (the update of the table after each cycle, its design on",
                       " * the model, the guard that stops it). The rig plays the table ehas learned; it is not",

@@ -39,7 +39,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="close the loop in the FMU with this controller's compiled law (piff, schedule, a "
                              "compiled controller of your own); default: the book's PI + feed-forward, open loop "
                              "until the closed_loop parameter is set")
-    parser.add_argument("--disc-sets", type=int, default=3, help="disc sets of the FMU's plant, 1..7 (default 3; "
+    from ehas_env.ranges import option
+
+    parser.add_argument("--disc-sets", type=option("--disc-sets", "disc_sets"), default=3, help="disc sets of the FMU's plant, 1..7 (default 3; "
                                                                  "a parameter of the FMU too)")
     parser.add_argument("--closed-loop", action="store_true",
                         help="start value of the closed_loop parameter: the law tracks the FMU's sine reference")

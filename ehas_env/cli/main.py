@@ -205,6 +205,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "model": ("ehas_env.cli.model", "read, write and compare model files: the plant as one file (docs/model-file.md)"),
     "export-drive": ("ehas_env.cli.export_drive", "write a learning controller's learned feed-forward as drive files "
                                                   "(CSV + JSON sidecar)"),
+    "export-controller": ("ehas_env.cli.export_controller", "write a controller as C for the rig's controller "
+                                                            "(one .h and one .c; docs/export.md)"),
+    "export-fmu": ("ehas_env.cli.export_fmu", "write the rig's model as an FMI 2.0 co-simulation FMU (docs/export.md)"),
 }
 
 
