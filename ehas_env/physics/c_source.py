@@ -260,6 +260,8 @@ class CTranslator:
                 if not isinstance(n.target, ast.Name):
                     raise TranslationError(f"{f.name} (line {n.lineno}): a for loop needs one loop variable")
                 loops.add(n.target.id)
+                if isinstance(n.iter, ast.Tuple):  # a loop over numbers takes their type (2.5: double)
+                    assigns += [(n.target.id, el) for el in n.iter.elts]
         types: dict[str, object] = {name: INT for name in loops}
         for name, _ in assigns:
             if name not in f.params:
