@@ -252,7 +252,8 @@ long {p}state_size(void);
            + "};",
            "/* the learned feed-forward tables, mA per phase bin, one after the other */",
            f"static const double TABLES[{max(len(cat), 1)}] = {_array(cat) if cat else '{0.0}'};",
-           _RUNTIME.replace("PU_", p.upper()).replace("P_", p).replace("RULE", {"any": "0", "disc_sets": "1", "condition": "2"}[rule])]
+           _RUNTIME.replace("{U}", p.upper()).replace("{L}", p)
+           .replace("RULE", {"any": "0", "disc_sets": "1", "condition": "2"}[rule])]
     return cname, header, "\n".join(src) + "\n"
 
 
@@ -286,7 +287,7 @@ def _what_runs(ctrl, rule: str, rows: list) -> str:
 
 
 _RUNTIME = r"""
-int P_init(P_state *st, int disc_sets, double amplitude_deg, double freq_hz)
+int {L}init({L}state *st, int disc_sets, double amplitude_deg, double freq_hz)
 {
     int k, j, row = -1;
     for (k = 0; k < N_ROWS; k++) {
@@ -297,8 +298,8 @@ int P_init(P_state *st, int disc_sets, double amplitude_deg, double freq_hz)
             && fabs(freq_hz - ROW_CASE[k][2]) <= 1e-9 * fabs(ROW_CASE[k][2])) { row = k; break; }
     }
     if (row < 0) return -1;
-    for (j = 0; j < PU_N_GAINS; j++) st->gains[j] = ROW_GAINS[row][j];
-    for (j = 0; j < PU_N_MEM; j++) st->mem[j] = 0.0;
+    for (j = 0; j < {U}N_GAINS; j++) st->gains[j] = ROW_GAINS[row][j];
+    for (j = 0; j < {U}N_MEM; j++) st->mem[j] = 0.0;
     st->i_max = ROW_LIMITS[row][0];
     st->dac_lsb = ROW_LIMITS[row][1];
     st->dt = 1.0 / ROW_LIMITS[row][2];
@@ -309,22 +310,22 @@ int P_init(P_state *st, int disc_sets, double amplitude_deg, double freq_hz)
     return 0;
 }
 
-double P_step(P_state *st, double t_s, double theta_deg, double theta_ref_deg, double theta_ref_dot,
+double {L}step({L}state *st, double t_s, double theta_deg, double theta_ref_deg, double theta_ref_dot,
               double theta_ref_ddot, double theta_ref_dddot, double p_a_bar, double p_b_bar, double p_s_bar)
 {
-    double u = P_law(st->gains, PU_N_GAINS, st->mem, PU_N_MEM, t_s, st->dt, theta_deg, theta_ref_deg, theta_ref_dot,
+    double u = {L}law(st->gains, {U}N_GAINS, st->mem, {U}N_MEM, t_s, st->dt, theta_deg, theta_ref_deg, theta_ref_dot,
                      theta_ref_ddot, theta_ref_dddot, p_a_bar - p_b_bar, p_s_bar, st->i_max);
-    u = P_quantize(u, st->dac_lsb);
+    u = {L}quantize(u, st->dac_lsb);
     if (st->table_n > 0) {
         double cycle, ff;
-        P_at(t_s, (double *)st->table, st->table_n, st->freq_hz, (double)st->table_n, &cycle, &ff);
+        {L}at(t_s, (double *)st->table, st->table_n, st->freq_hz, (double)st->table_n, &cycle, &ff);
         if (cycle >= (double)st->start_cycle) u = u + ff;
         u = ehas_min(ehas_max(u, -st->i_max), st->i_max);
     }
     return u;
 }
 
-long P_state_size(void) { return (long)sizeof(P_state); }
+long {L}state_size(void) { return (long)sizeof({L}state); }
 """
 
 

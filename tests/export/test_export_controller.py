@@ -97,7 +97,8 @@ def test_piff_with_pressure_feedback_and_dac(tmp_path):
 
 
 def test_gain_schedule_picks_the_disc_sets_row(tmp_path):
-    sched = GainSchedule({1: PIFF(Kp=0.8, Ki=1.5), 5: PIFF(Kp=2.0, Ki=3.0, Kv=0.02)}, name="sched")
+    sched = GainSchedule({1: PIFF(Kp=0.8, Ki=1.5), 5: PIFF(Kp=2.0, Ki=3.0, Kv=0.02)}, name="p")
+    # a one-letter name: its prefix p_ / P_ must not clash with the generated code's own names
     cname, lib = build(sched, tmp_path)
     law = CLaw(cname, lib, 4)
     assert law.init(law.state, 9, 10.0, 1.0) == -1  # no row for 9 disc sets
