@@ -491,15 +491,15 @@ def _markdown(controllers, names, results, book, book_rows, robust, timing, summ
         L += ["", LEARNED_NOTE]
     L += ["", "## The book's rig tests (tables 1.9-1.15)", "",
           "The book's \"% pos error\" is undefined; we compare our **rms_error_pct** with its number as printed "
-          "(discs = 2 × disc sets). A cell is **bold** where our rms % error is below the book's.", "",
-          "| amplitude | f | discs (sets) | book % pos error | " + " | ".join(f"{n} rms %" for n in names) + " |",
+          "(the book counts discs; 2 discs a set). A cell is **bold** where our rms % error is below the book's.", "",
+          "| amplitude | f | disc sets | book % pos error | " + " | ".join(f"{n} rms %" for n in names) + " |",
           "|---:|---:|---:|---:|" + "---:|" * len(names)]
     for k, (c, b) in enumerate(book):
         cells = []
         for name in names:
             v = book_rows[name][k]["rms_error_pct"]
             cells.append(f"**{v:.3f}**" if v < b else f"{v:.3f}")
-        L.append(f"| {c.amplitude_deg:g}° | {c.freq_hz:g} Hz | {2 * c.disc_sets} ({c.disc_sets}) | {b:g} | " + " | ".join(cells) + " |")
+        L.append(f"| {c.amplitude_deg:g}° | {c.freq_hz:g} Hz | {c.disc_sets} | {b:g} | " + " | ".join(cells) + " |")
     L.append("| beaten | | | | " + " | ".join(f"{summary[n]['book_wins']} / {len(book)}" for n in names) + " |")
     if robust:
         params = typical_effects()
@@ -567,13 +567,13 @@ def demo_section(outdir) -> str:
     lines = ["Model-based gain schedule (`ehas tune --method schedule --base model`: per disc set, feed-forward "
              "from the inverted linear plant, PI for a 50° phase margin and 6 dB gain margin), on the book's rig tests. "
              "Metric: our **rms_error_pct** beside the book's undefined \"% pos error\".", "",
-             "| amplitude | f | discs | book % | book gains rms % | tuned rms % |", "|---:|---:|---:|---:|---:|---:|"]
+             "| amplitude | f | disc sets | book % | book gains rms % | tuned rms % |", "|---:|---:|---:|---:|---:|---:|"]
     wins = 0
     for (c, b), t, g in zip(book, tuned, base):
         w.writerow([c.amplitude_deg, c.freq_hz, c.disc_sets, b, f"{g['rms_error_pct']:.5g}", f"{t['rms_error_pct']:.5g}",
                     f"{t['peak_error_pct']:.5g}", f"{t['max_current_mA']:.4g}", int(t["hit_stroke_end"])])
         wins += t["rms_error_pct"] < b
-        lines.append(f"| {c.amplitude_deg:g}° | {c.freq_hz:g} Hz | {2 * c.disc_sets} | {b:g} | "
+        lines.append(f"| {c.amplitude_deg:g}° | {c.freq_hz:g} Hz | {c.disc_sets} | {b:g} | "
                      f"{g['rms_error_pct']:.3f} | {t['rms_error_pct']:.3f} |")
     atomic_write_text(out / "tuned_vs_book.csv", buf.getvalue())
     lines += ["", f"Tuned controller beats the book's number on {wins} of {len(book)} tests. Files: "

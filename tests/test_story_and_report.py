@@ -159,7 +159,9 @@ def test_next_step_always_offers_the_model_file():
     plain = next_command(args, "campaign", ["coulomb_friction"])
     written = next_command(args, "campaign", ["coulomb_friction", "centring"], extra_path="effects_out")
     for line in (plain, written):
-        assert line.split().count("--save-model") == 1 and "--save-model model.json" in line, line
+        # beside the campaign, in a folder named after it: not the current folder (issue 42)
+        assert line.split().count("--save-model") == 1 and "--save-model campaign-calibrated/model.json" in line, line
+        assert "--out campaign-calibrated/compare" in line and "--json campaign-calibrated/compare.json" in line
     assert "--effects-path effects_out" in written
 
 
@@ -230,7 +232,7 @@ def test_console_json_figure_and_page_of_one_campaign_carry_the_same_figure(tmp_
     assert FIGURE_RE.search(page.verdict_text).group(1) == want
     # the final model is printed once, as a difference from the book's rig
     assert console.count("what differs from the book's rig") == 1
-    assert "--save-model model.json" in next(ln for ln in console.splitlines() if ln.startswith("next: "))
+    assert "-calibrated/model.json" in next(ln for ln in console.splitlines() if ln.startswith("next: "))
     # ehas report writes the same page from the folder
     ehas("report", "diag", "--out", "again.html")
     assert FIGURE_RE.search(parse_page((tmp_path / "again.html").read_text()).verdict_text).group(1) == want

@@ -134,6 +134,8 @@ def run(args) -> int:
         print(describe_model(rep.absolute(after_model), fitted=args.fit, ci=ci))
         before, after = tables["baseline"].overall, tables[label_after].overall
         print(f"\noverall fit: {before:.1f} % -> {after:.1f} % ({after - before:+.1f} points)")
+    print()
+    print(verdict_text(rep, sims, label_after))
     command = "ehas compare " + " ".join(shlex.quote(a) for a in _argv())
     if args.save_model:
         from ehas_env.simulation.model_file import save_model
@@ -166,6 +168,63 @@ def run(args) -> int:
     return 0
 
 
+def verdict_text(rep, sims: dict, label_after: str | None) -> str:
+    """The verdict of every model compared, in the noise figure ``ehas diagnose`` grades (one measure of a model
+    against a campaign: :func:`ehas_env.measurement.verdict.noise_figure`), and a warning when the model compared
+    or fitted is worse on it than the book's rig.
+
+    Parameters
+    ----------
+    rep : Replayer
+        The campaign replayed.
+    sims : dict
+        {label: the model's simulation of every run}; ``"baseline"`` first.
+    label_after : str or None
+        The model compared (None: the baseline alone).
+
+    Returns
+    -------
+    str
+        Lines.
+    """
+    from ehas_env.measurement.replay import COST_SIGNALS
+    from ehas_env.measurement.verdict import blocks_of, figure_text, grade
+
+    grades = {label: grade(blocks_of(rep, s, COST_SIGNALS)) for label, s in sims.items()}
+    w = max(len(k) for k in grades)
+    lines = ["verdict (the noise figure ehas diagnose grades: the residual over every sample against what does not "
+             "repeat):"]
+    lines += [f"  {label:<{w}}  {g['verdict']}, {figure_text(g['residual_x_noise'])}" for label, g in grades.items()]
+    if label_after is not None and label_after != "baseline":
+        x_after, x_book = grades[label_after]["residual_x_noise"], grades["baseline"]["residual_x_noise"]
+        if x_after > x_book:
+            lines.append(f"  note: {label_after} is worse on this figure than the book's rig ({x_after:.3g}x against "
+                         f"{x_book:.3g}x): keep the book's rig, or diagnose the campaign (ehas diagnose)")
+    return "\n".join(lines)
+
+
+def next_folder(campaign_path) -> str:
+    """Where a printed next command writes: a folder beside the campaign named after it (``CAMP-calibrated``), not
+    the current folder (a clone's root, when a README block runs it).
+
+    Parameters
+    ----------
+    campaign_path : str or Path
+        The campaign folder as the user named it.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> next_folder("runs/camp/")
+    'runs/camp-calibrated'
+    """
+    p = Path(str(campaign_path).rstrip("/") or ".")
+    return str(p.with_name(p.name + "-calibrated"))
+
+
 def next_step(args, campaign_path) -> str:
     """The command to run after this comparison, runnable as printed.
 
@@ -196,7 +255,7 @@ def next_step(args, campaign_path) -> str:
     if not args.effects:
         return " ".join(["ehas diagnose", q(str(campaign_path)), *keep])
     return " ".join(["ehas compare", q(str(campaign_path)), *keep, f"--effects {q(args.effects)}", "--fit",
-                     f"--save-model {q(str(args.save_model or 'model.json'))}"] + (["--overwrite"] if args.save_model
+                     f"--save-model {q(str(args.save_model or Path(next_folder(campaign_path)) / 'model.json'))}"] + (["--overwrite"] if args.save_model
                                                                                   else []))
 
 

@@ -74,6 +74,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier --out folder / --json file / --write-effect file")
+    parser.add_argument("--save-model", default=None, metavar="FILE",
+                        help="write the final model as a model file (docs/model-file.md): ehas compare CAMPAIGN "
+                             "--model FILE prints the same noise figure as this diagnosis (--out DIR writes "
+                             "DIR/model.json too)")
     parser.add_argument("--columns", default=None, metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
@@ -155,6 +159,11 @@ def run_one(args) -> int:
     if args.json:
         check_not_input(args.json, "--json", [args.campaign])
         check_file(args.json, "--json", overwrite=args.overwrite)
+    if getattr(args, "save_model", None):
+        check_not_input(args.save_model, "--save-model", [args.campaign])
+        check_file(args.save_model, "--save-model", overwrite=args.overwrite)
+        if Path(args.save_model).suffix != ".json":
+            raise ValueError(f"--save-model {args.save_model}: give a .json file (a model file, docs/model-file.md)")
     if args.out:
         check_not_input(args.out, "--out", [args.campaign])
     elif getattr(args, "html", False):
@@ -302,6 +311,10 @@ def run_one(args) -> int:
     if args.json:
         atomic_write_text(args.json, json.dumps(doc, indent=2) + "\n")
         print(f"json: {args.json}")
+    if getattr(args, "save_model", None):
+        save_final_model(args.save_model, res, campaign.path, command, model)
+        print(f"model file: {args.save_model} (ehas compare {shlex.quote(str(campaign.path))} --model "
+              f"{shlex.quote(str(args.save_model))} gives the same {figure_text(res.residual_x_noise)})")
     if outputs is not None:
         from ehas_env.cli.compare import write_report
 
@@ -345,12 +358,45 @@ def run_one(args) -> int:
             with open(path, "a") as fh:
                 fh.write("\n".join(extra) + "\n")
             atomic_write_text(tmp / "diagnosis.json", json.dumps(doc, indent=2) + "\n")
+            save_final_model(tmp / "model.json", res, campaign.path, command, model)
             if getattr(args, "html", False):
                 from ehas_env.cli.report import build_page, report_command
 
                 build_page(doc, tmp, command=report_command(args.out)).write(tmp / "report.html")
         print(f"report: {Path(args.out) / path.name}" + (f", {Path(args.out) / 'report.html'}" if args.html else ""))
     return 0
+
+
+def save_final_model(path, res, campaign_path, command: str, base=None) -> Path:
+    """The diagnosis' final model as a model file (docs/model-file.md): its effects with their fitted values, beta
+    and K as the rig runs them, the noise figure it was graded on and where (``calibration``).  ``ehas compare
+    CAMPAIGN --model FILE`` replays exactly this model and prints the same figure.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    res : OpenDiagnosis
+        The diagnosis.
+    campaign_path : str or Path
+        The campaign diagnosed.
+    command : str
+        The diagnose command (provenance).
+    base : PlantModel, optional
+        The rig diagnosed on (``--model``; default the book's).
+
+    Returns
+    -------
+    Path
+    """
+    from ehas_env.simulation.model_file import save_model
+
+    rig = res.full.absolute(res.model)
+    cal = {"campaign": str(campaign_path), "verdict": res.verdict, "residual_x_noise": res.residual_x_noise,
+           "fit_percent_after": round(res.full.fit_table(res.sims_all).overall, 2),
+           "measured_inputs": list(res.measured_inputs)}
+    return save_model(path, {n: dict(p) for n, p in res.model.effects.items()}, beta=rig.beta, K=rig.K,
+                      base=base, calibration=cal, command=command)
 
 
 def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dict:
@@ -441,7 +487,11 @@ def next_command(args, campaign_path, effects: list[str], extra_path=None, measu
         parts.append(f"--effects {q(','.join(spec))}")
     if effects or measured_inputs:
         parts.append("--fit")
-    parts += ["--out compare", "--json compare.json", "--save-model model.json"]
+    from ehas_env.cli.compare import next_folder
+
+    d = Path(next_folder(campaign_path))  # beside the campaign, named after it (not the current folder)
+    parts += [f"--out {q(str(d / 'compare'))}", f"--json {q(str(d / 'compare.json'))}",
+              f"--save-model {q(str(d / 'model.json'))}"]
     return " ".join(parts)
 
 
@@ -461,6 +511,8 @@ def _stack_text(res) -> str:
         lines.append("  no candidate beat noise")
     for s in res.steps:
         lines.append(f"  {s.effect:<20}{'kept' if s.kept else 'not kept':<10}{s.reason}")
+    lines.append("final model: the baseline" + "".join(f" + {n}" for n in res.model.effects)
+                 + ("" if res.model.effects else " (no effect kept)"))
     return "\n".join(lines)
 
 
@@ -508,7 +560,7 @@ def _ranking_text(d, rep) -> str:
     for i, e in enumerate(d.ranking):
         lines.append(f"{i + 1:<5}{e.effect:<20}{e.score:>9.2f}{e.fit_percent:>8.1f}  {'yes' if e.beats_noise else 'no':<12}"
                      f"{_params_text(e.effect, e.params)}")
-    lines.append(f"diagnosis: {d.found}")
+    lines.append(f"best of this round: {d.found} (whether it is kept: the stacking below; the final model after it)")
     lines.append(f"evidence: {d.top.evidence}")
     return "\n".join(lines)
 

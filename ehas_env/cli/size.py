@@ -234,7 +234,7 @@ def design_table(sizing, book_tables, design, is_book_design: bool, name: str | 
                     f"v <= {sizing.line_velocity_limit('suction'):g} m/s"),
     ]
     title = ("Design summary" + (f" of {name}" if name else "")
-             + (" (the book's design point: 14 discs, +-30 deg, 3 Hz)" if is_book_design else ""))
+             + (" (the book's design point: 7 disc sets, +-30 deg, 3 Hz)" if is_book_design else ""))
     return Table("design", title, DESIGN_COLUMNS, rows)
 
 

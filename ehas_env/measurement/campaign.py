@@ -71,6 +71,8 @@ REQUIRED = {
     "closed_loop": ("t", "current_mA", "theta_deg", "theta_ref_deg"),
     "valve_open_loop": ("t", "current_mA", "flow_lpm"),
 }
+#: the columns a valve run can carry (its other columns are the closed loop's: a mapping of them is not its)
+VALVE_RUN_COLUMNS = ("t", "current_mA", "flow_lpm", "p_s_bar")
 #: longest run of missing samples that is interpolated; longer gaps are refused
 MAX_GAP = 5
 #: relative tolerance on the sample spacing (loggers write times rounded)
@@ -375,6 +377,13 @@ def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
             warnings.append(f"{r.path.name}: ignored columns the format does not know: {', '.join(r.ignored_columns)}")
     unused = [f"{new}={old}" for new, old in (columns or {}).items()
               if new != GROUP and not any(r.column_map.get(new) == old for r in runs)]
+    for r in runs:  # a mapping some files use and this one lacks: said, not silently read without that column
+        lacks = [f"{new}={old}" for new, old in (columns or {}).items()
+                 if new != GROUP and f"{new}={old}" not in unused and r.column_map.get(new) != old
+                 and (r.kind == "closed_loop" or new in VALVE_RUN_COLUMNS)]
+        if lacks:
+            warnings.append(f"{r.path.name}: --columns {', '.join(lacks)}: this file has no such column (read "
+                            "without it)")
     if unused:
         # a mapping that renames nothing is a typo: reading on would drop a column the user meant to give
         first = runs[0]  # its logger's column names: those read (under their file names) and those ignored

@@ -137,6 +137,7 @@ def relate(values, intervals, features: dict) -> dict:
         r = spearmanr(x, v)
         cors[name] = (float(r.statistic if hasattr(r, "statistic") else r[0]), float(r.pvalue if hasattr(r, "pvalue") else r[1]))
     out = {"follows": None, "rho": None, "rho_p": None, "direction": None, "first": None, "last": None,
+           "quantity_from": None, "quantity_to": None,
            "ratio_first_last": None, "correlations": {k: round(c[0], 3) for k, c in cors.items()}}
     if not cors:
         return out
@@ -149,6 +150,7 @@ def relate(values, intervals, features: dict) -> dict:
     a, b = np.linalg.lstsq(A, v / s, rcond=None)[0]
     first, last = a + b * x.min(), a + b * x.max()
     out.update(rho=round(rho, 3), rho_p=p, first=float(first), last=float(last),
+               quantity_from=float(x.min()), quantity_to=float(x.max()),
                direction="rises" if last > first else "falls",
                ratio_first_last=float(last / first) if first * last > 0 else None)
     if abs(rho) >= FOLLOW_RHO:
@@ -272,7 +274,8 @@ def drift_of(per_run: list[dict], features: dict, units: dict) -> list[dict]:
             continue
         rel = relate(vals, cis, {k: [x[i] for i in idx] for k, x in features.items()})
         d = {"parameter": lab, "unit": units.get(lab, ""), "p_value": float(f"{p:.3g}"), "chi2": round(c, 2),
-             "dof": dof, **{k: rel[k] for k in ("follows", "rho", "direction", "correlations")},
+             "dof": dof, **{k: rel[k] for k in ("follows", "rho", "direction", "correlations", "quantity_from",
+                                                "quantity_to")},
              "first": None if rel["first"] is None else float(f"{rel['first']:.4g}"),
              "last": None if rel["last"] is None else float(f"{rel['last']:.4g}"),
              "ratio_first_last": None if rel["ratio_first_last"] is None else round(rel["ratio_first_last"], 3),
@@ -310,9 +313,12 @@ def drift_text(d: dict) -> str:
     size = (f"{d['ratio_first_last']:.2g}x" if d["ratio_first_last"] is not None and d["ratio_first_last"] >= 1 else
             f"to {d['ratio_first_last']:.2g}x" if d["ratio_first_last"] is not None else
             f"by {d['last'] - d['first']:+.3g}{u}")
-    where = ("in recording order" if d["follows"] == "recording order" else
-             "in file order" if d["follows"] == "file order" else f"with {d['follows']}")
-    return (f"{d['parameter']} {d['direction']} {size} from the first run to the last, {where} ({d['first']:.4g} -> "
+    if d["follows"] in ("recording order", "file order"):
+        along = f"from the first run to the last, in {d['follows']}"
+    else:  # the parameter follows a run setting: its change is along that setting, not along the runs' order
+        along = (f"as {d['follows']} goes from {d.get('quantity_from', float('nan')):.4g} to "
+                 f"{d.get('quantity_to', float('nan')):.4g}")
+    return (f"{d['parameter']} {d['direction']} {size} {along} ({d['first']:.4g} -> "
             f"{d['last']:.4g}{u}; rank correlation {d['rho']:+.2f}); {test}")
 
 

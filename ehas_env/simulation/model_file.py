@@ -608,8 +608,9 @@ def _flat(obj, key: str, where: str) -> dict:
 
 #: the calibration block's keys (docs/model-file.md) and what they hold (runs, ci95: plain values)
 _CAL_NUMBERS = ("fit_percent_before", "fit_percent_after")
-_CAL_TEXTS = ("campaign", "command")
-CALIBRATION_KEYS = ("campaign", "runs", "fit_percent_before", "fit_percent_after", "command", "ci95")
+_CAL_TEXTS = ("campaign", "command", "verdict")
+CALIBRATION_KEYS = ("campaign", "runs", "fit_percent_before", "fit_percent_after", "command", "ci95", "verdict",
+                    "residual_x_noise", "measured_inputs")
 
 
 def _calibration(cal, where: str) -> dict:
@@ -630,6 +631,10 @@ def _calibration(cal, where: str) -> dict:
     for k in _CAL_TEXTS:
         if k in cal and not isinstance(cal[k], str):
             raise ValueError(f"{where}: calibration.{k} must be a text, got {cal[k]!r:.60}")
+    x = cal.get("residual_x_noise")
+    if x is not None and (isinstance(x, bool) or not isinstance(x, (int, float)) or not x >= 0):
+        raise ValueError(f"{where}: calibration.residual_x_noise must be a number >= 0 (the noise figure the model "
+                         f"was graded on), got {x!r:.60}")
     return cal
 
 

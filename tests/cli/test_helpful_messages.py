@@ -73,9 +73,9 @@ def test_an_effect_name_with_nothing_close_still_lists_them_all(capsys):
     (["compare", "camp"], "ehas diagnose camp"),
     (["compare", "camp", "--columns", "theta_deg=Angle"], "ehas diagnose camp --columns theta_deg=Angle"),
     (["compare", "camp", "--effects", "coulomb_friction"],
-     "ehas compare camp --effects coulomb_friction --fit --save-model model.json"),
+     "ehas compare camp --effects coulomb_friction --fit --save-model camp-calibrated/model.json"),
     (["compare", "camp", "--effects", "coulomb_friction", "--fit", "--model", "rig.json"],
-     "ehas compare camp --model rig.json --effects coulomb_friction --fit --save-model model.json"),
+     "ehas compare camp --model rig.json --effects coulomb_friction --fit --save-model camp-calibrated/model.json"),
     (["compare", "camp", "--effects", "coulomb_friction", "--fit", "--save-model", "m.json"],
      "ehas tune --method model --model m.json"),
 ])
@@ -128,3 +128,15 @@ def test_the_unit_of_a_signal_is_the_end_of_its_name(name, unit):
     from ehas_env.identification.fit import signal_unit
 
     assert signal_unit(name) == unit
+
+
+def test_the_errors_page_quotes_the_mistyped_effect_message_as_the_tool_prints_it(capsys):
+    """docs/errors.md shows the message of a mistyped effect word for word: the count of effects in it is the
+    registry's, not a number typed once (it said 31 while the tool listed 39)."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "errors.md").read_text()
+    shown = next(line.strip() for line in doc.splitlines() if "unknown effect 'frictoin'" in line)
+    assert main(["effects", "frictoin"]) == 2
+    printed = capsys.readouterr().err.strip()
+    assert printed == shown

@@ -122,7 +122,7 @@ def test_diagnose_cli_writes_the_json_of_the_spec(viscous_dir, tmp_path, capsys)
     assert main(["diagnose", str(folder), "--json", str(out), "--quiet",
                  "--candidates", "viscous_friction,coulomb_friction,piston_mass"]) == 0
     text = capsys.readouterr().out
-    assert "where the baseline fails" in text and "diagnosis: viscous_friction" in text
+    assert "where the baseline fails" in text and "best of this round: viscous_friction" in text
     assert re.search(r"diagnosed 5 runs in [0-9.]+ s", text)
     doc = json.loads(out.read_text())
     assert set(doc["baseline"]) == {"fit_percent", "per_signal"}

@@ -190,3 +190,17 @@ def test_no_drift_on_ten_steady_campaigns():
                                {"viscous_friction": spurious})
         alarms += [(seed, d["text"]) for d in out["drift"]]
     assert alarms == [], alarms
+
+
+def test_a_drift_along_a_setting_is_worded_along_that_setting_not_the_runs_order():
+    """A parameter that rises with the amplitude while, in file order, it falls (the amplitudes were run 30, 20,
+    10 deg): the words say 'rises ... as amplitude (deg) goes from 10 to 30', never 'from the first run to the last'
+    (which read as a rise in file order where the values fall)."""
+    from ehas_env.measurement.drift import drift_text, relate
+
+    vals = [105.0, 100.0, 95.0]
+    rel = relate(vals, [(v - 1.0, v + 1.0) for v in vals], {"amplitude (deg)": [30.0, 20.0, 10.0]})
+    d = {"parameter": "coulomb_friction.Fc", "unit": "N", "p_value": 1e-6, "chi2": 50.0, "dof": 2, **rel}
+    text = drift_text(d)
+    assert d["direction"] == "rises" and "rises 1.1x as amplitude (deg) goes from 10 to 30 (95 -> 105 N" in text, text
+    assert "first run to the last" not in text

@@ -123,6 +123,24 @@ def test_columns_option_naming_an_absent_column_is_refused(camp):
     refused(camp, "--columns p_s_bar=Supply", "no run in", "has such a column", columns={"p_s_bar": "Supply"})
 
 
+def test_a_mapping_one_closed_loop_file_lacks_is_said(tmp_path):
+    """Two closed-loop runs, one logging the load as 'Force', one not logging it: the mapping is used, and the file
+    without the column is named in a note (before: read without its load in silence).  The valve run, which never
+    logs a load, is not named."""
+    runs, _ = simulate_campaign({}, seed=4, duration=0.3, plan=((2, 12.0, 2.0), (3, 15.0, 1.0)))
+    camp = write_campaign(tmp_path / "camp", runs)
+    stems = sorted(p.stem for p in camp.glob("cl_*.csv"))
+    edit_csv(camp / f"{stems[0]}.csv", lambda h, rows: ([("Force" if c == "load_kN" else c) for c in h], rows))
+    edit_csv(camp / f"{stems[1]}.csv",
+             lambda h, rows: ([c for c in h if c != "load_kN"], [[v for c, v in zip(h, r) if c != "load_kN"]
+                                                                 for r in rows]))
+    c = read_campaign(camp, columns={"load_kN": "Force"})
+    notes = [w for w in c.warnings if "no such column" in w]
+    assert notes == [f"{stems[1]}.csv: --columns load_kN=Force: this file has no such column (read without it)"]
+    assert "load_kN" in next(r for r in c.runs if r.name == stems[0]).columns
+    assert notes[0] in c.summary()
+
+
 def test_renaming_onto_an_existing_column_is_a_duplicate(camp):
     edit_csv(camp / f"{CL}.csv", lambda h, rows: (h + ["Angle2"], [r + [r[h.index("theta_deg")]] for r in rows]))
     refused(camp, "column 'theta_deg' appears twice", "--columns", columns={"theta_deg": "Angle2"})

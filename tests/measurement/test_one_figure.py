@@ -1,0 +1,53 @@
+"""One measure of a model against a campaign, end to end (issue 42, point 2): the figure ``ehas compare`` prints for
+a model is the one ``ehas diagnose`` printed for it, and the model a diagnosis reports is never worse on it than
+the book's rig or the recalibrated baseline (issue 46: the figure reported is the last ``measure`` record's)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ehas_env.cli.main import main
+from ehas_env.measurement.acceptance import SEED
+from ehas_env.measurement.campaign import write_campaign
+from ehas_env.measurement.synthetic import simulate_campaign
+
+
+@pytest.fixture(scope="module")
+def diagnosed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("one_figure")
+    runs, _ = simulate_campaign({"coulomb_friction": {"Fc": 400.0}}, seed=SEED + 42, perturb=True, duration=2.0,
+                                plan=((3, 20.0, 1.0), (5, 25.0, 2.0)))
+    camp = write_campaign(tmp / "camp", runs)
+    assert main(["diagnose", str(camp), "--quiet", "--candidates", "coulomb_friction,viscous_friction",
+                 "--no-hypotheses", "--no-propose", "--json", str(tmp / "d.json"),
+                 "--save-model", str(tmp / "m.json")]) == 0
+    return tmp, camp, json.loads((tmp / "d.json").read_text())
+
+
+def test_compare_prints_the_diagnosis_figure_for_its_model(diagnosed, capsys):
+    tmp, camp, doc = diagnosed
+    assert "coulomb_friction" in doc["model"]["effects"]
+    assert main(["compare", str(camp), "--model", str(tmp / "m.json"), "--json", str(tmp / "c.json")]) == 0
+    out = capsys.readouterr().out
+    cmp = json.loads((tmp / "c.json").read_text())
+    assert cmp["before"]["residual_x_noise"] == doc["residual_x_noise"]
+    assert f"{doc['residual_x_noise']:.2f}x what does not repeat" in out  # the console prints the verdict too
+    # the book's rig: compare of the campaign alone gives the figure the diagnosis held its model to
+    assert main(["compare", str(camp), "--json", str(tmp / "book.json")]) == 0
+    book = json.loads((tmp / "book.json").read_text())
+    assert book["before"]["residual_x_noise"] == doc["validation"]["residual_x_noise_book_model"]
+
+
+def test_the_reported_model_is_the_last_measured_and_never_worse_than_the_book(diagnosed):
+    _, _, doc = diagnosed
+    measures = [r for r in doc["stages"] if r["stage"] == "measure"]
+    assert measures and measures[-1]["effects"] == list(doc["model"]["effects"])
+    assert measures[-1]["residual_x_noise"] == doc["residual_x_noise"]
+    v = doc["validation"]
+    assert doc["residual_x_noise"] <= v["residual_x_noise_book_model"]
+    assert doc["residual_x_noise"] <= v["residual_x_noise_recalibrated_baseline"]
+    # every judged block of every run is listed with where its floor came from
+    blocks = doc["blocks"]
+    assert {b["run"] for b in blocks} == {r for r in doc["validation"]["fit_runs"]} | set(v["holdout"])
+    assert all(b["judged_from_s"] == 0.0 for b in blocks)
