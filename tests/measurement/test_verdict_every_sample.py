@@ -98,3 +98,25 @@ def test_a_mid_run_bump_leaves_the_verdict_as_it_was():
     x0 = grade([_block(y0, TRUE)])["residual_x_noise"]
     x1 = grade([_block(y0 + bump, TRUE)])["residual_x_noise"]
     assert x1 == pytest.approx(x0, rel=0.10)
+
+
+def test_every_sample_of_every_run_of_a_replayed_campaign_is_judged():
+    """Through the replay (:func:`blocks_of`, the one place the diagnosis, compare, the page and the plan take their
+    blocks from): each run and signal is judged from its first sample to its last, and a sine run's floor comes
+    from after its fade-in and one settling cycle."""
+    from ehas_env.measurement.campaign import Campaign, validate_run
+    from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
+    from ehas_env.measurement.synthetic import simulate_campaign
+    from ehas_env.measurement.verdict import blocks_of
+
+    runs, _ = simulate_campaign({}, seed=21, duration=2.0, plan=((3, 20.0, 2.0),))
+    camp = Campaign(None, [validate_run(n, c, m) for n, c, m in runs])
+    rep = Replayer(camp)
+    blocks = blocks_of(rep, rep.simulate(ModelSpec()), COST_SIGNALS)
+    assert blocks and any(b.periodic for b in blocks) and any(not b.periodic for b in blocks)  # sine and chirp
+    for b in blocks:
+        run = next(r for r in camp.runs if r.name == b.run)
+        assert b.judged_from_s == 0.0 and b.n == run.n, b
+        if b.periodic:
+            ref = run.meta["reference"]
+            assert b.floor_from_s == pytest.approx((ref["ramp_cycles"] + 1.0) / ref["freq_hz"], abs=run.dt)
