@@ -100,6 +100,57 @@ def _num(value) -> str:
     return f"({text})" if text.startswith("-") else text
 
 
+def c_literal(value) -> str:
+    """A C literal of a number, as the translator writes it: it reads back as the same double (or integer).
+
+    Parameters
+    ----------
+    value : int, float or bool
+        The number.
+
+    Returns
+    -------
+    str
+        The C literal (``NAN``, ``INFINITY`` for those; a negative one in parentheses).
+
+    Examples
+    --------
+    >>> c_literal(0.1), c_literal(-2.0), c_literal(3)
+    ('0.1', '(-2.0)', '3')
+    """
+    return _num(value)
+
+
+def c_array(values, per_line: int = 0) -> str:
+    """A C initializer ``{a, b, ...}`` of numbers as doubles (:func:`c_literal`); ``{0.0}`` when there are none
+    (C has no empty initializer).
+
+    Parameters
+    ----------
+    values : iterable of float
+        The numbers.
+    per_line : int
+        Numbers per line (an indented block); 0: all on one line.
+
+    Returns
+    -------
+    str
+        The initializer.
+
+    Examples
+    --------
+    >>> c_array([1, 0.5]), c_array([])
+    ('{1.0, 0.5}', '{0.0}')
+    """
+    vals = [_num(float(v)) for v in values]
+    if not vals:
+        return "{0.0}"
+    if per_line <= 0:
+        return "{" + ", ".join(vals) + "}"
+    lines = [", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line)]
+    return "{\n    " + ",\n    ".join(lines) + "\n}"
+
+
 class _Func:
     """What the translator knows of one Python function: its parameters' kinds, its return and its locals."""
 

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from ehas_controllers.drive import DriveController, export_drives
+from ehas_controllers.export_c import controller_c
 from ehas_controllers.harmonic import HarmonicCanceller
 from ehas_controllers.ilc import ILC
 from ehas_controllers.piff import PIFF, GainSchedule
-from ehas_env.cli.export_controller import controller_c
 from ehas_env.simulation.plant import Plant
 
 CC = shutil.which("gcc") or shutil.which("cc")

@@ -14,7 +14,7 @@ fmpy = pytest.importorskip("fmpy")
 from fmpy.validation import validate_fmu  # noqa: E402
 
 from ehas_controllers.piff import PIFF  # noqa: E402
-from ehas_env.cli.export_fmu import write_fmu  # noqa: E402
+from ehas_env.simulation.fmu import write_fmu  # noqa: E402
 from ehas_env.cli.main import main  # noqa: E402
 from ehas_env.simulation.plant import Plant  # noqa: E402
 
