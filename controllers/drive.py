@@ -50,6 +50,32 @@ def drive_stem(name: str, disc_sets: int, amplitude_deg: float, freq_hz: float) 
     return f"{_slug(name)}_{int(disc_sets)}sets_{amplitude_deg:g}deg_{freq_hz:g}hz".replace(".", "p")
 
 
+def drive_members(name: str) -> tuple[str, str, str]:
+    """Glob patterns of the files :func:`export_drives` writes into a folder for the controller ``name``: its
+    drive tables and sidecars of every condition (:func:`drive_stem`) and ``drive.json`` -- an export's output
+    set, and nothing else of the folder (not the controller file, not a user's own CSV or JSON).
+
+    Parameters
+    ----------
+    name : str
+        The learning controller's name.
+
+    Returns
+    -------
+    tuple of str
+        ``<stem>*.csv``, ``<stem>*.json`` patterns and ``drive.json``.
+
+    Examples
+    --------
+    >>> drive_members("ILC on book")
+    ('ilc_on_book_*sets_*deg_*hz.csv', 'ilc_on_book_*sets_*deg_*hz.json', 'drive.json')
+    """
+    from .benchmark import _slug
+
+    stem = f"{_slug(name)}_*sets_*deg_*hz"
+    return f"{stem}.csv", f"{stem}.json", "drive.json"
+
+
 def export_drives(controller, out_dir, *, conditions=None, command: str = "", out_label: str | None = None) -> list[Path]:
     """Write the drive files of every condition ``controller`` learned (module docstring).
 
@@ -83,17 +109,17 @@ def export_drives(controller, out_dir, *, conditions=None, command: str = "", ou
     from .learning import CycleLearner, base_to_dict
 
     if not isinstance(controller, CycleLearner):
-        raise ValueError(f"export-drive: {getattr(controller, 'source', 'the controller')} is a "
+        raise ValueError(f"{getattr(controller, 'source', 'the controller')} is a "
                          f"{type(controller).__name__}; drive files come from a learning controller (ilc, harmonic)")
     learned = {condition_key(r["disc_sets"], r["amplitude_deg"], r["freq_hz"]): r for r in controller.learned_state()}
     where = getattr(controller, "source", controller.name)
     if not learned:
-        raise ValueError(f"export-drive: {where}: field 'learned' is empty or missing: the controller has learned "
+        raise ValueError(f"{where}: field 'learned' is empty or missing: the controller has learned "
                          "nothing yet (run it, e.g. the long test, and save it; docs/learning-control.md)")
     keys = list(learned) if conditions is None else list(conditions)
     for k in keys:
         if k not in learned:
-            raise ValueError(f"export-drive: {where}: nothing learned at {k}; learned at: {', '.join(learned)}")
+            raise ValueError(f"{where}: nothing learned at {k}; learned at: {', '.join(learned)}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     label = Path(out_label) if out_label is not None else out

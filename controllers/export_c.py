@@ -88,7 +88,7 @@ def _learned_rows(ctrl: CycleLearner) -> list[dict]:
     """The base loop and the learned table (the drive file's numbers) of each condition a learner learned."""
     learned = ctrl.learned_state()
     if not learned:
-        raise ValueError(f"export-controller: {getattr(ctrl, 'source', ctrl.name)}: field 'learned' is empty or "
+        raise ValueError(f"{getattr(ctrl, 'source', ctrl.name)}: field 'learned' is empty or "
                          "missing: the controller has learned nothing yet (run it, e.g. ehas bench --long-test, "
                          "and save it; docs/learning-control.md)")
     rows = []
@@ -121,7 +121,7 @@ def _conditions(ctrl) -> tuple[str, list[dict], object]:
                           table=np.asarray(d["table"], dtype=float), start_cycle=d["start_cycle"])
                 for d in ctrl.drives.values()]
         return "condition", rows, laws["pi_ff"]
-    raise ValueError(f"export-controller: {getattr(ctrl, 'source', 'the controller')} is a {type(ctrl).__name__} "
+    raise ValueError(f"{getattr(ctrl, 'source', 'the controller')} is a {type(ctrl).__name__} "
                      f"({getattr(ctrl, 'kind', '?')}); C export takes piff, schedule, ilc, harmonic, drive and "
                      "compiled controllers of your own (a learned agent's network is not exported)")
 

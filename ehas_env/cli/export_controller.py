@@ -31,6 +31,8 @@ def run(args) -> int:
     if args.name is not None and not str(args.name).strip():
         raise ValueError("--name: empty; give a C name such as rig_piff")
     ctrl = load_controller(args.controller)
+    if getattr(ctrl, "source", None) is None:
+        ctrl.source = args.controller  # the file its refusals name (an agent folder's loader sets none)
     cname = c_identifier(args.name if args.name is not None else ctrl.name)
     parts = ["ehas", "export-controller", args.controller, "--format", args.format, "--out", args.out]
     if args.name:

@@ -5,7 +5,8 @@ run, or take the ``learned_*.json`` the guard long test writes), one CSV of one 
 current (``time_s``, ``current_mA``) and its JSON sidecar (condition, sample rate, units, the base
 loop's gains, provenance), and ``DIR/drive.json``: a controller file of type ``drive`` that replays
 them on their base loops (``ehas bench DIR/drive.json``).  docs/learning-control.md describes the
-format (:mod:`ehas_controllers.drive`).
+format (:mod:`ehas_controllers.drive`).  The files are members of the shared folder DIR (this controller's
+drive files and ``drive.json``), swapped in together; other files in DIR, the controller file among them, stay.
 """
 from __future__ import annotations
 
@@ -40,19 +41,28 @@ def _condition(text: str) -> str:
 
 
 def run(args) -> int:
+    from fnmatch import fnmatch
+    from pathlib import Path
+
     from ehas_controllers.base import load_controller
-    from ehas_controllers.drive import export_drives
+    from ehas_controllers.drive import drive_members, export_drives
     from ehas_env.output.outputs import OutputSet
 
     conditions = None if args.condition is None else [_condition(c) for c in args.condition]
     ctrl = load_controller(args.controller)
+    if getattr(ctrl, "source", None) is None:
+        ctrl.source = args.controller  # the file its refusals name (an agent folder's loader sets none)
+    members = drive_members(ctrl.name)
+    src = Path(args.controller).absolute().resolve()
+    if src.parent == Path(args.out).absolute().resolve() and any(fnmatch(src.name, m) for m in members):
+        raise ValueError(f"--out {args.out}: the drive files would replace the input {args.controller}; write them "
+                         "into another folder")
     parts = ["ehas", "export-drive", args.controller, "--out", args.out]
     for c in args.condition or []:
         parts += ["--condition", c]
-    command = " ".join(shlex.quote(p) for p in parts)
-    out = OutputSet(args.out, "--out", overwrite=args.overwrite, members=("*.csv", "*.json"), last=("drive.json",))
+    out = OutputSet(args.out, "--out", overwrite=args.overwrite, members=members, last=("drive.json",))
     with out as tmp:
-        written = export_drives(ctrl, tmp, conditions=conditions, command=command, out_label=args.out)
+        written = export_drives(ctrl, tmp, conditions=conditions, command=shlex.join(parts), out_label=args.out)
     print(f"wrote {len(written) - 1} drive file(s) (CSV + JSON sidecar) and {args.out}/drive.json "
           f"(a controller of type 'drive' that replays them: ehas bench {args.out}/drive.json)")
     return 0

@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     from ehas_env.output.outputs import check_file
-    from ehas_env.simulation.fmu import step_size, write_fmu
+    from ehas_env.simulation.fmu import closing_form, step_size, write_fmu
 
     check_file(args.out, "--out", overwrite=args.overwrite, suffix=".fmu")
     ctrl = None
@@ -39,6 +39,7 @@ def run(args) -> int:
         from ehas_controllers.base import load_controller
 
         ctrl = load_controller(args.controller)
+        closing_form(ctrl, args.disc_sets, f"--controller {args.controller}")  # refused before any work
     files = write_fmu(args.out, args.model, controller=ctrl, disc_sets=args.disc_sets, closed_loop=args.closed_loop,
                       binary=not args.no_binary)
     what = "sources only" if args.no_binary else "sources + binaries/linux64"

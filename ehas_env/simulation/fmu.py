@@ -67,6 +67,38 @@ def _plant(model, disc_sets: int) -> Plant:
     return Plant(disc_sets=disc_sets, model=model) if model else Plant(disc_sets=disc_sets)
 
 
+def closing_form(controller, disc_sets: int, label: str | None = None):
+    """The compiled form of ``controller`` that closes the FMU's loop (its registered law and gains), or a one-line
+    refusal.
+
+    Parameters
+    ----------
+    controller : Controller or RigController
+        The controller (a PIFF, a gain schedule, a compiled controller of one's own, a RigController).
+    disc_sets : int
+        Disc sets of the plant (a schedule's row).
+    label : str, optional
+        How the refusal names the controller (e.g. ``--controller c.json``); default its file, else its type.
+
+    Returns
+    -------
+    object
+        The form with ``law_id()`` and ``gains_vector()`` (:func:`~ehas_env.simulation.control_laws.compiled_form`).
+
+    Raises
+    ------
+    ValueError
+        The controller has no compiled law (a learning controller, a learned agent: they run in ehas).
+    """
+    form = compiled_form(controller, disc_sets)
+    if form is None:
+        who = label or getattr(controller, "source", None) or f"the {type(controller).__name__}"
+        raise ValueError(f"{who}: a {type(controller).__name__} ({getattr(controller, 'kind', '?')}) has no compiled "
+                         "law to close the loop in the FMU; piff, schedule and compiled controllers of your own have "
+                         "one (learning controllers and learned agents run in ehas; docs/export.md)")
+    return form
+
+
 def fmu_sources(model=None, *, controller=None, disc_sets: int = 3, closed_loop: bool = False,
                 name: str | None = None) -> dict:
     """The FMU's text files: ``modelDescription.xml`` and ``sources/ehas_rig.c``.
@@ -93,10 +125,7 @@ def fmu_sources(model=None, *, controller=None, disc_sets: int = 3, closed_loop:
     disc_sets = int(check_field("disc_sets", disc_sets, "--disc-sets"))
     plant = _plant(model, disc_sets)
     ctrl = controller if controller is not None else RigController.book()
-    form = compiled_form(ctrl, disc_sets)
-    if form is None:
-        raise ValueError(f"export-fmu: --controller {getattr(ctrl, 'source', '')}: a {type(ctrl).__name__} has no "
-                         "compiled law (piff, schedule or a compiled controller of your own close the loop in the FMU)")
+    form = closing_form(ctrl, disc_sets)
     laws = all_laws()
     law_id = form.law_id()
     gains = [float(g) for g in form.gains_vector()]
