@@ -317,13 +317,50 @@ def _side(recs: list[dict], key: str) -> dict:
             "verdict_changed": {v: [r["id"] for r in a if r["a"][key][v].get("verdict")
                                     != r["a"][key]["fade"].get("verdict")] for v in VARIANTS[1:]},
             "clean_unexplained": {v: [r["id"] for r in a if not r["effects"]
-                                      and r["a"][key][v].get("verdict") == "unexplained"] for v in VARIANTS}}
+                                      and r["a"][key][v].get("verdict") == "unexplained"] for v in VARIANTS},
+            "floor_far_above_residual": {v: [r["id"] for r in a if floor_above(r["a"][key][v].get("blocks") or [])]
+                                         for v in VARIANTS},
+            "floor_10x_noise": {v: [r["id"] for r in a if floor_big(r["a"][key][v].get("blocks") or [])]
+                                for v in VARIANTS}}
+
+
+#: a floor this many times the sensor noise's variance counts a deterministic response: the generator's campaigns
+#: hold nothing that does not repeat but white sensor noise and its converters (and the knock of ``rest_bump``,
+#: about 3x on its run), so a larger floor is the rig's own response that changes from cycle to cycle (a start's
+#: settling, a subharmonic) -- what the issue says a floor must never count
+FLOOR_BIG = 10.0
+
+
+def floor_big(blocks: list[dict]) -> list[dict]:
+    """The blocks whose floor is above :data:`FLOOR_BIG` sensor-noise variances."""
+    return [b for b in blocks if (b.get("floor_x_sensor_noise") or 0.0) > FLOOR_BIG]
+
+
+#: a block whose residual is below this share of its floor has a floor "far above the residual it judges" (issue 42,
+#: point 1: a residual cannot be far below the noise it contains)
+FLOOR_ABOVE = 2.0 / 3.0
+
+
+def floor_above(blocks: list[dict]) -> list[dict]:
+    """The blocks whose floor is far above their residual (residual_x_noise below :data:`FLOOR_ABOVE`)."""
+    return [b for b in blocks if b.get("residual_x_noise") is not None and b["residual_x_noise"] < FLOOR_ABOVE]
+
+
+def changed_blocks(fade: list[dict], other: list[dict], k: int = 3) -> list[tuple]:
+    """The ``k`` blocks whose figure (each counted at least 1, as the overall figure counts it) moved most between
+    two variants: (fade block, other block), largest |log| change first."""
+    by = {(b["run"], b["signal"]): b for b in fade}
+    pairs = [(by[(b["run"], b["signal"])], b) for b in other if (b["run"], b["signal"]) in by]
+    pairs.sort(key=lambda fb: -abs(math.log(max(fb[1]["residual_x_noise"], 1.0))
+                                   - math.log(max(fb[0]["residual_x_noise"], 1.0))))
+    return pairs[:k]
 
 
 def summarise(recs: list[dict]) -> dict:
     """The figures against the issue's acceptance over the cases here."""
     b = [r for r in recs if "b" in r and "error" not in r["b"]]
-    visible = [r for r in b if r["effects"] and (r["a"]["effect"]["best_db"] or -1e9) >= VISIBLE_DB]
+    visible = [r for r in b if r["effects"] and (((r.get("a") or {}).get("effect") or {}).get("best_db") or -1e9)
+               >= VISIBLE_DB]
     s = {"cases": len(recs), "book": _side(recs, "variants"), "true_bk": _side(recs, "true_bk"),
          "part_b": len(b), "part_b_errors": sum(1 for r in recs if "b" in r and "error" in r["b"]),
          "visible_effects_diagnosed": len(visible),
@@ -404,7 +441,13 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
               "* Verdict words that changed from `fade`: " + "; ".join(
                   f"`{v}`: {', '.join(ids) or 'none'}" for v, ids in m["verdict_changed"].items()) + ".",
               "* Clean campaigns `compare` calls unexplained: " + "; ".join(
-                  f"`{v}`: {len(ids)}" for v, ids in m["clean_unexplained"].items()) + ".", ""]
+                  f"`{v}`: {len(ids)}" for v, ids in m["clean_unexplained"].items()) + ".",
+              f"* Campaigns with a block whose floor is far above its residual (residual below "
+              f"{FLOOR_ABOVE:.2f} floors; the block then counts as 1): " + "; ".join(
+                  f"`{v}`: {len(ids)}" for v, ids in m["floor_far_above_residual"].items()) + ".",
+              f"* Campaigns with a block whose floor is above {FLOOR_BIG:g}x the sensor noise's variance (in this "
+              "generator nothing but the sensor chain and the knock fails to repeat: such a floor counts the rig's own "
+              "response): " + "; ".join(f"`{v}`: {len(ids)}" for v, ids in m["floor_10x_noise"].items()) + ".", ""]
     L += [f"(b) Diagnosed (`rest`): {summ['part_b']} ({summ['part_b_errors']} failed to run); with the hidden "
           f"effect >= {VISIBLE_DB:g} dB above the noise: {summ['visible_effects_diagnosed']}; of those called "
           f"explained with nothing added to the book model: {len(summ['visible_explained_nothing_added'])} "
@@ -442,10 +485,119 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
         L.append(f"| {r['id']} | {r['rig']} | {hidden} | {_f(e.get('best_db'))}{where} | " + " | ".join(cells)
                  + f" | {_f(a.get('agree'))}, {_f(a.get('agree_true_bk'))} | {diag} | {added} "
                  f"| {_f(a.get('a_s'), 4)}, {_f(b.get('b_s'), 4)} |")
+    L += [""] + findings(recs)
+    L += ["", "## Where a variant's figure moved (book model, beyond 10 %)", "",
+          "The three blocks whose figure (counted at least 1) moved most from `fade`: residual_x_noise, the floor "
+          "in sensor-noise variances and the stretch that set it (s; `-`: the sensor noise).", "",
+          "| case | variant | run | signal | fade: x (floor, stretch) | variant: x (floor, stretch) |",
+          "|---|---|---|---|---|---|"]
+    for r in recs:
+        side = (r.get("a") or {}).get("variants") or {}
+        for v in VARIANTS[1:]:
+            x = side.get(v) or {}
+            if x.get("ratio_to_fade") is None or abs(x["ratio_to_fade"] - 1.0) <= AGREE:
+                continue
+            for f, o in changed_blocks(side["fade"].get("blocks") or [], x.get("blocks") or []):
+                L.append(f"| {r['id']} | {v} | {o['run']} | {o['signal']} | {_blk(f)} | {_blk(o)} |")
     L += ["", "Per-block numbers (`after.blocks` of each compare: run, signal, residual_x_noise, "
           "floor_x_sensor_noise, floor_from_s, floor_to_s) are in `cases/ID.json`, `a.variants.VARIANT.blocks` "
           "(book model) and `a.true_bk.VARIANT.blocks`.", ""]
     return "\n".join(L) + "\n"
+
+
+def _block(rec: dict, side: str, variant: str, run: str, signal: str) -> dict | None:
+    for b in (((rec.get("a") or {}).get(side) or {}).get(variant) or {}).get("blocks") or []:
+        if b["run"] == run and b["signal"] == signal:
+            return b
+    return None
+
+
+def findings(recs: list[dict]) -> list[str]:
+    """What the figures show, with the numbers of the cases here (the causes of the differences)."""
+    a = [r for r in recs if "a" in r]
+    L = ["## What the differences come from", ""]
+    clean = [r for r in a if not r["effects"]]
+    if clean:
+        L.append("* **The start stretch shows beta and K.** Clean campaigns, book model / model at the campaign's own "
+                 "beta and K, `fade` -> `rest`: " + "; ".join(
+                     f"{r['id']} {_f(r['a']['variants']['fade'].get('residual_x_noise'))} -> "
+                     f"{_f(r['a']['variants']['rest'].get('residual_x_noise'))} / "
+                     f"{_f(r['a']['true_bk']['fade'].get('residual_x_noise'))} -> "
+                     f"{_f(r['a']['true_bk']['rest'].get('residual_x_noise'))}" for r in clean)
+                 + ". A start from rest without a fade-in drives chambers to 0 bar and Ps (book rig, 5 sets, "
+                 "+-30 deg at 2 Hz: A at 0 bar from 74 to 95 ms, B at Ps from 71 to 165 ms), where the response "
+                 "hangs on beta: the rig's beta a few % off the model file's is a residual of tens of noise "
+                 "variances there, none with a fade-in. The fit (`ehas diagnose`, part b) recalibrates beta and K.")
+    b = _block(next((r for r in clean if r["id"] == "clean_book"), {}), "true_bk", "rest", gen.run_name(5, 30.0, 2.0),
+               "p_a_bar")
+    L.append("* **The reference model's own step at the bounds.** Even at the campaign's beta and K the clean "
+             "book campaign from rest keeps a residual on the run that reaches the bounds"
+             + (f" (cl_5sets_30deg_2hz p_a_bar {b['residual_x_noise']:.3g} floors)" if b else "")
+             + ": ehas's reference model at its 10 RK4 sub-steps per period is 4.4 bar (A), 7.2 bar (B) and 0.14 "
+             "deg off its own converged solution (160 sub-steps) there, 20-30x the pressure noise, and the "
+             "generator with `exact_bounds` is within 0.24 and 0.39 bar of that converged solution "
+             "(`test_exact_bounds_meet_the_reference_model_where_a_start_from_rest_reaches_them`; "
+             "docs/independent-generator.md). This is ehas_env's integrator (a projection after each 0.1 ms step "
+             "onto [0, Ps]), not the verdict.")
+    big = [(r["id"], b) for r in a for b in floor_big((r["a"]["true_bk"].get("rest") or {}).get("blocks") or [])]
+    if big:
+        worst = sorted(big, key=lambda ib: -ib[1]["floor_x_sensor_noise"])[:6]
+        L.append(f"* **The floor counts the rig's own response.** In `rest` (model at the campaign's beta and K) "
+                 f"{len(big)} blocks of {len({i for i, _ in big})} campaigns have a floor above {FLOOR_BIG:g}x the "
+                 "sensor noise, in `fade` " + str(sum(len(floor_big((r["a"]["true_bk"].get("fade") or {})
+                                                                      .get("blocks") or [])) for r in a))
+                 + " blocks; the largest: " + "; ".join(
+                     f"{i} {bl['run']} {bl['signal']} floor {bl['floor_x_sensor_noise']:.4g} ({bl['floor_from_s']:g}-"
+                     f"{bl['floor_to_s']:g} s), residual {bl['residual_x_noise']:.3g} floors" for i, bl in worst)
+                 + ". Nothing in these campaigns fails to repeat but white sensor noise: such a floor is a "
+                 "deterministic response the model misses and that changes from cycle to cycle, which the "
+                 "cycle-to-cycle change counts as floor, so the block counts about 1. Two kinds seen at "
+                 "191828e (book model, `rest`): a settling the start excites that lasts beyond the one settling "
+                 "cycle (`current_lag` T = 6 ms, cl_5sets_30deg_2hz: the residual per cycle 369747, 255855, "
+                 "153551, 102063, 60439, 41994 noise variances, the correlation of each cycle with the next "
+                 "+0.86 to -0.85; floor 139860 from 0.5 s, block 1.17 floors; with the fade-in the same run is "
+                 "49 floors on a floor of 47), and a subharmonic (`single_rod` alpha 0.75, cl_7sets_10deg_3hz: "
+                 "each cycle correlates -0.84 with the next, the measured cycle means alternate 0.19/-0.20 deg and "
+                 "103/89 bar; floor 100379 (theta) to 169803 (p_a) sensor-noise variances, the residual 0.45-0.54 "
+                 "of it). The verdict's rule that the floor is never above the residual it judges is not held for "
+                 "these: ehas_env/measurement/verdict.py, `residual_floor` and `split_block` (the floor is "
+                 "max(change, noise), never capped by the residual).")
+    knocked = []
+    for r in a:
+        x0 = _block(r, "true_bk", "rest", BUMP_RUN, "theta_deg")
+        x1 = _block(r, "true_bk", "rest_bump", BUMP_RUN, "theta_deg")
+        if x0 and x1:
+            knocked.append((r["id"], x0, x1))
+    if knocked:
+        ratios = sorted(k[2]["floor_x_sensor_noise"] / k[1]["floor_x_sensor_noise"] for k in knocked)
+        worst = max(knocked, key=lambda k: k[1]["residual_x_noise"] / max(k[2]["residual_x_noise"], 1e-9))
+        L.append(f"* **A knock raises its run's floor for the whole run.** The {BUMP_WIDTH_S * 1e3:g} ms knock on "
+                 f"{BUMP_RUN} raises that run's angle floor by a median factor {ratios[len(ratios) // 2]:.3g} (range "
+                 f"{ratios[0]:.3g}-{ratios[-1]:.3g}) over {len(knocked)} campaigns: its cycle-to-cycle change "
+                 "counts it twice over the shorter floor stretch (from one period on), against once in the residual "
+                 "over the whole run, and it is spread over the run's 3 s. A structured residual elsewhere in the "
+                 f"run is then divided by it: {worst[0]}: {worst[1]['residual_x_noise']:.3g} -> "
+                 f"{worst[2]['residual_x_noise']:.3g} floors (floor {worst[1]['floor_x_sensor_noise']:.4g} -> "
+                 f"{worst[2]['floor_x_sensor_noise']:.4g}).")
+    slow = gen.run_name(3, 20.0, 1.0)
+    L.append(f"* **Which runs have their own floor.** {slow} (1 Hz, 3 s) faded in has one cycle after the fade-in "
+             "and the settling cycle: fewer than 2, so the sensor noise is its floor; from rest it has two (1-3 s), "
+             "its own floor.")
+    for side, words in (("variants", "book model"), ("true_bk", "model at the campaign's beta and K")):
+        rel = [(abs(r["a"][side]["rest_cut"]["residual_x_noise"] / r["a"][side]["rest"]["residual_x_noise"] - 1.0),
+                r["id"]) for r in a if r["a"][side]["rest_cut"].get("residual_x_noise")
+               and r["a"][side]["rest"].get("residual_x_noise")]
+        if rel:
+            m = max(rel)
+            L.append(f"* **A run cut short** (`rest_cut` against `rest`, which differ only in {CUT_RUN}'s last "
+                     f"{CUT_SHORT_S:g} s), {words}: within 10 % in {sum(1 for x, _ in rel if x <= AGREE)}/{len(rel)}; "
+                     f"largest difference {100 * m[0]:.1f} % ({m[1]}).")
+    return L
+
+
+def _blk(b: dict) -> str:
+    stretch = "-" if b.get("floor_from_s") is None else f"{b['floor_from_s']:g}-{b['floor_to_s']:g}"
+    return f"{b['residual_x_noise']:.3g} ({b['floor_x_sensor_noise']:.4g}, {stretch})"
 
 
 def _commits(recs: list[dict]) -> str:
@@ -511,14 +663,14 @@ def main(argv=None) -> int:
 
     def one(item):
         c, need = item
-        rec = stored(c["id"]) or dict(c)
         for part in need:
             if part == "a":
-                rec["a"] = part_a(c, work)
-                rec["ehas_commit"] = acc._commit()
+                new = {"a": part_a(c, work), "ehas_commit": acc._commit()}
             else:
-                rec["b"] = {**part_b(c, work, out), "ehas_commit": acc._commit()}
-            tmp = out / "cases" / f".{c['id']}.json.tmp"
+                new = {"b": {**part_b(c, work, out), "ehas_commit": acc._commit()}}
+            # the record as stored now (another process may have written its other part meanwhile), with this part
+            rec = {**(stored(c["id"]) or dict(c)), **new}
+            tmp = out / "cases" / f".{c['id']}.{os.getpid()}.json.tmp"
             tmp.write_text(json.dumps(rec, indent=1) + "\n")
             os.replace(tmp, out / "cases" / f"{c['id']}.json")
         return rec

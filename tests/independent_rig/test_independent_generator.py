@@ -283,3 +283,23 @@ def test_exact_bounds_meet_the_reference_model_where_a_start_from_rest_reaches_t
         far[exact] = {s: float(np.abs(meas[s] - sim[s]).max()) for s in ("theta_deg", "p_a_bar", "p_b_bar")}
     assert far[True]["p_a_bar"] < 1.0 and far[True]["p_b_bar"] < 1.0 and far[True]["theta_deg"] < 0.02
     assert far[False]["p_b_bar"] > 10.0
+
+
+def test_the_start_condition_variants_and_their_model_file(tmp_path):
+    """The runner's variants differ from the plan only where they say (every one with exact_bounds); the knock is
+    2 % of the rig's stall torque A Ps r (book: 7.658 cm2 x 220 bar x 50 mm = 842.4 N m -> 16.85 N m); the model
+    file at the campaign's beta and K reads with ehas and carries truth.json's numbers and the rig's geometry."""
+    from ehas_env.simulation.model_file import load_model
+    from independent_rig import start_conditions as sc
+
+    assert sc.options("fade", "book", 3.0) == {"exact_bounds": True}
+    assert sc.options("rest", "book", 3.0) == {"ramp_cycles": 0, "state_ramp": False, "exact_bounds": True}
+    assert sc.bump_of("book", 3.0) == {"run": "cl_1set_35deg_3hz", "t_s": 1.5, "width_s": 0.03, "torque_Nm": 16.85}
+    assert sc.options("rest_cut", "rig_b", 3.0)["cut"] == {"run": "cl_1set_35deg_3hz", "short_s": 0.15}
+    for rig in ("book", "rig_c"):
+        camp = tmp_path / rig
+        camp.mkdir()
+        (camp / "truth.json").write_text(json.dumps({"beta_Pa": 9.61e8, "K_lpm_per_mA": 1.2811}))
+        m = load_model(sc.true_bk_model(camp, rig, tmp_path / f"{rig}_model.json"))
+        assert m.rig.beta == pytest.approx(9.61e8) and m.rig.K == pytest.approx(1.2811)
+        assert m.rig.radius == pytest.approx({"book": 0.05, "rig_c": 0.04}[rig])
