@@ -125,6 +125,11 @@ class HarmonicCanceller(CycleLearner):
         self._E = E
 
     # -- what the guard and the drive files need ---------------------------------------------
+    def _learned_band(self) -> np.ndarray:
+        band = np.zeros(self._table.n // 2 + 1)
+        band[self._h] = 1.0  # the harmonics cancelled, 1..harmonics
+        return band
+
     def _snapshot(self):
         return self._U.copy()
 

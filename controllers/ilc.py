@@ -170,6 +170,11 @@ class ILC(CycleLearner):
         self._u = new
 
     # -- what the guard and the drive files need ---------------------------------------------
+    def _learned_band(self) -> np.ndarray:
+        band = np.array(self._plan["Q"], dtype=float)  # Q: what an update keeps of each harmonic
+        band[0] = 0.0  # the mean is the base loop's integrator's
+        return band
+
     def _snapshot(self):
         return self._u.copy()
 

@@ -26,8 +26,14 @@ error of the cycle before.  Three pieces are common to them and live here, once:
   ``min(growth x best, base) + floor_pct`` for ``patience`` cycles the controller stops learning and
   restores the feed-forward of its best cycle; when even that stays worse than the base loop for
   ``patience`` cycles it halves the feed-forward, again and again, and after ``halvings`` halvings
-  drops it (the base loop alone); worse than ``growth`` x the base loop's error, it drops it at once.  Each step is an event in ``guard_log`` (and in the controller's
-  JSON state, ``learned``).
+  drops it (the base loop alone); worse than ``growth`` x the base loop's error, it drops it at once.  Each step is an
+  event in ``guard_log`` (and in the controller's JSON state, ``learned``);
+* the **repeatability gate** (the guard's ``repeat_*`` fields): learning assumes a process that repeats, and
+  learning from cycles that do not repeat is learning noise.  Before the first update the base loop alone runs
+  until cycle ``repeat_cycle`` (default 3), and the change of that cycle's error from the cycle before, over the
+  harmonics the controller learns (:meth:`CycleLearner._learned_band`), is compared with the error: above
+  ``repeat_pct`` % of it and above ``repeat_floor_pct`` % of the amplitude the gate closes, nothing is learned in
+  the run and the controller is its base loop exactly (state ``"gated"``, event ``gate``).
 
 The design model is the book's plant (``design_model`` None) or a model file of
 the rig (docs/model-file.md), read as data.
@@ -50,10 +56,16 @@ GUARD_DEFAULTS = {
     "floor_pct": 0.02,        # % : absolute slack on top (an error this small is never bad)
     "halvings": 3,            # - : halvings of the feed-forward before it is dropped (base loop alone)
     "base_error_pct": None,   # % : the base loop's per-cycle rms error if measured; None: its own first cycles
+    # the repeatability gate: learning starts only on a base loop whose cycles repeat
+    "repeat_cycle": 3,        # cycles: the gate compares this cycle with the one before, both on the base loop alone
+    "repeat_pct": 20.0,       # % : cycles do not repeat when their change exceeds this % of the error (null: no gate)
+    "repeat_floor_pct": 0.5,  # % of the amplitude: a change from cycle to cycle this small always counts as repeating
 }
-#: what each guard field allows: (low, high, integer); growth > 1, base_error_pct > 0 or null
+#: what each guard field allows: (low, high, integer); growth > 1, base_error_pct > 0 or null, repeat_pct > 0 or null
 _GUARD_RANGES = {"patience": (1, 100, True), "growth": (1.0, 100.0, False), "floor_pct": (0.0, 100.0, False),
-                 "halvings": (0, 30, True), "base_error_pct": (0.0, 1e6, False)}
+                 "halvings": (0, 30, True), "base_error_pct": (0.0, 1e6, False), "repeat_cycle": (2, 100, True),
+                 "repeat_pct": (0.0, 1000.0, False), "repeat_floor_pct": (0.0, 100.0, False)}
+_NULLABLE = ("base_error_pct", "repeat_pct")
 
 
 def check_number(value, name: str, lo: float, hi: float, who: str, *, lo_open: bool = False,
@@ -126,7 +138,8 @@ def guard_settings(guard, who: str) -> dict:
     -------
     dict
         Every guard field: ``enabled`` (bool), ``patience`` (cycles), ``growth`` (-), ``floor_pct`` (%),
-        ``halvings`` (-), ``base_error_pct`` (% or None).
+        ``halvings`` (-), ``base_error_pct`` (% or None), and the repeatability gate's ``repeat_cycle``
+        (cycles), ``repeat_pct`` (% of the error, or None: no gate), ``repeat_floor_pct`` (% of the amplitude).
 
     Raises
     ------
@@ -140,12 +153,12 @@ def guard_settings(guard, who: str) -> dict:
             if not isinstance(value, bool):
                 raise ValueError(f"{who}: 'guard.enabled' must be true or false, got {value!r}")
             out[key] = value
-        elif key == "base_error_pct" and value is None:
+        elif key in _NULLABLE and value is None:
             out[key] = None
         else:
             lo, hi, integer = _GUARD_RANGES[key]
             v = check_number(value, f"guard.{key}", lo, hi, who, integer=integer,
-                             lo_open=key in ("growth", "base_error_pct"))
+                             lo_open=key in ("growth", "base_error_pct", "repeat_pct"))
             out[key] = int(v) if integer else float(v)
     return out
 
@@ -382,9 +395,13 @@ class CycleLearner(Controller):
     The guard (module docstring; parameters :data:`GUARD_DEFAULTS`) is one law for every learning
     controller: at the end of each cycle the cycle's rms % error (``cycle_error_pct``, the error the
     controller sees: reference minus sensed angle) is compared with the base loop's (``base_error_pct``:
-    the cycles run on the base loop alone, 1..``start_cycle``, or ``guard.base_error_pct``) and the best
-    so far; its states are ``"learning"``, ``"stopped"`` (the best cycle's feed-forward restored, no more
-    learning), ``"halved"`` (a fraction ``scale`` of it) and ``"base"`` (none: the base loop alone).
+    the cycles run on the base loop alone, 1..:attr:`first_learned_cycle`, or ``guard.base_error_pct``) and the
+    best so far; its states are ``"learning"``, ``"stopped"`` (the best cycle's feed-forward restored, no more
+    learning), ``"halved"`` (a fraction ``scale`` of it), ``"base"`` (none: the base loop alone) and ``"gated"``
+    (the repeatability gate closed: nothing was learned).
+    Before the first update the **repeatability gate** (:meth:`_gate`) compares cycle ``repeat_cycle`` with the
+    one before it, both on the base loop alone: when they do not repeat the state is ``"gated"`` and nothing
+    is learned in the run (``repeat_pct`` null or ``enabled`` false: no gate, learning from ``start_cycle``).
     While learning, a cycle is bad above ``min(growth x best, base) + floor_pct``; once stopped, above
     ``base + floor_pct`` (a halving); ``patience`` bad cycles in a row make one step.  One cycle above
     ``growth x base + floor_pct`` (far worse than the base loop: never noise) is enough: learning stops at
@@ -398,7 +415,8 @@ class CycleLearner(Controller):
 
     Subclasses call :meth:`_layer` from their ``__init__`` (it checks and sets these, then ``reset()``) and
     implement ``_begin``, ``_learn``, ``_feedforward``, ``_snapshot`` / ``_restore`` (the learned signal),
-    ``_scale`` and ``_feedforward_table`` (the signal over one period, for drive files).
+    ``_scale``, ``_table_of`` (the signal over one period, for drive files) and ``_learned_band`` (the
+    harmonics it learns, for the gate).
     """
 
     kind = "classical"
@@ -465,6 +483,18 @@ class CycleLearner(Controller):
         self.scale = 1.0
         self._sums = [0.0, 0, 0.0]  # sum e^2 (deg^2), samples, max|e| (deg) of the running cycle
         self._amp = self._freq = None
+        self._prev_e = None  # the error per bin of the base-loop cycle the gate compares with (deg)
+        self.repeat: dict | None = None  # the gate's measurement (cycle, change_pct, ratio_pct, open)
+
+    @property
+    def gated(self) -> bool:
+        """Whether the repeatability gate is on (``guard.enabled`` and ``guard.repeat_pct`` not null)."""
+        return bool(self.guard["enabled"] and self.guard["repeat_pct"] is not None)
+
+    @property
+    def first_learned_cycle(self) -> int:
+        """The first cycle learned from: ``start_cycle``, or with the gate on not before ``guard.repeat_cycle``."""
+        return max(self.start_cycle, self.guard["repeat_cycle"]) if self.gated else self.start_cycle
 
     def _reset_learning(self) -> None:
         """Clear the subclass's learned signal (called by :meth:`reset`)."""
@@ -511,22 +541,73 @@ class CycleLearner(Controller):
         self._sums = [0.0, 0, 0.0]
         err = percent_errors(s2, n, peak, self._amp)["rms_error_pct"]
         self.cycle_error_pct.append(err)
-        if cycle < self.start_cycle:
+        first = self.first_learned_cycle
+        if cycle < first:
+            self._prev_e = e.copy()  # the gate compares the first learned cycle with this one
             return
-        if cycle == self.start_cycle:  # the last cycle on the base loop alone: its error is the base loop's
+        if cycle == first:  # the last cycle on the base loop alone: its error is the base loop's
             if self.guard["base_error_pct"] is None:
                 base = self.cycle_error_pct[1:cycle + 1] or self.cycle_error_pct[:1]
                 self.base_error_pct = float(np.sqrt(np.mean(np.square(base))))
             self._best = (err, self._snapshot(), cycle)
+            if self.gated and not self._gate(cycle, e):
+                self._remember(cycle)
+                return
         elif self.guard["enabled"]:
             self._watch(cycle, err)
         if self.guard_state == "learning":
             self._learn(e)
         self._remember(cycle)
 
+    def _gate(self, cycle: int, e: np.ndarray) -> bool:
+        """The repeatability gate before the first update: do the base loop's cycles repeat? (class docstring)
+
+        Parameters
+        ----------
+        cycle : int
+            The cycle just finished on the base loop alone (``first_learned_cycle``).
+        e : ndarray
+            Its error per phase bin, deg; ``self._prev_e`` holds the cycle before's.
+
+        Returns
+        -------
+        bool
+            True: learning may start. False: the gate closed (state ``"gated"``, event ``gate``): nothing is
+            learned in this run, the controller runs its base loop alone.
+        """
+        g = self.guard
+        band = self._learned_band()  # weight of each harmonic k = 0..N/2 of the table in what is learned
+
+        def rms(x):  # rms (deg) of the periodic signal x restricted to the learned harmonics (Parseval)
+            X = np.abs(band * np.fft.rfft(x)) ** 2
+            twice = np.full(X.size, 2.0)
+            twice[0] = 1.0
+            if x.size % 2 == 0:
+                twice[-1] = 1.0
+            return float(np.sqrt(np.sum(twice * X)) / x.size)
+
+        change, level = rms(e - self._prev_e), rms(e)
+        change_pct = 100.0 * change / self._amp
+        ratio_pct = 100.0 * change / max(level, 1e-300)
+        is_open = not (ratio_pct > g["repeat_pct"] and change_pct > g["repeat_floor_pct"])
+        self.repeat = {"cycle": int(cycle), "change_pct": change_pct, "ratio_pct": ratio_pct, "open": is_open}
+        if not is_open:
+            self.guard_state = "gated"
+            self._event(cycle, "gate", self.cycle_error_pct[-1],
+                        f"the base loop's cycles do not repeat: {ratio_pct:.3g} % change from cycle {cycle - 1} to "
+                        f"cycle {cycle} over the harmonics learned ({change_pct:.3g} % of the amplitude; above "
+                        f"{g['repeat_pct']:g} % and {g['repeat_floor_pct']:g} %); nothing learned: the base loop alone")
+        return is_open
+
+    def _learned_band(self) -> np.ndarray:
+        """Weight (0..1) of each harmonic k = 0..N/2 of the cycle table in what the controller learns."""
+        raise NotImplementedError
+
     def _watch(self, cycle: int, err: float) -> None:
         """The guard's law (class docstring) after cycle ``cycle`` whose rms error was ``err`` %."""
         g, base = self.guard, self.base_error_pct
+        if self.guard_state == "gated":
+            return
         if self.guard_state == "learning" and err < self._best[0]:
             self._best = (err, self._snapshot(), cycle)
         best = self._best[0]
@@ -583,7 +664,7 @@ class CycleLearner(Controller):
                              "freq_hz": float(self._freq), "cycles": int(cycle) + 1,
                              "cycle_error_pct": list(self.cycle_error_pct),
                              "base_error_pct": self.base_error_pct, "guard_state": self.guard_state,
-                             "scale": self.scale, "events": list(self.guard_log),
+                             "scale": self.scale, "events": list(self.guard_log), "repeat": self.repeat,
                              "feedforward": self._feedforward_state}
 
     @property

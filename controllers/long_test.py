@@ -576,7 +576,9 @@ def guard_long_test(controllers, plants, out_dir, *, conditions=None, cycles: in
         ``seed_means`` (% per seed), ``median_seed_mean_pct``, ``worst_seed_mean_pct``, ``worst_run_pct``,
         ``base_mean_pct`` (median over seeds), ``runs``, ``worse_than_base``, ``worse_on_base_alone`` (of
         those, the runs that ended with the learned signal dropped: the base loop alone, in another of its
-        own oscillations than its own run's), ``guarded_runs``, ``fallbacks_to_base``); ``rows``: every run.
+        own oscillations than its own run's), ``gated_runs`` (the repeatability gate closed: nothing learned, the
+        base loop alone), ``guarded_runs`` (the guard acted while or after learning), ``fallbacks_to_base``);
+        ``rows``: every run.
     """
     from ehas_env.output.files import atomic_write_text
     from ehas_env.output.progress import bar
@@ -621,9 +623,10 @@ def guard_long_test(controllers, plants, out_dir, *, conditions=None, cycles: in
                 "worst_run_pct": float(max(r["steady_rms_pct"] for r in all_rows)),
                 "base_mean_pct": float(np.median([np.mean([x["steady_rms_pct"] for x in b]) for _, b in per_seed])),
                 "runs": len(all_rows), "worse_than_base": int(sum(r["worse_than_base"] for r in all_rows)),
-                "worse_on_base_alone": int(sum(r["worse_than_base"] and r.get("guard_state") == "base"
+                "worse_on_base_alone": int(sum(r["worse_than_base"] and r.get("guard_state") in ("base", "gated")
                                                for r in all_rows)),
-                "guarded_runs": int(sum(bool(r.get("guard_events")) for r in all_rows)),
+                "gated_runs": int(sum(r.get("guard_state") == "gated" for r in all_rows)),
+                "guarded_runs": int(sum(any(e["event"] != "gate" for e in r.get("guard_log", ())) for r in all_rows)),
                 "fallbacks_to_base": int(sum(r.get("guard_state") == "base" for r in all_rows))})
     atomic_write_text(out / "guard_long_test.csv", _guard_csv(rows, command, cycles))
     atomic_write_text(out / "guard_long_test.json", json.dumps({"command": command, "cycles": cycles,
@@ -640,7 +643,8 @@ def _guard_csv(rows, command, cycles) -> str:
               "base_steady_rms_pct: the fixed-gain base loop's on the same plant, condition and seed; "
               f"worse_than_base: steady > {1 + WORSE_TOLERANCE:g} x base + the std of the base loop's last "
               f"{STEADY_CYCLES} cycles' rms; guard_events: cycle:event of the guard "
-              "(stop: learning stopped and the best cycle's feed-forward restored; halve; base: feed-forward dropped)\n")
+              "(gate: the base loop's cycles did not repeat, nothing learned; stop: learning stopped and the best "
+              "cycle's feed-forward restored; halve; base: feed-forward dropped)\n")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["controller", "plant", "seed", "disc_sets", "freq_hz", "amplitude_deg", "steady_rms_pct",
                 "base_steady_rms_pct", "worse_than_base", "guard_state", "guard_events", "cycle_rms_pct"])
@@ -661,7 +665,9 @@ def _guard_markdown(summary, plants, command, cycles, n_conds) -> str:
              f"the last {STEADY_CYCLES} cycles, on the true angle (docs/metric.md). A run **ended worse than its base "
              f"loop** when its steady rms exceeds {1 + WORSE_TOLERANCE:g} × the base loop's on the same plant, "
              f"condition and seed plus the base loop's own wander (the standard deviation of its last {STEADY_CYCLES} "
-             "cycles' rms: 0 for a loop that repeats, per cents where it oscillates without repeating). **Guard**: runs where the guard acted (stopped learning and restored the best "
+             "cycles' rms: 0 for a loop that repeats, per cents where it oscillates without repeating). **Gate closed**: runs "
+             "where the base loop's cycles did not repeat before the first update (the repeatability gate), so nothing "
+             "was learned: the base loop alone. **Guard**: runs where the guard acted (stopped learning and restored the best "
              "cycle's feed-forward, halved it, or dropped it) / runs that ended on the base loop alone "
              "(docs/learning-control.md). With several seeds, the mean over the conditions is taken per seed and "
              "the median and worst seed are given. A run that ended worse *on the base loop alone* had its learned "
@@ -671,13 +677,14 @@ def _guard_markdown(summary, plants, command, cycles, n_conds) -> str:
              "| plant | what |", "|---|---|"]
     lines += [f"| {p['name']} | {p['what']} (seeds {', '.join(map(str, p['seeds']))}) |" for p in plants]
     lines += ["", "| controller | plant | seeds | mean steady rms %: median seed | worst seed | worst run % | "
-              "base loop's mean % | runs | ended worse than base (on the base loop alone) | guard acted / fell back "
-              "to base |",
-              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+              "base loop's mean % | runs | ended worse than base (on the base loop alone) | gate closed | guard acted / "
+              "fell back to base |",
+              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for s in summary:
         lines.append(f"| {s['controller']} | {s['plant']} | {len(s['seeds'])} | {s['median_seed_mean_pct']:.4f} | "
                      f"{s['worst_seed_mean_pct']:.4f} | {s['worst_run_pct']:.4f} | {s['base_mean_pct']:.4f} | "
-                     f"{s['runs']} | {s['worse_than_base']} ({s['worse_on_base_alone']}) | {s['guarded_runs']} / "
+                     f"{s['runs']} | {s['worse_than_base']} ({s['worse_on_base_alone']}) | {s['gated_runs']} | "
+                     f"{s['guarded_runs']} / "
                      f"{s['fallbacks_to_base']} |")
     total = sum(s["worse_than_base"] for s in summary)
     alone = sum(s["worse_on_base_alone"] for s in summary)

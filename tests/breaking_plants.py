@@ -4,7 +4,7 @@ Shares no code with the guard (``ehas_controllers.learning``): each plant is the
 something a real rig has and the design model has not, judged by the long-test metric on the true angle:
 
 * ``slip``: the disc stack sits on the shaft through a coupling that slips at high torque
-  (``breaking_effects/slip_coupling.py``, an effect file loaded from its folder as a user's would be:
+  (``breaking_effects/slip_coupling.py``, an effect file loaded by its path as a user's would be:
   the crank carries a 0.05 kg m^2 hub, the stack of 0.383 kg m^2 per disc set is behind a Dahl friction
   coupling of 5e4 N m/rad slipping at 350 N m);
 * ``jitter``: the controller's sample instants wander by up to +-0.3 ms (uniform, independent per sample)
@@ -56,7 +56,7 @@ def plant_kwargs(name: str, disc_sets: int, seed: int = 0) -> dict:
         return {"seed": seed}
     if name == "slip":
         return {"inertia": HUB_INERTIA, "effects": {"slip_coupling": {"I_discs": disc_sets * INERTIA_PER_SET}},
-                "effects_path": str(EFFECTS_DIR), "seed": seed}
+                "effects_path": str(EFFECTS_DIR / "slip_coupling.py"), "seed": seed}
     if name == "sensors":
         return {"sensors": Sensors(), "seed": seed}
     if name in ("gain_half", "gain_double"):
@@ -196,7 +196,8 @@ def main(argv=None) -> int:
     for s in res["summary"]:
         print(f"{s['controller']:<38} {s['plant']:<12} median seed {s['median_seed_mean_pct']:.4f} %  worst seed "
               f"{s['worst_seed_mean_pct']:.4f} %  base {s['base_mean_pct']:.4f} %  worse than base "
-              f"{s['worse_than_base']}/{s['runs']}  guard {s['guarded_runs']}/{s['fallbacks_to_base']}", flush=True)
+              f"{s['worse_than_base']}/{s['runs']}  gated {s['gated_runs']}  guard {s['guarded_runs']}/{s['fallbacks_to_base']}",
+              flush=True)
     return 0
 
 

@@ -87,7 +87,8 @@ def test_ilc_converges_on_the_model_to_what_does_not_repeat():
     per = m["cycle_rms_pct"]
     floor = 100 * sigma * np.sqrt(1 + gain / (2 - gain)) / amp
     assert fixed["steady_rms_pct"] > 10 * floor  # there is something to learn
-    assert per[3] < 0.6 * per[1] and per[5] < 0.6 * per[3]  # falls cycle after cycle while learning
+    # falls cycle after cycle while learning (from cycle 3: the repeatability gate's two base-loop cycles first)
+    assert per[5] < 0.6 * per[3] and per[7] < 0.6 * per[5]
     assert m["steady_rms_pct"] < floor
     assert m["worst_cycle_pct"] <= fixed["worst_cycle_pct"] * 1.001  # no learning transient above the loop's
 

@@ -2,7 +2,9 @@
 
 Truths used: a plant written here whose answer to the learned current is known in closed form (a static
 gain, whose sign flips at a chosen cycle: learning that helped then hurts), so the error the base loop
-alone leaves is known exactly; the base loop run on the same plant (what learning must not end above);
+alone leaves is known exactly; the same plant with a slow oscillation that is not locked to the reference
+(its cycles do not repeat), whose cycle-to-cycle change is computed here from the samples, sample by sample
+(not from the gate's phase bins and harmonics); the base loop run on the same plant (what learning must not end above);
 the published long-test figures (results/long_test/long_test.csv, which the guard must leave as they are);
 and the breaking plants of tests/breaking_plants.py, which share no code with the guard.
 """
@@ -12,6 +14,7 @@ import ast
 import copy
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -27,10 +30,13 @@ from ehas_env.simulation.plant import Plant
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _static_plant_run(ctrl, *, gain_deg_per_mA, flip_cycle=None, cycles=30, freq=2.0, amp=20.0, e_amp=0.4):
+def _static_plant_run(ctrl, *, gain_deg_per_mA, flip_cycle=None, cycles=30, freq=2.0, amp=20.0, e_amp=0.4,
+                      wander_deg=0.0, wander_hz=0.0, out=None):
     """The controller on a plant whose error is e_b(t) - g u_ff(t): e_b a fixed periodic error the base loop
     leaves (deg), u_ff the learned current (mA: the controller's output minus a twin base loop's), g a static
-    gain whose sign flips at ``flip_cycle``.  Returns the rms % error of each cycle (true error)."""
+    gain whose sign flips at ``flip_cycle``; plus ``wander_deg`` sin(2 pi wander_hz t), a slow oscillation that
+    is not locked to the reference (its cycles do not repeat).  Returns the rms % error of each cycle (true
+    error) and the controller; ``out`` (a dict) receives every sample's error (deg) and ``u_ff`` (mA)."""
     sub = ctrl.for_plant(3)
     twin = copy.deepcopy(sub._loop)
     sub.reset()
@@ -39,19 +45,24 @@ def _static_plant_run(ctrl, *, gain_deg_per_mA, flip_cycle=None, cycles=30, freq
     w = 2 * np.pi * freq
     per_cycle = np.zeros(cycles)
     count = np.zeros(cycles)
+    errors, u_ffs = np.zeros(n), np.zeros(n)
     u_ff = 0.0
     for k in range(n):
         t = k * dt
         c = int(t * freq + 1e-9)
         g = gain_deg_per_mA * (-1.0 if flip_cycle is not None and c >= flip_cycle else 1.0)
-        e = e_amp * (np.sin(w * t + 0.4) + 0.5 * np.sin(2 * w * t)) - g * u_ff
+        e = (e_amp * (np.sin(w * t + 0.4) + 0.5 * np.sin(2 * w * t)) + wander_deg * np.sin(2 * np.pi * wander_hz * t)
+             - g * u_ff)
         r = amp * np.sin(w * t)
         m = {"t": t, "theta_deg": r - e, "theta_ref_deg": r, "theta_ref_dot": amp * w * np.cos(w * t),
              "theta_ref_ddot": 0.0, "theta_ref_dddot": 0.0, "p_a_bar": 110.0, "p_b_bar": 110.0, "p_s_bar": 220.0,
              "amplitude_deg": amp, "freq_hz": freq}
         u_ff = sub.act(m) - twin.act(m)  # what the controller adds to its base loop, held for the next period
+        errors[k], u_ffs[k] = e, u_ff
         per_cycle[c] += e * e
         count[c] += 1
+    if out is not None:
+        out.update(error_deg=errors, u_ff_mA=u_ffs)
     return 100 * np.sqrt(per_cycle / count) / amp, sub
 
 
@@ -134,7 +145,9 @@ def _published(name):
 
 @pytest.mark.parametrize("stem", ["ilc", "harmonic"])
 def test_guard_leaves_the_published_book_figures_as_they_are(stem):
-    """On the book's model the guard does not fire and both controllers reach their published figures."""
+    """On the book's model the guard does not fire and both controllers reach their published figures: the
+    repeatability gate opens at cycle 3, so learning starts two cycles later than when they were published (no
+    more than 5 % above them, and within 10 %)."""
     from ehas_controllers.batch_sim import Condition
     from ehas_controllers.long_test import run_condition
 
@@ -144,7 +157,8 @@ def test_guard_leaves_the_published_book_figures_as_they_are(stem):
     for n, f, a in ((7, 3.0, 30.0), (2, 1.0, 10.0), (5, 2.0, 20.0)):
         row = run_condition(ctrl, Condition(n, f, a), cycles=30)
         assert row["guard_events"] == 0 and row["guard_state"] == "learning"
-        assert row["steady_rms_pct"] == pytest.approx(published[(n, f, a)], rel=2e-3, abs=2e-6)
+        assert row["steady_rms_pct"] <= 1.05 * published[(n, f, a)] + 2e-6
+        assert row["steady_rms_pct"] == pytest.approx(published[(n, f, a)], rel=0.1)
 
 
 def test_jitter_loop_without_jitter_is_the_plants_loop():
@@ -193,3 +207,110 @@ def test_ilc_with_its_stop_band_learns_through_wandering_sample_instants():
     assert unbanded["steady_rms_pct"] > base["steady_rms_pct"]
     assert banded["steady_rms_pct"] < 0.2 * base["steady_rms_pct"]
     assert not banded["controller"].guard_log
+
+
+# -- the repeatability gate: learning starts only on a base loop whose cycles repeat ---------------------------------
+
+def _change_from_sample_to_sample(error_deg, freq, cycle, dt=1e-3):
+    """The change of cycle ``cycle`` from the cycle before, computed on the samples: (rms of e(t) - e(t - T) over
+    the cycle) / (rms of e over it), and that rms in deg (T = 1/freq a whole number of samples), each without its
+    mean over the cycle (the mean is the base loop's integrator's: no learning controller learns it)."""
+    per = int(round(1.0 / freq / dt))
+    now = error_deg[cycle * per:(cycle + 1) * per]
+    diff = now - error_deg[(cycle - 1) * per:cycle * per]
+    change = np.std(diff)
+    return change / np.std(now), change
+
+
+@pytest.mark.parametrize("make", [lambda **kw: HarmonicCanceller(PIFF.book(), harmonics=20, **kw), _lead_ilc],
+                         ids=["harmonic", "ilc"])
+def test_gate_closes_on_a_base_loop_whose_cycles_do_not_repeat(make):
+    """A slow oscillation of 0.35 deg at 0.37 x the reference frequency on top of the base loop's periodic error:
+    the base loop's cycles do not repeat (about 75 % change from cycle 2 to cycle 3, computed here on the samples).
+    The gate closes before the first update: the controller never adds a current (exactly its base loop), its
+    log says why, and its JSON record holds the measurement."""
+    out = {}
+    per, sub = _static_plant_run(make(), gain_deg_per_mA=1.0, wander_deg=0.35, wander_hz=0.74, cycles=12, out=out)
+    ratio, change = _change_from_sample_to_sample(out["error_deg"], 2.0, 3)
+    assert ratio > 0.5 and 100 * change / 20.0 > 0.5  # the plant's cycles do not repeat, by the gate's defaults
+    assert sub.guard_state == "gated"
+    assert np.all(out["u_ff_mA"] == 0.0)  # nothing learned, nothing added: the base loop alone, sample for sample
+    (event,) = sub.guard_log
+    assert event["event"] == "gate" and event["cycle"] == 3
+    assert event["why"].startswith("the base loop's cycles do not repeat: ") and "nothing learned" in event["why"]
+    assert "\n" not in event["why"]
+    # the gate's figure (phase bins, the learned harmonics) is the change measured here on the samples
+    assert sub.repeat["ratio_pct"] == pytest.approx(100 * ratio, rel=0.15)
+    assert sub.repeat["change_pct"] == pytest.approx(100 * change / 20.0, rel=0.15)
+    (rec,) = sub.learned_state()
+    assert rec["guard_state"] == "gated" and not rec["repeat"]["open"]
+    assert not np.any(rec["feedforward"].get("table_mA", [0.0])) and not np.any(rec["feedforward"].get("harmonics", [0]))
+
+
+def test_gate_stays_open_where_the_cycles_repeat_and_a_small_wander_is_learned_through():
+    """The same plant with a wander too small to matter (0.002 deg: 0.01 % of the amplitude, under the gate's
+    0.5 % floor) and with none: the gate opens at cycle 3 and the ILC learns the periodic error away."""
+    for wander in (0.0, 0.002):
+        per, sub = _static_plant_run(_lead_ilc(), gain_deg_per_mA=1.0, wander_deg=wander, wander_hz=0.74)
+        assert sub.repeat["open"] and sub.repeat["cycle"] == 3 and sub.guard_state == "learning"
+        assert per[-1] < 0.05 * per[1]
+
+
+def test_gate_setting_is_checked_and_can_be_switched_off(tmp_path):
+    data = {"format": "ehas-controller", "version": 1, **ILC(PIFF.book()).to_dict()}
+    assert data["guard"]["repeat_pct"] == 20.0 and data["guard"]["repeat_floor_pct"] == 0.5
+    assert data["guard"]["repeat_cycle"] == 3
+    for bad, words in (({"repeat_pct": 0}, "'guard.repeat_pct' must be a number in (0, 1000], got 0"),
+                       ({"repeat_cycle": 1}, "'guard.repeat_cycle' must be an integer in [2, 100], got 1"),
+                       ({"repeat_floor_pct": -1}, "'guard.repeat_floor_pct' must be a number in [0, 100], got -1")):
+        path = tmp_path / "bad.json"
+        path.write_text(json.dumps({**data, "guard": {**data["guard"], **bad}}))
+        with pytest.raises(ValueError, match=re.escape(words)):
+            load_controller(path)
+    off = _lead_ilc(guard={"repeat_pct": None})  # no gate: learning from start_cycle, as before the gate
+    per, sub = _static_plant_run(off, gain_deg_per_mA=1.0, wander_deg=0.35, wander_hz=0.74, cycles=6)
+    assert sub.first_learned_cycle == 1 and sub.repeat is None and sub.guard_state != "gated"
+
+
+@pytest.mark.parametrize("stem", ["ilc", "harmonic"])
+def test_gate_open_on_the_book_model(stem):
+    """On the book's model the base loop's cycles repeat after the start (a change of a few per cent of its error
+    from cycle 2 to cycle 3, from settling): the gate opens at every condition tried and learning reaches the
+    guard long test's figures."""
+    from ehas_controllers.batch_sim import Condition
+    from ehas_controllers.long_test import run_condition
+
+    ctrl = load_controller(ROOT / "results" / "long_test_guard" / f"{stem}.json")
+    for n, f, a in ((7, 3.0, 30.0), (1, 1.0, 10.0)):
+        row = run_condition(ctrl, Condition(n, f, a), cycles=10)
+        (rec,) = [r for r in ctrl.learned_state() if (r["disc_sets"], r["freq_hz"], r["amplitude_deg"]) == (n, f, a)]
+        assert rec["repeat"]["open"] and rec["repeat"]["cycle"] == 3 and rec["repeat"]["ratio_pct"] < 5.0, rec
+        assert row["guard_state"] == "learning" and row["steady_rms_pct"] < 0.3 * row["cycle_rms_pct"][1]
+
+
+def test_a_record_learned_with_the_gate_closed_exports_and_replays_as_the_base_loop(tmp_path):
+    """A gate set to close at any change (repeat_pct tiny, no floor) on the book's plant learns nothing: its
+    record's table is zero, its drive file and its exported C command the base loop's currents."""
+    import shutil
+
+    from ehas_controllers.drive import DriveController, export_drives
+
+    cc = shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler on this machine")
+    from export.test_export_controller import CLaw, PythonAct, build, same_commands
+
+    base = PIFF.book()
+    ctrl = ILC(base, gain=0.5, guard={"repeat_pct": 1e-6, "repeat_floor_pct": 0.0})
+    sub = ctrl.for_plant(2)
+    Plant(disc_sets=2).simulate_closed_loop(sub, amplitude_deg=20.0, freq_hz=3.0, cycles=6)
+    (rec,) = ctrl.learned_state()
+    assert rec["guard_state"] == "gated" and not np.any(rec["feedforward"]["table_mA"])
+    cname, lib = build(ctrl, tmp_path, name="gated_ilc")
+    same_commands(Plant(disc_sets=2), base.for_plant(2), CLaw(cname, lib, 2), 20.0, 3.0)
+    written = export_drives(ctrl, tmp_path / "drive")
+    drive = DriveController([str(p) for p in written[:-1]]).for_plant(2)
+    alone = Plant(disc_sets=2).simulate_closed_loop(PythonAct(base.for_plant(2)), amplitude_deg=20.0, freq_hz=3.0,
+                                                    cycles=10)
+    replay = Plant(disc_sets=2).simulate_closed_loop(drive, amplitude_deg=20.0, freq_hz=3.0, cycles=10)
+    assert np.array_equal(replay.current_mA, alone.current_mA)
