@@ -78,6 +78,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write the final model as a model file (docs/model-file.md): ehas compare CAMPAIGN "
                              "--model FILE prints the same noise figure as this diagnosis (--out DIR writes "
                              "DIR/model.json too)")
+    from ehas_env.simulation.executors import add_executor_arguments
+
+    add_executor_arguments(parser)  # several campaigns (a fleet of rigs): each diagnosis one task, here or on Ray
+    parser.add_argument("--checkpoint", default=None, metavar="DIR",
+                        help="several campaigns: keep each finished diagnosis in DIR and skip it when the same "
+                             "command runs again (resume after Ctrl-C or a lost node)")
     parser.add_argument("--columns", default=None, metavar="NEW=OLD[,NEW=OLD...]",
                         help="map a logger's column names onto the format's, e.g. theta_deg=Angle1,current_mA=I_cmd "
                              "(docs/measurement-format.md)")
@@ -113,19 +119,135 @@ def run_trend(args, camps: list) -> int:
 
     for c in camps:  # every folder read (and refused, one line) before any work
         read_campaign(c, columns=parse_column_map(args.columns))
-    docs = []  # each campaign's diagnosis JSON (run_one appends it to doc_sink)
-    for k, c in enumerate(camps):
-        print(f"=== campaign {k + 1} of {len(camps)}: {c} ===")
-        sub = copy.copy(args)
-        sub.campaign, sub.json, sub.doc_sink = c, None, docs
-        run_one(sub)
-        print()
+    docs = fleet_docs(args, camps)
     t = trend([(str(c), d["model"]["ci95"]) for c, d in zip(camps, docs)])
     print(trend_text(t))
     if args.json:
         atomic_write_text(args.json, json.dumps({"campaigns": docs, "trend": t}, indent=2) + "\n")
         print(f"json: {args.json}")
     return 0
+
+
+#: the options of one campaign's diagnosis that a fleet task carries (the rest are the fleet's own)
+FLEET_OPTIONS = ("with_effects", "stack", "no_stack", "candidates", "holdout", "fit_window", "no_propose",
+                 "no_hypotheses", "columns", "model", "effects_path")
+
+
+def fleet_task(task: dict) -> dict:
+    """One campaign of a fleet diagnosed as alone (a task of :mod:`ehas_env.simulation.executors`: picklable, it
+    runs in this process, a local worker or a Ray worker): its console text and its diagnosis JSON.
+
+    Parameters
+    ----------
+    task : dict
+        ``campaign`` (the folder), ``options`` (the diagnose options of :data:`FLEET_OPTIONS`).
+
+    Returns
+    -------
+    dict
+        ``campaign``, ``console`` (what ``ehas diagnose CAMPAIGN`` prints), ``doc`` (its ``--json``).
+    """
+    import contextlib
+    import io
+
+    opts = argparse.Namespace(**task["options"], campaign=task["campaign"], json=None, out=None, html=False,
+                              write_effect=None, save_model=None, quiet=True, overwrite=False)
+    if opts.effects_path:  # a worker of another process loads the user's effect files as the driver did
+        from ehas_env.physics.effects import load_effects_path
+
+        load_effects_path(opts.effects_path)
+    sink: list = []
+    opts.doc_sink = sink
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        run_one(opts)
+    return {"campaign": str(task["campaign"]), "console": out.getvalue(), "doc": sink[0]}
+
+
+def fleet_docs(args, camps: list) -> list[dict]:
+    """Every campaign of a fleet diagnosed as alone, on the executor the options name (``--executor local
+    --workers N``, ``--executor ray [--address A]``), in the order given, each one's console text printed in that
+    order; with ``--checkpoint DIR`` each finished diagnosis is kept in DIR and a rerun of the same command skips
+    it.  The JSON of each is the one ``ehas diagnose CAMPAIGN --json`` writes, wherever it ran.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The diagnose options.
+    camps : list
+        The campaign folders, in the order recorded.
+
+    Returns
+    -------
+    list of dict
+        Each campaign's diagnosis JSON.
+    """
+    from ehas_env.output.files import atomic_write_text
+    from ehas_env.simulation.executors import executor_from_args
+
+    options = {k: getattr(args, k, None) for k in FLEET_OPTIONS}
+    tasks = [{"campaign": str(c), "options": options} for c in camps]
+    done: dict[int, dict] = {}
+    ck = Path(args.checkpoint) if getattr(args, "checkpoint", None) else None
+    if ck is not None:
+        ck.mkdir(parents=True, exist_ok=True)
+        for k, task in enumerate(tasks):
+            f = ck / f"{k:03d}.json"
+            if f.is_file():
+                rec = json.loads(f.read_text())
+                if rec.get("task") == task:  # the same campaign with the same options: kept
+                    done[k] = rec["result"]
+    todo = [k for k in range(len(tasks)) if k not in done]
+    if done:
+        print(f"{len(done)} of {len(tasks)} campaigns kept from {ck}; diagnosing {len(todo)}")
+
+    def keep(k, result):
+        done[k] = result
+        if ck is not None:
+            atomic_write_text(ck / f"{k:03d}.json", json.dumps({"task": tasks[k], "result": result}) + "\n")
+
+    executor = executor_from_args(args)
+    if getattr(executor, "workers", 2) == 1 and executor.name == "local":
+        # in this process, one after the other: each printed (with its progress) as it runs, kept as it ends
+        import contextlib
+        import io
+
+        for k, c in enumerate(camps):
+            print(f"=== campaign {k + 1} of {len(camps)}: {c} ===")
+            if k in done:
+                print(done[k]["console"])
+                continue
+            sub = argparse.Namespace(**{**vars(args), "campaign": c, "json": None, "doc_sink": []})
+            text = io.StringIO()
+            with contextlib.redirect_stdout(_Tee(sys.stdout, text)):
+                run_one(sub)
+            keep(k, {"campaign": str(c), "console": text.getvalue(), "doc": sub.doc_sink[0]})
+            print()
+        return [done[k]["doc"] for k in range(len(camps))]
+    if todo:
+        print(f"diagnosing {len(todo)} campaigns on {executor.name} ({'a local instance' if executor.name == 'ray' and not getattr(args, 'address', None) else getattr(args, 'address', None) or f'{executor.workers} processes'})")
+        for k, result in zip(todo, executor.map(fleet_task, [tasks[k] for k in todo], desc="campaigns")):
+            keep(k, result)
+    for k, c in enumerate(camps):
+        print(f"=== campaign {k + 1} of {len(camps)}: {c} ===")
+        print(done[k]["console"])
+    return [done[k]["doc"] for k in range(len(camps))]
+
+
+class _Tee:
+    """Writes to two streams (a fleet's console shown as it runs and kept for its checkpoint)."""
+
+    def __init__(self, *streams):
+        self.streams = streams
+
+    def write(self, text):
+        for st in self.streams:
+            st.write(text)
+        return len(text)
+
+    def flush(self):
+        for st in self.streams:
+            st.flush()
 
 
 def run_one(args) -> int:

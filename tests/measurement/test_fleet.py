@@ -1,0 +1,80 @@
+"""A fleet of rigs (issue 44, point 4): ``ehas diagnose CAMP1 CAMP2 ...`` diagnoses each campaign as alone, in this
+process, in local worker processes or on a Ray cluster, with the same JSON wherever it ran; ``--checkpoint DIR``
+keeps each finished diagnosis and a rerun of the same command skips it."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ehas_env.cli.main import main
+from ehas_env.measurement.campaign import write_campaign
+from ehas_env.measurement.synthetic import simulate_campaign
+
+#: a quick diagnosis: one candidate, no hypotheses, no proposal (the fleet's mechanics, not the search, are tested)
+QUICK = ["--quiet", "--candidates", "coulomb_friction", "--no-hypotheses", "--no-propose"]
+
+
+def _timeless(obj):
+    """The JSON without its wall times (the one thing that differs between where a diagnosis ran)."""
+    if isinstance(obj, dict):
+        return {k: _timeless(v) for k, v in obj.items() if k != "elapsed_s"}
+    if isinstance(obj, list):
+        return [_timeless(v) for v in obj]
+    return obj
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("fleet")
+    camps = []
+    for k, fc in enumerate((250.0, 500.0)):
+        runs, _ = simulate_campaign({"coulomb_friction": {"Fc": fc}}, seed=70 + k, duration=1.0,
+                                    plan=((3, 20.0, 2.0), (5, 25.0, 3.0)))
+        camps.append(str(write_campaign(tmp / f"rig{k}", runs)))
+    assert main(["diagnose", *camps, *QUICK, "--json", str(tmp / "serial.json"), "--checkpoint",
+                 str(tmp / "ck")]) == 0
+    return tmp, camps, json.loads((tmp / "serial.json").read_text())
+
+
+def test_a_rerun_resumes_from_the_checkpoints(fleet, capsys):
+    tmp, camps, serial = fleet
+    assert sorted(p.name for p in (tmp / "ck").iterdir()) == ["000.json", "001.json"]
+    capsys.readouterr()
+    assert main(["diagnose", *camps, *QUICK, "--json", str(tmp / "again.json"), "--checkpoint", str(tmp / "ck")]) == 0
+    out = capsys.readouterr().out
+    assert "2 of 2 campaigns kept from" in out and "diagnosed" in out  # each campaign's console shown again
+    assert json.loads((tmp / "again.json").read_text()) == serial  # nothing rerun: the very same numbers
+    # the trend over the fleet names the friction that rose from one rig to the next
+    assert any(d["parameter"] == "coulomb_friction.Fc" for d in serial["trend"]["changed"])
+    # another option is another task: not taken from the checkpoint
+    capsys.readouterr()
+    assert main(["diagnose", *camps, *QUICK[:-1], "--json", str(tmp / "other.json"), "--checkpoint",
+                 str(tmp / "ck")]) == 0
+    assert "kept from" not in capsys.readouterr().out
+
+
+@pytest.mark.slow  # two worker processes each compile the model
+def test_local_workers_give_the_serial_json(fleet):
+    tmp, camps, serial = fleet
+    assert main(["diagnose", *camps, *QUICK, "--json", str(tmp / "local2.json"), "--executor", "local",
+                 "--workers", "2"]) == 0
+    assert _timeless(json.loads((tmp / "local2.json").read_text())) == _timeless(serial)
+
+
+@pytest.mark.slow  # a 2-node Ray cluster on this machine, each node one CPU
+def test_a_two_node_ray_cluster_gives_the_serial_json(fleet):
+    cluster_utils = pytest.importorskip("ray.cluster_utils")
+    tmp, camps, serial = fleet
+    cluster = cluster_utils.Cluster(initialize_head=True,
+                                    head_node_args={"num_cpus": 1})
+    try:
+        cluster.add_node(num_cpus=1)
+        assert main(["diagnose", *camps, *QUICK, "--json", str(tmp / "ray.json"), "--executor", "ray",
+                     "--address", cluster.address]) == 0
+    finally:
+        import ray
+
+        ray.shutdown()
+        cluster.shutdown()
+    assert _timeless(json.loads((tmp / "ray.json").read_text())) == _timeless(serial)
