@@ -29,11 +29,12 @@ ROOT = Path(__file__).resolve().parents[2]
 QUICK = ["--candidates", "coulomb_friction", "--no-hypotheses", "--no-propose"]
 
 
-def _timeless(obj):
+def timeless(obj):
+    """A diagnosis JSON without its wall times (the one thing that differs between where a diagnosis ran)."""
     if isinstance(obj, dict):
-        return {k: _timeless(v) for k, v in obj.items() if k != "elapsed_s"}
+        return {k: timeless(v) for k, v in obj.items() if k != "elapsed_s"}
     if isinstance(obj, list):
-        return [_timeless(v) for v in obj]
+        return [timeless(v) for v in obj]
     return obj
 
 
@@ -86,7 +87,7 @@ def main(argv=None) -> int:
     finally:
         cluster.shutdown()
     load1 = os.getloadavg()
-    same = _timeless(json.loads((work / "serial.json").read_text())) == _timeless(json.loads((work / "ray.json").read_text()))
+    same = timeless(json.loads((work / "serial.json").read_text())) == timeless(json.loads((work / "ray.json").read_text()))
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT).stdout.strip()
     cmd = "python -m tests.measurement.fleet_bench --out " + a.out + (" --quick" if a.quick else "") + \
         (f" --campaigns {a.campaigns}" if a.campaigns != 16 else "") + (f" --duration {a.duration:g}" if a.duration != 3.0 else "")

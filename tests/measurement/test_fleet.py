@@ -10,18 +10,10 @@ import pytest
 from ehas_env.cli.main import main
 from ehas_env.measurement.campaign import write_campaign
 from ehas_env.measurement.synthetic import simulate_campaign
+from tests.measurement.fleet_bench import QUICK as _QUICK_OPTIONS, timeless as _timeless
 
 #: a quick diagnosis: one candidate, no hypotheses, no proposal (the fleet's mechanics, not the search, are tested)
-QUICK = ["--quiet", "--candidates", "coulomb_friction", "--no-hypotheses", "--no-propose"]
-
-
-def _timeless(obj):
-    """The JSON without its wall times (the one thing that differs between where a diagnosis ran)."""
-    if isinstance(obj, dict):
-        return {k: _timeless(v) for k, v in obj.items() if k != "elapsed_s"}
-    if isinstance(obj, list):
-        return [_timeless(v) for v in obj]
-    return obj
+QUICK = ["--quiet", *_QUICK_OPTIONS]
 
 
 @pytest.fixture(scope="module")
