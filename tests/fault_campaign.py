@@ -735,7 +735,22 @@ EARLIER = {
     "demo": ["demo", "--quick", "--out", "{tmp}/out/demo"],
     "model": ["model", "new", "{tmp}/out/m.json"],
     "train": ["train", *TRAIN_FAST, "--out", "{tmp}/out/train"],
+    "export-controller": ["export-controller", "{fx}/ctrl/model.json", "--name", "rig", "--out", "{tmp}/out/c"],
+    "export-drive": ["export-drive", "{fx}/learned.json", "--out", "{tmp}/out/drives"],
+    "export-fmu": ["export-fmu", "--out", "{tmp}/out/rig.fmu"],  # the library compiled: the whole export
 }
+
+#: a learning controller that has learned (export-drive, export-controller): two conditions of the guard long
+#: test's harmonic canceller
+LEARNED = ROOT / "results" / "long_test_guard" / "learned_harmonic_on_schedule_model_based.json"
+LEARNED_AT = ((7, 30.0, 3.0), (1, 10.0, 1.0))
+
+
+def learned_fixture(path: Path) -> None:
+    d = json.loads(LEARNED.read_text())
+    d["learned"] = [r for r in d["learned"] if (r["disc_sets"], r["amplitude_deg"], r["freq_hz"]) in LEARNED_AT]
+    assert len(d["learned"]) == len(LEARNED_AT), "the learned fixture's conditions are not in " + str(LEARNED)
+    wtext(path, json.dumps(d))
 
 
 def make_fixtures(fx: Path, jobs: int) -> None:
@@ -753,6 +768,7 @@ def make_fixtures(fx: Path, jobs: int) -> None:
     if not (agent / "policy.safetensors").is_file():
         jobs_list.append((fx, ["train", *[fill(a, fx, fx) for a in TRAIN_FAST], "--out", str(fx / "agent_ppo")]))
     _run_fixture_jobs(jobs_list, jobs)
+    learned_fixture(fx / "learned.json")
     if (agent / "policy.safetensors").is_file():
         shutil.copytree(agent, fx / "agent_ppo")
     later = [(fx, ["tune", "--method", "relay", "--out", str(fx / "ctrl/relay.json"), "--no-progress"])]
@@ -838,6 +854,9 @@ def base_argv(words: list[str], opt: str = "", group: str = "") -> list[str]:
         "model show": ["model", "show"],
         "model new": ["model", "new", "{tmp}/o/m.json"],
         "model diff": ["model", "diff", "{fx}/model.json", "{fx}/model.json"],
+        "export-controller": ["export-controller", "{fx}/ctrl/model.json", "--out", "{tmp}/o"],
+        "export-drive": ["export-drive", "{fx}/learned.json", "--out", "{tmp}/o"],
+        "export-fmu": ["export-fmu", "--no-binary", "--out", "{tmp}/o/rig.fmu"],
     }[cmd]
 
 
@@ -1065,6 +1084,10 @@ def input_file_slots():
         ("model new --from", ["model", "new", "{tmp}/o/m.json", "--from", "@"], ".json"),
         ("model diff A", ["model", "diff", "@", "{fx}/model.json"], ".json"),
         ("model diff B", ["model", "diff", "{fx}/model.json", "@"], ".json"),
+        ("export-controller CONTROLLER", ["export-controller", "@", "--out", "{tmp}/o"], ".json"),
+        ("export-drive CONTROLLER", ["export-drive", "@", "--out", "{tmp}/o"], ".json"),
+        ("export-fmu MODEL", ["export-fmu", "@", "--no-binary", "--out", "{tmp}/o/rig.fmu"], ".json"),
+        ("export-fmu --controller", base_argv(["export-fmu"]) + ["--controller", "@"], ".json"),
     ]
 
 
@@ -1158,13 +1181,17 @@ def output_slots():
         ("model new FILE", ["model", "new", "@"], "file", False),
         ("simulate --out", ["simulate", *SIM, "--out", "@"], "stem", False),
         ("excite --out", ["excite", "chirp", "--duration", "1", "--out", "@"], "stem", False),
+        # the exports' files are members of a shared folder (other files stay); the FMU is one file
+        ("export-controller --out", ["export-controller", "{fx}/ctrl/model.json", "--out", "@"], "dir", True),
+        ("export-drive --out", ["export-drive", "{fx}/learned.json", "--out", "@"], "dir", True),
+        ("export-fmu --out", ["export-fmu", "--no-binary", "--out", "@"], "file", False),
     ]
 
 
 def output_path_cases() -> list[Case]:
     cases = []
     for what, argv, kind, shared in output_slots():
-        ext = {"tune --bode": ".png", "diagnose --write-effect": ".py"}.get(what, ".json")
+        ext = {"tune --bode": ".png", "diagnose --write-effect": ".py", "export-fmu --out": ".fmu"}.get(what, ".json")
         leaf = "x" + (ext if kind == "file" else "")
         v = [("under a regular file", "{tmp}/plainfile/" + leaf, "refuse", ("plainfile",))]
         if kind == "dir":
@@ -1287,11 +1314,20 @@ def controller_cases() -> list[Case]:
     cases = []
     bench = ["bench", "{tmp}/c.json", *BENCH_FAST, "--out", "{tmp}/o"]
     sim = ["simulate", *SIM, "--controller", "{tmp}/c.json", "--out", "{tmp}/o/run"]
+    export_c = ["export-controller", "{tmp}/c.json", "--out", "{tmp}/o"]
+    export_fmu = ["export-fmu", "--controller", "{tmp}/c.json", "--no-binary", "--out", "{tmp}/o/rig.fmu"]
     for i, (what, fn, culprit) in enumerate(rows):
         cases.append(Case("controller-json", f"bench: {what}", bench, "refuse", culprit, setup=mut(fn)))
         if i % 3 == 0:
             cases.append(Case("controller-json", f"simulate --controller: {what}", sim, "refuse", culprit,
                               setup=mut(fn)))
+        elif i % 3 == 1:
+            cases.append(Case("controller-json", f"export-controller: {what}", export_c, "refuse", culprit,
+                              setup=mut(fn)))
+        else:
+            cases.append(Case("controller-json", f"export-fmu --controller: {what}", export_fmu, "refuse", culprit,
+                              setup=mut(fn)))
+    cases += learned_cases()
     for what, fn in accept:
         cases.append(Case("controller-json", f"bench: {what}", bench, "either", ("c.json",), setup=mut(fn)))
     # Python controller files and other suffixes
@@ -1308,6 +1344,52 @@ def controller_cases() -> list[Case]:
         argv = ["bench", "{tmp}/" + name, *BENCH_FAST, "--out", "{tmp}/o"]
         cases.append(Case("controller-json", f"bench: {what}", argv, "refuse", culprit,
                           setup=lambda tmp, fx, name=name, text=text: wtext(tmp / name, text)))
+    return cases
+
+
+def learned_cases() -> list[Case]:
+    """A learning controller's ``learned`` records damaged: export-drive and export-controller (which export them)
+    refuse in one line naming the record's field, and write nothing."""
+    def mut(fn):
+        def setup(tmp, fx):
+            d = json.loads((fx / "learned.json").read_text())
+            fn(d)
+            wtext(tmp / "c.json", json.dumps(d, allow_nan=True))
+        return setup
+
+    def rec(key, value):
+        def fn(d):
+            d["learned"][0][key] = value
+        return fn
+
+    def table(values):
+        def fn(d):
+            d["learned"][0]["feedforward"] = {"table_mA": values}
+        return fn
+
+    rows = [
+        ("no learned records", lambda d: d.pop("learned"), ("learned",)),
+        ("learned an empty list", lambda d: d.update(learned=[]), ("learned",)),
+        ("learned a string", lambda d: d.update(learned="7,30,3"), ("learned",)),
+        ("learned[0] a number", lambda d: d["learned"].__setitem__(0, 5), ("learned[0]",)),
+        ("learned[0] without feedforward", lambda d: d["learned"][0].pop("feedforward"), ("feedforward",)),
+        ("learned[0].disc_sets 9", rec("disc_sets", 9), ("disc_sets",)),
+        ("learned[0].freq_hz 0", rec("freq_hz", 0), ("freq_hz",)),
+        ("learned[0].amplitude_deg NaN", rec("amplitude_deg", float("nan")), ("amplitude_deg",)),
+        ("learned[0] table with a NaN", table([0.0] * 15 + [float("nan")]), ("learned[0]", "feedforward")),
+        ("learned[0] table of 3 values", table([0.1, 0.2, 0.3]), ("learned[0]", "feedforward")),
+        ("learned[0] table of strings", table(["a"] * 16), ("learned[0]", "feedforward")),
+        ("a piff file (nothing to export as drives)", lambda d: d.clear() or d.update(
+            {"format": "ehas-controller", "version": 1, "type": "piff", "gains": {"Kp": 1.0}}), ("c.json",)),
+    ]
+    cases = []
+    for what, fn, culprit in rows:
+        cases.append(Case("controller-json", f"export-drive: {what}", ["export-drive", "{tmp}/c.json", "--out",
+                                                                        "{tmp}/o"], "refuse", culprit, setup=mut(fn)))
+        if "piff" not in what:
+            cases.append(Case("controller-json", f"export-controller: {what}",
+                              ["export-controller", "{tmp}/c.json", "--out", "{tmp}/o"], "refuse", culprit,
+                              setup=mut(fn)))
     return cases
 
 
@@ -1394,10 +1476,13 @@ def model_cases() -> list[Case]:
             wtext(tmp / "m.json", text)
         return setup
 
+    fmu = ["export-fmu", "{tmp}/m.json", "--no-binary", "--out", "{tmp}/o/rig.fmu"]
     for i, (what, d, culprit) in enumerate(rows):
         cases.append(Case("model-json", f"model show: {what}", show, "refuse", culprit, setup=setup_for(d)))
         if i % 4 == 0:
             cases.append(Case("model-json", f"simulate --model: {what}", sim, "refuse", culprit, setup=setup_for(d)))
+        if i % 4 == 2:
+            cases.append(Case("model-json", f"export-fmu MODEL: {what}", fmu, "refuse", culprit, setup=setup_for(d)))
     cases.append(Case("model-json", "model show: truncated JSON", show, "refuse", ("m.json",),
                       setup=lambda tmp, fx: wtext(tmp / "m.json", json.dumps(base)[:80])))
     acc = [
@@ -1409,6 +1494,7 @@ def model_cases() -> list[Case]:
     ]
     for what, d in acc:
         cases.append(Case("model-json", f"simulate --model: {what}", sim, "accept", (), setup=setup_for(d)))
+    cases.append(Case("model-json", f"export-fmu MODEL: {acc[0][0]}", fmu, "accept", (), setup=setup_for(acc[0][1])))
     return cases
 
 
@@ -2136,6 +2222,9 @@ def concurrent_cases() -> list[Case]:
         ("excite --out", ["excite", "chirp", "--duration", "1", "--out", "{tmp}/o/chirp"]),
         ("simulate-campaign --out", ["simulate-campaign", "--duration", "0.21", "--out", "{tmp}/c"]),
         ("identify --json", ["identify", "{fx}/excite/chirp.csv", "--json", "{tmp}/id.json"]),
+        ("export-fmu --out (compiled)", ["export-fmu", "--out", "{tmp}/rig.fmu"]),
+        ("export-controller --out", ["export-controller", "{fx}/ctrl/model.json", "--out", "{tmp}/c"]),
+        ("export-drive --out", ["export-drive", "{fx}/learned.json", "--out", "{tmp}/d"]),
     ]
     return [Case("concurrent", what, argv, "either", ("another ehas run", "created by another run",
                                                       "already exists"), mode="concurrent") for what, argv in rows]
@@ -2210,11 +2299,17 @@ def lost_cases() -> list[Case]:
         "model": [(["--from", "{tmp}/missing.json"], ("missing.json",)), (["--effects", "bogus_effect"],
                                                                           ("bogus_effect",))],
         "train": [],
+        "export-controller": [],  # its one input is the positional: below, a controller that learned nothing
+        "export-drive": [(["--condition", "7,30,9"], ("7 sets 30 deg 9 Hz",))],
+        "export-fmu": [(["{tmp}/garbage.json"], ("garbage.json",)), (["--controller", "{tmp}/missing.json"],
+                                                                     ("missing.json",)),
+                       (["--controller", "{fx}/learned.json"], ("--controller",))],
     }
     bad_number = {"simulate": "--cycles", "excite": "--duration", "identify": "--poles", "curves": "--disc-sets",
                   "simulate-campaign": "--duration", "compare": None, "diagnose": "--fit-window",
                   "bench": "--cycles", "tune": "--phase-margin", "perf": "--seconds", "demo": None,
-                  "model": "--zeta", "train": "--total-steps"}
+                  "model": "--zeta", "train": "--total-steps", "export-controller": None, "export-drive": None,
+                  "export-fmu": "--disc-sets"}
     cases = []
     for name, argv in EARLIER.items():
         argv = list(argv)
@@ -2292,6 +2387,33 @@ def lost_cases() -> list[Case]:
              ["simulate", *SIM, "--out", "{tmp}/camp/cl_3sets_20deg_1hz", "--overwrite"], "either", (),
              setup=with_camp),
     ]
+    # the exports: a late refusal keeps the earlier export; a shared folder's other files (the input too) stay
+    def unlearned(tmp, fx):
+        d = json.loads((fx / "learned.json").read_text())
+        d.pop("learned")
+        wtext(tmp / "unlearned.json", json.dumps(d))
+
+    def ctl_folder(input_name):
+        def setup(tmp, fx):
+            wtext(tmp / "ctl" / input_name, (fx / "learned.json").read_text())
+            wtext(tmp / "ctl" / "my_notes.json", '{"rig": "B"}\n')
+            wtext(tmp / "ctl" / "rig_log.csv", "t,x\n0,1\n")
+        return setup
+    cases += [
+        Case("lost", "export-controller: --overwrite with a controller that learned nothing",
+             ["export-controller", "{tmp}/unlearned.json", "--name", "rig", "--out", "{tmp}/out/c", "--overwrite"],
+             "refuse", ("learned",), setup=earlier_setup("export-controller", unlearned), protect=("out",)),
+        Case("lost", "export-controller CTRL --out FOLDER-OF-CTRL --overwrite (the controller file must stay)",
+             ["export-controller", "{tmp}/ctl/model.json", "--out", "{tmp}/ctl", "--overwrite"], "accept", (),
+             setup=lambda tmp, fx: copytree(fx / "ctrl", tmp / "ctl"), protect=("ctl/model.json", "ctl/relay.json")),
+        Case("lost", "export-drive CTRL --out FOLDER-OF-CTRL --overwrite (the controller, the user's CSV and JSON "
+                     "stay)", ["export-drive", "{tmp}/ctl/learned.json", "--out", "{tmp}/ctl", "--overwrite"],
+             "accept", (), setup=ctl_folder("learned.json"),
+             protect=("ctl/learned.json", "ctl/my_notes.json", "ctl/rig_log.csv")),
+        Case("lost", "export-drive DIR/drive.json --out DIR --overwrite (the input named as the drive set's file)",
+             ["export-drive", "{tmp}/ctl/drive.json", "--out", "{tmp}/ctl", "--overwrite"], "refuse",
+             ("drive.json", "input"), setup=ctl_folder("drive.json"), protect=("ctl",)),
+    ]
     # --overwrite must not take a user's own files with it
     own = [
         ("curves", ["curves", "--out", "{tmp}/out", "--overwrite"]),
@@ -2301,6 +2423,8 @@ def lost_cases() -> list[Case]:
         ("diagnose", ["diagnose", "{tmp}/camp", *DIAG_FAST, "--out", "{tmp}/out", "--overwrite"]),
         ("bench", ["bench", "{fx}/ctrl/model.json", *BENCH_FAST, "--out", "{tmp}/out", "--overwrite"]),
         ("perf", ["perf", *PERF_FAST, "--out", "{tmp}/out", "--overwrite"]),
+        ("export-controller", ["export-controller", "{fx}/ctrl/model.json", "--out", "{tmp}/out", "--overwrite"]),
+        ("export-drive", ["export-drive", "{fx}/learned.json", "--out", "{tmp}/out", "--overwrite"]),
     ]
     # ... nor a file the user added to an earlier output folder afterwards
     added = {"curves": "out/curves", "simulate-campaign": "out/camp", "identify": "out/id", "compare": "out/report",
@@ -2366,6 +2490,12 @@ def interrupt_cases() -> list[Case]:
          "out/id", names_of("earlier/identify/out/id")),
         ("excite", ["excite", "chirp", "--duration", "600", "--out", "{tmp}/out/chirp", "--overwrite"], "out",
          lambda fx: {"chirp.csv", "chirp.json"}),
+        ("export-controller", ["export-controller", "{fx}/ctrl/model.json", "--name", "rig", "--out", "{tmp}/out/c",
+                               "--overwrite"], "out/c", names_of("earlier/export-controller/out/c")),
+        ("export-drive", ["export-drive", "{fx}/learned.json", "--out", "{tmp}/out/drives", "--overwrite"],
+         "out/drives", names_of("earlier/export-drive/out/drives")),
+        # compiling the library is most of the run: signals before, during and after gcc
+        ("export-fmu", ["export-fmu", "--out", "{tmp}/out/rig.fmu", "--overwrite"], "out", lambda fx: {"rig.fmu"}),
     ]
     last_line_of = {"curves": "line=[curves] 5/5", "demo": "line=2/2 Design point, simulated: done",
                     "compare": "line=writing the report"}
@@ -2375,6 +2505,10 @@ def interrupt_cases() -> list[Case]:
             if needs_camp(argv):
                 with_camp(tmp, fx)
         triggers = [(signal.SIGINT, "t=1.2"), (signal.SIGTERM, "staging")]
+        if name == "export-fmu":  # one file, written at the end: no staging folder to wait for
+            triggers = [(signal.SIGINT, "t=0.6"), (signal.SIGINT, "t=1.2"), (signal.SIGTERM, "t=1.8")]
+        elif name in ("export-controller", "export-drive"):  # about a second in all: while the new set is written
+            triggers = [(signal.SIGINT, "t=0.5"), (signal.SIGINT, "staging"), (signal.SIGTERM, "staging")]
         if name in last_line_of:
             triggers.append((signal.SIGINT, last_line_of[name]))
         for sig, trig in triggers:
@@ -2409,6 +2543,9 @@ def determinism_cases() -> list[Case]:
                                                                    "m.json"], ["m.json"]),
         ("train --total-steps 200 --seed 1", ["train", *without(TRAIN_FAST, "--total-steps"), "--total-steps", "200",
                                               "--seed", "1", "--out", "tr"], ["tr/metrics.json"]),
+        ("export-controller", ["export-controller", "{fx}/ctrl/model.json", "--out", "c"], ["c/*.h", "c/*.c"]),
+        ("export-drive", ["export-drive", "{fx}/learned.json", "--out", "d"], ["d/*.csv", "d/*.json"]),
+        ("export-fmu (compiled)", ["export-fmu", "--out", "f/rig.fmu"], ["f/rig.fmu"]),
     ]
     cases = [Case("determinism", what, argv, "same", mode="twice", opts={"files": files}) for what, argv, files in rows]
     cases.append(Case("determinism", "size --format json (stdout)", ["size", "--format", "json", "--table", "loads"],
@@ -2520,6 +2657,17 @@ def api_cases() -> list[Case]:
              "result = Plant(3, sensors=Sensors(flow_noise_lpm=float('nan')))", "refuse", ("flow_noise_lpm",)),
         (P + "from ehas_env.simulation.sensors import Sensors\n"
              "result = Plant(3, sensors=Sensors(lvdt_gain_error=5))", "refuse", ("lvdt_gain_error",)),
+        # the exports' library (controllers/export_c.py, ehas_env/simulation/fmu.py)
+        ("from ehas_controllers.export_c import controller_c\nfrom ehas_controllers.ilc import ILC\n"
+         "from ehas_controllers.piff import PIFF\nresult = controller_c(ILC(PIFF.book()))", "refuse", ("learned",)),
+        ("from ehas_controllers.export_c import controller_c\nresult = controller_c('piff')", "refuse",
+         ("str", "C export takes")),
+        ("from ehas_env.simulation.fmu import fmu_sources\nresult = fmu_sources(disc_sets=9)", "refuse",
+         ("disc_sets",)),
+        ("from ehas_env.simulation.fmu import fmu_sources\nresult = fmu_sources('{tmp}/missing.json')", "refuse",
+         ("missing.json",)),
+        ("from ehas_env.simulation.fmu import write_fmu\nresult = write_fmu('{tmp}/x.fmu', controller=object())",
+         "refuse", ("compiled law",)),
     ]
     return [Case("api", code.splitlines()[-1][:90], [code], expect, culprit, mode="api") for code, expect, culprit in rows]
 
@@ -2609,6 +2757,23 @@ def misc_cases() -> list[Case]:
           "--effects", "coulomb_friction:Fc=300", "--perturb"], "accept", ()),
         (["curves", "--out", "{tmp}/o", "--valve", "white_box", "--supplies", "350"], "accept", ()),
         (["effects", "coulomb_friction", "extra"], "refuse", ("extra",)),
+        (["export-controller", "{fx}/ctrl/model.json", "--out", "{tmp}/o", "--name", "///"], "either", ("--name",)),
+        (["export-controller", "{fx}/ctrl/model.json", "--out", "{tmp}/o", "--name", "  "], "refuse", ("--name",)),
+        (["export-controller", "{fx}/learned.json", "--out", "{tmp}/o", "--name", "rig_harmonic"], "accept", ()),
+        (["export-controller", "{fx}/agent_ppo", "--out", "{tmp}/o"], "refuse", ("agent_ppo",)),
+        (["export-drive", "{fx}/learned.json", "--condition", "7,30", "--out", "{tmp}/o"], "refuse", ("--condition",)),
+        (["export-drive", "{fx}/learned.json", "--condition", "7,30,abc", "--out", "{tmp}/o"], "refuse",
+         ("--condition",)),
+        (["export-drive", "{fx}/learned.json", "--condition", "9,30,3", "--out", "{tmp}/o"], "refuse",
+         ("--condition",)),
+        (["export-drive", "{fx}/learned.json", "--condition", "7,30,3", "--condition", "7,30,3", "--out", "{tmp}/o"],
+         "either", ("--condition",)),
+        (["export-drive", "{fx}/ctrl/model.json", "--out", "{tmp}/o"], "refuse", ("model.json",)),
+        (["export-fmu", "{fx}/model.json", "--controller", "{fx}/ctrl/relay.json", "--closed-loop", "--disc-sets",
+          "7", "--out", "{tmp}/o/rig.fmu"], "accept", ()),
+        (["export-fmu", "--controller", "{fx}/agent_ppo", "--no-binary", "--out", "{tmp}/o/rig.fmu"], "refuse",
+         ("--controller", "agent_ppo")),
+        (["export-fmu", "--no-binary", "--out", "{tmp}/o/rig"], "refuse", ("--out", ".fmu")),
     ]
     cases = []
     for argv, expect, culprit in rows:

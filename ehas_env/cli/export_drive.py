@@ -48,7 +48,8 @@ def run(args) -> int:
     from ehas_controllers.drive import drive_members, export_drives
     from ehas_env.output.outputs import OutputSet
 
-    conditions = None if args.condition is None else [_condition(c) for c in args.condition]
+    # a condition given twice is exported once
+    conditions = None if args.condition is None else list(dict.fromkeys(_condition(c) for c in args.condition))
     ctrl = load_controller(args.controller)
     if getattr(ctrl, "source", None) is None:
         ctrl.source = args.controller  # the file its refusals name (an agent folder's loader sets none)

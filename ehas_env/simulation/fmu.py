@@ -122,7 +122,7 @@ def fmu_sources(model=None, *, controller=None, disc_sets: int = 3, closed_loop:
     dict of str to str
         Path inside the FMU -> text.
     """
-    disc_sets = int(check_field("disc_sets", disc_sets, "--disc-sets"))
+    disc_sets = int(check_field("disc_sets", disc_sets))
     plant = _plant(model, disc_sets)
     ctrl = controller if controller is not None else RigController.book()
     form = closing_form(ctrl, disc_sets)
@@ -279,13 +279,17 @@ def compile_binary(source_path, out_path) -> None:
     """
     cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
     if not cc:
-        raise ValueError("export-fmu: no C compiler found (set CC, or install gcc); --no-binary writes the sources "
+        raise ValueError("no C compiler found (set CC, or install gcc); --no-binary writes the sources "
                          "only")
-    proc = subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-shared", "-fPIC", str(source_path), "-o",
-                           str(out_path), "-lm"], capture_output=True, text=True, stdin=subprocess.DEVNULL)
+    try:
+        proc = subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-shared", "-fPIC", str(source_path),
+                               "-o", str(out_path), "-lm"], capture_output=True, text=True, stdin=subprocess.DEVNULL)
+    except OSError as exc:
+        raise ValueError(f"the C compiler {cc} does not run ({exc.strerror or exc}); set CC to a C compiler, or "
+                         "--no-binary writes the sources only") from None
     if proc.returncode != 0:
-        first = next((ln for ln in proc.stderr.splitlines() if "error" in ln), proc.stderr.strip()[:200])
-        raise ValueError(f"export-fmu: the C compiler {cc} failed: {first}")
+        first = next((ln for ln in proc.stderr.splitlines() if "error" in ln), " ".join(proc.stderr.split())[:200])
+        raise ValueError(f"the C compiler {cc} failed (status {proc.returncode}){': ' + first if first else ''}")
 
 
 def fmu_files(model=None, *, controller=None, disc_sets: int = 3, closed_loop: bool = False,
