@@ -279,7 +279,8 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
                "residual_x_noise_after": p and p["validation"]["residual_x_noise_all_after"],
                "fit_percent_before_after": p and [p["validation"]["fit_percent_all_before"],
                                                   p["validation"]["fit_percent_all_after"]],
-               "wall_s": round(time.perf_counter() - t0, 1), "cpu_s": round(_cpu() - c0, 1)}
+               "wall_s": round(time.perf_counter() - t0, 1), "cpu_s": round(_cpu() - c0, 1),
+               **reported_record(doc)}
         if spec["name"] == "crank_spring" and p:
             rec["spring_k"] = round(spring_rate(p), 1)
             rec["spring_k_ci95"] = spring_rate_ci(p)
@@ -302,6 +303,30 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
     return out
 
 
+def reported_record(doc: dict) -> dict:
+    """What an acceptance record keeps of a diagnosis to check that the model reported is the one the stages
+    measured last (issue 46): every ``measure`` record (effects, figure, why measured again) and the reported
+    model's figure and effects.
+
+    Parameters
+    ----------
+    doc : dict
+        The diagnosis JSON (:meth:`~ehas_env.measurement.open_diagnosis.OpenDiagnosis.to_json`).
+
+    Returns
+    -------
+    dict
+        ``measures`` (list of {effects, residual_x_noise, again_because}), ``reported`` ({effects,
+        residual_x_noise, proposal_residual_x_noise_after}).
+    """
+    prop = ((doc.get("unexplained") or {}).get("proposal") or {}).get("validation") or {}
+    return {"measures": [{"effects": r["effects"], "residual_x_noise": r["residual_x_noise"],
+                          "again_because": r.get("again_because")}
+                         for r in doc.get("stages", []) if r.get("stage") == "measure"],
+            "reported": {"effects": list(doc["model"]["effects"]), "residual_x_noise": doc["residual_x_noise"],
+                         "proposal_residual_x_noise_after": prop.get("residual_x_noise_all_after")}}
+
+
 def run_pairs(pairs=None, seed0: int = SEED + 800) -> list[dict]:
     """Two library effects hidden together: which effects the stacked diagnosis keeps, with their values."""
     from ehas_env.measurement.open_diagnosis import diagnose_open
@@ -318,7 +343,7 @@ def run_pairs(pairs=None, seed0: int = SEED + 800) -> list[dict]:
             got = res.model.effects.get(n, {}).get(key)
             found[n] = {"param": key, "true": vals[key], "fitted": got,
                         "within_30": got is not None and abs(got / vals[key] - 1.0) <= 0.3}
-        out.append({"hidden": pair, "kept": list(res.model.effects), "found": found,
+        out.append({**reported_record(res.to_json()), "hidden": pair, "kept": list(res.model.effects), "found": found,
                     "ok": set(res.model.effects) == set(pair) and all(f["within_30"] for f in found.values()),
                     "steps": [(s.effect, s.kept, s.reason) for s in res.steps],
                     "verdict": res.verdict, "wall_s": round(time.perf_counter() - t0, 1)})
