@@ -27,7 +27,7 @@ def test_a_mistyped_option_gets_the_closest_option(capsys):
 
 def test_a_mistyped_option_with_a_value_and_a_second_one(capsys):
     line = error_line(capsys, ["diagnose", "camp", "--candidats=x", "--jsn", "d.json"])
-    assert "--candidats=x (did you mean '--candidates'?)" in line
+    assert "--candidats=x (did you mean '--candidates'" in line  # the closest first
     assert "--jsn (did you mean '--json'?)" in line
 
 
