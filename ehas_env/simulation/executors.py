@@ -23,6 +23,10 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 
+#: seconds between redraws of the progress bar while no task ends (a task can run for minutes)
+REFRESH_S = 5.0
+
+
 class TaskFailed(RuntimeError):
     """A task failed on every attempt (or raised an error in its own code)."""
 
@@ -76,13 +80,18 @@ class LocalExecutor:
         broken = []
         with cf.ProcessPoolExecutor(max_workers=workers) as pool:
             futures = {pool.submit(_call, fn, tasks[i], i): i for i in indices}
-            for fut in cf.as_completed(futures):
-                i = futures[fut]
-                try:
-                    results[i] = fut.result()
-                    bar.update()
-                except cf.process.BrokenProcessPool:
-                    broken.append(i)
+            pending = set(futures)
+            while pending:
+                # wake every few seconds to redraw the bar (its elapsed time): never silent while a long task runs
+                done, pending = cf.wait(pending, timeout=REFRESH_S, return_when=cf.FIRST_COMPLETED)
+                bar.refresh()
+                for fut in done:
+                    i = futures[fut]
+                    try:
+                        results[i] = fut.result()
+                        bar.update()
+                    except cf.process.BrokenProcessPool:
+                        broken.append(i)
         return sorted(broken)
 
     def _isolated(self, fn, tasks, i, results, bar) -> None:
@@ -152,7 +161,8 @@ class RayExecutor:
         remaining = list(refs)
         with _progress(len(tasks), desc, self.progress) as bar:
             while remaining:
-                done, remaining = ray.wait(remaining, num_returns=1)
+                done, remaining = ray.wait(remaining, num_returns=1, timeout=REFRESH_S)
+                bar.refresh()  # its elapsed time, every few seconds while a long task runs
                 for ref in done:
                     i = index[ref]
                     try:
