@@ -244,7 +244,8 @@ def test_gate_closes_on_a_base_loop_whose_cycles_do_not_repeat(make):
     assert sub.repeat["change_pct"] == pytest.approx(100 * change / 20.0, rel=0.15)
     (rec,) = sub.learned_state()
     assert rec["guard_state"] == "gated" and not rec["repeat"]["open"]
-    assert not np.any(rec["feedforward"].get("table_mA", [0.0])) and not np.any(rec["feedforward"].get("harmonics", [0]))
+    ff = rec["feedforward"]
+    assert not np.any(ff.get("table_mA", [0.0])) and not np.any(ff.get("harmonics", [0.0]))
 
 
 def test_gate_stays_open_where_the_cycles_repeat_and_a_small_wander_is_learned_through():
