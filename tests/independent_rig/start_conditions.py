@@ -308,7 +308,14 @@ def _side(recs: list[dict], key: str) -> dict:
 
     worst = {v: max((abs(ratio(r, v) - 1.0) for r in a if ratio(r, v) is not None), default=None)
              for v in VARIANTS[1:]}
+    near = [r for r in a if (r["a"][key]["fade"].get("residual_x_noise") or 1e9) <= NEAR_X]
     return {"cases": len(a),
+            "near_cases": [r["id"] for r in near],
+            "near_agree_all_variants": sum(1 for r in near if r["a"]["agree" + tag]),
+            "near_disagree": {v: [r["id"] for r in near if ratio(r, v) is None or abs(ratio(r, v) - 1.0) > AGREE]
+                              for v in VARIANTS[1:]},
+            "rose": {v: sum(1 for r in a if (ratio(r, v) or 1.0) > 1.0 + AGREE) for v in VARIANTS[1:]},
+            "fell": {v: sum(1 for r in a if (ratio(r, v) or 1.0) < 1.0 - AGREE) for v in VARIANTS[1:]},
             "agree_all_variants": sum(1 for r in a if r["a"]["agree" + tag]),
             "agree_fade_rest_bump": sum(1 for r in a if r["a"]["agree_bump" + tag]),
             "disagree": {v: [r["id"] for r in a if ratio(r, v) is None or abs(ratio(r, v) - 1.0) > AGREE]
@@ -334,6 +341,11 @@ FLOOR_BIG = 10.0
 def floor_big(blocks: list[dict]) -> list[dict]:
     """The blocks whose floor is above :data:`FLOOR_BIG` sensor-noise variances."""
     return [b for b in blocks if (b.get("floor_x_sensor_noise") or 0.0) > FLOOR_BIG]
+
+
+#: campaigns whose faded-in figure is at most this (the verdict's "unexplained" threshold, 1 + UNEXPLAINED_X of
+#: ehas_env/measurement/verdict.py) are the ones a 10 % change can move across a verdict
+NEAR_X = 4.0
 
 
 #: a block whose residual is below this share of its floor has a floor "far above the residual it judges" (issue 42,
@@ -434,6 +446,11 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
               f"* Figure within {100 * AGREE:g} % of the faded-in campaign's in every variant: "
               f"{m['agree_all_variants']}/{m['cases']}; in `rest` and `rest_bump` (the acceptance's two): "
               f"{m['agree_fade_rest_bump']}/{m['cases']}.",
+              f"* Of the {len(m['near_cases'])} campaigns whose `fade` figure is at most {NEAR_X:g} (where 10 % can "
+              f"move a verdict): within 10 % in every variant {m['near_agree_all_variants']}; beyond: " + "; ".join(
+                  f"`{v}`: {', '.join(ids) or 'none'}" for v, ids in m["near_disagree"].items()) + ".",
+              "* Figures that rose (more evidence in the start) / fell by more than 10 %: " + ", ".join(
+                  f"`{v}` {m['rose'][v]}/{m['fell'][v]}" for v in VARIANTS[1:]) + ".",
               "* Largest relative difference from `fade`: " + ", ".join(
                   f"`{v}` {_pct(x)}" for v, x in m["largest_relative_difference"].items()) + ".",
               "* Campaigns beyond 10 %: " + "; ".join(f"`{v}`: {', '.join(ids) or 'none'}"
