@@ -138,6 +138,9 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
         raise ValueError(f"cut: short_s must be in (0, {duration:g}) s, got {cut['short_s']!r}")
     knock = (Bump(float(bump["t_s"]), float(bump["width_s"]), float(bump["torque_Nm"])) if bump is not None
              else None)
+    if knock is not None and (knock.k0 + knock.periods) * DT > duration + 1e-9:
+        raise ValueError(f"bump: t_s + width_s = {(knock.k0 + knock.periods) * DT:g} s is beyond the run's "
+                         f"{duration:g} s")
     chain = chain or Chain()
     rng = np.random.default_rng(seed)
     fb = 1.0 + (rng.uniform(-BETA_SPREAD, BETA_SPREAD) if perturb else 0.0)
