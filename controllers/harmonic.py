@@ -120,7 +120,7 @@ class HarmonicCanceller(CycleLearner):
             ratio = np.abs(meas / self.P)
             take = ok & (ratio < 2.0) & (ratio > 0.5) & (np.abs(np.angle(meas / self.P)) < np.pi / 3)
             self.P = np.where(take, (1.0 - self.adapt) * self.P + self.adapt * meas, self.P)
-        self._dU = self.gain * E / self.P
+        self._dU = np.where(self.dropped[self._h], 0.0, self.gain * E / self.P)  # dropped by the guard: no more
         self._U = self._U + self._dU
         self._E = E
 
@@ -140,6 +140,14 @@ class HarmonicCanceller(CycleLearner):
     def _scale(self, factor: float) -> None:
         self._U = self._U * factor
         self._dU = self._E = None
+
+    def _with_harmonics(self, snapshot, source, ks):
+        out = np.array(snapshot, dtype=complex)
+        out[ks - 1] = np.asarray(source)[ks - 1]  # harmonic k of the table is U[k - 1]
+        return out
+
+    def _notch(self, ks) -> None:
+        pass  # _learn leaves the harmonics in self.dropped as they are
 
     @property
     def _feedforward_state(self):

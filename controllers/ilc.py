@@ -184,6 +184,14 @@ class ILC(CycleLearner):
     def _scale(self, factor: float) -> None:
         self._u = self._u * factor
 
+    def _with_harmonics(self, snapshot, source, ks):
+        U = np.fft.rfft(snapshot)
+        U[ks] = np.fft.rfft(source)[ks]
+        return np.fft.irfft(U, self._table.n)
+
+    def _notch(self, ks) -> None:
+        self._plan["L"] = np.where(self.dropped, 0.0, self._plan["L"])  # a notch in L: nothing more learned there
+
     @property
     def _feedforward_state(self):
         return self._u.copy()

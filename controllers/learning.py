@@ -28,6 +28,18 @@ error of the cycle before.  Three pieces are common to them and live here, once:
   ``patience`` cycles it halves the feed-forward, again and again, and after ``halvings`` halvings
   drops it (the base loop alone); worse than ``growth`` x the base loop's error, it drops it at once.  Each step is an
   event in ``guard_log`` (and in the controller's JSON state, ``learned``);
+* the **per-harmonic guard** (the guard's ``harmonic_*`` fields): after every learned cycle the error's
+  amplitude at each harmonic of the cycle (:func:`harmonic_amplitudes`, the DFT of the cycle's phase bins) is
+  compared with its level on the base loop alone (the largest over cycles 1..:attr:`CycleLearner.first_learned_cycle`)
+  and with the cycle before.  A harmonic, learned or not, that grew from the cycle before to above
+  ``harmonic_growth`` x its base level plus the larger of ``harmonic_floor_pct`` % of the amplitude and
+  ``harmonic_ratio`` x the largest fall of a learned harmonic from its base level (what correcting the
+  others brings through a nonlinear plant) shows a learning that diverges: the plant answers there far more
+  than the design model says.  From that cycle on, every learned harmonic that grew from the cycle before
+  beyond ``harmonic_growth`` x its base level + ``harmonic_floor_pct`` % is taken out of the learned set at
+  once (the ILC: a notch in L at it and its component of the table set to zero; the harmonic canceller: its
+  U_h set to zero and never moved again), for the rest of the run; the others keep learning.  One event
+  ``drop`` per harmonic (``harmonic``, ``harmonic_hz``, why);
 * the **repeatability gate** (the guard's ``repeat_*`` fields): learning assumes a process that repeats, and
   learning from cycles that do not repeat is learning noise.  Before the first update the base loop alone runs
   until cycle ``repeat_cycle`` (default 3), and the change of that cycle's error from the cycle before, over the
@@ -60,12 +72,39 @@ GUARD_DEFAULTS = {
     "repeat_cycle": 3,        # cycles: the gate compares this cycle with the one before, both on the base loop alone
     "repeat_pct": 20.0,       # % : cycles do not repeat when their change exceeds this % of the error (null: no gate)
     "repeat_floor_pct": 0.5,  # % of the amplitude: a change from cycle to cycle this small always counts as repeating
+    # the per-harmonic guard: a learned harmonic whose error grows beyond its base-loop level is taken out of learning
+    "harmonic_growth": 2.0,   # - : dropped above this x its error on the base loop alone (null: no per-harmonic guard)
+    "harmonic_floor_pct": 0.05,  # % of the amplitude: absolute slack on top of harmonic_growth x the base level
+    "harmonic_ratio": 0.3,    # - : a harmonic diverges above growth x base + max(floor, ratio x the largest fall
+                              #     of a learned harmonic from its base level): correcting them raises others
 }
 #: what each guard field allows: (low, high, integer); growth > 1, base_error_pct > 0 or null, repeat_pct > 0 or null
 _GUARD_RANGES = {"patience": (1, 100, True), "growth": (1.0, 100.0, False), "floor_pct": (0.0, 100.0, False),
                  "halvings": (0, 30, True), "base_error_pct": (0.0, 1e6, False), "repeat_cycle": (2, 100, True),
-                 "repeat_pct": (0.0, 1000.0, False), "repeat_floor_pct": (0.0, 100.0, False)}
-_NULLABLE = ("base_error_pct", "repeat_pct")
+                 "repeat_pct": (0.0, 1000.0, False), "repeat_floor_pct": (0.0, 100.0, False),
+                 "harmonic_growth": (1.0, 1000.0, False), "harmonic_floor_pct": (0.0, 100.0, False),
+                 "harmonic_ratio": (0.0, 100.0, False)}
+_NULLABLE = ("base_error_pct", "repeat_pct", "harmonic_growth")
+
+
+def harmonic_amplitudes(e: np.ndarray) -> np.ndarray:
+    """Amplitude of each harmonic k = 0..N/2 of one cycle's error per phase bin (deg; k = 0: the mean's size).
+
+    Parameters
+    ----------
+    e : ndarray
+        One cycle's error per phase bin, deg (N bins).
+
+    Returns
+    -------
+    ndarray
+        ``2 |DFT_k(e)| / N`` for k >= 1 (``|DFT_k| / N`` at k = 0 and, N even, at N/2), deg.
+    """
+    a = 2.0 * np.abs(np.fft.rfft(e)) / e.size
+    a[0] *= 0.5
+    if e.size % 2 == 0:
+        a[-1] *= 0.5
+    return a
 
 
 def check_number(value, name: str, lo: float, hi: float, who: str, *, lo_open: bool = False,
@@ -139,7 +178,9 @@ def guard_settings(guard, who: str) -> dict:
     dict
         Every guard field: ``enabled`` (bool), ``patience`` (cycles), ``growth`` (-), ``floor_pct`` (%),
         ``halvings`` (-), ``base_error_pct`` (% or None), and the repeatability gate's ``repeat_cycle``
-        (cycles), ``repeat_pct`` (% of the error, or None: no gate), ``repeat_floor_pct`` (% of the amplitude).
+        (cycles), ``repeat_pct`` (% of the error, or None: no gate), ``repeat_floor_pct`` (% of the amplitude),
+        and the per-harmonic guard's ``harmonic_growth`` (-, or None: off), ``harmonic_floor_pct`` (% of the
+        amplitude) and ``harmonic_ratio`` (-).
 
     Raises
     ------
@@ -158,7 +199,7 @@ def guard_settings(guard, who: str) -> dict:
         else:
             lo, hi, integer = _GUARD_RANGES[key]
             v = check_number(value, f"guard.{key}", lo, hi, who, integer=integer,
-                             lo_open=key in ("growth", "base_error_pct", "repeat_pct"))
+                             lo_open=key in ("growth", "base_error_pct", "repeat_pct", "harmonic_growth"))
             out[key] = int(v) if integer else float(v)
     return out
 
@@ -406,8 +447,10 @@ class CycleLearner(Controller):
     ``base + floor_pct`` (a halving); ``patience`` bad cycles in a row make one step.  One cycle above
     ``growth x base + floor_pct`` (far worse than the base loop: never noise) is enough: learning stops at
     once, and once stopped the feed-forward is dropped at once.
+    Before the whole-cycle law, the **per-harmonic guard** (:meth:`_watch_harmonics`) takes the harmonics that
+    diverge out of the learned set (``dropped``, event ``drop``) while the others keep learning.
     Every step is appended to ``guard_log`` (dicts: ``cycle``, ``event``, ``cycle_error_pct``,
-    ``best_error_pct``, ``base_error_pct``, ``scale``, ``why``).
+    ``best_error_pct``, ``base_error_pct``, ``scale``, ``why``; a ``drop`` also ``harmonic`` and ``harmonic_hz``).
 
     What each run learned is kept per condition (:func:`condition_key`) in a record shared by the
     controller and its :meth:`for_plant` copies and written by :meth:`learned_state` into the JSON
@@ -484,6 +527,11 @@ class CycleLearner(Controller):
         self._sums = [0.0, 0, 0.0]  # sum e^2 (deg^2), samples, max|e| (deg) of the running cycle
         self._amp = self._freq = None
         self._prev_e = None  # the error per bin of the base-loop cycle the gate compares with (deg)
+        self._base_amps = None  # per harmonic: largest error amplitude of the base-loop cycles (deg)
+        self._prev_amps = None  # per harmonic: the last cycle's error amplitude (deg)
+        self._unlearned = None  # the learned signal before the first update (nothing learned: zero)
+        self.dropped = np.zeros(0, dtype=bool)  # per harmonic k of the table: taken out of learning by the guard
+        self.diverged: dict | None = None  # the per-harmonic guard's trigger (cycle, harmonic, amplitude_deg, ...)
         self.repeat: dict | None = None  # the gate's measurement (cycle, change_pct, ratio_pct, open)
 
     @property
@@ -542,22 +590,86 @@ class CycleLearner(Controller):
         err = percent_errors(s2, n, peak, self._amp)["rms_error_pct"]
         self.cycle_error_pct.append(err)
         first = self.first_learned_cycle
+        amps = harmonic_amplitudes(e)
+        if cycle <= first and (cycle >= 1 or first == 0):  # a cycle on the base loop alone (not the fade-in)
+            self._base_amps = amps if self._base_amps is None else np.maximum(self._base_amps, amps)
         if cycle < first:
             self._prev_e = e.copy()  # the gate compares the first learned cycle with this one
+            self._prev_amps = amps
             return
         if cycle == first:  # the last cycle on the base loop alone: its error is the base loop's
             if self.guard["base_error_pct"] is None:
                 base = self.cycle_error_pct[1:cycle + 1] or self.cycle_error_pct[:1]
                 self.base_error_pct = float(np.sqrt(np.mean(np.square(base))))
             self._best = (err, self._snapshot(), cycle)
+            self._unlearned = self._snapshot()  # nothing learned yet: what the per-harmonic guard puts back
             if self.gated and not self._gate(cycle, e):
                 self._remember(cycle)
                 return
         elif self.guard["enabled"]:
+            if self.guard_state == "learning" and self.guard["harmonic_growth"] is not None:
+                self._watch_harmonics(cycle, amps)
             self._watch(cycle, err)
+        self._prev_amps = amps
         if self.guard_state == "learning":
             self._learn(e)
         self._remember(cycle)
+
+    def _watch_harmonics(self, cycle: int, amps: np.ndarray) -> None:
+        """The per-harmonic guard after learned cycle ``cycle`` (module docstring): drop the harmonics that grew.
+
+        Once a harmonic k >= 1, learned or not, grew from the cycle before to above ``harmonic_growth`` x its
+        level on the base loop alone + max(``harmonic_floor_pct`` % of the amplitude, ``harmonic_ratio`` x the
+        largest fall of a learned harmonic from its base level) (``diverged`` records the first such), every
+        learned harmonic (weight > 0 in :meth:`_learned_band`, k >= 1, not dropped yet) that grew from the cycle
+        before to above ``harmonic_growth`` x its base level + ``harmonic_floor_pct`` % of the amplitude is taken
+        out of the learned set for the rest of the run: its learned component goes back to zero, its value before
+        the first update (:meth:`_with_harmonics`, in the best cycle's snapshot too) and it is not learned again
+        (:meth:`_notch`).  One event ``drop`` per harmonic.
+
+        Parameters
+        ----------
+        cycle : int
+            The cycle just finished (after the first learned update).
+        amps : ndarray
+            Its error's amplitude per harmonic k = 0..N/2 of the cycle table, deg (:func:`harmonic_amplitudes`).
+        """
+        g = self.guard
+        band = self._learned_band()
+        band[0] = 0.0  # the mean is the base loop's integrator's
+        floor = g["harmonic_growth"] * self._base_amps + g["harmonic_floor_pct"] * 1e-2 * self._amp
+        rising = amps > self._prev_amps
+        rising[0] = False
+        if self.diverged is None:  # has any harmonic, learned or not, grown beyond what the correction explains?
+            fell = float(np.max(np.where(band > 0.0, self._base_amps - amps, 0.0)))  # the largest correction so far
+            limit = g["harmonic_growth"] * self._base_amps + np.maximum(g["harmonic_floor_pct"] * 1e-2 * self._amp,
+                                                                         g["harmonic_ratio"] * fell)
+            over = rising & (amps > limit)
+            if not over.any():
+                return
+            k = int(np.argmax(np.where(over, amps - limit, -np.inf)))
+            self.diverged = {"cycle": int(cycle), "harmonic": k, "amplitude_deg": float(amps[k]),
+                             "limit_deg": float(limit[k]), "fell_deg": fell}
+        ks = np.flatnonzero((band > 0.0) & rising & (amps > floor) & ~self.dropped)
+        if ks.size == 0:
+            return
+        self.dropped[ks] = True
+        self._restore(self._with_harmonics(self._snapshot(), self._unlearned, ks))
+        self._best = (self._best[0], self._with_harmonics(self._best[1], self._unlearned, ks), self._best[2])
+        self._notch(ks)
+        f, d = self._table.freq_hz, self.diverged
+        why = (f"harmonic {d['harmonic']} ({d['harmonic'] * f:g} Hz) diverged at cycle {d['cycle']}: "
+               f"{d['amplitude_deg']:.3g} deg, above {g['harmonic_growth']:g} x its level on the base loop alone + "
+               f"the larger of {g['harmonic_floor_pct']:g} % of the amplitude and {g['harmonic_ratio']:g} x the "
+               f"largest fall of a learned harmonic from its base level ({d['fell_deg']:.3g} deg), "
+               f"{d['limit_deg']:.3g} deg")
+        for k in ks:
+            self._event(cycle, "drop", self.cycle_error_pct[-1],
+                        f"harmonic {k} ({k * f:g} Hz) grew to {amps[k]:.3g} deg from {self._prev_amps[k]:.3g} deg "
+                        f"the cycle before, above {g['harmonic_growth']:g} x its {self._base_amps[k]:.3g} deg on the "
+                        f"base loop alone + {g['harmonic_floor_pct']:g} % of the amplitude ({floor[k]:.3g} deg), and "
+                        f"{why}: taken out of learning, its learned component put back to zero (the base loop's)",
+                        harmonic=int(k), harmonic_hz=float(k * f))
 
     def _gate(self, cycle: int, e: np.ndarray) -> bool:
         """The repeatability gate before the first update: do the base loop's cycles repeat? (class docstring)
@@ -652,10 +764,10 @@ class CycleLearner(Controller):
             self._event(cycle, "base", err, f"{g['patience']} cycles worse than the base loop after "
                         f"{g['halvings']} halvings: feed-forward dropped, the base loop alone")
 
-    def _event(self, cycle: int, event: str, err: float, why: str) -> None:
+    def _event(self, cycle: int, event: str, err: float, why: str, **extra) -> None:
         self.guard_log.append({"cycle": int(cycle), "event": event, "cycle_error_pct": float(err),
                                "best_error_pct": float(self._best[0]), "base_error_pct": float(self.base_error_pct),
-                               "scale": float(self.scale), "why": why})
+                               "scale": float(self.scale), **extra, "why": why})
 
     def _remember(self, cycle: int) -> None:
         """Record this run's state for its condition in the shared ``learned`` record."""
@@ -665,6 +777,7 @@ class CycleLearner(Controller):
                              "cycle_error_pct": list(self.cycle_error_pct),
                              "base_error_pct": self.base_error_pct, "guard_state": self.guard_state,
                              "scale": self.scale, "events": list(self.guard_log), "repeat": self.repeat,
+                             "dropped_harmonics": [int(k) for k in np.flatnonzero(self.dropped)],
                              "feedforward": self._feedforward_state}
 
     @property
@@ -733,6 +846,7 @@ class CycleLearner(Controller):
                              "controller needs the reference's period (Plant.simulate_closed_loop passes them)")
         self._table = CycleTable(float(m["freq_hz"]), self._loop.rate_hz)
         self._amp, self._freq = float(m["amplitude_deg"]), float(m["freq_hz"])
+        self.dropped = np.zeros(self._table.n // 2 + 1, dtype=bool)
         try:
             self._begin(float(m["amplitude_deg"]), float(m["freq_hz"]))
         except BaseException:
@@ -761,6 +875,14 @@ class CycleLearner(Controller):
 
     def _scale(self, factor: float) -> None:
         """Multiply the learned signal by ``factor``."""
+        raise NotImplementedError
+
+    def _with_harmonics(self, snapshot, source, ks: np.ndarray):
+        """A copy of the learned signal ``snapshot`` whose harmonics ``ks`` (of the cycle table) are ``source``'s."""
+        raise NotImplementedError
+
+    def _notch(self, ks: np.ndarray) -> None:
+        """Learn nothing more at harmonics ``ks`` of the cycle table (``self.dropped`` is already set)."""
         raise NotImplementedError
 
     def guard_to_dict(self) -> dict:

@@ -577,7 +577,8 @@ def guard_long_test(controllers, plants, out_dir, *, conditions=None, cycles: in
         ``base_mean_pct`` (median over seeds), ``runs``, ``worse_than_base``, ``worse_on_base_alone`` (of
         those, the runs that ended with the learned signal dropped: the base loop alone, in another of its
         own oscillations than its own run's), ``gated_runs`` (the repeatability gate closed: nothing learned, the
-        base loop alone), ``guarded_runs`` (the guard acted while or after learning), ``fallbacks_to_base``);
+        base loop alone), ``dropped_runs`` (the per-harmonic guard took harmonics out of learning),
+        ``guarded_runs`` (the guard acted while or after learning), ``fallbacks_to_base``);
         ``rows``: every run.
     """
     from ehas_env.output.files import atomic_write_text
@@ -627,6 +628,7 @@ def guard_long_test(controllers, plants, out_dir, *, conditions=None, cycles: in
                                                for r in all_rows)),
                 "gated_runs": int(sum(r.get("guard_state") == "gated" for r in all_rows)),
                 "guarded_runs": int(sum(any(e["event"] != "gate" for e in r.get("guard_log", ())) for r in all_rows)),
+                "dropped_runs": int(sum(any(e["event"] == "drop" for e in r.get("guard_log", ())) for r in all_rows)),
                 "fallbacks_to_base": int(sum(r.get("guard_state") == "base" for r in all_rows))})
     atomic_write_text(out / "guard_long_test.csv", _guard_csv(rows, command, cycles))
     atomic_write_text(out / "guard_long_test.json", json.dumps({"command": command, "cycles": cycles,
@@ -644,12 +646,19 @@ def _guard_csv(rows, command, cycles) -> str:
               f"worse_than_base: steady > {1 + WORSE_TOLERANCE:g} x base + the std of the base loop's last "
               f"{STEADY_CYCLES} cycles' rms; guard_events: cycle:event of the guard "
               "(gate: the base loop's cycles did not repeat, nothing learned; stop: learning stopped and the best "
-              "cycle's feed-forward restored; halve; base: feed-forward dropped)\n")
+              "cycle's feed-forward restored; halve; base: feed-forward dropped; drop[k,...]: harmonics k of the "
+              "cycle taken out of learning by the per-harmonic guard)\n")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["controller", "plant", "seed", "disc_sets", "freq_hz", "amplitude_deg", "steady_rms_pct",
                 "base_steady_rms_pct", "worse_than_base", "guard_state", "guard_events", "cycle_rms_pct"])
     for r in rows:
-        ev = ";".join(f"{e['cycle']}:{e['event']}" for e in r.get("guard_log", []))
+        ev = []  # cycle:event, a cycle's drops as one: 4:drop[2,5,7] (the harmonics taken out of learning)
+        for e in r.get("guard_log", []):
+            if e["event"] == "drop" and ev and ev[-1][:2] == (e["cycle"], "drop"):
+                ev[-1][2].append(e["harmonic"])
+            else:
+                ev.append((e["cycle"], e["event"], [e["harmonic"]] if e["event"] == "drop" else None))
+        ev = ";".join(f"{c}:{name}" + (f"[{','.join(map(str, ks))}]" if ks is not None else "") for c, name, ks in ev)
         w.writerow([r["controller"], r["plant"], r["seed"], r["disc_sets"], f"{r['freq_hz']:g}",
                     f"{r['amplitude_deg']:g}", f"{r['steady_rms_pct']:.6g}", f"{r['base_steady_rms_pct']:.6g}",
                     int(r["worse_than_base"]), r.get("guard_state", ""), ev,
@@ -668,7 +677,9 @@ def _guard_markdown(summary, plants, command, cycles, n_conds) -> str:
              "cycles' rms: 0 for a loop that repeats, per cents where it oscillates without repeating). "
              "**Gate closed**: runs where the base loop's cycles did not repeat before the first update (the "
              "repeatability gate), so nothing was learned: the base loop alone. "
-             "**Guard**: runs where the guard acted (stopped learning and restored the best "
+             "**Harmonics dropped**: runs where the per-harmonic guard took harmonics that diverged out of "
+             "learning (the others learned on). "
+             "**Guard**: runs where the guard acted (took harmonics out, stopped learning and restored the best "
              "cycle's feed-forward, halved it, or dropped it) / runs that ended on the base loop alone "
              "(docs/learning-control.md). With several seeds, the mean over the conditions is taken per seed and "
              "the median and worst seed are given. A run that ended worse *on the base loop alone* had its learned "
@@ -678,14 +689,14 @@ def _guard_markdown(summary, plants, command, cycles, n_conds) -> str:
              "| plant | what |", "|---|---|"]
     lines += [f"| {p['name']} | {p['what']} (seeds {', '.join(map(str, p['seeds']))}) |" for p in plants]
     lines += ["", "| controller | plant | seeds | mean steady rms %: median seed | worst seed | worst run % | "
-              "base loop's mean % | runs | ended worse than base (on the base loop alone) | gate closed | guard acted / "
-              "fell back to base |",
-              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+              "base loop's mean % | runs | ended worse than base (on the base loop alone) | gate closed | "
+              "harmonics dropped | guard acted / fell back to base |",
+              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for s in summary:
         lines.append(f"| {s['controller']} | {s['plant']} | {len(s['seeds'])} | {s['median_seed_mean_pct']:.4f} | "
                      f"{s['worst_seed_mean_pct']:.4f} | {s['worst_run_pct']:.4f} | {s['base_mean_pct']:.4f} | "
                      f"{s['runs']} | {s['worse_than_base']} ({s['worse_on_base_alone']}) | {s['gated_runs']} | "
-                     f"{s['guarded_runs']} / "
+                     f"{s.get('dropped_runs', 0)} | {s['guarded_runs']} / "
                      f"{s['fallbacks_to_base']} |")
     total = sum(s["worse_than_base"] for s in summary)
     alone = sum(s["worse_on_base_alone"] for s in summary)

@@ -196,8 +196,8 @@ def main(argv=None) -> int:
     for s in res["summary"]:
         print(f"{s['controller']:<38} {s['plant']:<12} median seed {s['median_seed_mean_pct']:.4f} %  worst seed "
               f"{s['worst_seed_mean_pct']:.4f} %  base {s['base_mean_pct']:.4f} %  worse than base "
-              f"{s['worse_than_base']}/{s['runs']}  gated {s['gated_runs']}  guard {s['guarded_runs']}/{s['fallbacks_to_base']}",
-              flush=True)
+              f"{s['worse_than_base']}/{s['runs']}  gated {s['gated_runs']}  dropped {s['dropped_runs']}  guard "
+              f"{s['guarded_runs']}/{s['fallbacks_to_base']}", flush=True)
     return 0
 
 

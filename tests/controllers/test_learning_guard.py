@@ -31,12 +31,17 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _static_plant_run(ctrl, *, gain_deg_per_mA, flip_cycle=None, cycles=30, freq=2.0, amp=20.0, e_amp=0.4,
-                      wander_deg=0.0, wander_hz=0.0, out=None):
+                      wander_deg=0.0, wander_hz=0.0, resonance=None, out=None):
     """The controller on a plant whose error is e_b(t) - g u_ff(t): e_b a fixed periodic error the base loop
     leaves (deg), u_ff the learned current (mA: the controller's output minus a twin base loop's), g a static
     gain whose sign flips at ``flip_cycle``; plus ``wander_deg`` sin(2 pi wander_hz t), a slow oscillation that
-    is not locked to the reference (its cycles do not repeat).  Returns the rms % error of each cycle (true
-    error) and the controller; ``out`` (a dict) receives every sample's error (deg) and ``u_ff`` (mA)."""
+    is not locked to the reference (its cycles do not repeat).  ``resonance`` (harmonic h, gain R, e_h deg)
+    adds an answer the design model does not have: e_b gets e_h sin(h w t) and the plant answers
+    g u_ff + R bp(u_ff), bp the component at harmonic h of u_ff over the cycle before (a Fourier sum of its
+    samples; a slow resonance answering one period late), so at that harmonic the plant answers far more than
+    the controller's model says and at every other harmonic as the model says.  Returns the rms % error
+    of each cycle (true error) and the controller; ``out`` (a dict) receives every sample's error (deg) and
+    ``u_ff`` (mA)."""
     sub = ctrl.for_plant(3)
     twin = copy.deepcopy(sub._loop)
     sub.reset()
@@ -47,17 +52,29 @@ def _static_plant_run(ctrl, *, gain_deg_per_mA, flip_cycle=None, cycles=30, freq
     count = np.zeros(cycles)
     errors, u_ffs = np.zeros(n), np.zeros(n)
     u_ff = 0.0
+    h, R, e_h = 0, 0.0, 0.0
+    if resonance is not None:
+        h, R, e_h = resonance
+        per = int(round(1.0 / freq / dt))
+        ring = np.zeros(per)  # u_ff over the running period
+        c_h = 0j  # the complex amplitude at harmonic h of u_ff over the period before, mA
+    bp = 0.0
     for k in range(n):
         t = k * dt
         c = int(t * freq + 1e-9)
         g = gain_deg_per_mA * (-1.0 if flip_cycle is not None and c >= flip_cycle else 1.0)
         e = (e_amp * (np.sin(w * t + 0.4) + 0.5 * np.sin(2 * w * t)) + wander_deg * np.sin(2 * np.pi * wander_hz * t)
-             - g * u_ff)
+             + e_h * np.sin(h * w * t) - g * u_ff - R * bp)
         r = amp * np.sin(w * t)
         m = {"t": t, "theta_deg": r - e, "theta_ref_deg": r, "theta_ref_dot": amp * w * np.cos(w * t),
              "theta_ref_ddot": 0.0, "theta_ref_dddot": 0.0, "p_a_bar": 110.0, "p_b_bar": 110.0, "p_s_bar": 220.0,
              "amplitude_deg": amp, "freq_hz": freq}
         u_ff = sub.act(m) - twin.act(m)  # what the controller adds to its base loop, held for the next period
+        if resonance is not None:  # the answer at harmonic h: to the current of the cycle before
+            ring[k % per] = u_ff
+            if (k + 1) % per == 0:  # a cycle ends: its current's complex amplitude at harmonic h
+                c_h = 2.0 / per * np.sum(ring * np.exp(-1j * h * w * dt * np.arange(per)))
+            bp = float(np.real(c_h * np.exp(1j * h * w * (t + dt))))
         errors[k], u_ffs[k] = e, u_ff
         per_cycle[c] += e * e
         count[c] += 1
@@ -83,10 +100,10 @@ def test_guard_quiet_where_learning_converges():
 def test_guard_fires_when_learning_turns_harmful_and_ends_on_the_base_loop():
     """Learning helps until cycle 6, then the plant's answer to the learned current flips sign (a coupling
     that slips): each learning step now adds error.  Without the guard the error grows far beyond the base
-    loop's; with it learning stops, the best table (now harmful too) is halved, then dropped: the run ends
-    exactly on the base loop's error."""
+    loop's; with its whole-cycle law (the per-harmonic guard off) learning stops, the best table (now harmful
+    too) is halved, then dropped: the run ends exactly on the base loop's error."""
     free, _ = _static_plant_run(_lead_ilc(guard={"enabled": False}), gain_deg_per_mA=1.0, flip_cycle=6)
-    per, sub = _static_plant_run(_lead_ilc(), gain_deg_per_mA=1.0, flip_cycle=6)
+    per, sub = _static_plant_run(_lead_ilc(guard={"harmonic_growth": None}), gain_deg_per_mA=1.0, flip_cycle=6)
     base = per[1]
     assert free[-1] > 10 * base  # learning alone diverges
     events = [e["event"] for e in sub.guard_log]
@@ -99,8 +116,21 @@ def test_guard_fires_when_learning_turns_harmful_and_ends_on_the_base_loop():
         assert e["why"] and "\n" not in e["why"] and e["base_error_pct"] == pytest.approx(sub.base_error_pct)
 
 
+def test_per_harmonic_guard_ends_a_run_turned_harmful_on_the_base_loop_in_its_first_bad_cycle():
+    """The same plant with the guard's defaults: in cycle 7, the first above twice the base loop's error, both
+    learned harmonics (2 and 4 Hz) have grown beyond twice their base level and are taken out of learning, their
+    table components put back to zero; from then on the controller adds nothing and the run is the base loop's
+    error exactly."""
+    per, sub = _static_plant_run(_lead_ilc(), gain_deg_per_mA=1.0, flip_cycle=6)
+    base = per[1]
+    drops = [(e["cycle"], e["harmonic"]) for e in sub.guard_log if e["event"] == "drop"]
+    assert drops == [(7, 1), (7, 2)], sub.guard_log
+    assert max(per[:7]) < 2 * base < per[7]  # cycle 7 is the first above twice the base loop's error
+    assert np.allclose(per[9:], base, rtol=1e-3)  # from cycle 8 on (the table zero from the end of 7): e_b exactly
+
+
 def test_guard_events_are_in_the_controllers_json(tmp_path):
-    ctrl = _lead_ilc()
+    ctrl = _lead_ilc(guard={"harmonic_growth": None})
     _static_plant_run(ctrl, gain_deg_per_mA=1.0, flip_cycle=6)
     path = ctrl.save(tmp_path / "learned.json")
     doc = json.loads(path.read_text())
@@ -315,3 +345,48 @@ def test_a_record_learned_with_the_gate_closed_exports_and_replays_as_the_base_l
                                                     cycles=10)
     replay = Plant(disc_sets=2).simulate_closed_loop(drive, amplitude_deg=20.0, freq_hz=3.0, cycles=10)
     assert np.array_equal(replay.current_mA, alone.current_mA)
+
+
+# -- the per-harmonic guard: a learned harmonic that grows beyond its base level is taken out of learning ------------
+
+def _amplitude(error_deg, freq, cycle, harmonic, dt=1e-3):
+    """Amplitude (deg) of ``harmonic`` of the reference in the error over cycle ``cycle``: a DFT of the samples."""
+    per = int(round(1.0 / freq / dt))
+    x = error_deg[cycle * per:(cycle + 1) * per]
+    return 2.0 * abs(np.sum(x * np.exp(-2j * np.pi * harmonic * np.arange(per) / per))) / per
+
+
+def test_per_harmonic_guard_drops_the_harmonic_the_plant_answers_far_more_than_the_model():
+    """A plant that answers a current at the 3rd harmonic (6 Hz) as the model says plus 50 times more one period
+    later (and as the model says at every other harmonic): learning there diverges. The per-harmonic guard takes
+    the 3rd harmonic out in the first cycle it grew (found here on the samples), and only it; the 1st and 2nd
+    keep learning, and the run ends far below the base loop; without the guard it ends far above it."""
+    res = (3, 50.0, 0.02)
+    out = {}
+    free, _ = _static_plant_run(_lead_ilc(guard={"enabled": False}), gain_deg_per_mA=1.0, resonance=res, cycles=12)
+    per, sub = _static_plant_run(_lead_ilc(), gain_deg_per_mA=1.0, resonance=res, cycles=20, out=out)
+    base = per[1]
+    assert free[-1] > 3 * base  # learning alone diverges at the 3rd harmonic
+    a3 = [_amplitude(out["error_deg"], 2.0, c, 3) for c in range(len(per))]
+    first_bad = next(c for c in range(4, len(per)) if a3[c] > 3 * a3[3])  # the first cycle it grew, on the samples
+    drops = [e for e in sub.guard_log if e["event"] == "drop"]
+    assert [(e["cycle"], e["harmonic"]) for e in drops] == [(first_bad, 3)], sub.guard_log
+    (d3,) = drops
+    assert d3["harmonic_hz"] == 6.0 and d3["why"].startswith("harmonic 3 (6 Hz) grew to ") and "\n" not in d3["why"]
+    assert sub.guard_state == "learning" and list(np.flatnonzero(sub.dropped)) == [3]
+    last = len(per) - 1
+    for k in (1, 2):  # the others learned on: their error is gone
+        assert _amplitude(out["error_deg"], 2.0, last, k) < 0.02 * _amplitude(out["error_deg"], 2.0, 3, k)
+    # the 3rd harmonic is back to what the base loop left (its learned current put back to what it was before)
+    assert a3[last] < 3 * a3[3]
+    assert per[-1] < 0.2 * base
+
+
+def test_per_harmonic_guard_quiet_where_learning_converges_and_can_be_switched_off():
+    """On the static plant (every harmonic answers as the model says) nothing is dropped; with
+    harmonic_growth null the diverging plant above is left to the whole-cycle guard (no drop event)."""
+    per, sub = _static_plant_run(_lead_ilc(), gain_deg_per_mA=1.0, cycles=12)
+    assert not sub.guard_log and not sub.dropped.any()
+    per, sub = _static_plant_run(_lead_ilc(guard={"harmonic_growth": None}), gain_deg_per_mA=1.0,
+                                 resonance=(3, 50.0, 0.02), cycles=12)
+    assert not any(e["event"] == "drop" for e in sub.guard_log) and sub.guard_log
