@@ -620,7 +620,21 @@ def _blk(b: dict) -> str:
 def _commits(recs: list[dict]) -> str:
     cs = sorted({r.get("ehas_commit") for r in recs if r.get("ehas_commit")} |
                 {(r.get("b") or {}).get("ehas_commit") for r in recs if (r.get("b") or {}).get("ehas_commit")})
-    return f"The cases ran at commit{'s' if len(cs) > 1 else ''} {', '.join(cs) or '?'} of this repository."
+    text = f"The cases ran at commit{'s' if len(cs) > 1 else ''} {', '.join(cs) or '?'} of this repository"
+    if len(cs) > 1:  # other work was committed meanwhile: say whether what makes the figures changed between them
+        import subprocess
+
+        same = all(subprocess.run(["git", "-C", str(acc.ROOT), "diff", "--quiet", cs[0], c, "--", *FIGURE_CODE],
+                                  capture_output=True).returncode == 0 for c in cs[1:])
+        what = ", ".join(c for c in FIGURE_CODE if not c.startswith(":")) + " (c_source.py, the exports' C, aside)"
+        text += f"; {what} are the same at all of them" if same else f"; {what} differ between them"
+    return text + "."
+
+
+#: the code that makes the figures and the diagnosis (the README says whether it changed between the cases' commits)
+FIGURE_CODE = ("ehas_env/measurement/verdict.py", "ehas_env/measurement/replay.py",
+               "ehas_env/measurement/diagnosis.py", "ehas_env/measurement/fitting.py", "ehas_env/physics",
+               ":(exclude)ehas_env/physics/c_source.py")
 
 
 def _pct(x):
