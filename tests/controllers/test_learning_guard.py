@@ -211,7 +211,8 @@ def test_breaking_plants_share_no_code_with_the_guard():
 @pytest.mark.parametrize("stem", ["ilc", "harmonic"])
 def test_guard_on_a_coupling_that_slips(stem):
     """7 disc sets behind a coupling that slips, 30 deg, 3 Hz: the harmonic canceller alone ends at several
-    times its base loop's error; with the guard both end below their base loop's (run on the same plant)."""
+    times its base loop's error; with the guard (taking the harmonics that diverge out, or stopping) both end
+    below their base loop's (run on the same plant)."""
     ctrl = load_controller(ROOT / "results" / "long_test_guard" / f"{stem}.json")
     base = run_breaking(ctrl.base, "slip", 7, 30.0, 3.0)
     free = copy.deepcopy(ctrl)
@@ -220,7 +221,8 @@ def test_guard_on_a_coupling_that_slips(stem):
     guarded = run_breaking(ctrl, "slip", 7, 30.0, 3.0)
     if stem == "harmonic":
         assert unguarded["steady_rms_pct"] > 2 * base["steady_rms_pct"]
-    assert guarded["controller"].guard_log and guarded["controller"].guard_log[0]["event"] == "stop"
+    # the guard acts: the per-harmonic guard takes diverging harmonics out, or the whole-cycle law stops learning
+    assert guarded["controller"].guard_log and guarded["controller"].guard_log[0]["event"] in ("drop", "stop")
     assert guarded["steady_rms_pct"] <= base["steady_rms_pct"]
 
 
