@@ -533,8 +533,9 @@ def alternatives_stage(s: Search) -> dict:
     """The stage of the alternatives: the explanations each effect of the final model may be confused with, fitted in
     its place (:func:`ehas_env.measurement.alternatives.find_alternatives`); those these logs cannot tell apart are
     listed.  When the logs *prefer* one (it fits better by more than they resolve, and worse on no run by more than
-    ``SEPARATED_DB``: :func:`ehas_env.measurement.alternatives.prefers`) it becomes the reported explanation, the
-    final model is measured again, and the one it replaced is compared in its place.  It runs before the verdict,
+    ``SEPARATED_DB``: :func:`ehas_env.measurement.alternatives.prefers`) and it is not worse on the noise figure
+    of all data, it becomes the reported explanation, the final model is measured again, and the one it replaced is
+    compared in its place (issue 46: a swap preferred on the fit data once reported 244x after 157x).  It runs before the verdict,
     the parameters per run and the proposal, which then see the explanation reported.
 
     Parameters
@@ -564,9 +565,17 @@ def alternatives_stage(s: Search) -> dict:
         if f is None or set(f.model.effects) != set(rest) | {a.name}:  # compared from an earlier round: refit here
             f = fit_candidate(s.rep, a.name, fit_null(s.rep, rest), rest)
         sims = s.full.simulate(f.model)
+        x_new = grade(blocks_of(s.full, sims, COST_SIGNALS))["residual_x_noise"]
+        if x_new > res.residual_x_noise:  # preferred on the fit data, worse on the one figure: the model stays
+            s.say(f"  {a.name} in place of {a.in_place_of}: {x_new:.3g}x on all data against "
+                  f"{res.residual_x_noise:.3g}x; {a.in_place_of} stays")
+            return {"within": [a.name for a in res.alternatives if a.within], "preferred": None,
+                    "not_swapped": {"name": a.name, "in_place_of": a.in_place_of, "residual_x_noise": x_new,
+                                    "residual_x_noise_kept": res.residual_x_noise}}
         val = _parts_cost(s.full, sims, s.parts)
         why = (f"these logs prefer {a.name} to {a.in_place_of}: {-a.score_difference_db:.2f} dB better over the "
-               f"campaign (they resolve {a.resolvable_db:.2f} dB), and worse on no run by more than the logs allow")
+               f"campaign (they resolve {a.resolvable_db:.2f} dB), worse on no run by more than the logs allow, and "
+               f"not worse on all data ({x_new:.3g}x against {res.residual_x_noise:.3g}x)")
         for st in s.steps:
             if st.effect == a.in_place_of and st.kept:
                 st.kept = False
