@@ -90,7 +90,9 @@ def test_ilc_converges_on_the_model_to_what_does_not_repeat():
     # falls cycle after cycle while learning (from cycle 3: the repeatability gate's two base-loop cycles first)
     assert per[5] < 0.6 * per[3] and per[7] < 0.6 * per[5]
     assert m["steady_rms_pct"] < floor
-    assert m["worst_cycle_pct"] <= fixed["worst_cycle_pct"] * 1.001  # no learning transient above the loop's
+    # no learning transient above the loop's: the cycles it learns in (from cycle 3; the cycles before are the base
+    # loop's own, equal to the fixed loop's within the sensor noise) stay below the fixed loop's worst cycle
+    assert max(per[3:]) <= fixed["worst_cycle_pct"] * 1.001
 
 
 def test_ilc_refuses_a_gain_built_to_diverge():
