@@ -1,8 +1,8 @@
-"""proposed_ool_crank_offset_mild: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ow-work/ool_crank_offset_mild/campaign.
+"""proposed_ool_crank_offset_mild: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ow/work/ool_crank_offset_mild/campaign.
 
 The crank arm stands +4.01 deg off the perpendicular at the piston's mid-stroke (its lever is r cos(theta +4.01 deg)).
 phi0 = 4.012 deg (95 % CI 3.958 to 4.067)
-Residual against what does not repeat: 2.61x -> 1.04x.
+Residual against what does not repeat: 2.73x -> 1.04x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_ool_crank_offset_strong: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ow-work/ool_crank_offset_strong/campaign.
+"""proposed_ool_crank_offset_strong: angle offset of the crank: the rod pin is off the perpendicular at mid-stroke, found by ehas diagnose on /tmp/ow/work/ool_crank_offset_strong/campaign.
 
 The crank arm stands +10 deg off the perpendicular at the piston's mid-stroke (its lever is r cos(theta +10 deg)).
 phi0 = 10.01 deg (95 % CI 9.985 to 10.03)
-Residual against what does not repeat: 7.74x -> 1.06x.
+Residual against what does not repeat: 8.78x -> 1.07x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,9 +1,9 @@
-"""proposed_ool_crank_unbalance_mild: unbalanced load: a torque that depends on the crank angle, found by ehas diagnose on /tmp/ow-work/ool_crank_unbalance_mild/campaign.
+"""proposed_ool_crank_unbalance_mild: unbalanced load: a torque that depends on the crank angle, found by ehas diagnose on /tmp/ow/work/ool_crank_unbalance_mild/campaign.
 
 A torque that follows the crank angle pulls the crank back toward -60 deg: T = -25.1 sin(theta + 60 deg) N m (an unbalance hanging there, or a centring spring of 25.1 N m/rad about it).
 T_sin = 12.51 N m (95 % CI 12.37 to 12.65)
 T_cos = 21.73 N m (95 % CI 21.58 to 21.88)
-Residual against what does not repeat: 6.71x -> 1.04x.
+Residual against what does not repeat: 6.78x -> 1.03x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,9 +1,9 @@
-"""proposed_ool_crank_unbalance_strong: unbalanced load: a torque that depends on the crank angle, found by ehas diagnose on /tmp/ow-work/ool_crank_unbalance_strong/campaign.
+"""proposed_ool_crank_unbalance_strong: unbalanced load: a torque that depends on the crank angle, found by ehas diagnose on /tmp/ow/work/ool_crank_unbalance_strong/campaign.
 
 A torque that follows the crank angle pulls the crank back toward -60 deg: T = -80.1 sin(theta + 60 deg) N m (an unbalance hanging there, or a centring spring of 80.1 N m/rad about it).
 T_sin = 40.1 N m (95 % CI 40.03 to 40.18)
 T_cos = 69.3 N m (95 % CI 69.26 to 69.34)
-Residual against what does not repeat: 47.1x -> 1.04x.
+Residual against what does not repeat: 50x -> 1.04x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

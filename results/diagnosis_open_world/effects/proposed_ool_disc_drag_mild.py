@@ -1,8 +1,8 @@
-"""proposed_ool_disc_drag_mild: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/ow-work/ool_disc_drag_mild/campaign.
+"""proposed_ool_disc_drag_mild: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/ow/work/ool_disc_drag_mild/campaign.
 
 A drag torque on the load grows with the square of its speed: 100 N m at 10 rad/s.
 T_10 = 100.1 N m (95 % CI 99.97 to 100.2)
-Residual against what does not repeat: 8.07x -> 1.05x.
+Residual against what does not repeat: 8.56x -> 1.04x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

@@ -1,8 +1,8 @@
-"""proposed_ool_disc_drag_strong: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/ow-work/ool_disc_drag_strong/campaign.
+"""proposed_ool_disc_drag_strong: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/ow/work/ool_disc_drag_strong/campaign.
 
 A drag torque on the load grows with the square of its speed: 300 N m at 10 rad/s.
 T_10 = 300 N m (95 % CI 299.9 to 300.1)
-Residual against what does not repeat: 45.5x -> 1.03x.
+Residual against what does not repeat: 55.5x -> 1.03x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

@@ -1,8 +1,8 @@
-"""proposed_ool_entrained_air_mild: entrained air: a bulk modulus that falls at low pressure, found by ehas diagnose on /tmp/ow-work/ool_entrained_air_mild/campaign.
+"""proposed_ool_entrained_air_mild: entrained air: a bulk modulus that falls at low pressure, found by ehas diagnose on /tmp/ow/work/ool_entrained_air_mild/campaign.
 
 The oil carries 6.14 % of free air (at atmospheric pressure): its bulk modulus is 0.16 of the oil's at 10 bar, nearly the oil's at 100 bar.
 air = 6.144 % (95 % CI 5.691 to 6.632)
-Residual against what does not repeat: 1.04x -> 1.04x.
+Residual against what does not repeat: 1.21x -> 1.03x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

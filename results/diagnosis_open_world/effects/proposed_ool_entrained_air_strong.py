@@ -1,8 +1,8 @@
-"""proposed_ool_entrained_air_strong: entrained air: a bulk modulus that falls at low pressure, found by ehas diagnose on /tmp/ow-work/ool_entrained_air_strong/campaign.
+"""proposed_ool_entrained_air_strong: entrained air: a bulk modulus that falls at low pressure, found by ehas diagnose on /tmp/ow/work/ool_entrained_air_strong/campaign.
 
 The oil carries 24.2 % of free air (at atmospheric pressure): its bulk modulus is 0.05 of the oil's at 10 bar, nearly the oil's at 100 bar.
 air = 24.19 % (95 % CI 21.19 to 27.61)
-Residual against what does not repeat: 1.06x -> 1.03x.
+Residual against what does not repeat: 1.41x -> 1.02x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

@@ -1,8 +1,8 @@
-"""proposed_ool_load_compliance_mild: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/ow-work/ool_load_compliance_mild/campaign.
+"""proposed_ool_load_compliance_mild: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/ow/work/ool_load_compliance_mild/campaign.
 
 The load path is a spring of 83.5 N/um between piston and crank (12 um per kN of load).
 k_load = 8.35e+07 N/m (95 % CI 8.032e+07 to 8.68e+07)
-Residual against what does not repeat: 1.27x -> 1.04x.
+Residual against what does not repeat: 1.55x -> 1.04x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_ool_load_compliance_strong: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/ow-work/ool_load_compliance_strong/campaign.
+"""proposed_ool_load_compliance_strong: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/ow/work/ool_load_compliance_strong/campaign.
 
 The load path is a spring of 24.6 N/um between piston and crank (40.7 um per kN of load).
 k_load = 2.459e+07 N/m (95 % CI 2.428e+07 to 2.491e+07)
-Residual against what does not repeat: 1.48x -> 1.03x.
+Residual against what does not repeat: 2.51x -> 1.12x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

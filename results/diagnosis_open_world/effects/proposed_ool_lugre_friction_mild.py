@@ -1,11 +1,11 @@
-"""proposed_ool_lugre_friction_mild: dynamic (LuGre) seal friction with a presliding bristle state, found by ehas diagnose on /tmp/ow-work/ool_lugre_friction_mild/campaign.
+"""proposed_ool_lugre_friction_mild: dynamic (LuGre) seal friction with a presliding bristle state, found by ehas diagnose on /tmp/ow/work/ool_lugre_friction_mild/campaign.
 
 The seals' friction has a presliding state (LuGre): 150 N sliding, breakaway 1.18 x that, built up over 158 um of travel after a reversal, plus 300 N s/m viscous.
 Fc = 149.8 N (95 % CI 148.2 to 151.4)
 r_s = 1.178 - (95 % CI 1.113 to 1.243)
 sigma0 = 9.455e+05 N/m (95 % CI 8.79e+05 to 1.017e+06)
 sigma2 = 299.5 N s/m (95 % CI 293.7 to 305.5)
-Residual against what does not repeat: 4.24x -> 1.03x.
+Residual against what does not repeat: 5.1x -> 1.05x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,11 +1,11 @@
-"""proposed_ool_lugre_friction_strong: dynamic (LuGre) seal friction with a presliding bristle state, found by ehas diagnose on /tmp/ow-work/ool_lugre_friction_strong/campaign.
+"""proposed_ool_lugre_friction_strong: dynamic (LuGre) seal friction with a presliding bristle state, found by ehas diagnose on /tmp/ow/work/ool_lugre_friction_strong/campaign.
 
 The seals' friction has a presliding state (LuGre): 451 N sliding, breakaway 1.1 x that, built up over 450 um of travel after a reversal, plus 297 N s/m viscous.
 Fc = 450.7 N (95 % CI 449.1 to 452.3)
 r_s = 1.099 - (95 % CI 1.026 to 1.173)
 sigma0 = 1.001e+06 N/m (95 % CI 9.806e+05 to 1.022e+06)
 sigma2 = 297.2 N s/m (95 % CI 291.5 to 303)
-Residual against what does not repeat: 4.8x -> 1.01x.
+Residual against what does not repeat: 4.86x -> 1.01x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

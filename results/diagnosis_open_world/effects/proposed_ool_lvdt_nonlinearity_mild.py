@@ -1,9 +1,9 @@
-"""proposed_ool_lvdt_nonlinearity_mild: gain error and nonlinearity of the position sensor (LVDT), found by ehas diagnose on /tmp/ow-work/ool_lvdt_nonlinearity_mild/campaign.
+"""proposed_ool_lvdt_nonlinearity_mild: gain error and nonlinearity of the position sensor (LVDT), found by ehas diagnose on /tmp/ow/work/ool_lvdt_nonlinearity_mild/campaign.
 
 The position sensor's scale is off by -0.0018 % and its reading bends by +1 % of the half stroke at the stroke ends.
 gain = -0.00182 % (95 % CI -0.01461 to 0.01097)
 bend = 1.001 % (95 % CI 0.9947 to 1.006)
-Residual against what does not repeat: 1.95x -> 1.04x.
+Residual against what does not repeat: 2.04x -> 1.06x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

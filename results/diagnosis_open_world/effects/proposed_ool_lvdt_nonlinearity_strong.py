@@ -1,9 +1,9 @@
-"""proposed_ool_lvdt_nonlinearity_strong: gain error and nonlinearity of the position sensor (LVDT), found by ehas diagnose on /tmp/ow-work/ool_lvdt_nonlinearity_strong/campaign.
+"""proposed_ool_lvdt_nonlinearity_strong: gain error and nonlinearity of the position sensor (LVDT), found by ehas diagnose on /tmp/ow/work/ool_lvdt_nonlinearity_strong/campaign.
 
 The position sensor's scale is off by -0.0029 % and its reading bends by +3 % of the half stroke at the stroke ends.
 gain = -0.002911 % (95 % CI -0.02028 to 0.01446)
 bend = 2.997 % (95 % CI 2.986 to 3.008)
-Residual against what does not repeat: 4.34x -> 1.03x.
+Residual against what does not repeat: 4.78x -> 1.03x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

@@ -1,8 +1,8 @@
-"""proposed_ool_lvdt_offset_strong: zero offset of the position sensor (LVDT), found by ehas diagnose on /tmp/ow-work/ool_lvdt_offset_strong/campaign.
+"""proposed_ool_lvdt_offset_strong: zero offset of the position sensor (LVDT), found by ehas diagnose on /tmp/ow/work/ool_lvdt_offset_strong/campaign.
 
 The position sensor reads +1.05 mm at the piston's true mid-stroke (a zero offset of the LVDT).
 x0 = 1.055 mm (95 % CI 0.989 to 1.121)
-Residual against what does not repeat: 1.25x -> 1.04x.
+Residual against what does not repeat: 1.3x -> 1.04x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

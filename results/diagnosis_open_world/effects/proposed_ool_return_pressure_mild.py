@@ -1,8 +1,8 @@
-"""proposed_ool_return_pressure_mild: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow-work/ool_return_pressure_mild/campaign.
+"""proposed_ool_return_pressure_mild: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow/work/ool_return_pressure_mild/campaign.
 
 The return line is at 5 bar at the valve's return lands (the baseline: 0 bar).
 p_t = 4.997 bar (95 % CI 4.989 to 5.006)
-Residual against what does not repeat: 4.62x -> 1.05x.
+Residual against what does not repeat: 4.42x -> 1.05x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_ool_return_pressure_strong: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow-work/ool_return_pressure_strong/campaign.
+"""proposed_ool_return_pressure_strong: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow/work/ool_return_pressure_strong/campaign.
 
 The return line is at 15 bar at the valve's return lands (the baseline: 0 bar).
 p_t = 15 bar (95 % CI 14.99 to 15.01)
-Residual against what does not repeat: 12.4x -> 1.03x.
+Residual against what does not repeat: 11.8x -> 1.03x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_ool_single_rod_mild: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow-work/ool_single_rod_mild/campaign.
+"""proposed_ool_single_rod_mild: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow/work/ool_single_rod_mild/campaign.
 
 Chamber B's piston area is 0.90 of chamber A's.
 d_area = 0.09985 - (95 % CI 0.09979 to 0.09991)
-Residual against what does not repeat: 39x -> 1.02x.
+Residual against what does not repeat: 47.5x -> 1.03x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

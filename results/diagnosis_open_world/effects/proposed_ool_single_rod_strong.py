@@ -1,8 +1,8 @@
-"""proposed_ool_single_rod_strong: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow-work/ool_single_rod_strong/campaign.
+"""proposed_ool_single_rod_strong: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow/work/ool_single_rod_strong/campaign.
 
 Chamber B's piston area is 0.75 of chamber A's.
 d_area = 0.2486 - (95 % CI 0.2475 to 0.2497)
-Residual against what does not repeat: 50.9x -> 1.46x.
+Residual against what does not repeat: 62.8x -> 2.4x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

@@ -1,8 +1,8 @@
-"""proposed_ool_supply_line_loss_mild: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/ow-work/ool_supply_line_loss_mild/campaign.
+"""proposed_ool_supply_line_loss_mild: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/ow/work/ool_supply_line_loss_mild/campaign.
 
 The supply line loses 12.5 bar at 25 LPM before the valve (growing with the square of the flow).
 dp_25 = 12.53 bar (95 % CI 12.34 to 12.72)
-Residual against what does not repeat: 1.94x -> 1.03x.
+Residual against what does not repeat: 2.13x -> 1.02x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

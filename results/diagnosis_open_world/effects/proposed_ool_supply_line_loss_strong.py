@@ -1,8 +1,8 @@
-"""proposed_ool_supply_line_loss_strong: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/ow-work/ool_supply_line_loss_strong/campaign.
+"""proposed_ool_supply_line_loss_strong: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/ow/work/ool_supply_line_loss_strong/campaign.
 
 The supply line loses 39.1 bar at 25 LPM before the valve (growing with the square of the flow).
 dp_25 = 39.06 bar (95 % CI 39.04 to 39.08)
-Residual against what does not repeat: 15.6x -> 1.05x.
+Residual against what does not repeat: 17.7x -> 1.05x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_ool_turbulent_leakage_mild: turbulent (orifice-law) leakage across the piston, found by ehas diagnose on /tmp/ow-work/ool_turbulent_leakage_mild/campaign.
+"""proposed_ool_turbulent_leakage_mild: turbulent (orifice-law) leakage across the piston, found by ehas diagnose on /tmp/ow/work/ool_turbulent_leakage_mild/campaign.
 
 Oil leaks across the piston as through an orifice: 0.399 LPM at 100 bar load pressure, growing with the square root of the pressure.
 q_100 = 0.3992 LPM (95 % CI 0.3985 to 0.4)
-Residual against what does not repeat: 8.17x -> 1.09x.
+Residual against what does not repeat: 9.28x -> 1.08x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

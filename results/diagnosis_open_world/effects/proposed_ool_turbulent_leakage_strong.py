@@ -1,8 +1,8 @@
-"""proposed_ool_turbulent_leakage_strong: turbulent (orifice-law) leakage across the piston, found by ehas diagnose on /tmp/ow-work/ool_turbulent_leakage_strong/campaign.
+"""proposed_ool_turbulent_leakage_strong: turbulent (orifice-law) leakage across the piston, found by ehas diagnose on /tmp/ow/work/ool_turbulent_leakage_strong/campaign.
 
 Oil leaks across the piston as through an orifice: 1.2 LPM at 100 bar load pressure, growing with the square root of the pressure.
 q_100 = 1.2 LPM (95 % CI 1.198 to 1.203)
-Residual against what does not repeat: 21.5x -> 1.17x.
+Residual against what does not repeat: 25.7x -> 1.28x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

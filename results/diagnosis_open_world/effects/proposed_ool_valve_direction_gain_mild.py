@@ -1,8 +1,8 @@
-"""proposed_ool_valve_direction_gain_mild: valve gain per spool direction, found by ehas diagnose on /tmp/ow-work/ool_valve_direction_gain_mild/campaign.
+"""proposed_ool_valve_direction_gain_mild: valve gain per spool direction, found by ehas diagnose on /tmp/ow/work/ool_valve_direction_gain_mild/campaign.
 
 The valve's gain for negative current is 0.89 of its gain for positive current.
 g_dir = 0.06 - (95 % CI 0.05994 to 0.06006)
-Residual against what does not repeat: 13.1x -> 1.04x.
+Residual against what does not repeat: 14.5x -> 1.04x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

@@ -1,8 +1,8 @@
-"""proposed_ool_valve_direction_gain_strong: valve gain per spool direction, found by ehas diagnose on /tmp/ow-work/ool_valve_direction_gain_strong/campaign.
+"""proposed_ool_valve_direction_gain_strong: valve gain per spool direction, found by ehas diagnose on /tmp/ow/work/ool_valve_direction_gain_strong/campaign.
 
 The valve's gain for negative current is 0.74 of its gain for positive current.
 g_dir = 0.15 - (95 % CI 0.1499 to 0.1501)
-Residual against what does not repeat: 41.8x -> 1.04x.
+Residual against what does not repeat: 49.4x -> 1.06x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

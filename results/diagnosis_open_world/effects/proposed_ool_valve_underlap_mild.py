@@ -1,8 +1,8 @@
-"""proposed_ool_valve_underlap_mild: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow-work/ool_valve_underlap_mild/campaign.
+"""proposed_ool_valve_underlap_mild: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow/work/ool_valve_underlap_mild/campaign.
 
 The valve is underlapped by the flow of 0.187 mA: around null its supply and return lands are open together.
 i_u = 0.1874 mA (95 % CI 0.1859 to 0.1889)
-Residual against what does not repeat: 30.7x -> 1.15x.
+Residual against what does not repeat: 31.1x -> 1.54x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_ool_valve_underlap_strong: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow-work/ool_valve_underlap_strong/campaign.
+"""proposed_ool_valve_underlap_strong: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow/work/ool_valve_underlap_strong/campaign.
 
 The valve is underlapped by the flow of 0.549 mA: around null its supply and return lands are open together.
 i_u = 0.5492 mA (95 % CI 0.5454 to 0.553)
-Residual against what does not repeat: 39.1x -> 1.5x.
+Residual against what does not repeat: 48.9x -> 2.12x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_pair_crank_offset_supply_line_loss: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/ow-work2/pair_crank_offset+supply_line_loss/campaign.
+"""proposed_pair_crank_offset_supply_line_loss: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/ow/work/pair_crank_offset+supply_line_loss/campaign.
 
 The supply line loses 12.5 bar at 25 LPM before the valve (growing with the square of the flow).
 dp_25 = 12.5 bar (95 % CI 12.47 to 12.53)
-Residual against what does not repeat: 5.89x -> 1.06x.
+Residual against what does not repeat: 6.31x -> 1.06x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

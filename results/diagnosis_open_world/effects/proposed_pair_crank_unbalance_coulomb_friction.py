@@ -1,9 +1,9 @@
-"""proposed_pair_crank_unbalance_coulomb_friction: unbalanced load: a torque that depends on the crank angle, found by ehas diagnose on /tmp/ow-work2/pair_crank_unbalance+coulomb_friction/campaign.
+"""proposed_pair_crank_unbalance_coulomb_friction: unbalanced load: a torque that depends on the crank angle, found by ehas diagnose on /tmp/ow/work/pair_crank_unbalance+coulomb_friction/campaign.
 
 A torque that follows the crank angle pulls the crank back toward -60 deg: T = -25 sin(theta + 60 deg) N m (an unbalance hanging there, or a centring spring of 25 N m/rad about it).
 T_sin = 12.45 N m (95 % CI 12.34 to 12.55)
 T_cos = 21.67 N m (95 % CI 21.59 to 21.74)
-Residual against what does not repeat: 10.1x -> 1.05x.
+Residual against what does not repeat: 10.3x -> 1.05x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_pair_current_lag_turbulent_leakage: lag of the valve's coil current behind the command (torque-motor inductance), found by ehas diagnose on /tmp/ow-work2/pair_current_lag+turbulent_leakage/campaign.
+"""proposed_pair_current_lag_turbulent_leakage: lag of the valve's coil current behind the command (torque-motor inductance), found by ehas diagnose on /tmp/ow/work/pair_current_lag+turbulent_leakage/campaign.
 
 The valve's coil current lags the command: a first-order lag of 2 ms (corner 79.5 Hz), the torque motor's inductance against its drive.
 T = 2.003 ms (95 % CI 1.997 to 2.009)
-Residual against what does not repeat: 5.13x -> 1.03x.
+Residual against what does not repeat: 6.23x -> 1.03x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

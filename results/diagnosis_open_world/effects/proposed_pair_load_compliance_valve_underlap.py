@@ -1,8 +1,8 @@
-"""proposed_pair_load_compliance_valve_underlap: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow-work2/pair_load_compliance+valve_underlap/campaign.
+"""proposed_pair_load_compliance_valve_underlap: underlapped valve: lands open at null, found by ehas diagnose on /tmp/ow/work/pair_load_compliance+valve_underlap/campaign.
 
 The valve is underlapped by the flow of 0.232 mA: around null its supply and return lands are open together.
 i_u = 0.232 mA (95 % CI 0.2296 to 0.2344)
-Residual against what does not repeat: 34x -> 1.12x.
+Residual against what does not repeat: 46.2x -> 1.19x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

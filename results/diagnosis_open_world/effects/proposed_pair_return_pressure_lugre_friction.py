@@ -1,8 +1,8 @@
-"""proposed_pair_return_pressure_lugre_friction: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow-work/pair_return_pressure+lugre_friction/campaign.
+"""proposed_pair_return_pressure_lugre_friction: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/ow/work/pair_return_pressure+lugre_friction/campaign.
 
 The return line is at 5 bar at the valve's return lands (the baseline: 0 bar).
 p_t = 5.003 bar (95 % CI 4.994 to 5.011)
-Residual against what does not repeat: 6.38x -> 1.04x.
+Residual against what does not repeat: 6.22x -> 1.04x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math

@@ -1,8 +1,8 @@
-"""proposed_pair_single_rod_disc_drag: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow-work2/pair_single_rod+disc_drag/campaign.
+"""proposed_pair_single_rod_disc_drag: chamber B's piston area differs from chamber A's, found by ehas diagnose on /tmp/ow/work/pair_single_rod+disc_drag/campaign.
 
 Chamber B's piston area is 0.90 of chamber A's.
 d_area = 0.09975 - (95 % CI 0.09966 to 0.09984)
-Residual against what does not repeat: 66.4x -> 1.05x.
+Residual against what does not repeat: 75.6x -> 1.08x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param

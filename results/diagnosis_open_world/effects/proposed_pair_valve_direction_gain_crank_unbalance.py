@@ -1,8 +1,8 @@
-"""proposed_pair_valve_direction_gain_crank_unbalance: valve gain per spool direction, found by ehas diagnose on /tmp/ow-work2/pair_valve_direction_gain+crank_unbalance/campaign.
+"""proposed_pair_valve_direction_gain_crank_unbalance: valve gain per spool direction, found by ehas diagnose on /tmp/ow/work/pair_valve_direction_gain+crank_unbalance/campaign.
 
 The valve's gain for negative current is 0.89 of its gain for positive current.
 g_dir = 0.05994 - (95 % CI 0.05986 to 0.06002)
-Residual against what does not repeat: 27.7x -> 1.03x.
+Residual against what does not repeat: 29.6x -> 1.03x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param
