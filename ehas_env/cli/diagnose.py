@@ -225,7 +225,9 @@ def fleet_docs(args, camps: list) -> list[dict]:
             print()
         return [done[k]["doc"] for k in range(len(camps))]
     if todo:
-        print(f"diagnosing {len(todo)} campaigns on {executor.name} ({'a local instance' if executor.name == 'ray' and not getattr(args, 'address', None) else getattr(args, 'address', None) or f'{executor.workers} processes'})")
+        where = (f"{executor.workers} local processes" if executor.name == "local" else
+                 f"the Ray cluster at {args.address}" if getattr(args, "address", None) else "a local Ray instance")
+        print(f"diagnosing {len(todo)} campaigns on {where}")
         for k, result in zip(todo, executor.map(fleet_task, [tasks[k] for k in todo], desc="campaigns")):
             keep(k, result)
     for k, c in enumerate(camps):

@@ -297,6 +297,23 @@ def measure_stage(s: Search) -> dict:
             "residual_x_noise_recalibrated_baseline": s.result.validation["residual_x_noise_recalibrated_baseline"]}
 
 
+def measure_again(s: Search, why: str) -> None:
+    """The model kept changed after the ``measure`` stage: measure it again, recorded as a second ``measure`` record
+    (with ``again_because``, and its own time), so that the figure reported is always the last measure record's.
+
+    Parameters
+    ----------
+    s : Search
+        The search, its model kept just replaced.
+    why : str
+        Why the model changed.
+    """
+    t = time.perf_counter()
+    out = measure_stage(s)
+    s.records.append({"stage": "measure", "elapsed_s": round(time.perf_counter() - t, 2), "again_because": why,
+                      **out})
+
+
 def no_worse_stage(s: Search) -> dict:
     """The stage that keeps the promise of the noise figure: the model reported is never worse on it than the book's
     rig (the model the campaign was compared with before anything was fitted: the baseline with the ``--with``
@@ -343,7 +360,7 @@ def no_worse_stage(s: Search) -> dict:
             st.kept, st.reason = False, st.reason + f"; not kept in the end: {why}"
     s.say(f"  {why}")
     s.keep(f, sims, _parts_cost(s.full, sims, s.parts))
-    s.records.append({"stage": "measure", "elapsed_s": 0.0, "again_because": why, **measure_stage(s)})
+    measure_again(s, why)
     s.result.validation["residual_x_noise_book_model"] = book_x
     rec["replaced_by"] = name
     return rec
@@ -519,7 +536,7 @@ def _term_without_hypotheses(s: Search, prop) -> tuple | None:
     s.say(f"  the hypotheses kept are dropped: {why}")
     s.current, s.cur_sims, s.cur_val, s.base = b_fit, b_sims, b_val, b_base
     # the model reported changed: measured again, and the record says so (the reported figure is the last measure's)
-    s.records.append({"stage": "measure", "elapsed_s": 0.0, "again_because": why, **measure_stage(s)})
+    measure_again(s, why)
     if s.options.get("alternatives", True) and s.result.model.effects:
         from ehas_env.measurement.alternatives import find_alternatives
 
@@ -586,7 +603,7 @@ def alternatives_stage(s: Search) -> dict:
         s.keep(f, sims, val)
         # the final model measured again (a second measure record: the reported figure is the last measure's), and
         # the explanation it replaced compared in its place
-        s.records.append({"stage": "measure", "elapsed_s": 0.0, "again_because": why, **measure_stage(s)})
+        measure_again(s, why)
         s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say)
         swapped = {"name": a.name, "in_place_of": a.in_place_of, "score_difference_db": round(a.score_difference_db, 2)}
     return {"within": [a.name for a in s.result.alternatives if a.within], "preferred": swapped}
