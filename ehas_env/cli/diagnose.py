@@ -190,13 +190,20 @@ def fleet_docs(args, camps: list) -> list[dict]:
     done: dict[int, dict] = {}
     ck = Path(args.checkpoint) if getattr(args, "checkpoint", None) else None
     if ck is not None:
+        if ck.exists() and not ck.is_dir():
+            raise ValueError(f"--checkpoint {ck}: is a file, not a folder; give a folder (made when missing)")
         ck.mkdir(parents=True, exist_ok=True)
         for k, task in enumerate(tasks):
             f = ck / f"{k:03d}.json"
             if f.is_file():
-                rec = json.loads(f.read_text())
-                if rec.get("task") == task:  # the same campaign with the same options: kept
-                    done[k] = rec["result"]
+                try:
+                    rec = json.loads(f.read_text())
+                    kept = rec["result"] if rec.get("task") == task else None  # same campaign, same options
+                except (ValueError, KeyError, TypeError, AttributeError):
+                    print(f"{f}: not a checkpoint this command wrote; diagnosing that campaign again")
+                    kept = None
+                if kept is not None:
+                    done[k] = kept
     todo = [k for k in range(len(tasks)) if k not in done]
     if done:
         print(f"{len(done)} of {len(tasks)} campaigns kept from {ck}; diagnosing {len(todo)}")

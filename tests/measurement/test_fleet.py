@@ -70,3 +70,19 @@ def test_a_two_node_ray_cluster_gives_the_serial_json(fleet):
         ray.shutdown()
         cluster.shutdown()
     assert _timeless(json.loads((tmp / "ray.json").read_text())) == _timeless(serial)
+
+
+def test_a_checkpoint_that_is_a_file_or_not_ours_is_said_in_one_line(fleet, tmp_path, capsys):
+    _, camps, _ = fleet
+    (tmp_path / "ck").write_text("x")
+    assert main(["diagnose", *camps, *QUICK, "--checkpoint", str(tmp_path / "ck")]) == 2
+    err = capsys.readouterr().err
+    assert "--checkpoint" in err and "is a file, not a folder" in err and (tmp_path / "ck").read_text() == "x"
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "000.json").write_text("{broken")
+    (bad / "001.json").write_text("[1, 2]")
+    assert main(["diagnose", *camps, *QUICK, "--checkpoint", str(bad)]) == 0
+    out = capsys.readouterr().out
+    assert out.count("not a checkpoint this command wrote; diagnosing that campaign again") == 2
+    assert all(set(json.loads(f.read_text())) == {"task", "result"} for f in bad.iterdir())  # rewritten whole
