@@ -26,8 +26,12 @@ error of the cycle before.  Three pieces are common to them and live here, once:
   ``min(growth x best, base) + floor_pct`` for ``patience`` cycles the controller stops learning and
   restores the feed-forward of its best cycle; when even that stays worse than the base loop for
   ``patience`` cycles it halves the feed-forward, again and again, and after ``halvings`` halvings
-  drops it (the base loop alone); worse than ``growth`` x the base loop's error, it drops it at once.  Each step is an
-  event in ``guard_log`` (and in the controller's JSON state, ``learned``);
+  drops it (the base loop alone); worse than ``growth`` x the base loop's error, it drops it at once.  When the
+  base loop alone then stays worse than it was (``patience`` cycles above ``base + floor_pct``, or one above
+  ``growth`` x base: an oscillation the learning started that the loop keeps) the guard **recovers**: the error
+  fed to the base loop is scaled by ``recover_gain`` for ``recover_cycles`` cycles, then ramped back to 1 over as
+  many, up to ``recoveries`` times a run.  Each step is an event in ``guard_log`` (and in the controller's JSON
+  state, ``learned``);
 * the **per-harmonic guard** (the guard's ``harmonic_*`` fields): after every learned cycle the error's
   amplitude at each harmonic of the cycle (:func:`harmonic_amplitudes`, the DFT of the cycle's phase bins) is
   compared with its level on the base loop alone (the largest over cycles 1..:attr:`CycleLearner.first_learned_cycle`)
@@ -77,14 +81,20 @@ GUARD_DEFAULTS = {
     "harmonic_floor_pct": 0.05,  # % of the amplitude: absolute slack on top of harmonic_growth x the base level
     "harmonic_ratio": 0.3,    # - : a harmonic diverges above growth x base + max(floor, ratio x the largest fall
                               #     of a learned harmonic from its base level): correcting them raises others
+    # the recovery: the base loop alone stays worse than it was (an oscillation the learning started and the loop
+    # keeps): its feedback gain is lowered for a while, then ramped back, and the plant falls back to its own cycle
+    "recover_gain": 0.5,      # - : the base loop's error gain while recovering, (0, 0.99] (null: no recovery)
+    "recover_cycles": 1,      # cycles: held at recover_gain this long, then ramped back to 1 over as long
+    "recoveries": 2,          # - : recoveries at most in a run
 }
 #: what each guard field allows: (low, high, integer); growth > 1, base_error_pct > 0 or null, repeat_pct > 0 or null
 _GUARD_RANGES = {"patience": (1, 100, True), "growth": (1.0, 100.0, False), "floor_pct": (0.0, 100.0, False),
                  "halvings": (0, 30, True), "base_error_pct": (0.0, 1e6, False), "repeat_cycle": (2, 100, True),
                  "repeat_pct": (0.0, 1000.0, False), "repeat_floor_pct": (0.0, 100.0, False),
                  "harmonic_growth": (1.0, 1000.0, False), "harmonic_floor_pct": (0.0, 100.0, False),
-                 "harmonic_ratio": (0.0, 100.0, False)}
-_NULLABLE = ("base_error_pct", "repeat_pct", "harmonic_growth")
+                 "harmonic_ratio": (0.0, 100.0, False), "recover_gain": (0.0, 0.99, False),
+                 "recover_cycles": (1, 100, True), "recoveries": (0, 30, True)}
+_NULLABLE = ("base_error_pct", "repeat_pct", "harmonic_growth", "recover_gain")
 
 
 def harmonic_amplitudes(e: np.ndarray) -> np.ndarray:
@@ -199,7 +209,8 @@ def guard_settings(guard, who: str) -> dict:
         else:
             lo, hi, integer = _GUARD_RANGES[key]
             v = check_number(value, f"guard.{key}", lo, hi, who, integer=integer,
-                             lo_open=key in ("growth", "base_error_pct", "repeat_pct", "harmonic_growth"))
+                             lo_open=key in ("growth", "base_error_pct", "repeat_pct", "harmonic_growth",
+                                                     "recover_gain"))
             out[key] = int(v) if integer else float(v)
     return out
 
@@ -439,7 +450,10 @@ class CycleLearner(Controller):
     the cycles run on the base loop alone, 1..:attr:`first_learned_cycle`, or ``guard.base_error_pct``) and the
     best so far; its states are ``"learning"``, ``"stopped"`` (the best cycle's feed-forward restored, no more
     learning), ``"halved"`` (a fraction ``scale`` of it), ``"base"`` (none: the base loop alone) and ``"gated"``
-    (the repeatability gate closed: nothing was learned).
+    (the repeatability gate closed: nothing was learned).  In ``"base"``, ``patience`` cycles above
+    ``base + floor_pct`` (one above ``growth x base + floor_pct``) start a **recovery** (event ``recover``): the
+    base loop's feedback works on ``recover_gain`` x the error for ``recover_cycles`` cycles, then on a gain
+    ramped back to 1 over as many (:meth:`_loop_gain`), at most ``recoveries`` times a run.
     Before the first update the **repeatability gate** (:meth:`_gate`) compares cycle ``repeat_cycle`` with the
     one before it, both on the base loop alone: when they do not repeat the state is ``"gated"`` and nothing
     is learned in the run (``repeat_pct`` null or ``enabled`` false: no gate, learning from ``start_cycle``).
@@ -533,6 +547,8 @@ class CycleLearner(Controller):
         self.dropped = np.zeros(0, dtype=bool)  # per harmonic k of the table: taken out of learning by the guard
         self.diverged: dict | None = None  # the per-harmonic guard's trigger (cycle, harmonic, amplitude_deg, ...)
         self.repeat: dict | None = None  # the gate's measurement (cycle, change_pct, ratio_pct, open)
+        self._recover_t0 = None  # s: start of the running recovery (None: none); "pending": from the next sample
+        self._recoveries = 0
 
     @property
     def gated(self) -> bool:
@@ -577,6 +593,10 @@ class CycleLearner(Controller):
         sums[1] += 1
         if abs(e) > sums[2]:
             sums[2] = abs(e)
+        if self._recover_t0 is not None:
+            g = self._loop_gain(m["t"])
+            if g != 1.0:  # the base loop sees g x the error: its P and I act on less, its damping is as it was
+                m = dict(m, theta_deg=m["theta_ref_deg"] - g * e)
         u = self._loop.act(m) + self._feedforward(m["t"])
         lim = self._loop.i_max
         return min(max(u, -lim), lim)
@@ -727,7 +747,10 @@ class CycleLearner(Controller):
             limit = min(g["growth"] * best, base) + g["floor_pct"]
         else:  # stopped or halved: only worse than the base loop calls for more
             limit = base + g["floor_pct"]
-        if self.guard_state == "base" or err <= limit:
+        if self.guard_state == "base":
+            self._recover(cycle, err)
+            return
+        if err <= limit:
             self._bad = 0
             return
         gross = err > g["growth"] * base + g["floor_pct"]  # far worse than the base loop: no waiting
@@ -763,6 +786,43 @@ class CycleLearner(Controller):
             self.guard_state = "base"
             self._event(cycle, "base", err, f"{g['patience']} cycles worse than the base loop after "
                         f"{g['halvings']} halvings: feed-forward dropped, the base loop alone")
+
+    def _loop_gain(self, t: float) -> float:
+        """The base loop's error gain at ``t`` (s) during a recovery: ``recover_gain`` for ``recover_cycles``
+        cycles from its start, then a linear ramp to 1 over as many; 1 outside one."""
+        if self._recover_t0 == "pending":
+            self._recover_t0 = t
+        g, n = self.guard["recover_gain"], self.guard["recover_cycles"]
+        x = (t - self._recover_t0) * self._freq / n  # recovery's length in units of its hold
+        if x < 1.0:
+            return g
+        if x < 2.0:
+            return g + (1.0 - g) * (x - 1.0)
+        self._recover_t0 = None
+        return 1.0
+
+    def _recover(self, cycle: int, err: float) -> None:
+        """State ``"base"`` after cycle ``cycle`` (``err`` %): start a recovery when the base loop alone stays
+        worse than it was (class docstring)."""
+        g, base = self.guard, self.base_error_pct
+        if g["recover_gain"] is None or self._recover_t0 is not None or self._recoveries >= g["recoveries"]:
+            self._bad = 0
+            return
+        if err <= base + g["floor_pct"]:
+            self._bad = 0
+            return
+        gross = err > g["growth"] * base + g["floor_pct"]
+        self._bad = g["patience"] if gross else self._bad + 1
+        if self._bad < g["patience"]:
+            return
+        self._bad = 0
+        self._recoveries += 1
+        self._recover_t0 = "pending"
+        n = g["recover_cycles"]
+        self._event(cycle, "recover", err, f"the base loop alone at {err:.4g} %, worse than its {base:.4g} % "
+                    f"(+ {g['floor_pct']:g} %): its feedback on {g['recover_gain']:g} x the error for {n} "
+                    f"cycle{'s' if n > 1 else ''}, then ramped back over as many "
+                    f"(recovery {self._recoveries} of {g['recoveries']})")
 
     def _event(self, cycle: int, event: str, err: float, why: str, **extra) -> None:
         self.guard_log.append({"cycle": int(cycle), "event": event, "cycle_error_pct": float(err),

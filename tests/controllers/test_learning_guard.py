@@ -153,6 +153,9 @@ def test_guard_events_are_in_the_controllers_json(tmp_path):
     ({"learned": [{"disc_sets": 9, "amplitude_deg": 20, "freq_hz": 1, "feedforward": {"table_mA": [0] * 8}}]},
      "learned[0].disc_sets"),
     ({"q_filter": {"stop_hz": 0}}, "'q_filter.stop_hz' must be a number in (0, 500], got 0"),
+    ({"guard": {"recover_gain": 1.0}}, "'guard.recover_gain' must be a number in (0, 0.99], got 1.0"),
+    ({"guard": {"recover_gain": 0}}, "'guard.recover_gain' must be a number in (0, 0.99], got 0"),
+    ({"guard": {"recover_cycles": 0}}, "'guard.recover_cycles' must be an integer in [1, 100], got 0"),
 ])
 def test_bad_guard_and_learned_fields_give_one_line_errors(tmp_path, change, words):
     data = {"format": "ehas-controller", "version": 1, **ILC(PIFF.book()).to_dict()}
@@ -224,6 +227,26 @@ def test_guard_on_a_coupling_that_slips(stem):
     # the guard acts: the per-harmonic guard takes diverging harmonics out, or the whole-cycle law stops learning
     assert guarded["controller"].guard_log and guarded["controller"].guard_log[0]["event"] in ("drop", "stop")
     assert guarded["steady_rms_pct"] <= base["steady_rms_pct"]
+
+
+@pytest.mark.parametrize("stem", ["ilc", "harmonic"])
+def test_recovery_brings_the_loop_back_from_an_oscillation_the_learning_started(stem):
+    """The valve's flow gain 2 x the design's, 5 disc sets, 30 deg, 1 Hz: learning the fundamental takes the
+    loop into a 9-13 Hz oscillation that its base loop alone keeps once entered (so dropping the learned signal
+    leaves the run far worse than the base loop's own run, run here on the same plant). With the recovery (the
+    base loop's feedback on half the error for a cycle, ramped back over one) the run ends at the base loop's
+    own figure; with ``recover_gain`` null it does not."""
+    ctrl = load_controller(ROOT / "results" / "long_test_guard" / f"{stem}.json")
+    base = run_breaking(ctrl.base, "gain_double", 5, 30.0, 1.0)
+    guarded = run_breaking(ctrl, "gain_double", 5, 30.0, 1.0)
+    events = [e["event"] for e in guarded["controller"].guard_log if e["event"] != "drop"]
+    assert events[-1] == "recover" and events.count("recover") == 1, events
+    assert guarded["steady_rms_pct"] <= 1.01 * base["steady_rms_pct"]
+    no_recovery = copy.deepcopy(ctrl)
+    no_recovery.guard["recover_gain"] = None
+    left = run_breaking(no_recovery, "gain_double", 5, 30.0, 1.0)
+    assert "recover" not in [e["event"] for e in left["controller"].guard_log]
+    assert left["steady_rms_pct"] > 2 * base["steady_rms_pct"]
 
 
 @pytest.mark.slow
