@@ -245,6 +245,11 @@ def _cpu() -> float:
     return time.process_time()
 
 
+def _say(line: str) -> None:
+    """One line of progress on stderr (the records go to files; nothing here is silent for long)."""
+    print(f"acceptance: {line}", file=sys.stderr, flush=True)
+
+
 def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0: int = SEED + 100) -> list[dict]:
     """Diagnose a campaign per out-of-library effect and magnitude; one record each."""
     from ehas_env.measurement.campaign import read_campaign
@@ -258,13 +263,15 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
         for j, vals in enumerate(OOL_CASES[name][:cases_per_effect]):
             specs.append({"out": str(work / f"{name}_{j}"), "effects": {name: vals}, "seed": seed0 + 7 * j,
                           "name": name})
+    _say(f"generating {len(specs)} out-of-library campaigns")
     generate(eff_dir, specs)
     out = []
-    for spec in specs:
+    for i, spec in enumerate(specs):
         camp = read_campaign(spec["out"])
         truth = json.loads((Path(spec["out"]) / "truth.json").read_text())
+        _say(f"ool {i + 1}/{len(specs)}: diagnosing {Path(spec['out']).name}")
         t0, c0 = time.perf_counter(), _cpu()
-        res = diagnose_open(camp)
+        res = diagnose_open(camp, log=lambda line: _say(f"  {line}"))
         doc = res.to_json()
         u = doc["unexplained"]
         p = (u or {}).get("proposal")
@@ -333,10 +340,11 @@ def run_pairs(pairs=None, seed0: int = SEED + 800) -> list[dict]:
     from ehas_env.physics.effects import get_effect
 
     out = []
-    for pair in pairs or PAIRS:
+    for i, pair in enumerate(pairs or PAIRS):
         camp, truth = memory_campaign(pair, seed0 + len(str(pair)), duration=3.0)
+        _say(f"pairs {i + 1}/{len(pairs or PAIRS)}: diagnosing {' + '.join(pair)}")
         t0 = time.perf_counter()
-        res = diagnose_open(camp, propose=False)
+        res = diagnose_open(camp, propose=False, log=lambda line: _say(f"  {line}"))
         found = {}
         for n, vals in pair.items():
             key = get_effect(n).main_param
