@@ -140,9 +140,28 @@ def rk4_substep(s, i_valve, P, h, k1, k2, k3, k4, tmp, bench_supply):
         s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 
 
+#: a sub-step in which a chamber pressure would reach its bound (0 or the supply) is cut into this many:
+#: the pressure range's clip inside a step is where a fixed step loses most (a start from rest that empties a
+#: chamber was 4-7 bar off with 10 sub-steps; the same run with the clipped steps refined is within the noise)
+REFINE = 8
+
+
+@njit(cache=True, inline="always")
+def near_bound(s, k1, h):
+    """Whether a chamber pressure, moving at the rates k1 for two steps h, would pass its bound (0 or the
+    supply s[6]): the sub-step that follows is refined."""
+    for j in (4, 5):
+        step = 2.0 * h * k1[j]
+        if s[j] + step < 0.0 or s[j] + step > s[6]:
+            return True
+    return False
+
+
 @njit(cache=True, _nrt=False)
 def advance(s, P, hist, k, dt, nsub, i_initial, k1, k2, k3, k4, tmp):
-    """Integrate one control period [k dt, (k+1) dt] with nsub RK4 sub-steps.
+    """Integrate one control period [k dt, (k+1) dt] with nsub RK4 sub-steps; a sub-step in which a chamber
+    pressure would reach its bound is taken as :data:`REFINE` steps (the rates of the sub-step before, the
+    period's first from the state itself, decide).
 
     Returns True if a stroke end was touched during the period.
     """
@@ -151,9 +170,18 @@ def advance(s, P, hist, k, dt, nsub, i_initial, k1, k2, k3, k4, tmp):
     hit = False
     for j in range(nsub):
         i_cmd = delayed_command(hist, k, j, nsub, dt, tau, i_initial)
-        rk4_substep(s, valve_current(i_cmd, P), P, h, k1, k2, k3, k4, tmp, -1.0)
-        if project(s, P):
-            hit = True
+        i_v = valve_current(i_cmd, P)
+        if j == 0:
+            rates(s, i_v, P, k1, -1.0)
+        if near_bound(s, k1, h):
+            for _ in range(REFINE):
+                rk4_substep(s, i_v, P, h / REFINE, k1, k2, k3, k4, tmp, -1.0)
+                if project(s, P):
+                    hit = True
+        else:
+            rk4_substep(s, i_v, P, h, k1, k2, k3, k4, tmp, -1.0)
+            if project(s, P):
+                hit = True
     return hit
 
 
