@@ -56,7 +56,7 @@ BLOCK_EXPLAINED_X = 3.0
 UNEXPLAINED_X = 3.0
 BLOCK_UNEXPLAINED_X = 8.0
 MIN_CYCLES = 2  # steady cycles a run needs to have its own floor
-SETTLE_CYCLES = 1.0  # cycles after the ramp left out (the transient from rest)
+SETTLE_CYCLES = 1.0  # cycles after the ramp the disturbance search leaves out (measurement.disturbances)
 
 #: the former verdict, on the residual in sensor-noise variances (kept as the floor of non-periodic runs'
 #: meaning): explained below VERDICT_X overall, VERDICT_RUN_X in one run (docs/measurement-format.md)
@@ -189,14 +189,39 @@ class Block:
         return self.residual / max(self.floor, 1e-300)
 
 
-def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float) -> tuple[float, float, float] | None:
-    """What does not repeat in a residual: the mean-square change of ``e`` from one cycle to the next, halved.
+#: a leading cycle of the floor's stretch whose change from the next is above this many times the median of the
+#: cycles after it is the start settling (a response, not noise): left out of the floor, judged like every sample
+SETTLING_X = 2.0
+#: the rig's cycles may differ by this many sensor-noise variances more than the model's own cycles do (the
+#: controller's noise through the loop, a converter's colour); above it, what does not repeat in the rig while
+#: the model repeats is a behaviour the model lacks (a limit cycle, an instability), not a floor
+PERSISTENT_CAP = 4.0
+
+
+def _cycle_changes(x: np.ndarray, k0: int, m: int, a: float, n: int, n_seg: int) -> np.ndarray:
+    """Mean-square change of ``x`` over one period, per cycle of the stretch (white noise of unit variance: 1)."""
+    d = (1.0 - a) * x[k0 + m:k0 + m + n] + a * x[k0 + m + 1:k0 + m + 1 + n] - x[k0:k0 + n]
+    gain = 1.0 + (1.0 - a) ** 2 + a**2  # variance of the change of white noise of unit variance
+    return np.array([float(np.mean(c**2)) for c in np.array_split(d, n_seg)]) / gain
+
+
+def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, measured: np.ndarray | None = None,
+                   simulated: np.ndarray | None = None) -> tuple[float, float, float] | None:
+    """What does not repeat in a residual: its change from one cycle to the next, cycle by cycle, halved.
 
     A deterministic response the model reproduces has left the residual, and a part of the residual that repeats
     every cycle (the model's miss) cancels in the change; what is left is the part that does not repeat (sensor
-    noise, quantisation, disturbances).  Taken from ``start_s`` on (after the start, the stretch that repeats), one
-    period apart at the exact period (linear interpolation where the period is not a whole number of samples, its
-    smoothing of white noise divided out).
+    noise, quantisation, disturbances).  The change is taken one period apart at the exact period (linear
+    interpolation where the period is not a whole number of samples, its smoothing of white noise divided out),
+    per cycle of the stretch from ``start_s``, and three things a floor must not count are taken out of it:
+
+    * where the model's own cycles do not repeat but the rig's do (the model rings in a limit cycle of its own),
+      the change of the measured signal is the smaller: per cycle the smaller of the two (``measured`` given);
+    * the start settling: leading cycles whose change is above :data:`SETTLING_X` times the median of the cycles
+      after them are left out (judged, not floor); a knock later in the run stays in (it does not repeat);
+    * what persists in the rig's change and not in the model's (the rig in a limit cycle the model lacks): the
+      persistent level (the median over the cycles kept) is at most the model's own (``simulated`` given) plus
+      :data:`PERSISTENT_CAP` noise variances; what a few cycles add above it (a knock) stays in.
 
     Parameters
     ----------
@@ -207,13 +232,15 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float) -> 
     freq_hz : float
         The run's sine frequency, Hz.
     start_s : float
-        Where the stretch that sets the floor starts, s.
+        Where the stretch that can set the floor starts (after the fade-in), s.
+    measured, simulated : ndarray, optional
+        The signal as logged and as the model gives it, in the same noise units.
 
     Returns
     -------
     (float, float, float) or None
-        (mean-square floor, stretch start s, stretch end s); None when the stretch holds fewer than
-        :data:`MIN_CYCLES` cycles.
+        (mean-square floor, stretch start s, stretch end s: the cycles that set it); None when the stretch holds
+        fewer than :data:`MIN_CYCLES` cycles.
 
     Examples
     --------
@@ -222,6 +249,10 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float) -> 
     >>> e = 5 * np.sin(2 * np.pi * 3 * t) + rng.standard_normal(t.size)  # a repeating miss + unit noise
     >>> f, a, b = residual_floor(e, 1e-3, 3.0, 1 / 3)
     >>> 0.9 < f < 1.1
+    True
+    >>> settle = 40 * np.exp(-t / 0.2)  # the rig settles from rest and the model does not: judged, not floor
+    >>> f, a, b = residual_floor(e + settle, 1e-3, 3.0, 0.0)
+    >>> 0.9 < f < 1.2 and a > 0.3
     True
     """
     period = 1.0 / freq_hz
@@ -232,11 +263,21 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float) -> 
     n = e.size - k0 - m - 1
     if n <= 0 or (e.size - k0) * dt < MIN_CYCLES * period - 1e-9:
         return None
-    now = e[k0:k0 + n]
-    later = (1.0 - a) * e[k0 + m:k0 + m + n] + a * e[k0 + m + 1:k0 + m + 1 + n]
-    d = later - now
-    gain = 1.0 + (1.0 - a) ** 2 + a**2  # variance of the change of white noise of unit variance
-    return float(np.mean(d**2)) / gain, k0 * dt, (k0 + m + n) * dt
+    n_seg = max(1, int(round(n * dt * freq_hz)))
+    g = _cycle_changes(e, k0, m, a, n, n_seg)
+    if measured is not None:
+        g = np.minimum(g, _cycle_changes(measured, k0, m, a, n, n_seg))
+    first = 0
+    while first < n_seg - 1 and g[first] > SETTLING_X * float(np.median(g[first + 1:])):
+        first += 1
+    kept = g[first:]
+    level = float(np.median(kept))
+    extra = max(float(np.mean(kept)) - level, 0.0)  # a few cycles above the level: a knock, a disturbance
+    if simulated is not None:
+        own = float(np.median(_cycle_changes(simulated, k0, m, a, n, n_seg)[first:]))
+        level = min(level, max(own + 1.0, PERSISTENT_CAP))
+    bounds = np.linspace(0, n, n_seg + 1)
+    return level + extra, (k0 + int(bounds[first])) * dt, (k0 + m + n) * dt
 
 
 def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
@@ -271,7 +312,7 @@ def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: f
     judged = e[skip:]
     res = float(np.mean(judged**2))
     if freq_hz is not None:
-        fl = residual_floor(e, dt, freq_hz, max(start_s, skip * dt))
+        fl = residual_floor(e, dt, freq_hz, max(start_s, skip * dt), measured / noise, simulated / noise)
         if fl is not None:
             return Block(run, signal, res, max(fl[0], 1.0), judged.size, True, skip * dt, fl[1], fl[2])
     return Block(run, signal, res, 1.0, judged.size, False, skip * dt)
@@ -410,7 +451,7 @@ def blocks_of(rep, sims, cost_signals) -> list[Block]:
         freq = start = None
         if ref and ref.get("freq_hz") and not win.get("start_s"):
             freq = float(ref["freq_hz"])
-            start = (float(ref.get("ramp_cycles", 1.0)) + SETTLE_CYCLES) / freq
+            start = float(ref.get("ramp_cycles", 1.0)) / freq
         for s in case.signals:
             if s not in cost_signals:
                 continue

@@ -103,7 +103,7 @@ def test_a_mid_run_bump_leaves_the_verdict_as_it_was():
 def test_every_sample_of_every_run_of_a_replayed_campaign_is_judged():
     """Through the replay (:func:`blocks_of`, the one place the diagnosis, compare, the page and the plan take their
     blocks from): each run and signal is judged from its first sample to its last, and a sine run's floor comes
-    from after its fade-in and one settling cycle."""
+    from whole cycles after its fade-in."""
     from ehas_env.measurement.campaign import Campaign, validate_run
     from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
     from ehas_env.measurement.synthetic import simulate_campaign
@@ -119,4 +119,54 @@ def test_every_sample_of_every_run_of_a_replayed_campaign_is_judged():
         assert b.judged_from_s == 0.0 and b.n == run.n, b
         if b.periodic:
             ref = run.meta["reference"]
-            assert b.floor_from_s == pytest.approx((ref["ramp_cycles"] + 1.0) / ref["freq_hz"], abs=run.dt)
+            # the floor's stretch: whole cycles from the end of the fade-in on (a settling first cycle left out)
+            cyc = (b.floor_from_s - ref["ramp_cycles"] / ref["freq_hz"]) * ref["freq_hz"]
+            assert -1e-6 <= cyc <= 2.0 and abs(cyc - round(cyc)) < 0.01 and b.floor_to_s > b.floor_from_s, b
+
+
+def test_a_start_settling_the_model_misses_is_judged_not_floor():
+    """The rig settles from rest over its first cycle (a response 40 noise levels high the model does not make):
+    the cycles it fills are left out of the floor and judged; the floor is the noise."""
+    rng = np.random.default_rng(16)
+    settle = 0.4 * np.exp(-T / 0.1)
+    y = _noisy(rng, TRUE + settle)
+    b = split_block(y, TRUE, NOISE, DT, run="r", signal="p_a_bar", freq_hz=F, start_s=0.0)
+    assert b.floor == pytest.approx(1.0, rel=0.15) and b.floor_from_s >= 1.0 / F - DT
+    assert grade([b])["verdict"] != "explained"
+    # the mutation: every cycle from the start in the floor lifts it above the settling's share of the residual
+    whole = residual_floor((y - TRUE) / NOISE, DT, F, 0.0)
+    assert whole[1] > 0.3  # (the function itself drops the settling cycle: taken whole, the first cycle counts)
+    e = (y - TRUE) / NOISE
+    lag = int(round(1 / F / DT))
+    all_cycles = float(np.mean((e[lag:] - e[:-lag]) ** 2)) / 2.0
+    assert all_cycles > 5 * b.floor
+
+
+def test_a_model_that_rings_on_its_own_does_not_lift_the_floor():
+    """The rig repeats; the model rings in an oscillation of its own at 11 Hz that does not repeat from cycle to
+    cycle (50 noise levels).  The residual's change counts it; the measured signal's does not: the floor is the
+    noise and the miss is unexplained.  (A floor from the residual alone calls it explained.)"""
+    rng = np.random.default_rng(17)
+    y = _noisy(rng, TRUE)
+    model = TRUE + 0.5 * np.sin(2 * np.pi * 11.0 * T + 0.3)
+    b = _block(y, model)
+    assert b.floor == pytest.approx(1.0, rel=0.15)
+    assert grade([b])["verdict"] == "unexplained"
+    residual_only = residual_floor((y - model) / NOISE, DT, F, START)[0]
+    assert b.residual / residual_only < 2.0  # ... explained under the residual's own change
+
+
+def test_a_rig_in_a_limit_cycle_the_model_lacks_is_judged():
+    """The rig rings at 11 Hz (not locked to the reference, 30 noise levels) in every cycle; the model repeats.
+    What persists in the rig's change and not in the model's is capped at PERSISTENT_CAP noise variances above the
+    model's own: the miss is unexplained.  The same ringing in the model too (its phase another): a floor."""
+    from ehas_env.measurement.verdict import PERSISTENT_CAP
+
+    rng = np.random.default_rng(18)
+    ring = 0.3 * np.sin(2 * np.pi * 11.0 * T)
+    y = _noisy(rng, TRUE + ring)
+    b = _block(y, TRUE)
+    assert b.floor <= PERSISTENT_CAP + 0.5
+    assert grade([b])["verdict"] == "unexplained"
+    both = _block(y, TRUE + 0.3 * np.sin(2 * np.pi * 11.0 * T + 1.0))
+    assert both.floor > 100 and grade([both])["verdict"] == "explained"
