@@ -198,11 +198,29 @@ SETTLING_X = 2.0
 PERSISTENT_CAP = 4.0
 
 
-def _cycle_changes(x: np.ndarray, k0: int, m: int, a: float, n: int, n_seg: int) -> np.ndarray:
-    """Mean-square change of ``x`` over one period, per cycle of the stretch (white noise of unit variance: 1)."""
-    d = (1.0 - a) * x[k0 + m:k0 + m + n] + a * x[k0 + m + 1:k0 + m + 1 + n] - x[k0:k0 + n]
+#: share of the rig's cycle-to-cycle change in one spectral line (7 bins of a Hann-windowed spectrum) above which
+#: what persists in it is an oscillation (a limit cycle), not a random disturbance spread over a band
+LINE_SHARE = 0.5
+
+
+def _change(x: np.ndarray, k0: int, m: int, a: float, n: int) -> np.ndarray:
+    """The change of ``x`` over one period at each sample of the stretch."""
+    return (1.0 - a) * x[k0 + m:k0 + m + n] + a * x[k0 + m + 1:k0 + m + 1 + n] - x[k0:k0 + n]
+
+
+def _cycle_changes(d: np.ndarray, a: float, n_seg: int) -> np.ndarray:
+    """Mean-square of a change ``d`` per cycle of the stretch (white noise of unit variance: 1)."""
     gain = 1.0 + (1.0 - a) ** 2 + a**2  # variance of the change of white noise of unit variance
     return np.array([float(np.mean(c**2)) for c in np.array_split(d, n_seg)]) / gain
+
+
+def _one_line(d: np.ndarray) -> bool:
+    """Whether most of ``d``'s energy sits in one spectral line (an oscillation), not spread over a band."""
+    if d.size < 16:
+        return False
+    p = np.abs(np.fft.rfft((d - d.mean()) * np.hanning(d.size))) ** 2
+    k = int(np.argmax(p))
+    return float(p[max(k - 3, 0):k + 4].sum()) > LINE_SHARE * float(p.sum())
 
 
 def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, measured: np.ndarray | None = None,
@@ -219,9 +237,11 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
       the change of the measured signal is the smaller: per cycle the smaller of the two (``measured`` given);
     * the start settling: leading cycles whose change is above :data:`SETTLING_X` times the median of the cycles
       after them are left out (judged, not floor); a knock later in the run stays in (it does not repeat);
-    * what persists in the rig's change and not in the model's (the rig in a limit cycle the model lacks): the
-      persistent level (the median over the cycles kept) is at most the model's own (``simulated`` given) plus
-      :data:`PERSISTENT_CAP` noise variances; what a few cycles add above it (a knock) stays in.
+    * what persists in the rig's change and not in the model's when it is an oscillation (the rig in a limit cycle
+      the model lacks: most of the change in one spectral line, :data:`LINE_SHARE`): the persistent level (the
+      median over the cycles kept) is then at most the model's own (``simulated`` given) plus
+      :data:`PERSISTENT_CAP` noise variances; a random disturbance spread over a band stays in, and so does what a
+      few cycles add above the level (a knock).
 
     Parameters
     ----------
@@ -264,20 +284,25 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     if n <= 0 or (e.size - k0) * dt < MIN_CYCLES * period - 1e-9:
         return None
     n_seg = max(1, int(round(n * dt * freq_hz)))
-    g = _cycle_changes(e, k0, m, a, n, n_seg)
+    g = _cycle_changes(_change(e, k0, m, a, n), a, n_seg)
+    d_meas = None
     if measured is not None:
-        g = np.minimum(g, _cycle_changes(measured, k0, m, a, n, n_seg))
+        d_meas = _change(measured, k0, m, a, n)
+        g = np.minimum(g, _cycle_changes(d_meas, a, n_seg))
     first = 0
     while first < n_seg - 1 and g[first] > SETTLING_X * float(np.median(g[first + 1:])):
         first += 1
     kept = g[first:]
     level = float(np.median(kept))
     extra = max(float(np.mean(kept)) - level, 0.0)  # a few cycles above the level: a knock, a disturbance
-    if simulated is not None:
-        own = float(np.median(_cycle_changes(simulated, k0, m, a, n, n_seg)[first:]))
-        level = min(level, max(own + 1.0, PERSISTENT_CAP))
     bounds = np.linspace(0, n, n_seg + 1)
-    return level + extra, (k0 + int(bounds[first])) * dt, (k0 + m + n) * dt
+    i0 = int(bounds[first])
+    if simulated is not None and d_meas is not None:
+        own = float(np.median(_cycle_changes(_change(simulated, k0, m, a, n), a, n_seg)[first:]))
+        cap = max(own + 1.0, PERSISTENT_CAP)
+        if level > cap and _one_line(d_meas[i0:]):  # the rig rings where the model repeats: judged, not floor
+            level = cap
+    return level + extra, (k0 + i0) * dt, (k0 + m + n) * dt
 
 
 def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
