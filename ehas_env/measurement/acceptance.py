@@ -363,8 +363,11 @@ def run_clean(seeds=range(20), position_only: bool = False, duration: float = 3.
     from ehas_env.measurement.open_diagnosis import diagnose_open
 
     out = []
-    for s in seeds:
+    seeds = list(seeds)
+    for i, s in enumerate(seeds):
         camp, _ = memory_campaign({}, CLEAN_SEED + s, duration=duration, position_only=position_only)
+        _say(f"clean {i + 1}/{len(seeds)}{' (position only)' if position_only else ''}: diagnosing seed "
+             f"{CLEAN_SEED + s}")
         res = diagnose_open(camp, propose=False)
         out.append({"seed": CLEAN_SEED + s, "position_only": position_only, "duration_s": duration,
                     "verdict": res.verdict, "residual_x_noise": res.residual_x_noise,
