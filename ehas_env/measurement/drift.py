@@ -141,14 +141,21 @@ def relate(values, intervals, features: dict) -> dict:
            "ratio_first_last": None, "correlations": {k: round(c[0], 3) for k, c in cors.items()}}
     if not cors:
         return out
-    # the strongest; on a tie, the first listed (recording order before the run's settings)
-    best = max(cors, key=lambda k: (round(abs(cors[k][0]), 6), -list(features).index(k)))
+    def line(name):  # a straight line through the values in that quantity, weighted by their intervals
+        x = np.asarray(features[name], dtype=float)
+        A = np.column_stack([np.ones_like(x), x]) / s[:, None]
+        coef, *_ = np.linalg.lstsq(A, v / s, rcond=None)
+        return x, A, coef, float(np.sum((A @ coef - v / s) ** 2))
+
+    # the strongest; on a tie (few runs rank alike by chance), the one a straight line fits best, then the first
+    # listed (recording order before the run's settings, the sidecars' conditions before what the logs show)
+    top = max(round(abs(c[0]), 6) for c in cors.values())
+    tied = [k for k in cors if round(abs(cors[k][0]), 6) == top]
+    best = min(tied, key=lambda k: (round(line(k)[3], 9), list(features).index(k)))
     rho, p = cors[best]
-    x = np.asarray(features[best], dtype=float)
-    # a straight line through the values in that quantity, weighted by their intervals
-    A = np.column_stack([np.ones_like(x), x]) / s[:, None]
-    a, b = np.linalg.lstsq(A, v / s, rcond=None)[0]
+    x, A, (a, b), _ = line(best)
     first, last = a + b * x.min(), a + b * x.max()
+    out["law"] = law(a, b, A, x, best)
     out.update(rho=round(rho, 3), rho_p=p, first=float(first), last=float(last),
                quantity_from=float(x.min()), quantity_to=float(x.max()),
                direction="rises" if last > first else "falls",
@@ -156,6 +163,50 @@ def relate(values, intervals, features: dict) -> dict:
     if abs(rho) >= FOLLOW_RHO:
         out["follows"] = best
     return out
+
+
+def law(a: float, b: float, A: np.ndarray, x: np.ndarray, quantity: str) -> dict | None:
+    """A parameter's straight line along a recorded quantity as a law: its change per a round step of the quantity,
+    in % of its value at the quantity's mean, with the 95 % interval of the slope (None: the value there is 0).
+
+    Parameters
+    ----------
+    a, b : float
+        Intercept and slope of the weighted line (value = a + b x).
+    A : ndarray
+        The weighted design matrix of the fit (columns 1 and x, each row over the value's standard deviation).
+    x : ndarray
+        The quantity per run.
+    quantity : str
+        Its name.
+
+    Returns
+    -------
+    dict or None
+        ``per`` (the step, in the quantity's unit), ``pct`` (change per step, % of the value at the mean),
+        ``pct_ci95`` [low, high], ``slope``, ``slope_ci95``, ``quantity``.
+
+    Examples
+    --------
+    >>> x = np.array([20.0, 40.0, 60.0])
+    >>> A = np.column_stack([np.ones(3), x])
+    >>> law(1.2e9, -2.4e6, A, x, "oil_temperature_C")["pct"]  # -2.4e6 per degree at 1.104e9: -2.2 % per 10
+    -2.17
+    """
+    mid = a + b * float(np.mean(x))
+    if mid == 0.0:
+        return None
+    span = float(np.ptp(x))
+    step = 10.0 ** math.floor(math.log10(span)) if span > 0 else 1.0
+    try:
+        cov = np.linalg.inv(A.T @ A)
+        half = 1.959964 * math.sqrt(max(float(cov[1, 1]), 0.0))
+    except np.linalg.LinAlgError:
+        half = float("nan")
+    pct = float(100.0 * b * step / mid)
+    ci = sorted([float(100.0 * (b - half) * step / mid), float(100.0 * (b + half) * step / mid)])
+    return {"quantity": quantity, "per": step, "pct": round(pct, 2), "pct_ci95": [round(c, 2) for c in ci],
+            "slope": float(f"{b:.4g}"), "slope_ci95": [float(f"{b - half:.4g}"), float(f"{b + half:.4g}")]}
 
 
 def run_features(runs) -> tuple[dict, str]:
@@ -171,7 +222,9 @@ def run_features(runs) -> tuple[dict, str]:
     (dict, str)
         ``recording order`` (by the sidecar's ``recorded`` start time when every run has one, else the file
         order, named ``file order``), ``disc sets``, ``amplitude (deg)``, ``frequency (Hz)``, ``supply (bar)``,
-        ``mean chamber pressure (bar)`` (when both chamber pressures are logged); and the order's name.
+        every condition each sidecar records as a number (:func:`recorded_conditions`: a rig's
+        ``oil_temperature_C``), ``mean chamber pressure (bar)`` (when both chamber pressures are logged); and the
+        order's name.
 
     Raises
     ------
@@ -196,10 +249,45 @@ def run_features(runs) -> tuple[dict, str]:
              "amplitude (deg)": [float(r.meta["reference"]["amplitude_deg"]) for r in runs],
              "frequency (Hz)": [float(r.meta["reference"]["freq_hz"]) for r in runs],
              "supply (bar)": [float(r.meta["supply_bar"]) for r in runs]}
+    conds = {key: [float(_conditions(r)[key]) for r in runs] for key in recorded_conditions(runs)}
+    logged = {}
     if all("p_a_bar" in r.columns and "p_b_bar" in r.columns for r in runs):
-        feats["mean chamber pressure (bar)"] = [float(np.mean(0.5 * (r.columns["p_a_bar"] + r.columns["p_b_bar"])))
-                                                for r in runs]
-    return feats, order_name
+        logged["mean chamber pressure (bar)"] = [float(np.mean(0.5 * (r.columns["p_a_bar"] + r.columns["p_b_bar"])))
+                                                 for r in runs]
+    return {**feats, **conds, **logged}, order_name
+
+
+#: sidecar keys the format gives a meaning of its own (docs/measurement-format.md): not conditions to relate to
+FORMAT_KEYS = {"format", "version", "kind", "disc_sets", "supply_bar", "reference", "controller", "notes",
+               RECORDED_KEY, "window", "noise", "conditions", "columns", "current_source"}
+
+
+def _conditions(run) -> dict:
+    """A run's recorded conditions: the numbers of its sidecar's ``conditions`` object and the numeric top-level
+    keys the format does not define (a rig's ``oil_temperature_C``, ``hours_run``)."""
+    out = {k: v for k, v in run.meta.items() if k not in FORMAT_KEYS}
+    extra = run.meta.get("conditions")
+    if isinstance(extra, dict):
+        out.update(extra)
+    return {k: v for k, v in out.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
+            and math.isfinite(v)}
+
+
+def recorded_conditions(runs) -> list[str]:
+    """The conditions every run's sidecar records as a number (:func:`_conditions`), in the first run's order.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as R
+    >>> runs = [R(meta={"kind": "closed_loop", "oil_temperature_C": 30 + 10 * i, "conditions": {"hours": i}})
+    ...         for i in range(3)]
+    >>> recorded_conditions(runs)
+    ['oil_temperature_C', 'hours']
+    """
+    if not runs:
+        return []
+    common = [k for k in _conditions(runs[0])]
+    return [k for k in common if all(k in _conditions(r) for r in runs[1:])]
 
 
 def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreeParam]) -> list[dict]:
@@ -279,6 +367,7 @@ def drift_of(per_run: list[dict], features: dict, units: dict) -> list[dict]:
              "first": None if rel["first"] is None else float(f"{rel['first']:.4g}"),
              "last": None if rel["last"] is None else float(f"{rel['last']:.4g}"),
              "ratio_first_last": None if rel["ratio_first_last"] is None else round(rel["ratio_first_last"], 3),
+             "law": rel.get("law") if rel["follows"] is not None else None,
              "runs": [per_run[i]["run"] for i in idx]}
         d["text"] = drift_text(d)
         out.append(d)
@@ -318,8 +407,13 @@ def drift_text(d: dict) -> str:
     else:  # the parameter follows a run setting: its change is along that setting, not along the runs' order
         along = (f"as {d['follows']} goes from {d.get('quantity_from', float('nan')):.4g} to "
                  f"{d.get('quantity_to', float('nan')):.4g}")
+    lw = d.get("law")
+    per = ""
+    if lw is not None and d["follows"] not in ("recording order", "file order"):
+        per = (f": {'rises' if lw['pct'] > 0 else 'falls'} {abs(lw['pct']):.3g} % per {lw['per']:g} of "
+               f"{d['follows']} (95 % interval {lw['pct_ci95'][0]:+.3g} to {lw['pct_ci95'][1]:+.3g} %)")
     return (f"{d['parameter']} {d['direction']} {size} {along} ({d['first']:.4g} -> "
-            f"{d['last']:.4g}{u}; rank correlation {d['rho']:+.2f}); {test}")
+            f"{d['last']:.4g}{u}; rank correlation {d['rho']:+.2f}){per}; {test}")
 
 
 def per_run_stage(rep: Replayer, runs: list, windows: list, final: Fit, also: dict | None = None, *,

@@ -204,3 +204,25 @@ def test_a_drift_along_a_setting_is_worded_along_that_setting_not_the_runs_order
     text = drift_text(d)
     assert d["direction"] == "rises" and "rises 1.1x as amplitude (deg) goes from 10 to 30 (95 -> 105 N" in text, text
     assert "first run to the last" not in text
+
+
+def test_a_parameter_that_follows_a_recorded_temperature_is_reported_as_a_law():
+    """Coulomb friction falls 6 N per degree of oil temperature, and the sidecars record each run's temperature
+    (``oil_temperature_C``: 25, 40, 55, 30, 45 deg C, not in file order): the drift stage relates Fc to that condition,
+    not to the runs' order, and says the law in % per 10 deg C within 30 % of the truth's."""
+    temps = [25.0, 40.0, 55.0, 30.0, 45.0]
+    fc = [650.0 - 6.0 * (t - 25.0) for t in temps]  # 650, 560, 470, 620, 530 N
+    camp, _ = _campaign({"effects": {"coulomb_friction": {"Fc": fc}}}, {"coulomb_friction": {"Fc": 600.0}}, 6,
+                        n_runs=5)
+    for run, t in zip(camp.runs, temps):
+        run.meta["oil_temperature_C"] = t
+    assert DR.recorded_conditions(camp.runs) == ["oil_temperature_C"]
+    out = _stage(camp, 550.0)
+    d = {x["parameter"]: x for x in out["drift"]}
+    assert "coulomb_friction.Fc" in d, out["drift"]
+    x = d["coulomb_friction.Fc"]
+    assert x["follows"] == "oil_temperature_C" and x["direction"] == "falls", x
+    mid = 650.0 - 6.0 * (np.mean(temps) - 25.0)
+    truth_pct = -100.0 * 6.0 * 10.0 / mid
+    assert x["law"]["per"] == 10.0 and x["law"]["pct"] == pytest.approx(truth_pct, rel=0.3), x["law"]
+    assert "falls" in x["text"] and "% per 10 of oil_temperature_C" in x["text"], x["text"]
