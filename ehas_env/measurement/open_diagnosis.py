@@ -309,7 +309,10 @@ def measure_again(s: Search, why: str) -> None:
         Why the model changed.
     """
     t = time.perf_counter()
+    book = s.result.validation.get("residual_x_noise_book_model") if s.result is not None else None
     out = measure_stage(s)
+    if book is not None:  # the book's figure the model is held to (no_worse_stage) stays in the validation
+        s.result.validation.setdefault("residual_x_noise_book_model", book)
     s.records.append({"stage": "measure", "elapsed_s": round(time.perf_counter() - t, 2), "again_because": why,
                       **out})
 

@@ -1,8 +1,8 @@
-"""proposed_ool_current_lag_mild: lag of the valve's coil current behind the command (torque-motor inductance), found by ehas diagnose on /tmp/ow/work/ool_current_lag_mild/campaign.
+"""proposed_ool_current_lag_mild: lag of the valve's coil current behind the command (torque-motor inductance), found by ehas diagnose on /tmp/ehas_open_world/ool_current_lag_mild/campaign.
 
 The valve's coil current lags the command: a first-order lag of 2 ms (corner 79.7 Hz), the torque motor's inductance against its drive.
 T = 1.997 ms (95 % CI 1.992 to 2.002)
-Residual against what does not repeat: 1.28x -> 1.03x.
+Residual against what does not repeat: 1.25x -> 1.01x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math
