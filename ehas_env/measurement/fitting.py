@@ -265,6 +265,23 @@ def scan_values(fp: FreeParam) -> list[float]:
     return [float(v) for v in np.linspace(fp.lo, fp.hi, n)]
 
 
+def one_blas_thread():
+    """A context in which the linear algebra (BLAS) runs on one thread: the same numbers wherever a fit runs.
+
+    A least-squares path depends on the last bits of its linear algebra, and BLAS sums in another order on another
+    number of threads: a campaign diagnosed in a Ray worker of one CPU (which runs BLAS on one thread) ended a few
+    parts in 10^4 away from the same campaign diagnosed here on two (beta 978.6 against 978.5 MPa).  The matrices
+    of a fit are small: one thread costs nothing.
+
+    Returns
+    -------
+    context manager
+    """
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | None = None, *,
         scan: FreeParam | None = None, max_nfev: int = MAX_NFEV, tol: float = 1e-4,
         null_cost: float | None = None) -> Fit:

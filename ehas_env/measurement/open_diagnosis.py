@@ -728,6 +728,18 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     ValueError
         A ``holdout`` name that is no run of the campaign, or every run held out.
     """
+    from ehas_env.measurement.fitting import one_blas_thread
+
+    with one_blas_thread():  # the same numbers in a fleet's worker as here (fitting.one_blas_thread)
+        return _diagnose_open(campaign, holdout=holdout, window_s=window_s, model=model, hypotheses=hypotheses,
+                              base_effects=base_effects, candidates=candidates, stack=stack, progress=progress,
+                              log=log, propose=propose, alternatives=alternatives, per_run=per_run,
+                              measured_inputs=measured_inputs, states=states, stages=stages)
+
+
+def _diagnose_open(campaign, *, holdout, window_s, model, hypotheses, base_effects, candidates, stack, progress, log,
+                   propose, alternatives, per_run, measured_inputs, states, stages) -> OpenDiagnosis:
+    """:func:`diagnose_open`'s body (called with the linear algebra on one thread)."""
     t0 = time.perf_counter()
     s = data_stage(campaign, holdout=holdout, window_s=window_s, model=model, hypotheses=hypotheses,
                    base_effects=base_effects, candidates=candidates, stack=stack, progress=progress, say=log)
