@@ -135,6 +135,7 @@ def test_bench_worker_that_keeps_dying_is_a_clear_error(ray_local, book_file, tm
 
 
 # -- ehas tune --method optimize --------------------------------------------------------------------
+@pytest.mark.slow  # 70 s on 2 cores: the longest test of the default suite (its suite was 10 min 25 s with it)
 def test_optimizer_starts_same_on_ray(ray_local):
     from ehas_controllers.batch_sim import grid
     from ehas_controllers.piff import PIFF
