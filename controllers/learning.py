@@ -547,7 +547,7 @@ class CycleLearner(Controller):
         self.dropped = np.zeros(0, dtype=bool)  # per harmonic k of the table: taken out of learning by the guard
         self.diverged: dict | None = None  # the per-harmonic guard's trigger (cycle, harmonic, amplitude_deg, ...)
         self.repeat: dict | None = None  # the gate's measurement (cycle, change_pct, ratio_pct, open)
-        self._recover_t0 = None  # s: start of the running recovery (None: none); "pending": from the next sample
+        self._recover_t0 = None  # s: start of the running recovery (None: none)
         self._recoveries = 0
 
     @property
@@ -587,7 +587,7 @@ class CycleLearner(Controller):
         e = m["theta_ref_deg"] - m["theta_deg"]
         done = self._table.add(m["t"], e)
         if done is not None:
-            self._end_of_cycle(done[0], done[1])
+            self._end_of_cycle(done[0], done[1], m["t"])
         sums = self._sums
         sums[0] += e * e
         sums[1] += 1
@@ -601,8 +601,8 @@ class CycleLearner(Controller):
         lim = self._loop.i_max
         return min(max(u, -lim), lim)
 
-    def _end_of_cycle(self, cycle: int, e: np.ndarray) -> None:
-        """A cycle finished: its error to the guard, then (if the guard lets it) to the learning law."""
+    def _end_of_cycle(self, cycle: int, e: np.ndarray, t: float) -> None:
+        """A cycle finished at ``t`` (s): its error to the guard, then (if the guard lets it) to the learning law."""
         from ehas_env.simulation.metrics import percent_errors
 
         s2, n, peak = self._sums
@@ -629,7 +629,7 @@ class CycleLearner(Controller):
         elif self.guard["enabled"]:
             if self.guard_state == "learning" and self.guard["harmonic_growth"] is not None:
                 self._watch_harmonics(cycle, amps)
-            self._watch(cycle, err)
+            self._watch(cycle, err, t)
         self._prev_amps = amps
         if self.guard_state == "learning":
             self._learn(e)
@@ -735,8 +735,8 @@ class CycleLearner(Controller):
         """Weight (0..1) of each harmonic k = 0..N/2 of the cycle table in what the controller learns."""
         raise NotImplementedError
 
-    def _watch(self, cycle: int, err: float) -> None:
-        """The guard's law (class docstring) after cycle ``cycle`` whose rms error was ``err`` %."""
+    def _watch(self, cycle: int, err: float, t: float) -> None:
+        """The guard's law (class docstring) after cycle ``cycle``, ended at ``t`` s, whose rms error was ``err`` %."""
         g, base = self.guard, self.base_error_pct
         if self.guard_state == "gated":
             return
@@ -745,10 +745,11 @@ class CycleLearner(Controller):
         best = self._best[0]
         if self.guard_state == "learning":
             limit = min(g["growth"] * best, base) + g["floor_pct"]
-        else:  # stopped or halved: only worse than the base loop calls for more
+        else:  # stopped, halved or base: only worse than the base loop calls for more
             limit = base + g["floor_pct"]
-        if self.guard_state == "base":
-            self._recover(cycle, err)
+        if self.guard_state == "base" and (g["recover_gain"] is None or self._recover_t0 is not None
+                                           or self._recoveries >= g["recoveries"]):
+            self._bad = 0  # no recovery to start: none allowed, one running, or all used
             return
         if err <= limit:
             self._bad = 0
@@ -758,7 +759,9 @@ class CycleLearner(Controller):
         if self._bad < g["patience"]:
             return
         self._bad = 0
-        if self.guard_state == "learning":
+        if self.guard_state == "base":
+            self._recover(cycle, err, t)
+        elif self.guard_state == "learning":
             self._restore(self._best[1])
             self.guard_state = "stopped"
             why = (f"a cycle at {err:.4g} %, above {g['growth']:g} x the base loop's {base:.4g} % + "
@@ -790,8 +793,6 @@ class CycleLearner(Controller):
     def _loop_gain(self, t: float) -> float:
         """The base loop's error gain at ``t`` (s) during a recovery: ``recover_gain`` for ``recover_cycles``
         cycles from its start, then a linear ramp to 1 over as many; 1 outside one."""
-        if self._recover_t0 == "pending":
-            self._recover_t0 = t
         g, n = self.guard["recover_gain"], self.guard["recover_cycles"]
         x = (t - self._recover_t0) * self._freq / n  # recovery's length in units of its hold
         if x < 1.0:
@@ -801,27 +802,16 @@ class CycleLearner(Controller):
         self._recover_t0 = None
         return 1.0
 
-    def _recover(self, cycle: int, err: float) -> None:
-        """State ``"base"`` after cycle ``cycle`` (``err`` %): start a recovery when the base loop alone stays
-        worse than it was (class docstring)."""
-        g, base = self.guard, self.base_error_pct
-        if g["recover_gain"] is None or self._recover_t0 is not None or self._recoveries >= g["recoveries"]:
-            self._bad = 0
-            return
-        if err <= base + g["floor_pct"]:
-            self._bad = 0
-            return
-        gross = err > g["growth"] * base + g["floor_pct"]
-        self._bad = g["patience"] if gross else self._bad + 1
-        if self._bad < g["patience"]:
-            return
-        self._bad = 0
+    def _recover(self, cycle: int, err: float, t: float) -> None:
+        """Start a recovery at ``t`` (s), after cycle ``cycle`` (``err`` %) on the base loop alone stayed worse than the
+        base loop was (class docstring)."""
+        g = self.guard
         self._recoveries += 1
-        self._recover_t0 = "pending"
+        self._recover_t0 = t
         n = g["recover_cycles"]
-        self._event(cycle, "recover", err, f"the base loop alone at {err:.4g} %, worse than its {base:.4g} % "
-                    f"(+ {g['floor_pct']:g} %): its feedback on {g['recover_gain']:g} x the error for {n} "
-                    f"cycle{'s' if n > 1 else ''}, then ramped back over as many "
+        self._event(cycle, "recover", err, f"the base loop alone at {err:.4g} %, worse than its "
+                    f"{self.base_error_pct:.4g} % (+ {g['floor_pct']:g} %): its feedback on {g['recover_gain']:g} x "
+                    f"the error for {n} cycle{'s' if n > 1 else ''}, then ramped back over as many "
                     f"(recovery {self._recoveries} of {g['recoveries']})")
 
     def _event(self, cycle: int, event: str, err: float, why: str, **extra) -> None:
