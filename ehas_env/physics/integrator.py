@@ -173,13 +173,9 @@ def advance(s, P, hist, k, dt, nsub, i_initial, k1, k2, k3, k4, tmp):
         i_v = valve_current(i_cmd, P)
         if j == 0:
             rates(s, i_v, P, k1, -1.0)
-        if near_bound(s, k1, h):
-            for _ in range(REFINE):
-                rk4_substep(s, i_v, P, h / REFINE, k1, k2, k3, k4, tmp, -1.0)
-                if project(s, P):
-                    hit = True
-        else:
-            rk4_substep(s, i_v, P, h, k1, k2, k3, k4, tmp, -1.0)
+        m = REFINE if near_bound(s, k1, h) else 1
+        for _ in range(m):
+            rk4_substep(s, i_v, P, h / m, k1, k2, k3, k4, tmp, -1.0)
             if project(s, P):
                 hit = True
     return hit
