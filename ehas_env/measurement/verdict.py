@@ -295,8 +295,7 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     kept = g[first:]
     level = float(np.median(kept))
     extra = max(float(np.mean(kept)) - level, 0.0)  # a few cycles above the level: a knock, a disturbance
-    bounds = np.linspace(0, n, n_seg + 1)
-    i0 = int(bounds[first])
+    i0 = first * (n // n_seg) + min(first, n % n_seg)  # where np.array_split's cycle `first` starts
     if simulated is not None and d_meas is not None:
         own = float(np.median(_cycle_changes(_change(simulated, k0, m, a, n), a, n_seg)[first:]))
         cap = max(own + 1.0, PERSISTENT_CAP)
