@@ -282,6 +282,18 @@ def one_blas_thread():
     return threadpool_limits(limits=1, user_api="blas")
 
 
+def on_one_blas_thread(func):
+    """``func`` run inside :func:`one_blas_thread` (a decorator)."""
+    import functools
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        with one_blas_thread():
+            return func(*args, **kwargs)
+
+    return wrapper
+
+
 def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | None = None, *,
         scan: FreeParam | None = None, max_nfev: int = MAX_NFEV, tol: float = 1e-4,
         null_cost: float | None = None) -> Fit:

@@ -30,7 +30,7 @@ from ehas_env.measurement.diagnosis_search import (
     Search, data_stage, hypotheses_stage, library_stage, steps_back_to)
 from ehas_env.measurement.disturbances import disturbances as disturbances_of
 from ehas_env.measurement.drift import per_run_stage
-from ehas_env.measurement.fitting import Fit, _unit, _value_of
+from ehas_env.measurement.fitting import Fit, _unit, _value_of, on_one_blas_thread
 from ehas_env.measurement.honesty import at_bounds, term_refused
 from ehas_env.measurement.measured_inputs import measured, measured_input_stage
 from ehas_env.measurement.naming import judge_on_all_data
@@ -363,8 +363,7 @@ def no_worse_stage(s: Search) -> dict:
             st.kept, st.reason = False, st.reason + f"; not kept in the end: {why}"
     s.say(f"  {why}")
     s.keep(f, sims, _parts_cost(s.full, sims, s.parts))
-    measure_again(s, why)
-    s.result.validation["residual_x_noise_book_model"] = book_x
+    measure_again(s, why)  # keeps the book model's figure in the validation
     rec["replaced_by"] = name
     return rec
 
@@ -649,6 +648,7 @@ def run_stages(s: Search, stages=STAGES) -> list:
     return s.records
 
 
+@on_one_blas_thread  # the same numbers in a fleet's worker as here
 def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | None = None, holdout=None,
                   stack: bool = True, propose: bool = True, hypotheses: bool = True, window_s: float = FIT_WINDOW_S,
                   progress: bool = False, log=None, model=None,
@@ -728,18 +728,6 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     ValueError
         A ``holdout`` name that is no run of the campaign, or every run held out.
     """
-    from ehas_env.measurement.fitting import one_blas_thread
-
-    with one_blas_thread():  # the same numbers in a fleet's worker as here (fitting.one_blas_thread)
-        return _diagnose_open(campaign, holdout=holdout, window_s=window_s, model=model, hypotheses=hypotheses,
-                              base_effects=base_effects, candidates=candidates, stack=stack, progress=progress,
-                              log=log, propose=propose, alternatives=alternatives, per_run=per_run,
-                              measured_inputs=measured_inputs, states=states, stages=stages)
-
-
-def _diagnose_open(campaign, *, holdout, window_s, model, hypotheses, base_effects, candidates, stack, progress, log,
-                   propose, alternatives, per_run, measured_inputs, states, stages) -> OpenDiagnosis:
-    """:func:`diagnose_open`'s body (called with the linear algebra on one thread)."""
     t0 = time.perf_counter()
     s = data_stage(campaign, holdout=holdout, window_s=window_s, model=model, hypotheses=hypotheses,
                    base_effects=base_effects, candidates=candidates, stack=stack, progress=progress, say=log)
