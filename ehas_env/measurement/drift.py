@@ -150,10 +150,10 @@ def relate(values, intervals, features: dict) -> dict:
     # the strongest; on a tie (few runs rank alike by chance), the one a straight line fits best, then the first
     # listed (recording order before the run's settings, the sidecars' conditions before what the logs show)
     top = max(round(abs(c[0]), 6) for c in cors.values())
-    tied = [k for k in cors if round(abs(cors[k][0]), 6) == top]
-    best = min(tied, key=lambda k: (round(line(k)[3], 9), list(features).index(k)))
+    lines = {k: line(k) for k in cors if round(abs(cors[k][0]), 6) == top}
+    best = min(lines, key=lambda k: (round(lines[k][3], 9), list(features).index(k)))
     rho, p = cors[best]
-    x, A, (a, b), _ = line(best)
+    x, A, (a, b), _ = lines[best]
     first, last = a + b * x.min(), a + b * x.max()
     out["law"] = law(a, b, A, x, best)
     out.update(rho=round(rho, 3), rho_p=p, first=float(first), last=float(last),
@@ -249,7 +249,7 @@ def run_features(runs) -> tuple[dict, str]:
              "amplitude (deg)": [float(r.meta["reference"]["amplitude_deg"]) for r in runs],
              "frequency (Hz)": [float(r.meta["reference"]["freq_hz"]) for r in runs],
              "supply (bar)": [float(r.meta["supply_bar"]) for r in runs]}
-    conds = {key: [float(_conditions(r)[key]) for r in runs] for key in recorded_conditions(runs)}
+    conds = recorded_conditions(runs)
     logged = {}
     if all("p_a_bar" in r.columns and "p_b_bar" in r.columns for r in runs):
         logged["mean chamber pressure (bar)"] = [float(np.mean(0.5 * (r.columns["p_a_bar"] + r.columns["p_b_bar"])))
@@ -258,8 +258,7 @@ def run_features(runs) -> tuple[dict, str]:
 
 
 #: sidecar keys the format gives a meaning of its own (docs/measurement-format.md): not conditions to relate to
-FORMAT_KEYS = {"format", "version", "kind", "disc_sets", "supply_bar", "reference", "controller", "notes",
-               RECORDED_KEY, "window", "noise", "conditions", "columns", "current_source"}
+FORMAT_KEYS = {"version", "disc_sets", "supply_bar"}  # the numbers a run sidecar's format defines
 
 
 def _conditions(run) -> dict:
@@ -273,8 +272,9 @@ def _conditions(run) -> dict:
             and math.isfinite(v)}
 
 
-def recorded_conditions(runs) -> list[str]:
-    """The conditions every run's sidecar records as a number (:func:`_conditions`), in the first run's order.
+def recorded_conditions(runs) -> dict:
+    """The conditions every run's sidecar records as a number (:func:`_conditions`): {key: one value per run}, in
+    the first run's order.
 
     Examples
     --------
@@ -282,12 +282,12 @@ def recorded_conditions(runs) -> list[str]:
     >>> runs = [R(meta={"kind": "closed_loop", "oil_temperature_C": 30 + 10 * i, "conditions": {"hours": i}})
     ...         for i in range(3)]
     >>> recorded_conditions(runs)
-    ['oil_temperature_C', 'hours']
+    {'oil_temperature_C': [30.0, 40.0, 50.0], 'hours': [0.0, 1.0, 2.0]}
     """
-    if not runs:
-        return []
-    common = [k for k in _conditions(runs[0])]
-    return [k for k in common if all(k in _conditions(r) for r in runs[1:])]
+    per_run = [_conditions(r) for r in runs]
+    if not per_run:
+        return {}
+    return {k: [float(c[k]) for c in per_run] for k in per_run[0] if all(k in c for c in per_run[1:])}
 
 
 def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreeParam]) -> list[dict]:

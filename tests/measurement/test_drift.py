@@ -216,7 +216,7 @@ def test_a_parameter_that_follows_a_recorded_temperature_is_reported_as_a_law():
                         n_runs=5)
     for run, t in zip(camp.runs, temps):
         run.meta["oil_temperature_C"] = t
-    assert DR.recorded_conditions(camp.runs) == ["oil_temperature_C"]
+    assert list(DR.recorded_conditions(camp.runs)) == ["oil_temperature_C"]
     out = _stage(camp, 550.0)
     d = {x["parameter"]: x for x in out["drift"]}
     assert "coulomb_friction.Fc" in d, out["drift"]
