@@ -135,7 +135,9 @@ def relate(values, intervals, features: dict) -> dict:
         if len(x) != len(v) or np.ptp(x) == 0.0 or np.ptp(v) == 0.0:
             continue
         r = spearmanr(x, v)
-        cors[name] = (float(r.statistic if hasattr(r, "statistic") else r[0]), float(r.pvalue if hasattr(r, "pvalue") else r[1]))
+        rho = float(r.statistic if hasattr(r, "statistic") else r[0])
+        if math.isfinite(rho):  # (a quantity with a NaN among its values has none)
+            cors[name] = (rho, float(r.pvalue if hasattr(r, "pvalue") else r[1]))
     out = {"follows": None, "rho": None, "rho_p": None, "direction": None, "first": None, "last": None,
            "quantity_from": None, "quantity_to": None,
            "ratio_first_last": None, "correlations": {k: round(c[0], 3) for k, c in cors.items()}}
@@ -143,19 +145,25 @@ def relate(values, intervals, features: dict) -> dict:
         return out
     def line(name):  # a straight line through the values in that quantity, weighted by their intervals
         x = np.asarray(features[name], dtype=float)
-        A = np.column_stack([np.ones_like(x), x]) / s[:, None]
-        coef, *_ = np.linalg.lstsq(A, v / s, rcond=None)
-        return x, A, coef, float(np.sum((A @ coef - v / s) ** 2))
+        mu, span = float(np.mean(x)), float(np.ptp(x))  # fitted on (x - mu) / span: any magnitude of a condition
+        A = np.column_stack([np.ones_like(x), (x - mu) / span]) / s[:, None]
+        (c0, c1), *_ = np.linalg.lstsq(A, v / s, rcond=None)
+        try:
+            se = math.sqrt(max(float(np.linalg.inv(A.T @ A)[1, 1]), 0.0)) / span
+        except np.linalg.LinAlgError:
+            se = float("nan")
+        b = c1 / span
+        return x, c0 - b * mu, b, se, float(np.sum((A @ np.array([c0, c1]) - v / s) ** 2))
 
     # the strongest; on a tie (few runs rank alike by chance), the one a straight line fits best, then the first
     # listed (recording order before the run's settings, the sidecars' conditions before what the logs show)
     top = max(round(abs(c[0]), 6) for c in cors.values())
     lines = {k: line(k) for k in cors if round(abs(cors[k][0]), 6) == top}
-    best = min(lines, key=lambda k: (round(lines[k][3], 9), list(features).index(k)))
+    best = min(lines, key=lambda k: (round(lines[k][4], 9), list(features).index(k)))
     rho, p = cors[best]
-    x, A, (a, b), _ = lines[best]
+    x, a, b, se, _ = lines[best]
     first, last = a + b * x.min(), a + b * x.max()
-    out["law"] = law(a, b, A, x, best)
+    out["law"] = law(a, b, se, x, best)
     out.update(rho=round(rho, 3), rho_p=p, first=float(first), last=float(last),
                quantity_from=float(x.min()), quantity_to=float(x.max()),
                direction="rises" if last > first else "falls",
@@ -165,7 +173,7 @@ def relate(values, intervals, features: dict) -> dict:
     return out
 
 
-def law(a: float, b: float, A: np.ndarray, x: np.ndarray, quantity: str) -> dict | None:
+def law(a: float, b: float, se: float, x: np.ndarray, quantity: str) -> dict | None:
     """A parameter's straight line along a recorded quantity as a law: its change per a round step of the quantity,
     in % of its value at the quantity's mean, with the 95 % interval of the slope (None: the value there is 0).
 
@@ -173,8 +181,8 @@ def law(a: float, b: float, A: np.ndarray, x: np.ndarray, quantity: str) -> dict
     ----------
     a, b : float
         Intercept and slope of the weighted line (value = a + b x).
-    A : ndarray
-        The weighted design matrix of the fit (columns 1 and x, each row over the value's standard deviation).
+    se : float
+        The slope's standard error.
     x : ndarray
         The quantity per run.
     quantity : str
@@ -189,8 +197,7 @@ def law(a: float, b: float, A: np.ndarray, x: np.ndarray, quantity: str) -> dict
     Examples
     --------
     >>> x = np.array([20.0, 40.0, 60.0])
-    >>> A = np.column_stack([np.ones(3), x])
-    >>> law(1.2e9, -2.4e6, A, x, "oil_temperature_C")["pct"]  # -2.4e6 per degree at 1.104e9: -2.2 % per 10
+    >>> law(1.2e9, -2.4e6, 2e5, x, "oil_temperature_C")["pct"]  # -2.4e6 per degree at 1.104e9: -2.2 % per 10
     -2.17
     """
     mid = a + b * float(np.mean(x))
@@ -198,11 +205,7 @@ def law(a: float, b: float, A: np.ndarray, x: np.ndarray, quantity: str) -> dict
         return None
     span = float(np.ptp(x))
     step = 10.0 ** math.floor(math.log10(span)) if span > 0 else 1.0
-    try:
-        cov = np.linalg.inv(A.T @ A)
-        half = 1.959964 * math.sqrt(max(float(cov[1, 1]), 0.0))
-    except np.linalg.LinAlgError:
-        half = float("nan")
+    half = 1.959964 * se
     pct = float(100.0 * b * step / mid)
     ci = sorted([float(100.0 * (b - half) * step / mid), float(100.0 * (b + half) * step / mid)])
     return {"quantity": quantity, "per": step, "pct": round(pct, 2), "pct_ci95": [round(c, 2) for c in ci],

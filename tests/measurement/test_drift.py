@@ -226,3 +226,26 @@ def test_a_parameter_that_follows_a_recorded_temperature_is_reported_as_a_law():
     truth_pct = -100.0 * 6.0 * 10.0 / mid
     assert x["law"]["per"] == 10.0 and x["law"]["pct"] == pytest.approx(truth_pct, rel=0.3), x["law"]
     assert "falls" in x["text"] and "% per 10 of oil_temperature_C" in x["text"], x["text"]
+
+
+@pytest.mark.parametrize("values", [[1e308, 0.0, 5e307], [float("nan"), 1.0, 2.0], [-5.0, -10.0, -20.0],
+                                    [1e20, 2e20, 3e20]])
+def test_a_condition_of_any_magnitude_or_a_nan_gives_a_finite_answer(values):
+    """A sidecar condition of any size (the straight line is fitted on the condition scaled to its span), negative,
+    or with a NaN among its values (no rank correlation: not related) gives numbers a JSON file can hold, without a
+    warning."""
+    import json
+    import warnings
+
+    vals, cis = [100.0, 180.0, 260.0], [(98.0, 102.0), (176.0, 184.0), (255.0, 265.0)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = DR.relate(vals, cis, {"oil_temperature_C": values})
+    json.dumps(r, allow_nan=False)
+    if any(v != v for v in values):
+        assert r["follows"] is None and "oil_temperature_C" not in r["correlations"]
+    else:
+        lw = r["law"]
+        assert lw["pct_ci95"][0] <= lw["pct"] <= lw["pct_ci95"][1]
+        # the line's direction along the condition is its slope's sign
+        assert (r["direction"] == "rises") == (lw["slope"] > 0) and (lw["pct"] > 0) == (lw["slope"] > 0)
