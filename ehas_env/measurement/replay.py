@@ -51,6 +51,8 @@ CL_SIGNALS = ("theta_deg", "current_mA", "flow_lpm", "p_a_bar", "p_b_bar", "p_s_
 VALVE_SIGNALS = ("flow_lpm",)
 #: signals that enter the calibration cost (load_kN is A (P_A - P_B): counted through the pressures)
 COST_SIGNALS = ("theta_deg", "current_mA", "flow_lpm", "p_a_bar", "p_b_bar", "p_s_bar")
+#: the logged column of each sensed output (ehas_env.physics.layout.SENSED): what a term at its reading place moves
+SENSED_COLUMNS = {"pa": "p_a_bar", "pb": "p_b_bar", "ps": "p_s_bar", "flow_a": "flow_lpm", "force": "load_kN"}
 UNITS = {"theta_deg": "deg", "current_mA": "mA", "flow_lpm": "LPM", "p_a_bar": "bar", "p_b_bar": "bar",
          "p_s_bar": "bar", "load_kN": "kN"}
 #: least noise level assumed per signal (engineering units): keeps the weights finite for ideal

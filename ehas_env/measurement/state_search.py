@@ -24,7 +24,7 @@ from ehas_env.measurement.diagnosis import (
     _parts_cost, lowers_validation, refine_candidate, refit_without, screen_candidate)
 from ehas_env.measurement.fitting import Fit, confidence
 from ehas_env.measurement.honesty import term_refused
-from ehas_env.measurement.replay import COST_SIGNALS, Replayer
+from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, Replayer
 from ehas_env.measurement.verdict import blocks_of, grade
 from ehas_env.physics.augment import augmentations
 from ehas_env.physics.effects import get_effect
@@ -50,6 +50,25 @@ def _r(v, n: int = 3):
 def _sig(v, n: int = 4):
     """``v`` to ``n`` significant digits; None for None and for an unbounded side of an interval (inf)."""
     return None if v is None or not math.isfinite(v) else float(f"{float(v):.{n}g}")
+
+
+def _quiet_reading(full: Replayer, sims, cls, trigger: float) -> str | None:
+    """Why a state at a sensor's reading is not tried (None when it is): such a state moves that reading alone,
+    and the campaign does not log it among the signals judged, or its residual there is at or below ``trigger``
+    (x what does not repeat), where no state of the reading can remove a tenth of the excess over noise."""
+    place = getattr(getattr(cls, "signal_place", None), "place", "")
+    column = SENSED_COLUMNS.get(place[:-len("_reading")]) if place.endswith("_reading") else None
+    if column is None:
+        return None
+    if column not in COST_SIGNALS:
+        return f"{cls.where} moves {column} alone, a signal not judged"
+    blocks = blocks_of(full, sims, [column])
+    if not blocks:
+        return f"{cls.where} moves {column} alone, which the campaign does not log"
+    level = grade(blocks)["residual_x_noise"]
+    if level <= trigger:
+        return f"{cls.where} moves {column} alone, whose residual is {level:.3g}x noise (at or below {trigger:g}x)"
+    return None
 
 
 def judge(all_before: float, all_after: float, val_before: float | None, val_after: float | None) -> str | None:
@@ -156,8 +175,13 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         bases.append((bare, sorted(held - set(bare.model.effects))))
     for k, name in enumerate(names, 1):
         cls = get_effect(name)
-        say(f"  states {k}/{len(names)}: {cls.title}")
         entry = {"effect": name, "where": getattr(cls, "where", cls.title)}
+        quiet = _quiet_reading(full, sims0, cls, trigger)
+        if quiet:
+            entry["skipped"] = quiet
+            record["tried"].append(entry)
+            continue
+        say(f"  states {k}/{len(names)}: {cls.title}")
         for base, dropped in bases:
             if name in base.model.effects:
                 continue

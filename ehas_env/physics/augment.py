@@ -2,12 +2,17 @@
 
 A rig always holds something no one listed; much of it is a *state* the baseline lacks.  Four kinds cover the
 usual ones (Merritt ch. 5-6; Jelali & Kroll ch. 3), each one class here that holds the kind's parameters (unit,
-bounds, doc), its explanation, residual signature and its words; a subclass per *place* holds only the terms that
-put the kind's state there:
+bounds, doc), its explanation, residual signature and its words; the followers are generated at every signal place
+from the place's description, the links and hoses have a subclass per place that holds only the terms that put the
+kind's state there:
 
-* **lag** (a first-order filter ``T y' = u - y``) in a signal path: the current at the valve's coil
-  (:class:`LagCoil`) and the position sensor's reading (:class:`LagPositionSensor`, an LVDT demodulator's
-  filter); and a **rate limit** of the coil's current (:class:`SlewCoil`, an amplifier's voltage headroom);
+* **followers** in a signal path, each kind defined once (:class:`Follower`: the signal passed on follows the
+  one that comes by a law of their gap) and applied at every :class:`SignalPlace` the model has
+  (:data:`SIGNAL_PLACES`: the current at the valve's coil, the position sensor's reading, and every sensed output's
+  reading, :data:`ehas_env.physics.layout.SENSED`): a **lag** (:class:`Lag`, a first-order filter
+  ``T y' = u - y``: a coil's inductance, an LVDT demodulator's filter, a pressure transducer's) and a **rate
+  limit** (:class:`RateLimit`: an amplifier's voltage headroom, a conditioner's slew rate).  A new kind is one
+  class with its law; a new sensed output is a new place for every kind (:func:`followers`);
 * **compliance with a mass** in a mechanical link: the rod-crank joint (:class:`LinkRodCrank`, the piston a mass
   of its own on a spring) and the actuator's mount (:class:`LinkMount`, the cylinder's body a mass on a spring);
 * **volume with a resistance** in a hydraulic path: a hose between the valve's port and chamber A or B, or a
@@ -21,16 +26,20 @@ environment's), registered when :mod:`ehas_env.physics.effects` is imported; the
 neither the library fit nor the structural-hypothesis stage tries them: the state stage
 (:mod:`ehas_env.measurement.state_search`) does, place by place (:func:`augmentations`).
 
-The sensor lag's state is the reading's error (0 at rest, whatever the position a run starts from); a line's
+A follower at a place whose signal has a rate in the model keeps the error between what it passes on and what
+comes (0 at rest, whatever the position or pressure a run starts from); at the coil it keeps the current itself
+(0 mA at rest); a line's
 pressure starts at the chambers' initial half supply pressure (:meth:`ehas_env.simulation.plant.Plant.initial_state`)
 of the book's rig, and relaxes to its chamber's within a fraction of a millisecond on a rig whose supply differs.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import ClassVar
 
 from ehas_env.physics.effects.base import Effect, Param
+from ehas_env.physics.layout import SENSED
 from ehas_env.physics.rig import SUPPLY_PRESSURE
 
 #: 1 bar/(L/min) in Pa s/m^3 (a laminar resistance's engineering unit)
@@ -102,12 +111,147 @@ class Augmentation(Effect):
         return ""
 
 
-# -- a lag in a signal path ------------------------------------------------------------------------------------------
+# -- a follower in a signal path: a kind defined once, applied at every signal place --------------------------------
 
-class Lag(Augmentation):
+@dataclass(frozen=True)
+class SignalPlace:
+    """A place of the model where a signal passes on (a chain of :data:`~ehas_env.physics.effects.base.PLACES`
+    whose term gets the signal so far and returns what is passed on, and may read the effect's own states).
+
+    Attributes
+    ----------
+    place : str
+        The model's place (``coil_current``, ``position_reading``, ``<output>_reading``).
+    short : str
+        The place in an effect's name (``aug_<kind>_<short>``).
+    value : str
+        The argument the place's term gets (the signal so far).
+    rate : str or None
+        The state-rates quantity that is the signal's rate: a follower then keeps its error ``e = y - u`` (0 at
+        rest wherever the run starts); None: the model has no rate for it, the follower keeps ``y`` itself,
+        starting at ``rest``.
+    unit : str
+        The signal's unit inside the model (SI, the current in mA).
+    span : float
+        The signal's typical span on this rig, in ``unit`` (sets a rate limit's range).
+    shown : tuple of (float, str)
+        The factor from ``unit`` to the unit words show, and that unit.
+    where : str
+        The place in words ("chamber B's pressure reading").
+    """
+
+    place: str
+    short: str
+    value: str
+    rate: str | None
+    unit: str
+    span: float
+    shown: tuple
+    where: str
+
+
+def _reading_places() -> tuple:
+    """A :class:`SignalPlace` per sensed output of the model (:data:`ehas_env.physics.layout.SENSED`) whose rate
+    the model has (a follower of a reading keeps its error from the reading's input, which moves at that rate;
+    the flow meter's reading has none: no follower is put there)."""
+    shown = {"Pa": (1.0e-5, "bar"), "m^3/s": (60000.0, "L/min"), "N": (1.0e-3, "kN")}
+    return tuple(SignalPlace(f"{out}_reading", f"{out}_reading", arg, f"{arg}_rate", unit, span,
+                             shown.get(unit, (1.0, unit)), words)
+                 for out, (arg, unit, rate, words, span) in SENSED.items() if rate)
+
+
+#: every place where a signal passes on: the valve's coil (the current the torque motor acts on, a chain without a
+#: rate: its followers start at 0 mA, the current at rest), the position sensor's reading (its rate is the piston's
+#: velocity), and every sensed output's reading
+SIGNAL_PLACES = (
+    SignalPlace("coil_current", "coil", "i", None, "mA", 10.0, (1.0, "mA"), "the valve's current path (command to coil)"),
+    SignalPlace("position_reading", "position_sensor", "x", "v", "m", 0.05, (1.0e3, "mm"),
+                "the position sensor's reading"),
+) + _reading_places()
+
+
+class Follower(Augmentation):
+    """A kind of state in a signal path: the signal passed on, ``y``, follows the signal that comes, ``u``, by a law
+    of the gap ``d = u - y``: ``y' = law(d)``.  One class per kind holds its parameters, words and law (a Python
+    expression in ``d`` and its parameters); :meth:`at` makes the effect that puts it at a :class:`SignalPlace`,
+    and :func:`followers` the whole product.  Where the place has a rate for its signal, the state is the error
+    ``e = y - u`` (``e' = law(-e) - u'``, 0 at rest wherever the run starts), else ``y`` itself from rest."""
+
+    #: y' as a Python expression of the gap d = u - y and the kind's parameters and constants
+    law: ClassVar[str] = ""
+    #: the kind in an effect's name and in its state's name
+    stem: ClassVar[str] = ""
+    #: the kind's title, before "in <place>"
+    kind_title: ClassVar[str] = ""
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        """The kind's parameters at ``place`` (a rate limit's range scales with the place's span)."""
+        return cls.params
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        """How the words show the kind's parameters at ``place``: {name: (factor from its unit, unit shown)}."""
+        return dict(cls.shown)
+
+    @classmethod
+    def at(cls, place: SignalPlace) -> type:
+        """The effect (a registered subclass) that puts this kind at ``place``.
+
+        Parameters
+        ----------
+        place : SignalPlace
+
+        Returns
+        -------
+        type
+            The class ``aug_<stem>_<place.short>``; its terms are written as source (the compiled model copies a
+            term's source text), so the effect is an effect like any other file's.
+        """
+        name = f"aug_{cls.stem}_{place.short}"
+        args = ", ".join(p.name for p in cls.kind_params(place) + cls.constants)
+        if place.rate:  # the error e = y - u: e' = law(-e) - u'
+            state = f"e_{cls.stem}"
+            rates = (f"def state_rates({place.rate}, {state}, {args}):\n    d = -{state}\n"
+                     f"    return {cls.law} - {place.rate}\n")
+            passed = f"def {place.place}({place.value}, {state}):\n    return {place.value} + {state}\n"
+        else:  # y itself, from rest
+            state = f"{place.value}_{cls.stem}"
+            rates = f"def state_rates({place.value}, {state}, {args}):\n    d = {place.value} - {state}\n    return {cls.law}\n"
+            passed = f"def {place.place}({state}):\n    return {state}\n"
+        body = {"name": name, "title": f"{cls.kind_title} in {place.where}", "where": place.where,
+                "params": cls.kind_params(place), "shown": cls.kind_shown(place), "states": ((state, place.unit, 0.0),), "signal_place": place,
+                "__module__": cls.__module__, "__qualname__": f"{cls.__name__}At_{place.short}",
+                "__doc__": f"{cls.kind_title} in {place.where} (generated by {cls.__name__}.at)."}
+        for text in (rates, passed):
+            body.update({k: staticmethod(v) for k, v in _compiled_source(f"{name}.{text[4:text.index('(')]}",
+                                                                          text).items()})
+        if place.place == "position_reading":
+            # after the sensor's static effects (an offset, a shape): the state acts on what the conditioner outputs
+            body["chain_order"] = 100
+        return type(cls)(body["__qualname__"], (cls,), body)
+
+
+def _compiled_source(label: str, text: str) -> dict:
+    """The functions defined by ``text``, their source findable (``inspect.getsource``) under ``label``: the
+    compiled model copies a term's source text."""
+    import linecache
+
+    filename = f"<ehas_env.physics.augment: {label}>"
+    linecache.cache[filename] = (len(text), None, text.splitlines(True), filename)
+    namespace = {"math": math}
+    exec(compile(text, filename, "exec"), namespace)
+    return {k: v for k, v in namespace.items() if callable(v) and getattr(v, "__code__", None)
+            and v.__code__.co_filename == filename}
+
+
+class Lag(Follower):
     """A first-order lag ``T y' = u - y`` of a signal: what the model passes on is ``y`` instead of ``u``."""
 
     form = "a first-order lag"
+    stem = "lag"
+    kind_title = "first-order lag"
+    law = "d / T"
     params = (
         Param("T", "ms", 2.0, (0.05, 50.0),
               "time constant: a filter's, a coil's inductance over its resistance, a demodulator's smoothing "
@@ -115,6 +259,9 @@ class Lag(Augmentation):
               typical=(0.5, 8.0), si=1.0e-3, log_scale=True),
     )
     main_param = "T"
+    #: a lag makes the signal late, as a delay of the command does: the diagnosis fits it in place of a transport
+    #: delay it keeps (the signals the lag does not touch tell them apart)
+    mistaken_for = ("transport_delay",)
     explanation = (
         "A signal passes a first-order filter the model does not hold: T y' = u - y. The output follows the "
         "input's sine with gain 1/sqrt(1 + (w T)^2) and a phase lag atan(w T)."
@@ -129,90 +276,78 @@ class Lag(Augmentation):
         return f" (corner {1.0 / (2.0 * math.pi * params['T'] * 1e-3):.3g} Hz)"
 
 
-class LagCoil(Lag):
-    """The lag at the valve's coil: the torque motor acts on a lagged current."""
+class RateLimit(Follower):
+    """A rate limit in a signal path: the signal passed on cannot change faster than ``S``.
 
-    name = "aug_lag_coil"
-    title = "first-order lag in the current path (command to coil)"
-    where = "the valve's current path (command to coil)"
-    states = (("i_lag", "mA", 0.0),)
+    The follower ``y' = S tanh((u - y) / (S T_ss))``: a first-order follower of time constant T_ss for small
+    steps, never faster than S for large ones (tanh keeps the right-hand side smooth for the integrator).  At the
+    coil: a servo amplifier drives the torque motor's coil through its inductance with a bounded voltage, so the
+    current rises at most (V_max - R i) / L, about constant (Jelali & Kroll 2003, the servo amplifier; Merritt
+    1967, the torque motor); at a reading, a conditioner's slew-rate limit."""
 
-    @staticmethod
-    def state_rates(i, i_lag, T):
-        return (i - i_lag) / T
-
-    @staticmethod
-    def coil_current(i_lag):
-        return i_lag
-
-
-class SlewCoil(Augmentation):
-    """A rate limit in the current path: the driver cannot make the coil's current change faster than ``S``.
-
-    A servo amplifier drives the torque motor's coil through its inductance with a bounded voltage, so the current
-    rises at most (V_max - R i) / L, about constant (Jelali & Kroll 2003, the servo amplifier; Merritt 1967, the
-    torque motor).  The state is the current the coil carries, i_c' = S tanh((i - i_c) / (S T_ss)): a first-order
-    follower of time constant T_ss for small steps, never faster than S for large ones (tanh keeps the right-hand
-    side smooth for the integrator)."""
-
-    name = "aug_slew_coil"
-    title = "rate limit in the current path (command to coil)"
     form = "a rate limit"
-    where = "the valve's current path (command to coil)"
-    shown = {"S": (1.0e-3, "mA/ms")}
-    params = (
-        Param("S", "mA/s", 2000.0, (20.0, 1.0e5),
-              "largest rate of change of the coil's current: the amplifier's voltage headroom over the coil's "
-              "inductance (assumed range: 0.02 to 100 mA/ms; a 10 mA coil of 1 H on 10 V headroom: 10 mA/ms)",
-              typical=(100.0, 20000.0), log_scale=True),
-    )
+    stem = "slew"
+    kind_title = "rate limit"
+    law = "S * math.tanh(d / (S * T_ss))"
     constants = (
         Param("T_ss", "s", 1.0e-4, (1.0e-5, 1.0e-2),
-              "small-signal time constant of the current loop (assumed: a current-feedback amplifier's 1.6 kHz "
+              "small-signal time constant of the follower (assumed: a current-feedback amplifier's 1.6 kHz "
               "bandwidth, faster than anything the 1-3 Hz runs resolve)"),
     )
     main_param = "S"
-    states = (("i_coil", "mA", 0.0),)
     explanation = (
-        "The coil's current follows the command, but no faster than the rate S the amplifier's voltage can "
-        "drive through the coil's inductance: a step or a fast reversal of the command becomes a ramp."
+        "The signal follows its input, but no faster than the rate S (at the coil: what the amplifier's voltage "
+        "can drive through the coil's inductance): a step or a fast reversal becomes a ramp."
     )
     signature = (
-        "a current residual (and a flow and pressure one after it) at the command's fast reversals, growing "
-        "with the runs' frequency and amplitude; a small sine is passed unchanged (a lag fitted to it comes out "
-        "longer on the fast, large runs)."
+        "a residual at the signal's fast reversals, growing with the runs' frequency and amplitude; a small sine "
+        "is passed unchanged (a lag fitted to it comes out longer on the fast, large runs)."
     )
 
-    @staticmethod
-    def state_rates(i, i_coil, S, T_ss):
-        return S * math.tanh((i - i_coil) / (S * T_ss))
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        # from 2 to 10^4 spans a second (the coil: 20 mA/s to 100 mA/ms, typically 0.1 to 20 mA/ms)
+        unit = f"{place.unit}/s"
+        return (Param("S", unit, 200.0 * place.span, (2.0 * place.span, 1.0e4 * place.span),
+                      f"largest rate of change of the signal, {unit} (assumed range: 2 to 10^4 times the signal's "
+                      f"span of {place.span:g} {place.unit} a second; at the coil the amplifier's voltage headroom "
+                      "over the coil's inductance: a 10 mA coil of 1 H on 10 V headroom, 10 mA/ms)",
+                      typical=(10.0 * place.span, 2000.0 * place.span), log_scale=True),)
 
-    @staticmethod
-    def coil_current(i_coil):
-        return i_coil
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"S": (place.shown[0] * 1.0e-3, f"{place.shown[1]}/ms")}
 
 
-class LagPositionSensor(Lag):
-    """The lag at the position sensor: the rig logs (and its loop sees) a filtered reading of the piston.  The
-    state is the reading's error e = reading - x: e' = -e / T - v (from T y' = x - y), 0 at rest."""
+#: the follower kinds, each applied at every signal place
+FOLLOWER_KINDS = (Lag, RateLimit)
+#: the product, generated once (registered as effects when this module is imported)
+FOLLOWERS = tuple(kind.at(place) for kind in FOLLOWER_KINDS for place in SIGNAL_PLACES)
 
-    name = "aug_lag_position_sensor"
-    title = "first-order lag in the position sensor's reading (LVDT demodulator filter)"
-    where = "the position sensor's reading"
-    #: a lagging reading makes the loop late, as a delay of its command does: the diagnosis fits it in place of a
-    #: transport delay it keeps (pressures and flow, which the sensor's lag does not touch, tell them apart)
-    mistaken_for = ("transport_delay",)
-    states = (("e_read", "m", 0.0),)
-    #: after the sensor's static effects (an offset, a shape): the lag filters what the conditioner outputs
-    chain_order = 100
 
-    @staticmethod
-    def state_rates(v, e_read, T):
-        return -e_read / T - v
+def followers() -> list[str]:
+    """The names of every follower kind at every signal place: :data:`FOLLOWER_KINDS` x :data:`SIGNAL_PLACES`, and
+    the followers a user's effect file made with :meth:`Follower.at` (a kind of one's own joins the state stage
+    as the built-in ones do).
 
-    @staticmethod
-    def position_reading(x, e_read):
-        return x + e_read
+    Returns
+    -------
+    list of str
+        E.g. ``aug_lag_coil``, ``aug_lag_position_sensor``, ``aug_lag_pb_reading``, ``aug_slew_coil``, in the order
+        they registered.
+
+    Examples
+    --------
+    >>> names = followers()
+    >>> "aug_lag_pb_reading" in names and "aug_slew_position_sensor" in names
+    True
+    >>> from ehas_env.physics.effects import get_effect
+    >>> get_effect("aug_lag_pb_reading").in_words({"T": 2.1})
+    "a first-order lag of 2.1 ms in chamber B's pressure reading (corner 75.8 Hz)"
+    """
+    from ehas_env.physics.effects.base import REGISTRY
+
+    return [n for n, c in REGISTRY.items() if isinstance(getattr(c, "signal_place", None), SignalPlace)]
 
 
 # -- a compliance with a mass in a mechanical link -------------------------------------------------------------------
@@ -480,5 +615,6 @@ def augmentations() -> list[str]:
     list of str
         Effect names (registered): the lags and the rate limit, the links, the hoses, then the play.
     """
-    order = (LagCoil, SlewCoil, LagPositionSensor, LinkRodCrank, LinkMount, HoseAB, HoseA, HoseB)
-    return [c.name for c in order] + list(PLAY)
+    first = ["aug_lag_coil", "aug_slew_coil", "aug_lag_position_sensor"]  # the usual ones, tried first
+    order = (LinkRodCrank, LinkMount, HoseAB, HoseA, HoseB)
+    return first + [c.name for c in order] + list(PLAY) + [n for n in followers() if n not in first]

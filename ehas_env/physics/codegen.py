@@ -278,6 +278,19 @@ class ModelSource:
             a(f"        x = {self._call(cls, 'position_reading')}")
         a("    return x")
         a("")
+        for out, (arg, unit, _, words, _) in layout.SENSED.items():
+            a('@njit(cache=True, inline="always")')
+            a(f"def {out}_reading({arg}, P, s):")
+            a(f'    """What {words} reports for the model\'s {arg}, {unit}: the effects at this reading place."""')
+            chain = sorted(self._with(f"{out}_reading"), key=lambda c: (c.chain_order, c.name))
+            if chain:
+                a("    if P[I_EFFECTS_ON] == 0.0:")
+                a(f"        return {arg}")
+            for cls in chain:
+                a(f"    if {self._on(cls)}:")
+                a(f"        {arg} = {self._call(cls, f'{out}_reading')}")
+            a(f"    return {arg}")
+            a("")
         a('@njit(cache=True, inline="always")')
         a("def port_pressures(s, P):")
         a('    """The pressures at the valve\'s ports A and B, Pa, where the line A flow meter meters the land\'s flow:')
@@ -390,6 +403,13 @@ class ModelSource:
         for cls in self._with("supply_rate"):
             a(f"    if {self._on(cls)}:")
             a(f"        ds[6] += {self._call(cls, 'supply_rate')}")
+        rated = [c for c in self.effects if c.states and "coil_current" not in c.terms()]
+        if any(q in c.term_args("state_rates") for c in rated if "state_rates" in c.terms()
+               for q in base_rate_quantities()):
+            # the sensed outputs' rates (a reading's lag moves with them), now that every balance is summed
+            for out, (arg, _, rate, _, _) in layout.SENSED.items():
+                if rate:
+                    a(f"    {arg}_rate = {rate}")
         for cls in self.effects:
             if not cls.states or "coil_current" in cls.terms():  # a coil effect's rates: in coil_current
                 continue
@@ -408,6 +428,13 @@ class ModelSource:
         if len(ks) == 1:
             return [f"        ds[{ks[0]}] = {call}"]
         return [f"        _r = {call}"] + [f"        ds[{k}] = _r[{j}]" for j, k in enumerate(ks)]
+
+
+def base_rate_quantities() -> tuple:
+    """The sensed outputs' rates a state's rate may take (``<argument>_rate``, :data:`layout.SENSED`)."""
+    from ehas_env.physics.effects.base import RATE_QUANTITIES
+
+    return RATE_QUANTITIES
 
 
 _BUILD_LOCK = threading.RLock()

@@ -103,11 +103,12 @@ def measure(s, P, out):
     # the meter in line A sits at the valve's port: the land's flow at the port's pressures
     pva, pvb = port_pressures(s, P)
     qa, _, _ = land_flows(s[2], pva, pvb, s[6], P[I_DROP])
-    out[O_FLOW] = qa + valve_side_flows(s[2], pva, pvb, s[6], P)[0]
-    out[O_PA] = s[4]
-    out[O_PB] = s[5]
-    out[O_PS] = s[6]
-    out[O_FORCE] = P[I_AREA] * (s[4] - s[5])
+    # every sensed output through its reading place (ehas_env.physics.layout.SENSED)
+    out[O_FLOW] = flow_a_reading(qa + valve_side_flows(s[2], pva, pvb, s[6], P)[0], P, s)
+    out[O_PA] = pa_reading(s[4], P, s)
+    out[O_PB] = pb_reading(s[5], P, s)
+    out[O_PS] = ps_reading(s[6], P, s)
+    out[O_FORCE] = force_reading(P[I_AREA] * (s[4] - s[5]), P, s)
     out[O_CRANK] = s[0]
 
 

@@ -83,6 +83,20 @@ OUT_NAMES = ("theta", "omega", "flow_a", "pa", "pb", "ps", "force", "theta_crank
              "theta_sensed")
 N_OUT = len(OUT_NAMES)
 O_THETA, O_OMEGA, O_FLOW, O_PA, O_PB, O_PS, O_FORCE, O_CRANK, O_CURRENT, O_STROKE, O_SENSED = range(N_OUT)
+#: the outputs a rig's sensors read from the model's state, each a *reading place* of the model: ``measure``
+#: (:mod:`ehas_env.physics.integrator`) passes the output through the generated chain ``<output>_reading``, where
+#: an effect's term may change what the sensor reports (an offset, a lag of the reading): output name ->
+#: (the argument a term gets, its SI unit, its rate in the right-hand side's terms -- the state-rates quantity
+#: ``<argument>_rate``, "" when the model has none --, the sensor in words, its typical span in the SI unit).
+#: The position sensor, whose reading the controller also sees, is the place ``position_reading`` of its own.
+#: A new sensed output is one entry here and one line of ``measure``.
+SENSED = {
+    "pa": ("pa", "Pa", "ds[4]", "chamber A's pressure reading", 1.0e7),
+    "pb": ("pb", "Pa", "ds[5]", "chamber B's pressure reading", 1.0e7),
+    "ps": ("ps", "Pa", "ds[6]", "the supply pressure's reading", 1.0e7),
+    "flow_a": ("q", "m^3/s", "", "the flow meter's reading (line A)", 25.0 / 60000.0),
+    "force": ("f", "N", "A * (ds[4] - ds[5])", "the load reading (A (P_A - P_B))", 5.0e4),
+}
 
 
 def history_length(tau_max: float, dt: float) -> int:

@@ -116,3 +116,31 @@ def test_a_state_behind_a_stand_in_is_found_on_the_model_without_it():
     assert rec["in_place_of"] == ["bulk_modulus"] and "bulk_modulus" not in fit.model.effects
     assert rec["params"]["R_line"] == pytest.approx(0.2, rel=0.3)
     assert "cost_ratio_without_hypotheses" in rec["tried"][0]
+
+
+def test_a_reading_state_is_tried_only_where_that_reading_misses():
+    """A follower at a sensor's reading moves that reading alone: where the model already meets it (the book model
+    on its own campaign) it is skipped with the reason; a reading the model misses is tried; the position sensor,
+    whose reading the loop feeds back, is always tried."""
+    from ehas_env.measurement.replay import ModelSpec, Replayer
+    from ehas_env.measurement.state_search import _quiet_reading
+    from ehas_env.physics.effects import get_effect
+
+    runs, truth = simulate_campaign({"aug_lag_pb_reading": {"T": 15.0}}, seed=3310, duration=3.0, perturb=False)
+    full = Replayer(Campaign(None, [validate_run(n, c, m) for n, c, m in runs]), hypotheses=True)
+    sims = full.simulate(ModelSpec(beta=truth["beta"], K=truth["K"]))
+    why = _quiet_reading(full, sims, get_effect("aug_lag_pa_reading"), 1.5)
+    assert why is not None and "p_a_bar" in why and "at or below" in why
+    assert _quiet_reading(full, sims, get_effect("aug_lag_pb_reading"), 1.5) is None  # chamber B's reading lags
+    assert _quiet_reading(full, sims, get_effect("aug_lag_position_sensor"), 1.5) is None
+    assert "not judged" in _quiet_reading(full, sims, get_effect("aug_lag_force_reading"), 1.5)
+
+
+@pytest.mark.slow  # a 5-run campaign, four followers screened (about 2 min on 2 cores)
+def test_the_stage_finds_a_lag_in_a_pressure_reading_among_the_followers():
+    s, null = _search({"aug_lag_pb_reading": {"T": 6.0}}, 3311)
+    names = ["aug_lag_coil", "aug_lag_pa_reading", "aug_lag_pb_reading", "aug_slew_pb_reading"]
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=names)
+    assert rec["kept"] == "aug_lag_pb_reading", rec
+    assert rec["params"]["T"] == pytest.approx(6.0, rel=0.3)
+    assert "chamber B's pressure reading" in rec["words"]

@@ -18,8 +18,12 @@ def _phasor(sig, t, f):
 def test_every_kind_has_a_place_registered_and_named():
     names = augment.augmentations()
     assert {"aug_lag_coil", "aug_slew_coil", "aug_lag_position_sensor", "aug_link_rod_crank", "aug_link_mount",
-            "aug_hose_ab", "aug_hose_a", "aug_hose_b", "backlash"} == set(names)
-    for n in names[:-1]:
+            "aug_hose_ab", "aug_hose_a", "aug_hose_b", "backlash"} <= set(names)
+    # the followers: every kind at every signal place, none written by hand
+    assert set(augment.followers()) <= set(names)
+    assert len(augment.FOLLOWERS) == len(augment.FOLLOWER_KINDS) * len(augment.SIGNAL_PLACES)
+    assert {c.name for c in augment.FOLLOWERS} <= set(augment.followers())
+    for n in [n for n in names if n != "backlash"]:
         cls = REGISTRY[n]
         assert cls.kind == "hypothesis" and issubclass(cls, augment.Augmentation)
         words = cls.in_words({p.name: p.default for p in cls.params},
@@ -125,7 +129,7 @@ def test_slew_limited_coil_current_ramps_at_S_then_settles(S, n_steps):
 
     step = 8.0
     plant = Plant(disc_sets=2, effects={"aug_slew_coil": {"S": S}})
-    k = plant.model.STATE_NAMES.index("aug_slew_coil.i_coil")
+    k = plant.model.STATE_NAMES.index("aug_slew_coil.i_slew")
 
     def coil_after(n):
         s = plant.initial_state(0.0).copy()
@@ -194,3 +198,67 @@ def test_pair_of_hoses_steady_drop_is_R_times_the_flow(V_cm3, R_lpm):
     assert la - pa == pytest.approx(R * q, rel=0.01) and pb - lb == pytest.approx(R * q, rel=0.01)
     q_valve = slots["K"] * i_mA * math.sqrt((plant.rig.supply - la) / (0.5 * slots["rated_drop"]))
     assert q_valve == pytest.approx(q, rel=0.01)
+
+
+def test_a_new_sensed_output_is_a_place_of_every_follower_kind():
+    """The reading places come from the model's sensed outputs (layout.SENSED), not from a list of the followers:
+    each sensed output whose rate the model has is a place of every kind."""
+    from ehas_env.physics.layout import SENSED
+
+    places = {p.place for p in augment.SIGNAL_PLACES}
+    assert {f"{out}_reading" for out, (_, _, rate, _, _) in SENSED.items() if rate} <= places
+    for kind in augment.FOLLOWER_KINDS:
+        for out, (_, _, rate, words, _) in SENSED.items():
+            if rate:
+                cls = REGISTRY[f"aug_{kind.stem}_{out}_reading"]
+                assert cls.where == words and f"{out}_reading" in cls.terms()
+
+
+@pytest.mark.parametrize("T_ms", [2.0, 8.0])
+def test_pressure_reading_lag_is_the_first_order_filter_of_the_pressure(T_ms):
+    """A lag of chamber B's pressure reading changes that reading alone (the controller feeds back the pressures'
+    states, not the readings): the angle is the same bit for bit, and the logged pressure is the model's pressure
+    through T y' = u - y, computed here by scipy's lsim on the unlagged samples (independent of the model)."""
+    from scipy import signal
+
+    plain = Plant(disc_sets=3).simulate_closed_loop(amplitude_deg=20.0, freq_hz=2.0, cycles=3)
+    lagged = Plant(disc_sets=3, effects={"aug_lag_pb_reading": {"T": T_ms}}).simulate_closed_loop(
+        amplitude_deg=20.0, freq_hz=2.0, cycles=3)
+    np.testing.assert_array_equal(lagged.theta_deg, plain.theta_deg)
+    np.testing.assert_array_equal(lagged.p_a_bar, plain.p_a_bar)
+    T = T_ms * 1e-3
+    u = plain.p_b_bar
+    _, want, _ = signal.lsim(([1.0], [T, 1.0]), u - u[0], plain.t - plain.t[0])
+    want = want + u[0]  # from rest at the first sample: the reading's error starts at 0
+    moved = np.max(np.abs(lagged.p_b_bar - u))
+    assert moved > 0.2  # bar: the lag shows (0.38 bar at 2 ms, 1.5 at 8 ms on this 2 Hz run)
+    assert np.max(np.abs(lagged.p_b_bar - want)) < 0.02 * moved
+
+
+def test_the_docs_kind_of_ones_own_is_a_play_at_every_place():
+    """docs/effects-and-controllers.md's worked example, the file as the page shows it: loaded with effects_path,
+    its play is an effect at every signal place, and at chamber B's pressure reading the reading stays within
+    half the width of the pressure (and no more than that plus the catch-up), the angle untouched.  In a child
+    process: the example's effects must not join this session's registry."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    page = (root / "docs" / "effects-and-controllers.md").read_text(encoding="utf-8")
+    shown = page.split("`docs/examples/my_kinds/play_kind.py`", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    assert shown == (root / "docs" / "examples" / "my_kinds" / "play_kind.py").read_text(encoding="utf-8")
+    code = (
+        "import numpy as np\n"
+        "from ehas_env.simulation.plant import Plant\n"
+        "from ehas_env.physics.augment import SIGNAL_PLACES, followers\n"
+        "a = Plant(disc_sets=3).simulate_closed_loop(amplitude_deg=20.0, freq_hz=2.0, cycles=2)\n"
+        "b = Plant(disc_sets=3, effects={'aug_play_pb_reading': {'w': 2.0e5}},\n"
+        "          effects_path='docs/examples/my_kinds').simulate_closed_loop(amplitude_deg=20.0, freq_hz=2.0, cycles=2)\n"
+        "assert all(f'aug_play_{p.short}' in followers() for p in SIGNAL_PLACES)\n"
+        "assert np.array_equal(a.theta_deg, b.theta_deg)\n"
+        "print(float(np.abs(b.p_b_bar - a.p_b_bar).max()))\n")
+    r = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-1500:]
+    gap = float(r.stdout.strip().splitlines()[-1])
+    assert 0.95 < gap < 1.2  # bar: half the 2 bar width, and the short catch-up (T_play) beyond it

@@ -18,6 +18,8 @@ import types
 from dataclasses import dataclass
 from typing import ClassVar
 
+from ehas_env.physics.layout import SENSED as _SENSED
+
 #: where an effect's terms enter the model: place -> what the term returns
 PLACES = {
     "valve_current": "the valve current after this effect, mA (gets the current so far as argument i)",
@@ -40,6 +42,9 @@ PLACES = {
                        "chambers' unless an effect puts something between; it may read the effect's own states: "
                        "a hose's line pressure)"),
 }
+for _out, (_arg, _unit, _rate, _words, _span) in _SENSED.items():
+    PLACES[f"{_out}_reading"] = (f"{_words}, {_unit} (gets the reading so far as argument {_arg}; it may read the "
+                                 f"effect's own states: a lag of the reading)")
 #: quantities a term may take as arguments, besides its own parameters and constants and the
 #: baseline slots (``layout.BASE_SLOTS``): SI values at the current instant
 QUANTITIES = {
@@ -60,6 +65,11 @@ PLACE_QUANTITIES["position_reading"] = frozenset({"x"})
 PLACE_QUANTITIES["coil_current"] = frozenset({"i"})
 PLACE_QUANTITIES["port_pressures"] = frozenset({"pa", "pb"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
+#: the sensed outputs' rates, known where the effects' state rates are computed (after the balances)
+RATE_QUANTITIES = tuple(f"{arg}_rate" for arg, _, rate, _, _ in _SENSED.values() if rate)
+PLACE_QUANTITIES["state_rates"] = frozenset(_AT_RATES + RATE_QUANTITIES)
+for _out, (_arg, *_rest) in _SENSED.items():
+    PLACE_QUANTITIES[f"{_out}_reading"] = frozenset({_arg})
 #: the quantities a valve-side chamber_flows term (``Effect.valve_side``) may take: the valve's own, known
 #: wherever a flow is metered (a run's line A, the valve bench)
 VALVE_SIDE_QUANTITIES = ("qc", "pa", "pb", "ps", "p_load", "q_a", "q_b", "q_supply")
@@ -634,7 +644,8 @@ def _sample_point() -> dict:
         x, v = rig.CRANK_RADIUS * math.sin(th), rig.CRANK_RADIUS * math.cos(th) * om
         _POINT.update(theta=th, omega=om, x=x, v=v, xp=x, vp=v, pa=12.0e6, pb=9.0e6, ps=rig.SUPPLY_PRESSURE,
                       p_load=3.0e6, qc=2.0e-4, qc_dot=1.0e-3, q_a=1.5e-4, q_b=-1.5e-4, q_supply=1.5e-4, i=5.0,
-                      gap=1.0e-4, gap_rate=0.01)
+                      gap=1.0e-4, gap_rate=0.01, f=rig.AREA * 3.0e6, pa_rate=1.0e8, pb_rate=-1.0e8, ps_rate=0.0,
+                      f_rate=rig.AREA * 2.0e8)
         slots = dict.fromkeys(layout.BASE_SLOTS, 1.0)
         slots.update(inertia=2 * rig.INERTIA_PER_SET, radius=rig.CRANK_RADIUS, area=rig.AREA,
                      half_stroke=rig.HALF_STROKE, supply=rig.SUPPLY_PRESSURE, rated_drop=rig.RATED_VALVE_DROP,
