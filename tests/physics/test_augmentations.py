@@ -262,3 +262,20 @@ def test_the_docs_kind_of_ones_own_is_a_play_at_every_place():
     assert r.returncode == 0, r.stderr[-1500:]
     gap = float(r.stdout.strip().splitlines()[-1])
     assert 0.95 < gap < 1.2  # bar: half the 2 bar width, and the short catch-up (T_play) beyond it
+
+
+def test_static_blocks_at_readings_move_their_reading_exactly():
+    """An offset of chamber A's reading adds c to it, a scale error of the flow meter's multiplies it by 1 + g;
+    nothing else moves (the loop feeds back states, not readings).  Every sensed output is a place of each."""
+    from ehas_env.physics.layout import SENSED
+
+    assert {f"aug_{k.stem}_{out}_reading" for k in augment.STATIC_KINDS for out in SENSED} == \
+        set(augment.reading_blocks())
+    plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    off = Plant(disc_sets=2, effects={"aug_offset_pa_reading": {"c": 2.5e5},
+                                      "aug_gain_flow_a_reading": {"g": -0.04}}).simulate_closed_loop(
+        amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    np.testing.assert_array_equal(off.theta_deg, plain.theta_deg)
+    np.testing.assert_array_equal(off.p_b_bar, plain.p_b_bar)
+    np.testing.assert_allclose(off.p_a_bar - plain.p_a_bar, 2.5, rtol=1e-9)
+    np.testing.assert_allclose(off.flow_lpm, 0.96 * plain.flow_lpm, rtol=1e-9, atol=1e-12)

@@ -644,7 +644,7 @@ def _sample_point() -> dict:
         x, v = rig.CRANK_RADIUS * math.sin(th), rig.CRANK_RADIUS * math.cos(th) * om
         _POINT.update(theta=th, omega=om, x=x, v=v, xp=x, vp=v, pa=12.0e6, pb=9.0e6, ps=rig.SUPPLY_PRESSURE,
                       p_load=3.0e6, qc=2.0e-4, qc_dot=1.0e-3, q_a=1.5e-4, q_b=-1.5e-4, q_supply=1.5e-4, i=5.0,
-                      gap=1.0e-4, gap_rate=0.01, f=rig.AREA * 3.0e6, pa_rate=1.0e8, pb_rate=-1.0e8, ps_rate=0.0,
+                      gap=1.0e-4, gap_rate=0.01, q=1.5e-4, f=rig.AREA * 3.0e6, pa_rate=1.0e8, pb_rate=-1.0e8, ps_rate=0.0,
                       f_rate=rig.AREA * 2.0e8)
         slots = dict.fromkeys(layout.BASE_SLOTS, 1.0)
         slots.update(inertia=2 * rig.INERTIA_PER_SET, radius=rig.CRANK_RADIUS, area=rig.AREA,
