@@ -119,16 +119,19 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
     rec = {**case, "kinds": {n: ALL[n].kind for n in case["effects"]}, "steps": {}}
     t0 = time.time()
     stale = True
-    if (camp / "truth.json").exists():  # reuse a campaign only if it is this case's (same effects, seed, rig, length)
-        t = json.loads((camp / "truth.json").read_text())
-        stale = (t.get("effects"), t.get("seed"), t.get("rig"), t.get("duration_s")) != (
-            case["effects"], case["seed"], case["rig"], case["duration"])
+    if (camp / "truth.json").exists():  # reuse a campaign only if it is this case's (same effects, blocks, seed, rig,
+        t = json.loads((camp / "truth.json").read_text())  # length)
+        stale = (t.get("effects"), t.get("blocks"), t.get("seed"), t.get("rig"), t.get("duration_s")) != (
+            case["effects"], case.get("blocks"), case["seed"], case["rig"], case["duration"])
     if stale:
-        runs, truth = gen.simulate(case["effects"], seed=case["seed"], rig=case["rig"], duration=case["duration"])
+        # a drawn case's blocks of hidden physics (tests/independent_rig/grammar.py) are generated with it
+        runs, truth = gen.simulate(case["effects"], seed=case["seed"], rig=case["rig"], duration=case["duration"],
+                                   **({"blocks": case["blocks"]} if case.get("blocks") else {}))
         truth["command"] = (f"python -m tests.independent_rig.campaign {camp} --seed {case['seed']} "
                             f"--rig {case['rig']} --duration {case['duration']:g} --effects '"
                             + ";".join(f"{n}:" + ",".join(f"{k}={v:g}" for k, v in p.items())
-                                       for n, p in case["effects"].items()) + "'")
+                                       for n, p in case["effects"].items()) + "'"
+                            + (f" --case {case['id']}" if case.get("blocks") else ""))
         gen.write(camp, runs, truth, overwrite=True)
     rec["steps"]["generate_s"] = round(time.time() - t0, 2)
     model = rig_model(case["rig"])

@@ -20,6 +20,7 @@ Run as a script to write one::
     python -m tests.independent_rig.campaign OUT --effects return_pressure:p_t=10 --seed 3 [--rig rig_b]
         [--ramp-cycles 0 [--omit-ramp]] [--phase-deg 90 --rest start]
         [--bump cl_1set_35deg_3hz,1.5,0.03,20] [--cut cl_1set_35deg_3hz,0.15] [--exact-bounds]
+        [--case ID]   (the blocks of a drawn case, tests/independent_rig/grammar.py)
 """
 from __future__ import annotations
 
@@ -72,7 +73,8 @@ SCHEDULE_STEP_MIN = 40.0
 def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", duration: float = DURATION,
              plan=PLAN, perturb: bool = True, valve: bool = True, chain: Chain | None = None, progress=None,
              schedule: dict | None = None, ramp_cycles: float = 1, state_ramp: bool = True, phase_rad: float = 0.0,
-             rest: str = "zero", bump: dict | None = None, cut: dict | None = None, exact_bounds: bool = False):
+             rest: str = "zero", bump: dict | None = None, cut: dict | None = None, exact_bounds: bool = False,
+             blocks: list | None = None):
     """Simulate a campaign in memory.
 
     Parameters
@@ -122,6 +124,9 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
         Chamber pressures held within [0, Ps] inside the integration too, not only between its pieces
         (:class:`.physics.RigModel`; for runs that drive a chamber to 0 bar or Ps, such as starts from rest
         without a fade-in).
+    blocks : list of dict, optional
+        Drawn blocks of hidden physics, ``{"place", "kind", "params" (SI)[, "words"]}`` (:mod:`.grammar`), in
+        every run; truth.json records them under ``blocks``.
 
     Returns
     -------
@@ -142,6 +147,11 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
         raise ValueError(f"bump: t_s + width_s = {(knock.k0 + knock.periods) * DT:g} s is beyond the run's "
                          f"{duration:g} s")
     chain = chain or Chain()
+    drawn = None
+    if blocks is not None:
+        from .grammar import block_from_dict  # the grammar imports this module: read here, when it is asked for
+
+        drawn = [block_from_dict(b) for b in blocks]
     rng = np.random.default_rng(seed)
     fb = 1.0 + (rng.uniform(-BETA_SPREAD, BETA_SPREAD) if perturb else 0.0)
     fk = 1.0 + (rng.uniform(-K_SPREAD, K_SPREAD) if perturb else 0.0)
@@ -157,7 +167,7 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
         cols, _, meta = closed_loop(actual, int(sets), float(amp), float(freq), duration, eff_si, chain, rng,
                                     gains=base.controller_gains(), ramp_cycles=ramp_cycles, phase_rad=phase_rad,
                                     rest=rest, bump=knock if bump is not None and bump["run"] == name else None,
-                                    state_ramp=state_ramp, exact_bounds=exact_bounds)
+                                    state_ramp=state_ramp, exact_bounds=exact_bounds, blocks=drawn)
         meta["notes"] = f"independent generator (tests/independent_rig), seed {seed}"
         if cut is not None and cut["run"] == name:
             keep = int(round((duration - float(cut["short_s"])) / DT))
@@ -172,7 +182,7 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
         cmd = np.array([chain.dac(c) for c in chirp(n, *CHIRP)])
         if schedule:
             actual, eff_si = _scheduled(nominal, effects, schedule, len(plan) - 1)
-        cols, meta = valve_bench(actual, cmd, BENCH_SUPPLY_BAR, eff_si, chain, rng)
+        cols, meta = valve_bench(actual, cmd, BENCH_SUPPLY_BAR, eff_si, chain, rng, blocks=drawn)
         meta["notes"] = f"valve chirp {CHIRP[0]:g}-{CHIRP[1]:g} Hz, {CHIRP[2]:g} mA, flow bench (seed {seed})"
         if schedule:
             meta["recorded"] = _recorded(len(plan))
@@ -187,6 +197,8 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
     truth["controller"] = base.controller_gains()
     if schedule:
         truth["schedule"] = schedule
+    if drawn is not None:
+        truth["blocks"] = [b.to_dict() for b in drawn]
     start = {k: v for k, v in (("ramp_cycles", ramp_cycles), ("state_ramp", state_ramp), ("phase_rad", phase_rad),
                                ("rest", rest), ("exact_bounds", exact_bounds))
              if v != {"ramp_cycles": 1, "state_ramp": True, "phase_rad": 0.0, "rest": "zero",
@@ -296,7 +308,14 @@ def main(argv=None) -> int:
     ap.add_argument("--cut", default="", help="RUN,SHORT_S: that run's log ends SHORT_S s early")
     ap.add_argument("--exact-bounds", action="store_true",
                     help="hold the chamber pressures within [0, Ps] inside the integration too (runs that reach them)")
+    ap.add_argument("--case", default="", help="add the blocks of this drawn case (python -m "
+                                               "tests.independent_rig.drawn --list); give its --seed and --rig too")
     a = ap.parse_args(argv)
+    blocks = None
+    if a.case:
+        from .grammar import case_named
+
+        blocks = case_named(a.case)["blocks"]
     try:
         bump = dict(zip(("run", "t_s", "width_s", "torque_Nm"), _fields(a.bump, 4, "--bump"))) if a.bump else None
         cut = dict(zip(("run", "short_s"), _fields(a.cut, 2, "--cut"))) if a.cut else None
@@ -304,7 +323,7 @@ def main(argv=None) -> int:
                                perturb=not a.no_perturb, progress=lambda s: print("  " + s, flush=True),
                                ramp_cycles=_whole(a.ramp_cycles), state_ramp=not a.omit_ramp,
                                phase_rad=math.radians(a.phase_deg), rest=a.rest, bump=bump, cut=cut,
-                               exact_bounds=a.exact_bounds)
+                               exact_bounds=a.exact_bounds, blocks=blocks)
     except ValueError as e:
         raise SystemExit(f"campaign: {e}") from None
     truth["command"] = "python -m tests.independent_rig.campaign " + " ".join(sys.argv[1:] if argv is None else argv)

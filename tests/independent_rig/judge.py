@@ -34,6 +34,11 @@ there is no ``named`` list, the bare proposal terms
 (right ingredients, but constants: never "in words").  :func:`honesty` records,
 per case, the residual before and after, whether it closed, a recommended term too
 weak to be written and a kept hypothesis that worsens the all-data residual.
+
+For the drawn set (:mod:`.grammar`: blocks drawn as (place, kind, magnitude)) the same question is asked of
+the grammar's places and block kinds (:func:`judge_blocks`): each worded item gets the block kinds its law stands
+for (:data:`LIBRARY_BLOCK`, :data:`NAMED_FORM_BLOCK`, else the kinds' words) and the grammar's places it names
+(its diagnosis place, narrowed to a side by words; the readings the diagnosis has no place for, by words).
 """
 from __future__ import annotations
 
@@ -167,6 +172,14 @@ LIBRARY_PLACE = {
     "aug_lag_position_sensor": {"position_reading"}, "aug_link_rod_crank": {"piston_force", "crank_torque"}, "aug_link_mount": {"piston_force"},
     "aug_hose_a": {"chamber_flows"}, "aug_hose_b": {"chamber_flows"}, "aug_hose_ab": {"chamber_flows"},
 }
+# the state stage's generated blocks (ehas_env/physics/augment.py, aug_<kind>_<place>): a follower or a static
+# block at the position sensor's or at another sensor's reading is a sensor's, at that reading
+for _stem in ("lag", "slew", "offset", "gain"):
+    LIBRARY_KIND.setdefault(f"aug_{_stem}_position_sensor", {"sensor"})
+    LIBRARY_PLACE.setdefault(f"aug_{_stem}_position_sensor", {"position_reading"})
+    for _out in ("pa", "pb", "ps", "flow_a", "force"):
+        LIBRARY_KIND[f"aug_{_stem}_{_out}_reading"] = {"sensor"}
+        LIBRARY_PLACE[f"aug_{_stem}_{_out}_reading"] = {f"{_out}_reading"}
 #: words of the package's own kind strings -> kinds (used only to choose among a place's kinds)
 KIND_WORDS = (("fric", "friction"), ("damp", "friction"), ("leak", "leakage/flow"), ("flow", "leakage/flow"),
               ("compli", "compliance"), ("area", "geometry/area"), ("geometr", "geometry/area"),
@@ -453,3 +466,156 @@ def honesty(diag: dict, baseline, final) -> dict:
     return {"baseline": b, "final": f, "closed": closed, "weak_term": weak,
             "term_share": None if share is None else round(share, 4), "worsening_hypothesis": worse,
             "hypotheses_kept": hyps, "library_residual": lib}
+
+
+# -- the drawn set (tests/independent_rig/grammar.py): right place and right kind of a block ------------------------
+#: the block kinds (grammar.KINDS) each library effect, structural hypothesis and state of the diagnosis stands for,
+#: by its law: a Coulomb friction is a saturating force of the velocity, a viscous one a term linear in it, a
+#: coil lag a first-order lag of the coil current, a hose a line volume behind a resistance
+LIBRARY_BLOCK = {
+    "coulomb_friction": {"saturation"}, "viscous_friction": {"gain"}, "stribeck_friction": {"saturation", "smooth"},
+    "internal_leakage": {"gain"}, "external_leakage": {"gain"}, "valve_deadband": {"dead_zone"},
+    "valve_null_bias": {"offset"}, "valve_dynamics": {"lag"}, "transport_delay": {"delay"},
+    "supply_droop": {"volume"}, "piston_mass": {"compliance"}, "backlash": {"play", "compliance"},
+    "bulk_modulus": {"volume"},
+    "hyp_rod_area": {"gain"}, "hyp_return_pressure": {"offset"}, "hyp_direction_gain": {"piecewise_linear", "gain"},
+    "hyp_turbulent_leakage": {"smooth"}, "hyp_pressure_friction": {"saturation"}, "hyp_quadratic_drag": {"smooth"},
+    "hyp_crank_unbalance": {"smooth", "offset"}, "hyp_crank_spring": {"gain"}, "hyp_supply_line_loss": {"smooth"},
+    "hyp_entrained_air": {"volume"}, "hyp_dead_volume": {"volume"}, "hyp_load_compliance": {"compliance"},
+    "hyp_valve_underlap": {"dead_zone"}, "hyp_position_offset": {"offset"}, "hyp_position_shape": {"smooth"},
+    "hyp_lugre_friction": {"saturation"}, "hyp_coil_lag": {"lag"}, "hyp_crank_offset": {"offset"},
+    "aug_lag_coil": {"lag"}, "aug_slew_coil": {"rate_limit"}, "aug_lag_position_sensor": {"lag"},
+    "aug_link_rod_crank": {"compliance"}, "aug_link_mount": {"compliance"}, "aug_hose_a": {"volume"},
+    "aug_hose_b": {"volume"}, "aug_hose_ab": {"volume"},
+}
+#: the block kinds of the proposal's named forms (:data:`NAMED_FORM_KIND`'s keys), by their law
+NAMED_FORM_BLOCK = {
+    "piston_force.coulomb": {"saturation"}, "piston_force.viscous": {"gain"}, "piston_force.friction_x2": {"smooth"},
+    "piston_force.viscous_x2": {"smooth"}, "piston_force.friction_load": {"saturation"},
+    "piston_force.quadratic_drag": {"smooth"}, "piston_force.spring": {"gain"},
+    "piston_force.hardening_spring": {"smooth"}, "piston_force.constant": {"offset"},
+    "piston_force.load_x2": {"smooth"},
+    "piston_force.area_ab": {"gain"}, "piston_force.area_b": {"gain"},
+    "crank_torque.coulomb": {"saturation"}, "crank_torque.viscous": {"gain"},
+    "crank_torque.friction_angle": {"saturation"}, "crank_torque.joint_friction": {"saturation"},
+    "crank_torque.spring": {"gain"}, "crank_torque.hardening_spring": {"smooth"}, "crank_torque.constant": {"offset"},
+    "chamber_flows.leak_drain": {"gain"}, "chamber_flows.leak_across": {"gain"},
+    "chamber_flows.leak_across_turbulent": {"smooth"}, "chamber_flows.gain_by_direction": {"piecewise_linear"},
+    "chamber_flows.gain_by_port": {"gain"}, "chamber_flows.gain_load": {"gain"},
+    "chamber_flows.line_resistance": {"volume"}, "chamber_flows.metering_law": {"smooth"},
+    "supply.offset": {"offset"}, "supply.line_drop": {"gain"}, "supply.line_drop_turbulent": {"smooth"},
+    "return.back_pressure": {"offset"},
+    "valve_current.bias": {"offset"}, "valve_current.gain": {"gain"},
+    "valve_current.gain_by_direction": {"piecewise_linear"}, "valve_current.saturation": {"saturation"},
+    "valve_current.dead_band": {"dead_zone"},
+    "position_reading.offset": {"offset"}, "position_reading.gain": {"gain"}, "position_reading.bow": {"smooth"},
+    "position_reading.cubic": {"smooth"},
+}
+#: the block kinds of the proposal's bare terms (:data:`FORM_KIND`'s keys), for "the right kind among any form"
+FORM_BLOCK = {
+    "piston_force.c_x": {"gain"}, "piston_force.c_v": {"gain"}, "piston_force.c_sv": {"saturation"},
+    "piston_force.c_1": {"offset"}, "piston_force.c_pa": {"gain"}, "piston_force.c_pb": {"gain"},
+    "piston_force.c_vv": {"smooth"}, "piston_force.c_x3": {"smooth"}, "crank_torque.c_th": {"gain"},
+    "crank_torque.c_w": {"gain"}, "crank_torque.c_sw": {"saturation"}, "crank_torque.c_1": {"offset"},
+    "crank_torque.c_th3": {"smooth"}, "chamber_flows.c_ext": {"gain"}, "chamber_flows.c_int": {"gain"},
+    "land_flows.c_ret": {"offset"}, "land_flows.c_sup": {"offset"}, "land_flows.c_ga": {"gain"},
+    "land_flows.c_gb": {"gain"}, "land_flows.c_gpos": {"piecewise_linear"}, "land_flows.c_gneg": {"piecewise_linear"},
+    "valve_current.c_1": {"offset"}, "valve_current.c_i": {"gain"}, "valve_current.c_abs": {"piecewise_linear"},
+    "piston_force.c_x2sv": {"smooth"}, "piston_force.c_x2v": {"smooth"}, "piston_force.c_plsv": {"saturation"},
+    "piston_force.c_x2": {"smooth"}, "crank_torque.c_th2sw": {"smooth"}, "crank_torque.c_jsw": {"saturation"},
+    "chamber_flows.c_intsq": {"smooth"}, "land_flows.c_gpl": {"gain"}, "land_flows.c_rline": {"volume"},
+    "land_flows.c_lam": {"smooth"}, "land_flows.c_rsup": {"gain"}, "land_flows.c_rsup2": {"smooth"},
+    "valve_current.c_i3": {"smooth"}, "valve_current.c_sgn": {"dead_zone", "offset"},
+    "position_reading.c_1": {"offset"}, "position_reading.c_x": {"gain"}, "position_reading.c_x2": {"smooth"},
+    "position_reading.c_x3": {"smooth"},
+}
+#: words that name one side of the actuator (a chamber, its port, land, hose or pressure reading)
+SIDE_WORDS = {"a": r"\b(chamber|port|land|side|hose|line|reading|p)[\s_]+a\b",
+              "b": r"\b(chamber|port|land|side|hose|line|reading|p)[\s_]+b\b"}
+
+
+def _grammar():
+    from . import grammar  # the grammar imports the generator's campaign writer: read when the drawn set is judged
+
+    return grammar
+
+
+def block_kinds_of(item: dict) -> set:
+    """The block kinds a named item stands for: by its effect's name (:data:`LIBRARY_BLOCK`), its form
+    (:data:`NAMED_FORM_BLOCK`, :data:`FORM_BLOCK`), else by the words of its label (each kind's ``pattern``)."""
+    label = str(item.get("label") or "")
+    if label in LIBRARY_BLOCK:
+        return set(LIBRARY_BLOCK[label])
+    head = label.split(":")[0].split(" (")[0].strip()
+    for table in (NAMED_FORM_BLOCK, FORM_BLOCK):
+        if head in table:
+            return set(table[head])
+    if head.replace("chamber_flows.", "land_flows.") in FORM_BLOCK:
+        return set(FORM_BLOCK[head.replace("chamber_flows.", "land_flows.")])
+    text = label.lower()
+    return {k.name for k in _grammar().KINDS.values() if re.search(k.pattern, text)}
+
+
+def grammar_places_of(item: dict) -> set:
+    """The grammar's places a named item names: those its diagnosis places stand for (``Place.diag``), and, for the
+    readings the diagnosis has no place for (or an item with no known place), those its words name (the place's name
+    or ``pattern``); narrowed to one side when its words name that side only (:data:`SIDE_WORDS`)."""
+    g = _grammar()
+    text = str(item.get("label") or "").lower()
+    diag = set(item.get("places") or ())
+    found = {p.name for p in g.PLACES.values() if diag & set(p.diag)}
+    for p in g.PLACES.values():
+        if (p.where == "sampled" or not diag) and re.search(rf"{re.escape(p.name)}|{p.pattern}", text):
+            found.add(p.name)
+    sides = {s for s, w in SIDE_WORDS.items() if re.search(w, text)}
+    if len(sides) == 1:
+        other = ({"a", "b"} - sides).pop()
+        found = {n for n in found if g.PLACES[n].side != other}
+    return found
+
+
+def block_items(diag: dict) -> list[dict]:
+    """:func:`worded_items`, each with its block kinds (``block_kinds``) and grammar places (``grammar_places``)."""
+    return [{**it, "block_kinds": sorted(block_kinds_of(it)), "grammar_places": sorted(grammar_places_of(it))}
+            for it in worded_items(diag)]
+
+
+def accepted_block_kinds(kind: str) -> set:
+    """The block kinds a diagnosis may name a block of ``kind`` as and be right: its own and its ``accept``."""
+    return {kind, *_grammar().KINDS[kind].accept}
+
+
+def judge_blocks(blocks: list[dict], items: list[dict]) -> dict:
+    """Right place and right kind of every drawn block, named in physical words?
+
+    Parameters
+    ----------
+    blocks : list of dict
+        The truth: ``{"place", "kind", ...}`` per block (the case's ``blocks``).
+    items : list of dict
+        :func:`block_items` of the diagnosis.
+
+    Returns
+    -------
+    dict
+        ``right`` (every block matched by one worded item of an accepted block kind at its place, and no worded
+        item of a kind no block has), ``per_block`` {"kind@place": {"right_kind", "right_place",
+        "right_place_any_kind", "right_kind_any_form"}} (the last counting bare proposal constants too), ``wrong``
+        (labels), ``items``.
+    """
+    worded = [it for it in items if it["words"]]
+    per, union = {}, set()
+    for b in blocks:
+        acc = accepted_block_kinds(b["kind"])
+        union |= acc
+        kind_ok = [it for it in worded if acc & set(it["block_kinds"])]
+        per[f"{b['kind']}@{b['place']}"] = {
+            "right_kind": bool(kind_ok),
+            "right_place": any(b["place"] in it["grammar_places"] for it in kind_ok),
+            "right_place_any_kind": any(b["place"] in it["grammar_places"] for it in worded),
+            "right_kind_any_form": any(acc & set(it["block_kinds"]) for it in items)}
+    wrong = [it["label"] for it in worded if not (set(it["block_kinds"]) & union)]
+    right = bool(per) and all(v["right_kind"] and v["right_place"] for v in per.values()) and not wrong
+    return {"right": right, "per_block": per, "wrong": wrong,
+            "items": [{k: it.get(k) for k in ("label", "block_kinds", "grammar_places", "words", "source")}
+                      for it in items]}

@@ -27,10 +27,19 @@ piece; with ``exact_bounds`` the pressure's rate is also zeroed outward at its b
 inside the right-hand side (the limit "held within [0, Ps]" tends to as the steps
 shrink), which matters only where a run drives a chamber to a bound (a start from
 rest without a fade-in): docs/independent-generator.md, "Start conditions".
+
+Drawn blocks (:mod:`.grammar`: a (place, kind, magnitude) of hidden physics) act through :class:`Hooks`: a
+signal hook where each signal of the model is computed (the amplifier's command, the coil current, each land's
+flow, the supply and return pressures at the valve), an additive hook in each balance (the piston force, the
+crank torque, each chamber's flow) and the structural hooks of a compliance (a body split off a mechanical
+balance) and of a line volume (a pressure state in a hydraulic path).  Their states come after all the others.
+Without blocks (``blocks=None``) none of this code runs: every campaign integrates as it always did.
 """
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from .rig import BAR, LPM, Rig
 
@@ -51,11 +60,115 @@ RIPPLE_HZ = 23.7  # Hz: once-per-revolution line of a 1422 rpm pump (one worn pi
 HOSE_VOLUME = 50.0e-6  # m^3 of oil per hose when hose_line gives no V (1 m of 8 mm bore)
 HOSE_REF_FLOW = 20.0 * LPM  # flow at which hose_line's dp is given
 BEARING_W_TANH = 0.02  # rad/s: smoothing of the bearing friction's sign (1 mm/s at the 50 mm crank)
+#: the crank's own inertia when a compliance splits the discs off the crank torque balance: the piston and rod
+#: (PISTON_MASS) seen through the crank, kg m^2 per m^2 of crank radius (assumed: the crank arm's own is small)
+CRANK_MASS = PISTON_MASS
 
 
 def _root(z: float) -> float:
     """sign(z) sqrt(|z|)."""
     return math.sqrt(z) if z >= 0.0 else -math.sqrt(-z)
+
+
+class Hooks:
+    """The drawn blocks of one run, sorted by how each acts, with the indices of their states.
+
+    A block (:class:`.grammar.Block`; read here only through its ``place``, ``mechanism``, ``n_states``,
+    ``params`` and methods, so that this module imports nothing of the grammar) acts by one mechanism:
+
+    * ``static``: a function of the signal (or, at a balance or a boundary pressure, an added term that is a
+      function of the place's local quantities), evaluated where the model computes that place;
+    * ``state``: a lag or a rate limit of a signal inside the integration, one state each;
+    * ``structural``: a compliance (a body split off a mechanical balance) or a line volume (a pressure state in a
+      hydraulic path);
+    * ``tau``: a pure delay of the amplifier's held command (the exact switch instant, as the transport delay);
+    * ``sequence``: play on the amplifier's held command, applied once per control period;
+    * ``sampled``: a dynamic block on a logged reading, applied to the reading as the logger samples it.
+
+    A block at zero magnitude (``block.null``) is left out: the hooks then run and change nothing.
+
+    Parameters
+    ----------
+    blocks : list
+        The blocks.
+    first : int
+        Index of the first free state.
+    """
+
+    def __init__(self, blocks, first: int):
+        self.rhs, self.structural, self.reading, self.sampled = {}, {}, {}, {}
+        self.sequence, self.tau, self.atol, self.pressure_states = [], 0.0, [], []
+        n = first
+        for b in blocks or ():
+            if b.null:
+                continue
+            mech, place = b.mechanism, b.place.name
+            if mech == "tau":
+                self.tau += b.params["tau"]
+            elif mech == "sequence":
+                self.sequence.append(b.stepper(init=0.0))
+            elif mech == "sampled":
+                self.sampled.setdefault(place, []).append(b)
+            elif mech == "static" and b.place.where == "sampled":
+                self.reading.setdefault(place, []).append(b)
+            else:
+                k = n if b.n_states else None
+                n += b.n_states
+                self.atol += list(b.atol)
+                if mech == "structural":
+                    if place in self.structural:
+                        raise ValueError(f"two structural blocks at {place}")
+                    self.structural[place] = (b, k)
+                    self.pressure_states += [k] if b.kind.name == "volume" else []
+                else:
+                    self.rhs.setdefault(place, []).append((b, k))
+        self.n = n
+        self.steppers = {p: [b.stepper() for b in bs] for p, bs in self.sampled.items()}
+
+    def signal(self, place: str, u: float, y, dy) -> float:
+        """The value a signal passes on after the blocks at ``place`` (static transforms, lags, rate limits)."""
+        for b, k in self.rhs.get(place, ()):
+            u = b.apply(u, y, dy, k)
+        return u
+
+    def term(self, place: str, loc: dict) -> float:
+        """The sum of the terms the blocks add at a balance or a boundary, from its local quantities ``loc``."""
+        return sum(b.term(loc) for b, _ in self.rhs.get(place, ()))
+
+    def hold(self, u: float) -> float:
+        """The amplifier's held command of this control period after the blocks on the held sequence (play)."""
+        for s in self.sequence:
+            u = s.step(u)
+        return u
+
+    def read(self, place: str, u: float) -> float:
+        """A reading (SI) after its static blocks (a function of the value the transducer sees)."""
+        for b in self.reading.get(place, ()):
+            u = b.transform(u)
+        return u
+
+    def step_reading(self, place: str, u: float) -> float:
+        """One sample of a reading through its dynamic blocks (this run's state)."""
+        for s in self.steppers.get(place, ()):
+            u = s.step(u)
+        return u
+
+    def read_series(self, place: str, u) -> np.ndarray:
+        """A whole logged series (SI) through the blocks of its reading, static then dynamic, sample by sample."""
+        out = np.array([self.read(place, float(v)) for v in u]) if place in self.reading else np.asarray(u, float)
+        for b in self.sampled.get(place, ()):
+            s = b.stepper()
+            out = np.array([s.step(float(v)) for v in out])
+        return out
+
+    def reads(self, place: str) -> bool:
+        """Whether any block acts at the reading ``place``."""
+        return place in self.reading or place in self.sampled
+
+    def volume(self, place: str):
+        """(block, state index) of the line volume at a hydraulic place, or None."""
+        s = self.structural.get(place)
+        return s if s is not None and s[0].kind.name == "volume" else None
 
 
 class RigModel:
@@ -72,9 +185,12 @@ class RigModel:
     exact_bounds : bool
         Hold the chamber (and hose-port) pressures within [0, Ps] inside the right-hand side too (their rate
         zeroed outward at a bound), not only between the driver's pieces.
+    blocks : list, optional
+        Drawn blocks (:class:`.grammar.Block`) acting through :class:`Hooks`; None: no hook runs.
     """
 
-    def __init__(self, rig: Rig, disc_sets: int, effects: dict | None = None, exact_bounds: bool = False):
+    def __init__(self, rig: Rig, disc_sets: int, effects: dict | None = None, exact_bounds: bool = False,
+                 blocks=None):
         self.rig = rig
         self.exact_bounds = exact_bounds
         self.inertia = rig.inertia_per_set * disc_sets
@@ -124,10 +240,46 @@ class RigModel:
             self.i_xr, self.n = self.n, self.n + 1
         if self.hose_r:
             self.i_hose, self.n = self.n, self.n + 2
+        self.hooks = None
+        self.crank_split = None
+        if blocks is not None:
+            self._hook(blocks)
+
+    def _hook(self, blocks) -> None:
+        """Sort the drawn blocks into :class:`Hooks` and wire the structural ones into the model."""
+        self.hooks = h = Hooks(blocks, self.n)
+        self.n = h.n
+        self.tau += h.tau
+        for place in ("chamber_a", "chamber_b"):
+            if h.volume(place) and self.hose_r:
+                raise ValueError(f"a line volume at {place} and hose_line together are not modelled")
+        comp = h.structural.get("piston_force")
+        if comp is not None:  # the generator's own split of piston and crank (states 7, 8), the block's spring
+            if self.two_body:
+                raise ValueError("a compliance at the piston force and load_compliance/backlash together")
+            self.k_c = comp[0].params["k"]
+            self.c_c = comp[0].params["c"]
+            self.two_body = True
+        self.crank_split = h.structural.get("crank_torque")
 
     def extra_atol(self) -> list:
-        """Absolute tolerances of the states beyond the ten (reading m, port pressures Pa)."""
-        return [1e-11] * (self.i_xr is not None) + [1e-2, 1e-2] * (self.i_hose is not None)
+        """Absolute tolerances of the states beyond the ten (reading m, port pressures Pa, the blocks' own)."""
+        return ([1e-11] * (self.i_xr is not None) + [1e-2, 1e-2] * (self.i_hose is not None)
+                + (self.hooks.atol if self.hooks is not None else []))
+
+    def valve_states(self) -> list:
+        """Indices of the states the flow bench integrates: the spool, the coil, and the blocks' states on the
+        command and the coil current."""
+        h = self.hooks
+        extra = []
+        for place in ("command_current", "coil_current"):
+            for b, k in (h.rhs.get(place, ()) if h is not None else ()):
+                extra += list(range(k, k + b.n_states)) if k is not None else []
+        return [2, 3, 6] + extra
+
+    def hold(self, i_cmd: float) -> float:
+        """The amplifier's command held over a control period (mA): the controller's, after play on it."""
+        return self.hooks.hold(i_cmd) if self.hooks is not None else i_cmd
 
     def supply(self, t: float) -> float:
         """Supply pressure at the pump at time t, Pa (with the pump's ripple)."""
@@ -155,12 +307,20 @@ class RigModel:
         r = self.rig.radius
         return self.crank_x(y[0]), r * math.cos(y[0] + self.phi0) * y[1]
 
-    def lvdt_angle_deg(self, y) -> float:
-        """The angle the LVDT shows, asin(x_read / r), deg (before noise and ADC)."""
+    def lvdt_reading(self, y) -> float:
+        """The position the LVDT shows, m (its effects and the static blocks at its reading; before noise)."""
         x = y[self.i_xr] if self.i_xr is not None else self.piston(y)[0]
         h = self.rig.half_stroke
         xr = x + self.x0 + self.lvdt_n * h * (x / h) ** 3
+        return self.hooks.read("position_reading", xr) if self.hooks is not None else xr
+
+    def angle_of(self, xr: float) -> float:
+        """The logger's asin(x_read / r), deg."""
         return math.degrees(math.asin(max(-1.0, min(1.0, xr / self.rig.radius))))
+
+    def lvdt_angle_deg(self, y) -> float:
+        """The angle the LVDT shows, asin(x_read / r), deg (before noise and ADC)."""
+        return self.angle_of(self.lvdt_reading(y))
 
     def valve_input(self, i_cmd: float) -> float:
         """Amplifier clip, then the null bias: the current that drives the valve (before a coil lag), mA."""
@@ -208,14 +368,17 @@ class RigModel:
         rig = self.rig
         theta, omega, qc, qcd, pa, pb, iv, xp, vp, z = y[:N]
         dy = [0.0] * self.n
+        H = self.hooks
         # command path -> valve
-        i_in = self.valve_input(i_cmd)
+        i_in = self.valve_input(H.signal("command_current", i_cmd, y, dy) if H is not None else i_cmd)
         if self.t_lag or self.slew:
             rate = (i_in - iv) / (self.t_lag or SLEW_T)
             dy[6] = self.slew * math.tanh(rate / self.slew) if self.slew else rate
             i_v = iv
         else:
             i_v = i_in
+        if H is not None:
+            i_v = H.signal("coil_current", i_v, y, dy)
         sgn = 1.0 if i_v > 0.0 else (-1.0 if i_v < 0.0 else 0.0)
         target = rig.K * i_v * (1.0 + self.dir_gain * sgn)
         dy[2] = qcd
@@ -226,7 +389,9 @@ class RigModel:
             dy[3] = min(dy[3], 0.0) if qc > 0 else max(dy[3], 0.0)
         # chambers
         x, v = self.piston(y)
-        if self.i_hose is not None:  # valve ports, then the hoses into the chambers
+        if H is not None:
+            qa, qb = self._hooked_chamber_flows(y, dy, qc, pa, pb, t)
+        elif self.i_hose is not None:  # valve ports, then the hoses into the chambers
             k = self.i_hose
             pva, pvb = y[k], y[k + 1]
             qva, qvb = self.land_flows(qc, pva, pvb, t)
@@ -242,6 +407,9 @@ class RigModel:
         h, vd = rig.half_stroke, rig.dead_volume
         va = self.a_a * (h + x) + vd
         vb = self.a_b * (h - x) + vd
+        if H is not None:  # the flows the blocks add to each chamber's balance
+            qa += H.term("chamber_a", {"p": pa, "dp": pa - pb, "v": v})
+            qb += H.term("chamber_b", {"p": pb, "dp": pb - pa, "v": -v})
         dy[4] = self.beta(pa) / va * (qa - self.a_a * v - q_leak)
         dy[5] = self.beta(pb) / vb * (qb + self.a_b * v + q_leak)
         # forces on the piston (+x toward chamber B)
@@ -261,12 +429,16 @@ class RigModel:
         if self.cushion:
             s = max(0.0, (abs(x) / rig.half_stroke - CUSHION_START) / (1.0 - CUSHION_START))
             f -= self.cushion * v * s * s
+        if H is not None:
+            f += H.term("piston_force", {"v": v, "x": x, "pL": pa - pb})
         # torque on the crank
         torque = 0.0
         if self.unbalance:
             torque -= self.unbalance * math.sin(theta + UNBALANCE_PHASE)
         if self.drag:
             torque -= self.drag * omega * abs(omega)
+        if H is not None:
+            torque += H.term("crank_torque", {"w": omega, "th": theta})
         lever = rig.radius * math.cos(theta + self.phi0)
         dy[0] = omega
         if self.two_body:
@@ -281,25 +453,126 @@ class RigModel:
                 torque -= self.mur * abs(f_rod) * math.tanh(omega / BEARING_W_TANH)
             dy[7] = vp
             dy[8] = (f - f_rod) / PISTON_MASS
-            dy[1] = (f_rod * lever + torque) / self.inertia
+            drive = f_rod * lever
+            dy[1] = (drive + torque) / self.inertia
         else:
             if self.mur:
                 torque -= self.mur * abs(f) * math.tanh(omega / BEARING_W_TANH)
-            dy[1] = (f * lever + torque) / self.inertia
+            drive = f * lever
+            dy[1] = (drive + torque) / self.inertia
+        if self.crank_split is not None:
+            self._split_crank(y, dy, drive, torque)
         if self.exact_bounds:
             top = rig.supply + self.ripple
-            for j in (4, 5) + ((self.i_hose, self.i_hose + 1) if self.i_hose is not None else ()):
+            for j in self._pressure_states():
                 if (y[j] <= 0.0 and dy[j] < 0.0) or (y[j] >= top and dy[j] > 0.0):
                     dy[j] = 0.0
         return dy
 
+    def _pressure_states(self) -> tuple:
+        """Indices of every pressure state: the chambers, hose_line's ports, the blocks' line volumes."""
+        return ((4, 5) + ((self.i_hose, self.i_hose + 1) if self.i_hose is not None else ())
+                + (tuple(self.hooks.pressure_states) if self.hooks is not None else ()))
+
+    def _split_crank(self, y, dy, drive: float, torque: float) -> None:
+        """A compliance at the crank torque balance: the crank (the piston and rod seen through it,
+        :data:`CRANK_MASS` r^2) takes the rod's torque ``drive``; the discs (their inertia) take ``torque`` (the
+        load's own terms) and the torsion spring k_t (theta - theta_d) + c_t (omega - omega_d) between the two."""
+        b, k = self.crank_split
+        spring = b.params["k"] * (y[0] - y[k]) + b.params["c"] * (y[1] - y[k + 1])
+        dy[1] = (drive - spring) / (CRANK_MASS * self.rig.radius ** 2)
+        dy[k] = y[k + 1]
+        dy[k + 1] = (spring + torque) / self.inertia
+
+    def _boundaries(self, y, dy, qc: float, pa: float, pb: float, t: float) -> tuple:
+        """(supply, return) pressures at the valve's lands with the blocks at both boundaries, Pa; the line volumes'
+        rates written into dy.  pa, pb: the pressures at the valve's ports."""
+        H = self.hooks
+        p_in = pa if qc >= 0.0 else pb
+        loc = {"q": abs(qc)}
+        ps = self.supply_at_valve(qc, p_in, t) + H.term("supply", loc)
+        pt = self.p_t + H.term("return", loc)
+        u0, land = self.u0, self.land
+        a_pa, a_at = max(u0 + qc, 0.0), max(u0 - qc, 0.0)
+        line = H.volume("supply")
+        if line is not None:  # the supply line's volume behind its resistance, fed from the pump side ps
+            b, k = line
+            pv = y[k]
+            q_s = a_pa * land(pv - pa) + a_at * land(pv - pb)
+            dy[k] = self.beta(pv) / b.params["V"] * ((ps - pv) / b.params["R"] - q_s)
+            ps = pv
+        line = H.volume("return")
+        if line is not None:  # the return line's volume, drained to the tank pt through its resistance
+            b, k = line
+            pv = y[k]
+            q_r = a_at * land(pa - pv) + a_pa * land(pb - pv)
+            dy[k] = self.beta(pv) / b.params["V"] * (q_r - (pv - pt) / b.params["R"])
+            pt = pv
+        return ps, pt
+
+    def _hooked_land_flows(self, y, dy, qc: float, pa: float, pb: float, t: float) -> tuple:
+        """(Q out of port A, Q out of port B), m^3/s: :meth:`land_flows` with the blocks at the boundaries and at
+        each land's flow; pa, pb the pressures at the valve's ports."""
+        ps, pt = self._boundaries(y, dy, qc, pa, pb, t)
+        u0, land = self.u0, self.land
+        a_pa = max(u0 + qc, 0.0)  # supply -> A land opening (as no-load flow)
+        a_at = max(u0 - qc, 0.0)  # A -> tank
+        a_pb = a_at  # supply -> B opens with negative q_c
+        a_bt = a_pa  # B -> tank opens with positive q_c
+        qa = a_pa * land(ps - pa) - a_at * land(pa - pt)
+        qb = a_pb * land(ps - pb) - a_bt * land(pb - pt)
+        H = self.hooks
+        return H.signal("land_a", qa, y, dy), H.signal("land_b", qb, y, dy)
+
+    def _ports(self, y, pa: float, pb: float) -> tuple:
+        """Pressures at the valve's ports A and B: hose_line's port states, a block's line volume, or the
+        chambers'."""
+        if self.i_hose is not None:
+            pa, pb = y[self.i_hose], y[self.i_hose + 1]
+        H = self.hooks
+        if H is not None:
+            va, vb = H.volume("chamber_a"), H.volume("chamber_b")
+            pa = y[va[1]] if va is not None else pa
+            pb = y[vb[1]] if vb is not None else pb
+        return pa, pb
+
+    def _hooked_chamber_flows(self, y, dy, qc: float, pa: float, pb: float, t: float) -> tuple:
+        """(Q into chamber A, Q into chamber B), m^3/s, with the blocks: the lands feed the ports, each port's line
+        (hose_line's, or a block's volume behind its resistance) feeds its chamber."""
+        pva, pvb = self._ports(y, pa, pb)
+        qva, qvb = self._hooked_land_flows(y, dy, qc, pva, pvb, t)
+        qa, qb = qva, qvb
+        if self.i_hose is not None:
+            k = self.i_hose
+            qa, qb = (pva - pa) / self.hose_r, (pvb - pb) / self.hose_r
+            dy[k] = self.beta(pva) / self.hose_v * (qva - qa)
+            dy[k + 1] = self.beta(pvb) / self.hose_v * (qvb - qb)
+        for place, pv, qv, pc in (("chamber_a", pva, qva, pa), ("chamber_b", pvb, qvb, pb)):
+            line = self.hooks.volume(place)
+            if line is not None:
+                b, k = line
+                q = (pv - pc) / b.params["R"]
+                dy[k] = self.beta(pv) / b.params["V"] * (qv - q)
+                qa, qb = (q, qb) if place == "chamber_a" else (qa, q)
+        return qa, qb
+
     def initial_state(self) -> list:
-        """At rest at mid-stroke, both chambers at Ps/2 (docs/reference-model.md §4)."""
+        """At rest at mid-stroke, both chambers at Ps/2 (docs/reference-model.md §4); the blocks' states at rest."""
         y = [0.0] * self.n
         y[4] = y[5] = 0.5 * self.rig.supply
         if self.i_hose is not None:
             y[self.i_hose] = y[self.i_hose + 1] = 0.5 * self.rig.supply
+        if self.hooks is not None:
+            for b, k in [*(x for bs in self.hooks.rhs.values() for x in bs), *self.hooks.structural.values()]:
+                if k is not None:
+                    y[k:k + b.n_states] = b.rest(self.rig)
         return y
+
+    def rest_at_angle(self, y) -> None:
+        """Bring the blocks' states to rest with the crank where ``y`` puts it (the discs of a compliant crank at the
+        crank's angle); in place."""
+        if self.crank_split is not None:
+            y[self.crank_split[1]] = y[0]
 
     def apply_stops(self, y) -> bool:
         """Spool end stops, pressures within [0, Ps], stroke ends; in place. True when a stroke end was touched."""
@@ -310,7 +583,7 @@ class RigModel:
             if y[3] * y[2] > 0.0:
                 y[3] = 0.0
         top = rig.supply + self.ripple
-        for j in (4, 5) + ((self.i_hose, self.i_hose + 1) if self.i_hose is not None else ()):
+        for j in self._pressure_states():
             y[j] = min(max(y[j], 0.0), top)
         x, _ = self.piston(y)
         hit = False
@@ -328,6 +601,9 @@ class RigModel:
     def outputs(self, y, t: float = 0.0) -> dict:
         """What the rig's transducers see (before noise): flow into A at the valve's port (LPM), chamber
         pressures (bar)."""
-        ports = (y[self.i_hose], y[self.i_hose + 1]) if self.i_hose is not None else (y[4], y[5])
-        qa, _ = self.land_flows(y[2], *ports, t)
+        if self.hooks is not None:
+            qa, _ = self._hooked_land_flows(y, [0.0] * self.n, y[2], *self._ports(y, y[4], y[5]), t)
+        else:
+            ports = (y[self.i_hose], y[self.i_hose + 1]) if self.i_hose is not None else (y[4], y[5])
+            qa, _ = self.land_flows(y[2], *ports, t)
         return {"flow_lpm": qa / LPM, "p_a_bar": y[4] / BAR, "p_b_bar": y[5] / BAR}

@@ -160,6 +160,7 @@ def rest_at(model: RigModel, angle_deg: float) -> list:
         y[7] = x
     if model.i_xr is not None:
         y[model.i_xr] = x
+    model.rest_at_angle(y)
     return y
 
 
@@ -223,7 +224,8 @@ class Run:
 def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, duration: float, effects_si: dict,
                 chain: Chain, rng: np.random.Generator, gains: dict | None = None, progress=None,
                 offset_deg: float = 0.0, ramp_cycles: float = 1, phase_rad: float = 0.0, rest: str = "zero",
-                bump: Bump | None = None, state_ramp: bool = True, exact_bounds: bool = False) -> tuple:
+                bump: Bump | None = None, state_ramp: bool = True, exact_bounds: bool = False,
+                blocks=None) -> tuple:
     """A closed-loop sine run.
 
     Parameters
@@ -263,13 +265,16 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
     exact_bounds : bool
         The chamber pressures held within [0, Ps] inside the integration too (:class:`.physics.RigModel`), not only
         between pieces: for runs that drive a chamber to a bound.
+    blocks : list, optional
+        Drawn blocks of hidden physics (:class:`.grammar.Block`), hooked into the model (:class:`.physics.Hooks`)
+        and into the readings.
 
     Returns
     -------
     columns : dict
         Logged columns of the measurement format.
     true : dict
-        Noise-free theta_deg (LVDT angle), p_a_bar, p_b_bar, flow_lpm.
+        Noise-free theta_deg (LVDT angle), p_a_bar, p_b_bar, flow_lpm (the readings, with their blocks).
     meta : dict
         The sidecar.
     """
@@ -278,7 +283,9 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
     if not state_ramp and ramp_cycles:
         raise ValueError(f"state_ramp=False leaves ramp_cycles out of the sidecar (read as 0): ramp_cycles must be "
                          f"0, got {ramp_cycles!r}")
-    model = RigModel(rig, disc_sets, effects_si, exact_bounds=exact_bounds)
+    model = RigModel(rig, disc_sets, effects_si, exact_bounds=exact_bounds, blocks=blocks)
+    hooks = model.hooks
+    lvdt_steps = hooks is not None and "position_reading" in hooks.sampled
     gains = dict(gains or rig.controller_gains())
     ctrl = PIFF(gains, rig.i_max)
     n = int(round(duration / DT))
@@ -294,11 +301,14 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
     cmds: list = []
     for k in range(n):
         t = k * DT
-        th_true = model.lvdt_angle_deg(y)
+        if lvdt_steps:  # the reading's dynamic blocks, sample by sample (the controller sees what they pass)
+            th_true = model.angle_of(hooks.step_reading("position_reading", model.lvdt_reading(y)))
+        else:
+            th_true = model.lvdt_angle_deg(y)
         th = chain.angle(th_true, rig, rng)
         r, r1, r2 = reference(t, amplitude_deg, freq_hz, offset_deg, ramp_cycles, phase_rad)
         u = chain.dac(ctrl(r - th, r1, r2))
-        cmds.append(u)
+        cmds.append(model.hold(u))
         out = model.outputs(y, t)
         cols["t"][k] = t
         cols["current_mA"][k] = u
@@ -310,6 +320,8 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
         y = _period(model, y, k, cmds)
         if progress is not None and k % 500 == 0:
             progress(k / n)
+    if hooks is not None:
+        _read_blocks(hooks, true)
     cols["flow_lpm"] = chain.flow(true["flow_lpm"], rng)
     cols["p_a_bar"] = chain.pressure(true["p_a_bar"], rng)
     cols["p_b_bar"] = chain.pressure(true["p_b_bar"], rng)
@@ -317,12 +329,27 @@ def closed_loop(rig: Rig, disc_sets: int, amplitude_deg: float, freq_hz: float, 
     cols["p_s_bar"] = chain.pressure(np.full(n, rig.supply / BAR) if not model.ripple else
                                      np.array([model.supply(k * DT) for k in range(n)]) / BAR, rng)
     cols["load_kN"] = rig.area * (cols["p_a_bar"] - cols["p_b_bar"]) * BAR * 1e-3
+    if hooks is not None and hooks.reads("load_reading"):
+        load = rig.area * (true["p_a_bar"] - true["p_b_bar"]) * BAR  # N: the logger's load, noise aside
+        cols["load_kN"] = cols["load_kN"] + (hooks.read_series("load_reading", load) - load) * 1e-3
     meta = {"kind": "closed_loop", "disc_sets": int(disc_sets), "supply_bar": rig.supply / BAR,
             "reference": {"amplitude_deg": amplitude_deg, "freq_hz": freq_hz, "phase_rad": phase_rad,
                           **({"ramp_cycles": ramp_cycles} if state_ramp else {}),
                           **({"offset_deg": offset_deg} if offset_deg else {})},
             "controller": {k: float(v) for k, v in gains.items()}}
     return cols, true, meta
+
+
+#: the logged readings a block may act on: (place, column of ``true``, SI per column unit)
+READINGS = (("pressure_reading_a", "p_a_bar", BAR), ("pressure_reading_b", "p_b_bar", BAR),
+            ("flow_reading", "flow_lpm", LPM))
+
+
+def _read_blocks(hooks, true: dict) -> None:
+    """The noise-free readings through the blocks at their transducers, in place (the noise is added after)."""
+    for place, col, si in READINGS:
+        if hooks.reads(place):
+            true[col] = hooks.read_series(place, true[col] * si) / si
 
 
 def chirp(n: int, f0: float, f1: float, amp: float) -> np.ndarray:
@@ -334,14 +361,16 @@ def chirp(n: int, f0: float, f1: float, amp: float) -> np.ndarray:
 
 
 def valve_bench(rig: Rig, command: np.ndarray, supply_bar: float, effects_si: dict, chain: Chain,
-                rng: np.random.Generator) -> tuple:
+                rng: np.random.Generator, blocks=None) -> tuple:
     """The valve alone on the flow bench, ports A and B joined through the flow meter.
 
     The two open lands in series share the drop Ps - p_t, so the metered flow is
     q_c sqrt((Ps - p_t) / dp_n) for a critically lapped valve; an underlapped one
     passes (a_1 - a_2) sqrt((Ps - p_t) / dp_n) with the lands' openings
     a_1 = max(u0 + q_c, 0), a_2 = max(u0 - q_c, 0) (by symmetry the meter sits at
-    (Ps + p_t) / 2); a supply line loss lowers Ps by dp (Q / 20 LPM)^2.
+    (Ps + p_t) / 2); a supply line loss lowers Ps by dp (Q / 20 LPM)^2.  Drawn blocks act here where the bench
+    has their place: the amplifier's command and the coil current (the same valve and amplifier) and the flow
+    meter's reading (the same meter); the bench has its own regulated supply and return, and no load.
 
     Returns
     -------
@@ -350,12 +379,12 @@ def valve_bench(rig: Rig, command: np.ndarray, supply_bar: float, effects_si: di
     meta : dict
         The sidecar.
     """
-    model = RigModel(rig, 1, effects_si)
+    model = RigModel(rig, 1, effects_si, blocks=blocks)
     ps = supply_bar * BAR
     y = np.zeros(model.n)
     flows = np.zeros(command.size)
     drop = rig.rated_drop
-    cmds = [float(c) for c in command]
+    cmds = [model.hold(float(c)) for c in command]
     for k in range(command.size):
         qc = y[2]
         a1, a2 = max(model.u0 + qc, 0.0), max(model.u0 - qc, 0.0)
@@ -369,6 +398,8 @@ def valve_bench(rig: Rig, command: np.ndarray, supply_bar: float, effects_si: di
         else:
             flows[k] = net * math.sqrt(max(ps - model.p_t, 0.0) / drop) / LPM
         y = _period_valve(model, y, k, cmds)
+    if model.hooks is not None and model.hooks.reads("flow_reading"):
+        flows = model.hooks.read_series("flow_reading", flows * LPM) / LPM
     cols = {"t": np.arange(command.size) * DT, "current_mA": np.asarray(command, float),
             "flow_lpm": chain.flow(flows, rng)}
     meta = {"kind": "valve_open_loop", "supply_bar": supply_bar}
@@ -387,11 +418,13 @@ class _ValveOnly:
     def __init__(self, model: RigModel):
         self.m = model
         self.tau = model.tau
+        self.moving = model.valve_states()
 
     def rates(self, y, i_cmd, t=0.0):
         dy = self.m.rates(y, i_cmd, t)
         out = [0.0] * len(dy)
-        out[2], out[3], out[6] = dy[2], dy[3], dy[6]
+        for j in self.moving:
+            out[j] = dy[j]
         return out
 
     def extra_atol(self):
