@@ -28,7 +28,7 @@ API = (
     "ehas_env.env.tracking_env:TrackingEnv",
     "ehas_env.env.vector_env:TrackingVectorEnv",
     "ehas_env.measurement.campaign:read_campaign",
-    "ehas_env.measurement.open_diagnosis:diagnose_open",
+    "ehas_env.diagnosis.pipeline:diagnose_open",
     "ehas_env.measurement.runfile:write_result",
     "ehas_env.measurement.runfile:write_run",
     "ehas_env.physics.effects.base:Effect",

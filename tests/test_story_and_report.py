@@ -175,7 +175,7 @@ def _blocks():
 
 def test_the_page_is_self_contained_and_carries_the_json_figure(tmp_path):
     from ehas_env.cli.report import build_page
-    from ehas_env.measurement.diagnosis_plots import verdict_bars
+    from ehas_env.diagnosis.plots import verdict_bars
     from ehas_env.measurement.verdict import FIGURE_KEY, grade
 
     g = grade(_blocks())

@@ -86,7 +86,7 @@ def run(args) -> int:
     # one compiled model for the baseline and the effects: with the structural hypotheses when one is named
     rep = Replayer(campaign, model=base_model, hypotheses=names_hypothesis(requested))
     if getattr(args, "measured_input", None):  # a logged supply as the model's input (docs/measurement-format.md)
-        from ehas_env.measurement.measured_inputs import measured
+        from ehas_env.diagnosis.measured_inputs import measured
 
         rep = measured(rep, tuple(q.strip() for q in args.measured_input.split(",") if q.strip()))
     with working("replaying the campaign with the baseline model", "compare"):
@@ -96,7 +96,7 @@ def run(args) -> int:
     null = fitted = None
     ci = None
     if args.fit:
-        from ehas_env.measurement.diagnosis import calibrate
+        from ehas_env.diagnosis.candidates import calibrate
 
         n_par = sum(len(p) for p in resolve_effects(requested).values())
         what = f"{', '.join(requested)} ({n_par} parameter(s)) with beta and K" if requested else "beta and K"
@@ -342,8 +342,8 @@ def held_out_text(model, campaign, table) -> str:
 def fit_intervals(rep, fitted) -> list[dict]:
     """95 % confidence intervals of every number ``fitted`` (a calibration Fit) fitted, as JSON-ready rows
     {effect, param, value, low, high, unit} (``effect`` "baseline" for beta and K; see
-    :func:`ehas_env.measurement.fitting.confidence`)."""
-    from ehas_env.measurement.fitting import _unit, _value_of, confidence
+    :func:`ehas_env.diagnosis.fitting.confidence`)."""
+    from ehas_env.diagnosis.fitting import _unit, _value_of, confidence
 
     ci = confidence(rep, fitted) if fitted.free else {}
     rows = []
@@ -435,7 +435,7 @@ def write_report(out: Path, rep, sims: dict, tables: dict, *, campaign, command:
     ranking of every effect tried; ``holdout`` names the runs a diagnosis held out for validation (every
     figure that shows one marks it).
     """
-    from ehas_env.measurement import diagnosis_plots as plots
+    from ehas_env.diagnosis import plots as plots
     from ehas_env.output.files import atomic_write_text
     from ehas_env.measurement.residuals import signatures, where_it_fails
 

@@ -99,10 +99,10 @@ def run(args) -> int:
 
 def run_trend(args, camps: list) -> int:
     """``ehas diagnose CAMP1 CAMP2 ...``: each campaign diagnosed as alone (its JSON kept), then the health trend
-    (:func:`ehas_env.measurement.health.trend`); ``--json`` writes {"campaigns": [each diagnosis JSON], "trend"}."""
+    (:func:`ehas_env.diagnosis.health.trend`); ``--json`` writes {"campaigns": [each diagnosis JSON], "trend"}."""
     import copy
 
-    from ehas_env.measurement.health import trend, trend_text
+    from ehas_env.diagnosis.health import trend, trend_text
     from ehas_env.output.files import atomic_write_text
     from ehas_env.output.outputs import check_file, check_not_input
 
@@ -261,8 +261,8 @@ class _Tee:
 
 def run_one(args) -> int:
     from ehas_env.measurement.campaign import parse_column_map, read_campaign
-    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, resolve_candidates
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.candidates import FIT_WINDOW_S, resolve_candidates
+    from ehas_env.diagnosis.pipeline import diagnose_open
     from ehas_env.physics.effects import get_effect, parse_spec
     from ehas_env.measurement.replay import format_fit_tables
     from ehas_env.measurement.residuals import follows_text, where_it_fails
@@ -335,7 +335,7 @@ def run_one(args) -> int:
         print(f"baseline: model {model.label}")
     print(campaign.summary())
     if not args.candidates and candidates:
-        from ehas_env.measurement.diagnosis import library_effects
+        from ehas_env.diagnosis.candidates import library_effects
 
         print(f"candidates: the library and, from --effects-path, "
               f"{', '.join(c for c in candidates if c not in library_effects())}")
@@ -368,8 +368,8 @@ def run_one(args) -> int:
     else:
         print(f"the final model explains the campaign: its residual is {figure_text(res.residual_x_noise)} from "
               f"cycle to cycle (sensor noise, disturbances; explained up to {res.grade['thresholds']['explained']:g}x)")
-    if res.alternatives:  # what these logs cannot tell apart (ehas_env.measurement.alternatives)
-        from ehas_env.measurement.alternatives import alternatives_text
+    if res.alternatives:  # what these logs cannot tell apart (ehas_env.diagnosis.alternatives)
+        from ehas_env.diagnosis.alternatives import alternatives_text
 
         print(alternatives_text(res.alternatives, res.model.effects))
     for line in _findings_lines(res):  # per-run drift, disturbances, fits on a bound (issue 33)
@@ -386,7 +386,7 @@ def run_one(args) -> int:
             print(f"  kept with it: {other} ({get_effect(other).in_words(res.model.effects[other])})")
     if hyp is not None and res.proposal is None:  # (with a term proposed on top, the term's file is written)
         if args.write_effect:
-            from ehas_env.measurement.hypothesis_file import write_hypothesis
+            from ehas_env.diagnosis.hypothesis_file import write_hypothesis
 
             written = write_hypothesis(args.write_effect, hyp, res.model.effects[hyp], origin=str(campaign.path),
                                        ci={k: tuple(v) for k, v in h["ci95"].items()}, words=h["words"],
@@ -405,13 +405,13 @@ def run_one(args) -> int:
         v = p.validation
         print(f"  residual {v['residual_x_noise_all_before']:.3g}x -> {v['residual_x_noise_all_after']:.3g}x noise, "
               f"fit {v['fit_percent_all_before']:.1f} % -> {v['fit_percent_all_after']:.1f} % (all data)")
-        for n in p.named:  # the term's shape in physical words (ehas_env.measurement.naming)
+        for n in p.named:  # the term's shape in physical words (ehas_env.diagnosis.naming)
             print(f"  named: {n['words']} ({n['kind']}, at {n['place'].replace('_', ' ')}; keeps "
                   f"{100 * n['keeps_share']:.0f} % of the flexible term's gain)")
         if not p.named and (p.naming or {}).get("text"):
             print(f"  named: nothing ({p.naming['text']})")
         if args.write_effect:
-            from ehas_env.measurement.proposal import write_effect
+            from ehas_env.diagnosis.proposal import write_effect
 
             written = write_effect(args.write_effect, p, origin=str(campaign.path))
             name = Path(args.write_effect).stem
@@ -470,7 +470,7 @@ def run_one(args) -> int:
             if _findings_lines(res):
                 extra += ["```", *_findings_lines(res), "```", ""]
             if res.alternatives:
-                from ehas_env.measurement.alternatives import alternatives_text
+                from ehas_env.diagnosis.alternatives import alternatives_text
 
                 extra += ["### What these logs cannot tell apart", "",
                           alternatives_text(res.alternatives, res.model.effects).replace("\n", "\n\n"), ""]
@@ -480,8 +480,8 @@ def run_one(args) -> int:
                           f"{res.proposal.validation['fit_percent_all_after']:.1f} %; residual "
                           f"{res.proposal.validation['residual_x_noise_all_before']:.3g}x -> "
                           f"{res.proposal.validation['residual_x_noise_all_after']:.3g}x noise.", ""]
-            from ehas_env.measurement.diagnosis import COST_SIGNALS
-            from ehas_env.measurement.diagnosis_plots import verdict_bars
+            from ehas_env.diagnosis.candidates import COST_SIGNALS
+            from ehas_env.diagnosis.plots import verdict_bars
             from ehas_env.measurement.verdict import blocks_of
 
             verdict_bars(tmp / "verdict.png", blocks_of(res.full, res.sims_all, COST_SIGNALS), res.grade,
@@ -536,7 +536,7 @@ def diagnosis_doc(res, campaign_path, elapsed_s: float, effect_file=None) -> dic
     Parameters
     ----------
     res : OpenDiagnosis
-        The result of :func:`ehas_env.measurement.open_diagnosis.diagnose_open`.
+        The result of :func:`ehas_env.diagnosis.pipeline.diagnose_open`.
     campaign_path : str or Path
         The campaign diagnosed.
     elapsed_s : float
@@ -628,9 +628,9 @@ def next_command(args, campaign_path, effects: list[str], extra_path=None, measu
 
 def _findings_lines(res) -> list[str]:
     """Parameters that differ between runs, disturbances, and fitted parameters on a bound, in words."""
-    from ehas_env.measurement.disturbances import disturbance_lines
-    from ehas_env.measurement.drift import drift_lines
-    from ehas_env.measurement.honesty import at_bound_lines, at_bounds
+    from ehas_env.diagnosis.disturbances import disturbance_lines
+    from ehas_env.diagnosis.drift import drift_lines
+    from ehas_env.diagnosis.honesty import at_bound_lines, at_bounds
 
     return (drift_lines(res.drift, res.per_run) + disturbance_lines(res.disturbances)
             + at_bound_lines(at_bounds(res.fit_train, res.model.effects)))
@@ -656,7 +656,7 @@ def _model_text(res) -> str:
 
 def _validation_text(res) -> str:
     """Held-out runs: fit % and the noise figure of the final model on them alone."""
-    from ehas_env.measurement.diagnosis import COST_SIGNALS
+    from ehas_env.diagnosis.candidates import COST_SIGNALS
     from ehas_env.measurement.verdict import figure_text, noise_figure
 
     v = res.validation
@@ -680,7 +680,7 @@ def _argv() -> list[str]:
 def _ranking_text(d, rep) -> str:
     """One round's ranking; the recalibrated baseline's residual as the noise figure on the fit data ``rep``."""
     from ehas_env.cli.compare import _params_text
-    from ehas_env.measurement.diagnosis import COST_SIGNALS
+    from ehas_env.diagnosis.candidates import COST_SIGNALS
     from ehas_env.measurement.verdict import figure_text, noise_figure
 
     base = f" on top of {', '.join(d.base_effects)}" if d.base_effects else ""
@@ -712,7 +712,7 @@ def demo_section(outdir: Path) -> str:
     from ehas_env.measurement.campaign import read_campaign
     from ehas_env.measurement.synthetic import write_simulated_campaign
     from ehas_env.cli.compare import write_report
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
     from ehas_env.output.files import atomic_write_text
     from ehas_env.simulation.model_file import save_model
 
@@ -745,8 +745,8 @@ def demo_section(outdir: Path) -> str:
                                 "fit_percent_after": round(d.top.fit.table.overall, 2)})
     write_report(diag_dir, rep, sims, tables, campaign=campaign, command=diag_cmd, after_label=label,
                  after_model=model, fitted=True, diagnosis=d, title="Diagnosis")
-    from ehas_env.measurement.diagnosis import COST_SIGNALS
-    from ehas_env.measurement.diagnosis_plots import verdict_bars
+    from ehas_env.diagnosis.candidates import COST_SIGNALS
+    from ehas_env.diagnosis.plots import verdict_bars
     from ehas_env.measurement.verdict import blocks_of, figure_text
 
     verdict_bars(diag_dir / "verdict.png", blocks_of(res.full, res.sims_all, COST_SIGNALS), res.grade)

@@ -1,7 +1,7 @@
 """``ehas plan-test DIAGNOSIS.json --out PLAN.json``: the runs that decide between explanations a campaign cannot
 tell apart.
 
-The design is :mod:`ehas_env.measurement.experiment_design`; the alternatives come from
+The design is :mod:`ehas_env.diagnosis.experiment_design`; the alternatives come from
 the diagnosis JSON (``ehas diagnose --json``, key ``alternatives``), the
 controller, supply and noise levels from the campaign it names.
 """
@@ -28,7 +28,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from ehas_env.measurement.campaign import read_campaign
-    from ehas_env.measurement.experiment_design import Envelope, check_plan, plan_test, read_diagnosis, rig_model
+    from ehas_env.diagnosis.experiment_design import Envelope, check_plan, plan_test, read_diagnosis, rig_model
     from ehas_env.output.files import atomic_write_text
     from ehas_env.output.outputs import check_file, check_not_input
     from ehas_env.output.progress import status, working

@@ -212,7 +212,7 @@ def held_out(doc: dict) -> list[str]:
 
 
 def _role(run: str, held: list[str]) -> str:
-    from ehas_env.measurement.diagnosis_plots import HELD_OUT
+    from ehas_env.diagnosis.plots import HELD_OUT
 
     return HELD_OUT if run in held else "fitted"
 
@@ -320,7 +320,7 @@ def _alternatives(page, alts: list, held: list[str], title: str, intro: str) -> 
 
 def _validation(page, doc: dict, held: list[str]) -> None:
     """Which runs were fitted and which held out for validation, and how the model does on the held-out ones."""
-    from ehas_env.measurement.diagnosis_plots import HELD_OUT
+    from ehas_env.diagnosis.plots import HELD_OUT
 
     page.heading("Validation: the runs held out")
     v = doc.get("validation") if isinstance(doc.get("validation"), dict) else None

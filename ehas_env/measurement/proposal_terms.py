@@ -1,6 +1,6 @@
 """The dictionary of candidate terms a diagnosis may propose, at the places where physics enters the model.
 
-When no effect of the library explains a campaign, :mod:`ehas_env.measurement.proposal`
+When no effect of the library explains a campaign, :mod:`ehas_env.diagnosis.proposal`
 fits terms of this dictionary inside the full model.  Each place of the model
 (``ehas_env.physics.effects.base.PLACES``) gets one term class whose
 parameters are the coefficients of physically meaningful forms:

@@ -201,7 +201,7 @@ class Replayer:
     inputs : dict, optional
         Measured inputs: {run name: {quantity: series at the run's samples, in the quantity's unit}}, the only
         quantity today ``p_s_bar`` (the supply pressure, bar), cleared of its noise by
-        :func:`ehas_env.measurement.measured_inputs.measured` (which makes such a replayer).  A run given one is
+        :func:`ehas_env.diagnosis.measured_inputs.measured` (which makes such a replayer).  A run given one is
         replayed with it instead of the sidecar's constant ``supply_bar`` (a closed-loop run's control period at
         its mid-point value, the bench's sample at its own), starting at rest at it, and the quantity is no longer
         an output compared.  None (default): every run at its sidecar's supply.

@@ -56,7 +56,7 @@ BLOCK_EXPLAINED_X = 3.0
 UNEXPLAINED_X = 3.0
 BLOCK_UNEXPLAINED_X = 8.0
 MIN_CYCLES = 2  # steady cycles a run needs to have its own floor
-SETTLE_CYCLES = 1.0  # cycles after the ramp the disturbance search leaves out (measurement.disturbances)
+SETTLE_CYCLES = 1.0  # cycles after the ramp the disturbance search leaves out (diagnosis.disturbances)
 
 #: the former verdict, on the residual in sensor-noise variances (kept as the floor of non-periodic runs'
 #: meaning): explained below VERDICT_X overall, VERDICT_RUN_X in one run (docs/measurement-format.md)

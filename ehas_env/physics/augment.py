@@ -24,7 +24,7 @@ kind's state there:
 They are effects (``kind = "hypothesis"``: they live only in the model with the hypotheses, never in an
 environment's), registered when :mod:`ehas_env.physics.effects` is imported; they live outside that package, so
 neither the library fit nor the structural-hypothesis stage tries them: the state stage
-(:mod:`ehas_env.measurement.state_search`) does, place by place (:func:`augmentations`).
+(:mod:`ehas_env.diagnosis.states`) does, place by place (:func:`augmentations`).
 
 A follower at a place whose signal has a rate in the model keeps the error between what it passes on and what
 comes (0 at rest, whatever the position or pressure a run starts from); at the coil it keeps the current itself
@@ -71,7 +71,7 @@ class Augmentation(Effect):
 
     kind = "hypothesis"
     #: screened also from its defaults (nearly no effect) when a kept effect re-opened beta or K
-    #: (:func:`ehas_env.measurement.diagnosis.screen_candidate`): a state may add what that number took over
+    #: (:func:`ehas_env.diagnosis.candidates.screen_candidate`): a state may add what that number took over
     screen_from_defaults: ClassVar[bool] = True
     #: the kind, in words ("a first-order lag")
     form: ClassVar[str] = ""

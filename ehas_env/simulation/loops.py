@@ -96,7 +96,7 @@ def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, 
     every period (layout ``OUT_NAMES``).  ``supply`` (Pa, one per period; left out:
     the model's own) is a measured supply pressure: period k runs at supply[k], the
     supply state and the supply the model caps pressures at both set to it
-    (ehas_env.measurement.measured_inputs; P itself is not changed).
+    (ehas_env.diagnosis.measured_inputs; P itself is not changed).
     """
     if supply is not None:
         P = P.copy()

@@ -242,11 +242,11 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
 #: a missed effect is below what the data resolve when no effect of its kinds, fitted by hand on top of what the
 #: diagnosis kept, removes this share of the residual's excess over 1 (in the verdict's floors, nor in sensor-noise
 #: variances): the share a structural hypothesis must remove to be kept on an explained campaign
-#: (ehas_env.measurement.diagnosis.QUIET_HYPOTHESIS_SHARE, the rule the diagnosis itself applies) ...
+#: (ehas_env.diagnosis.candidates.QUIET_HYPOTHESIS_SHARE, the rule the diagnosis itself applies) ...
 RESOLVE_SHARE = 0.5
 #: ... or when, removing it, the fit does not clear the evidence every effect must show to be kept: the score
 #: 10 log10(J_before / J_after) in sensor-noise variances, less RESOLVE_PENALTY_DB per fitted parameter, of at
-#: least RESOLVE_SCORE_DB (ehas_env.measurement.fitting.MIN_SCORE and PENALTY_PER_PARAM); effects fitted together
+#: least RESOLVE_SCORE_DB (ehas_env.diagnosis.fitting.MIN_SCORE and PENALTY_PER_PARAM); effects fitted together
 #: must clear it together, and each on top of the others fitted alone (the rule of diagnosis._pair_hypotheses)
 RESOLVE_SCORE_DB = 0.3
 RESOLVE_PENALTY_DB = 0.2

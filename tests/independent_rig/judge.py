@@ -112,7 +112,7 @@ FORM_KIND.update({
 #: coefficients that act on a boundary of the lands rather than on the chambers' flows
 COEF_PLACE = {"c_sup": "supply", "c_rsup": "supply", "c_rsup2": "supply", "c_ret": "return"}
 
-#: the named physical forms (the proposal's ``named[].form``, helper B's ehas_env/measurement/naming.py FORMS as
+#: the named physical forms (the proposal's ``named[].form``, helper B's ehas_env/diagnosis/naming.py FORMS as
 #: listed in /tmp/helpers/B-forms.txt), each judged here by its law: the kinds it stands for
 NAMED_FORM_KIND = {
     "piston_force.coulomb": {"friction"}, "piston_force.viscous": {"friction"},

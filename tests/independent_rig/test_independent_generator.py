@@ -63,7 +63,7 @@ def test_the_out_of_library_effects_are_not_in_the_library():
 
 def test_judge_maps_every_proposal_form():
     """Every form the proposal can name (ehas's dictionary) has a kind; a right and a wrong naming."""
-    from ehas_env.measurement.proposal import FORMS
+    from ehas_env.diagnosis.proposal import FORMS
 
     assert {k.replace("proposal_", "") for k in FORMS} == set(FORM_KIND)
     right = judge({"crank_unbalance": {"G": 25}}, [{"label": "crank_torque.c_th", "kinds": ["load"]}])

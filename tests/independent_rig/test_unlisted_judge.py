@@ -215,7 +215,7 @@ def test_the_harness_summary_counts_each_figure_against_the_issues_thresholds():
 
 
 def test_every_form_the_package_can_name_is_judged_here():
-    FORMS = pytest.importorskip("ehas_env.measurement.naming").FORMS  # the naming step (issue 33, item 1)
+    FORMS = pytest.importorskip("ehas_env.diagnosis.naming").FORMS  # the naming step (issue 33, item 1)
     keys = list(FORMS) if isinstance(FORMS, dict) else [f.key for f in FORMS]
     assert keys and not [k for k in keys if k not in NAMED_FORM_KIND]
 

@@ -213,7 +213,7 @@ def commit(path: Path | None = None) -> str:
 
 def record(name: str, folder: Path) -> dict:
     """A case's record from its diagnoses and plan in ``folder`` (first.json, plan.json, second.json)."""
-    from ehas_env.measurement.alternatives import prefers
+    from ehas_env.diagnosis.alternatives import prefers
 
     place, gen_effect, values, truth_names = CASES[name]
     d1 = json.loads((folder / "first.json").read_text())
@@ -307,7 +307,7 @@ def table(results: list[dict]) -> str:
 def _pair(r: dict) -> frozenset:
     """The explanations a first diagnosis could not tell apart: its alternatives within and the reported effects they
     stand for (those they are rivals of; all reported ones when none is)."""
-    from ehas_env.measurement.alternatives import rivals_of
+    from ehas_env.diagnosis.alternatives import rivals_of
 
     alts = set(r["first"]["alternatives"])
     rep = [e for e in r["first"]["reported"] if any(a in rivals_of(e) or e in rivals_of(a) for a in alts)]

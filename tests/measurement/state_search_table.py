@@ -70,9 +70,9 @@ def _compile_in_fresh_process(with_augmentations: bool) -> dict:
 
 def run_case(effect, params, seed) -> dict:
     from ehas_env.measurement.campaign import Campaign, validate_run
-    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, fit_null
-    from ehas_env.measurement.diagnosis_search import data_stage
-    from ehas_env.measurement.state_search import state_stage
+    from ehas_env.diagnosis.candidates import FIT_WINDOW_S, fit_null
+    from ehas_env.diagnosis.search import data_stage
+    from ehas_env.diagnosis.states import state_stage
     from ehas_env.measurement.synthetic import simulate_campaign
 
     runs, _ = simulate_campaign({effect: params} if effect else None, seed=seed, duration=3.5)
@@ -89,7 +89,7 @@ def table(rows: list, comp: dict | None) -> str:
              f"Regenerate: `{COMMAND}` (from the repository's root; about 10 min on 2 cores).", "",
              "Synthetic 5-run campaigns (the package's own model: a consistency table) with one generic "
              "augmentation hidden; the stage starts from the baseline's best fit and tries every augmentation "
-             "(`ehas_env/measurement/state_search.py`, `state_stage`).", "",
+             "(`ehas_env/diagnosis/states.py`, `state_stage`).", "",
              "| hidden | kept | fitted (95 %) | residual all data before -> after (x noise) | validation before -> "
              "after | stage s | in words |", "|---|---|---|---|---|---|---|"]
     for r in rows:

@@ -16,7 +16,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ehas_env.measurement.alternatives import (CONFUSABLE, cluster_differences, resolvable_db, rivals_of,
+from ehas_env.diagnosis.alternatives import (CONFUSABLE, cluster_differences, resolvable_db, rivals_of,
                                                 alternatives_text)
 from ehas_env.physics.effects import REGISTRY
 
@@ -70,7 +70,7 @@ def test_cluster_differences_measure_a_residual_of_twice_the_variance_as_3_dB():
 @pytest.fixture(scope="module")
 def coulomb():
     from ehas_env.measurement.campaign import Campaign, validate_run
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
     from ehas_env.measurement.synthetic import simulate_campaign
 
     runs, _ = simulate_campaign({"coulomb_friction": {"Fc": 400.0}}, seed=4, duration=2.0,
@@ -103,7 +103,7 @@ def test_one_supply_cannot_tell_coulomb_from_pressure_friction(coulomb):
 def test_a_run_at_another_supply_separates_them(coulomb):
     """(Slow: the diagnosis of the fixture.)  Replayed on a run at 120 bar, where P_A + P_B is about 120 bar, the pressure friction fitted at 220 bar is
     about half the Coulomb force: the per-run separation of that run is far above what the campaign resolved."""
-    from ehas_env.measurement.alternatives import per_run_db
+    from ehas_env.diagnosis.alternatives import per_run_db
     from ehas_env.measurement.campaign import Campaign, validate_run
     from ehas_env.measurement.replay import ModelSpec, Replayer
     from ehas_env.physics.rig import RigParams
@@ -126,7 +126,7 @@ def test_a_run_at_another_supply_separates_them(coulomb):
 
 
 def _alt(diff, resolvable, per_run):
-    from ehas_env.measurement.alternatives import Alternative
+    from ehas_env.diagnosis.alternatives import Alternative
 
     return Alternative(name="hyp_pressure_friction", in_place_of="coulomb_friction", params={"mu_p": 1.0}, ci95={},
                        score_difference_db=diff, resolvable_db=resolvable, model={}, reason="", per_run_db=per_run)
@@ -134,7 +134,7 @@ def _alt(diff, resolvable, per_run):
 
 def test_an_alternative_worse_by_3_dB_on_the_campaign_or_one_run_is_told_apart():
     """Residuals twice as large (J doubled) are told apart even when the clusters' spread widens the resolution."""
-    from ehas_env.measurement.alternatives import alternatives_text
+    from ehas_env.diagnosis.alternatives import alternatives_text
 
     assert _alt(0.1, 0.3, {"r1": 0.2, "r2": 2.9}).within
     assert not _alt(0.4, 0.3, {"r1": 0.2}).within  # beyond the resolution
@@ -148,7 +148,7 @@ def test_an_alternative_worse_by_3_dB_on_the_campaign_or_one_run_is_told_apart()
 def test_an_alternative_the_data_prefer_is_said_so():
     """The coil-lag case of results/test_plans: after the bench run at 210 bar the true coil lag fitted 5.7 dB better
     on that run than the transport delay reported; the logs prefer it, they do not 'fail to tell them apart'."""
-    from ehas_env.measurement.alternatives import alternatives_text, prefers
+    from ehas_env.diagnosis.alternatives import alternatives_text, prefers
 
     assert not prefers(-0.2, 0.3, {"r1": -0.4})  # within the resolution
     assert prefers(-0.5, 0.3, {"r1": -0.4})  # better by more than the logs resolve
@@ -262,7 +262,7 @@ def test_a_planned_runs_why_states_its_conditions_not_another_pairs_physics():
     """The why of an off-centre run at another supply says what the run changes (the angles it swings through, the
     chambers' volumes, the pressures), not the physics of one pair (an off-centre run decides a weight vs a spring as
     it decides an oil vs a mount); the pair's own reason (:data:`CONFUSABLE`) is what the plan adds to it."""
-    from ehas_env.measurement.experiment_design import chamber_ratio, why_text
+    from ehas_env.diagnosis.experiment_design import chamber_ratio, why_text
 
     meta = {"name": "plan_x", "kind": "closed_loop", "supply_bar": 150.0, "disc_sets": 4,
             "reference": {"amplitude_deg": 25.0, "freq_hz": 3.0, "offset_deg": 15.0}}
@@ -278,7 +278,7 @@ def test_a_pair_no_run_decides_alone_gets_the_plans_other_runs():
     that separates it by 1 dB is diluted among the campaign's runs (results/test_plans, coil_lag_faint: one bench
     run of 0.75 dB left the coil lag within), so the plan adds the pair's next-best runs up to its limits (at most
     4 runs, 30 s), each still separating it by MIN_SEPARATION_DB, and none for a pair decided by one run."""
-    from ehas_env.measurement.experiment_design import MAX_RUNS, MIN_SEPARATION_DB, Candidate, choose
+    from ehas_env.diagnosis.experiment_design import MAX_RUNS, MIN_SEPARATION_DB, Candidate, choose
 
     def cand(name, db_weak, db_strong=0.0):
         sep = {(0, 1): (10.0 ** (db_weak / 10.0) - 1.0, "p_a_bar"),

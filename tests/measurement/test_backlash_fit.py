@@ -14,7 +14,7 @@ import math
 
 import pytest
 
-from ehas_env.measurement.fitting import fit_range, scan_values
+from ehas_env.diagnosis.fitting import fit_range, scan_values
 
 
 def test_the_plays_scan_is_fine_enough_for_its_valley():
@@ -30,9 +30,9 @@ def test_the_plays_scan_is_fine_enough_for_its_valley():
 def test_the_play_of_an_independent_rig_is_found_as_well_as_from_the_truth(tmp_path):
     from independent_rig import campaign as gen
 
-    from ehas_env.measurement import diagnosis as D
+    from ehas_env.diagnosis import candidates as D
     from ehas_env.measurement.campaign import read_campaign
-    from ehas_env.measurement.fitting import fit, own_params
+    from ehas_env.diagnosis.fitting import fit, own_params
     from ehas_env.measurement.replay import Replayer
 
     truth = 1.5e-4  # m (0.15 mm): between the default scan's 1.08e-4 and 2.24e-4

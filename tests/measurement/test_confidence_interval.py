@@ -11,7 +11,7 @@ import math
 
 import pytest
 
-from ehas_env.measurement.fitting import FreeParam, interval
+from ehas_env.diagnosis.fitting import FreeParam, interval
 
 
 BETA = FreeParam(None, "beta", 1e8, 1e10, log=True)  # spans two decades: L = ln(100)

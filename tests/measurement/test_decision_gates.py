@@ -1,6 +1,6 @@
 """Every gate of the diagnosis' decision, each with its own test that fails when the gate is moved (issue 33).
 
-The gates (constants of ehas_env.measurement.fitting, keeping, diagnosis, verdict; the honesty rules have
+The gates (constants of ehas_env.diagnosis.fitting, keeping, diagnosis, verdict; the honesty rules have
 tests/measurement/test_honesty.py, the drift test tests/measurement/test_drift.py):
 
 ====================  ===========================================================================================
@@ -35,9 +35,9 @@ import math
 import numpy as np
 import pytest
 
-from ehas_env.measurement import diagnosis as D
-from ehas_env.measurement import fitting as F
-from ehas_env.measurement.keeping import agree
+from ehas_env.diagnosis import candidates as D
+from ehas_env.diagnosis import fitting as F
+from ehas_env.diagnosis.keeping import agree
 from ehas_env.measurement.verdict import Block, grade
 
 

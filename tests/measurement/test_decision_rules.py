@@ -4,7 +4,7 @@
   A rig with disturbances that do not repeat (several times the sensor noise) is explained by the true model
   (the former verdict, on the sensor noise, called it unexplained); a small structured difference (a
   simulator's numerics) raises no alarm; a structured residual of a missing effect does, whatever the noise.
-* keeping (ehas_env.measurement.keeping): estimates from separate groups of runs must agree within their
+* keeping (ehas_env.diagnosis.keeping): estimates from separate groups of runs must agree within their
   95 % intervals; one that drifts with the runs it is given stands in for something else.
 
 Small synthetic arrays only: no model is compiled.  Truth is analytic (a sine, white noise of known level).
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ehas_env.measurement.keeping import agree, run_groups
+from ehas_env.diagnosis.keeping import agree, run_groups
 from ehas_env.measurement.verdict import (
     VERDICT_X, Block, cycles, grade, overall_x, repeat_floor, split_block)
 
@@ -154,7 +154,7 @@ def test_run_groups_split_closed_loop_runs_and_keep_windows_together():
 def test_a_kept_hypothesis_is_written_as_a_physical_user_effect():
     """The effect file of a kept structural hypothesis: physical names and units, the fitted value as default,
     an ordinary (physical) effect under the file's name, the same physics as the library's hypothesis."""
-    from ehas_env.measurement.hypothesis_file import hypothesis_source
+    from ehas_env.diagnosis.hypothesis_file import hypothesis_source
     from ehas_env.physics.effects import REGISTRY, get_effect
 
     text = hypothesis_source("hyp_rod_area", {"d_area": 0.3}, "rig_rod_side", ci={"d_area": (0.29, 0.31)},
@@ -193,7 +193,7 @@ def test_when_the_structural_hypotheses_are_tried():
     a clean-looking campaign is left alone; a structured rest in floors, one in sensor-noise variances only, and a
     library effect that disagrees across groups of runs each start the search, judged in the measure that started
     it (a disagreeing library effect: as on an unexplained campaign)."""
-    from ehas_env.measurement.diagnosis import QUIET_HYPOTHESES_X, QUIET_SENSOR_X, hypotheses_trigger
+    from ehas_env.diagnosis.candidates import QUIET_HYPOTHESES_X, QUIET_SENSOR_X, hypotheses_trigger
 
     ok = {"verdict": "explained", "residual_x_noise": QUIET_HYPOTHESES_X - 0.01}
     assert hypotheses_trigger(ok, QUIET_SENSOR_X - 0.01, []) is None

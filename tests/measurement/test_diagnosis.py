@@ -20,7 +20,7 @@ import pytest
 from ehas_env.measurement.campaign import Campaign, read_campaign, validate_run
 from ehas_env.measurement.synthetic import simulate_campaign, write_simulated_campaign
 from ehas_env.cli.main import main
-from ehas_env.measurement.diagnosis import diagnose
+from ehas_env.diagnosis.candidates import diagnose
 from ehas_env.physics.effects import REGISTRY
 from ehas_env.simulation.model_file import load_model
 from ehas_env.simulation.plant import Plant
@@ -195,7 +195,7 @@ def test_compare_fit_raises_the_fit_writes_report_and_model(viscous_dir, tmp_pat
 def test_force_balance_reproduces_the_books_pure_inertia_loads():
     from conftest import read_book_csv
 
-    from ehas_env.measurement.book_rig_loads import balance_peak_loads, book_tests
+    from ehas_env.diagnosis.book_rig_loads import balance_peak_loads, book_tests
 
     book = read_book_csv("rig_tests.csv")  # independent truth: tests/data/book, not the package's copy
     base = balance_peak_loads({})
@@ -208,7 +208,7 @@ def test_force_balance_reproduces_the_books_pure_inertia_loads():
 
 
 def test_friction_explains_the_books_load_excess():
-    from ehas_env.measurement.book_rig_loads import analyse
+    from ehas_env.diagnosis.book_rig_loads import analyse
 
     res = analyse(progress=False)
     assert res["ranking"][0] in FRICTION
@@ -222,7 +222,7 @@ def test_friction_explains_the_books_load_excess():
 
 def test_an_effect_without_parameters_is_no_candidate():
     """Nothing to fit: named, it is refused in one line; 'all' passes over it."""
-    from ehas_env.measurement.diagnosis import resolve_candidates
+    from ehas_env.diagnosis.candidates import resolve_candidates
     from ehas_env.physics.effects.base import Effect
 
     class Fixed(Effect):

@@ -1,6 +1,6 @@
 """Open-world diagnosis (issue 12): effects the library lacks, an honest verdict, the missing term proposed.
 
-The out-of-library effects are user effect files (``ehas_env.measurement.acceptance.OOL``) written to a
+The out-of-library effects are user effect files (``ehas_env.diagnosis.acceptance.OOL``) written to a
 folder here; the campaigns are simulated in a subprocess that loads them and diagnosed in this process,
 which never loads them (they are not candidates, not even known).  Campaigns: beta +-5 %, K +-1 %, sensor
 noise and quantization.  The default run is kept cheap (short campaigns of three closed-loop runs, one
@@ -8,7 +8,7 @@ compiled model): the crank spring end to end (verdict, what the residual follows
 within 30 %, the effect file written), two clean campaigns and Coulomb friction in position-only logs.
 The slow sweeps (every out-of-library effect and magnitude, with ``ehas compare`` on the written effect
 file; 20 clean seeds, full and position only; pairs; confidence-interval coverage; long logs) call
-:mod:`ehas_env.measurement.acceptance`; with ``EHAS_ACCEPTANCE_OUT=DIR`` they write its figures there.
+:mod:`ehas_env.diagnosis.acceptance`; with ``EHAS_ACCEPTANCE_OUT=DIR`` they write its figures there.
 """
 from __future__ import annotations
 
@@ -19,9 +19,9 @@ import sys
 
 import pytest
 
-from ehas_env.measurement import acceptance as A
-from ehas_env.measurement.acceptance import OOL_CASES, SEED, memory_campaign
-from ehas_env.measurement.open_diagnosis import diagnose_open
+from ehas_env.diagnosis import acceptance as A
+from ehas_env.diagnosis.acceptance import OOL_CASES, SEED, memory_campaign
+from ehas_env.diagnosis.pipeline import diagnose_open
 
 #: the default run's campaigns: three closed-loop runs of 2 s (the valve chirp and a fourth sine only in the slow
 #: sweeps)
@@ -213,7 +213,7 @@ def test_confidence_intervals_cover_the_truth():
 @pytest.mark.slow
 def test_long_logs_give_the_same_answer():
     """30 s runs instead of 3 s: the same model, Fc at least as close. The times are figures of
-    ``python -m ehas_env.measurement.acceptance --parts time`` (results/diagnosis_acceptance), not asserted."""
+    ``python -m ehas_env.diagnosis.acceptance --parts time`` (results/diagnosis_acceptance), not asserted."""
     r = A.run_time(repeats=1)
     A.save_part(A.env_out(), "time", r, CMD)
     print(f"\n{r}")
@@ -227,7 +227,7 @@ def test_effects_path_effects_are_candidates_on_the_command_line(ool_dir):
     code = ("import sys, json\n"
             "from ehas_env.physics.effects import load_effects_path\n"
             "load_effects_path(sys.argv[1])\n"
-            "from ehas_env.measurement.diagnosis import library_effects, resolve_candidates\n"
+            "from ehas_env.diagnosis.candidates import library_effects, resolve_candidates\n"
             "print(json.dumps([resolve_candidates('', [sys.argv[1]]), resolve_candidates(''), library_effects(),\n"
             "                  resolve_candidates('library', [sys.argv[1]])]))\n")
     r = subprocess.run([sys.executable, "-c", code, str(ool_dir)], capture_output=True, text=True, check=True)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from ehas_env.measurement.open_diagnosis import STAGES, diagnose_open
+from ehas_env.diagnosis.pipeline import STAGES, diagnose_open
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "diagnosis-pipeline.md"
 
@@ -46,7 +46,7 @@ def test_the_documented_example_runs_and_a_stage_of_ones_own_is_recorded():
 
 
 def test_without_the_measure_stage_the_diagnosis_refuses_in_one_line():
-    from ehas_env.measurement.acceptance import SEED, memory_campaign
+    from ehas_env.diagnosis.acceptance import SEED, memory_campaign
 
     camp = memory_campaign({}, SEED, duration=0.6, plan=((3, 20.0, 1.0),))[0]
     with pytest.raises(ValueError, match="'measure' stage"):

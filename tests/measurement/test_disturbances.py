@@ -1,4 +1,4 @@
-"""Measured disturbances (ehas_env.measurement.disturbances, issue 33 item 4).
+"""Measured disturbances (ehas_env.diagnosis.disturbances, issue 33 item 4).
 
 Truth is analytic: sines of known frequency and amplitude in white noise, and a campaign of the package's
 simulator whose logged supply pressure (and chamber pressures) carry a pump's ripple at a frequency unrelated to
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ehas_env.measurement.disturbances import spectral_lines
+from ehas_env.diagnosis.disturbances import spectral_lines
 
 DT = 1e-3
 T = np.arange(0.0, 3.0, DT)
@@ -70,7 +70,7 @@ def test_a_supply_ripple_is_reported_as_a_measured_disturbance():
     (after the ramp and a settling cycle, the 1 Hz run keeps 2 s: bins of 0.5 Hz, 23.6 Hz told from 24), replayed
     with the rig's own model (viscous friction 4000 N s/m): reported with its frequency, amplitude and unit,
     strongest in p_s_bar, a disturbance of the supply the model holds constant, seen in the chambers too."""
-    from ehas_env.measurement.disturbances import disturbances
+    from ehas_env.diagnosis.disturbances import disturbances
     from ehas_env.measurement.replay import ModelSpec, Replayer
 
     rep = Replayer(_rippled_campaign())
@@ -80,7 +80,7 @@ def test_a_supply_ripple_is_reported_as_a_measured_disturbance():
 @pytest.mark.slow  # a diagnosis: 20-40 s on two cores
 def test_the_diagnosis_reports_the_ripple():
     """The same campaign diagnosed (viscous friction the only candidate): the JSON's disturbances say it."""
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
 
     res = diagnose_open(_rippled_campaign(), candidates=["viscous_friction"], stack=False, hypotheses=False,
                         holdout=[], per_run=False, propose=False)

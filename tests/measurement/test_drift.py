@@ -1,4 +1,4 @@
-"""Parameters that change between runs (ehas_env.measurement.drift, issue 33 item 3).
+"""Parameters that change between runs (ehas_env.diagnosis.drift, issue 33 item 3).
 
 * the statistics on tables of per-run estimates with known truth: a straight rise is found with its size and
   what it follows; estimates scattered within their intervals raise no alarm (false-alarm rate at most the
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ehas_env.measurement import drift as DR
+from ehas_env.diagnosis import drift as DR
 from ehas_env.measurement.campaign import Campaign, validate_run
 
 #: recording order decorrelated from the settings (disc sets, amplitude, frequency): rank correlations 0.1-0.3
@@ -129,8 +129,8 @@ def _campaign(schedule, effects, seed, n_runs=4):
 
 
 def _stage(camp, start_fc):
-    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, windowed
-    from ehas_env.measurement.fitting import fit, own_params, recal_params
+    from ehas_env.diagnosis.candidates import FIT_WINDOW_S, windowed
+    from ehas_env.diagnosis.fitting import fit, own_params, recal_params
     from ehas_env.measurement.replay import ModelSpec, Replayer
 
     rep = Replayer(windowed(camp))
@@ -170,8 +170,8 @@ def test_no_drift_on_ten_steady_campaigns():
     test of drift.TREND_RUNS applies too) whose parameters do not change (Coulomb
     friction 350 N, beta and K perturbed once per campaign), the friction refitted per run and viscous friction
     (not there) refitted per run as an effect judged but not kept: no drift reported on any."""
-    from ehas_env.measurement.diagnosis import FIT_WINDOW_S, windowed
-    from ehas_env.measurement.fitting import fit, own_params, recal_params
+    from ehas_env.diagnosis.candidates import FIT_WINDOW_S, windowed
+    from ehas_env.diagnosis.fitting import fit, own_params, recal_params
     from ehas_env.measurement.replay import ModelSpec, Replayer
 
     alarms = []
@@ -196,7 +196,7 @@ def test_a_drift_along_a_setting_is_worded_along_that_setting_not_the_runs_order
     """A parameter that rises with the amplitude while, in file order, it falls (the amplitudes were run 30, 20,
     10 deg): the words say 'rises ... as amplitude (deg) goes from 10 to 30', never 'from the first run to the last'
     (which read as a rise in file order where the values fall)."""
-    from ehas_env.measurement.drift import drift_text, relate
+    from ehas_env.diagnosis.drift import drift_text, relate
 
     vals = [105.0, 100.0, 95.0]
     rel = relate(vals, [(v - 1.0, v + 1.0) for v in vals], {"amplitude (deg)": [30.0, 20.0, 10.0]})

@@ -1,4 +1,4 @@
-"""A health trend over campaigns (ehas_env.measurement.health; ``ehas diagnose CAMP1 CAMP2 ...``, issue 33).
+"""A health trend over campaigns (ehas_env.diagnosis.health; ``ehas diagnose CAMP1 CAMP2 ...``, issue 33).
 
 The statistics on tables with known truth, and the command line end to end on two short campaigns of the
 package's simulator recorded "weeks apart": Coulomb friction 300 N, then 600 N.
@@ -11,7 +11,7 @@ import sys
 
 import pytest
 
-from ehas_env.measurement.health import trend, trend_text
+from ehas_env.diagnosis.health import trend, trend_text
 
 
 def _row(effect, param, v, half, unit="N"):

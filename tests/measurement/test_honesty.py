@@ -1,4 +1,4 @@
-"""The diagnosis' honesty rules (ehas_env.measurement.honesty, issue 33), each on a case built to break it.
+"""The diagnosis' honesty rules (ehas_env.diagnosis.honesty, issue 33), each on a case built to break it.
 
 1. a proposed term whose refit removes less than 10 % of the residual's excess over the noise is neither written
    nor recommended: the diagnosis says where the residual is, what it follows, and that no term was found;
@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import pytest
 
-from ehas_env.measurement import diagnosis as D
-from ehas_env.measurement import diagnosis_search as S
-from ehas_env.measurement import open_diagnosis as O
-from ehas_env.measurement import honesty as H
-from ehas_env.measurement.acceptance import SEED, memory_campaign
+from ehas_env.diagnosis import candidates as D
+from ehas_env.diagnosis import search as S
+from ehas_env.diagnosis import pipeline as O
+from ehas_env.diagnosis import honesty as H
+from ehas_env.diagnosis.acceptance import SEED, memory_campaign
 
 PLAN = ((3, 20.0, 1.0), (7, 10.0, 3.0))
 
@@ -45,8 +45,8 @@ class _NoGain:
         self.gain_model = gain_model
 
     def __call__(self, rep, base, *, confidence=None, **kw):
-        from ehas_env.measurement.fitting import Fit
-        from ehas_env.measurement.proposal import Proposal
+        from ehas_env.diagnosis.fitting import Fit
+        from ehas_env.diagnosis.proposal import Proposal
 
         fit = base
         if self.gain_model is not None:  # a term that removes the residual: the true model
@@ -91,7 +91,7 @@ def test_hypotheses_that_make_the_all_data_residual_worse_are_not_kept(friction_
     """keep_no_worse: the 'hypothesis' model (a chamber-B area 0.6 of A's on this symmetric rig) leaves a worse
     all-data residual than the bare model (the true friction): the bare model comes back, every step since is
     said not kept, and a step dropped since (as a stand-in) is kept again."""
-    from ehas_env.measurement.fitting import Fit
+    from ehas_env.diagnosis.fitting import Fit
     from ehas_env.measurement.replay import ModelSpec, Replayer
     from ehas_env.measurement.verdict import blocks_of, grade
 
@@ -143,7 +143,7 @@ def test_a_fit_on_the_end_of_its_range_says_so():
     else:
         assert ends[fp.name]["end"] == fp.end(v) and "sits at the" in ends[fp.name]["text"]
     # a fit in the middle of its range is not listed
-    from ehas_env.measurement.fitting import Fit, FreeParam
+    from ehas_env.diagnosis.fitting import Fit, FreeParam
     from ehas_env.measurement.replay import ModelSpec
 
     free = [FreeParam("coulomb_friction", "Fc", 100.0, 1000.0, False)]

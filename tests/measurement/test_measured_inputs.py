@@ -1,5 +1,5 @@
 """The logged supply pressure as a measured input of the replay, and the diagnosis' stage that uses it
-(ehas_env.measurement.measured_inputs, issue 33 item 4).
+(ehas_env.diagnosis.measured_inputs, issue 33 item 4).
 
 Truth:
 - invariants: a constant logged supply equal to the sidecar's leaves the replay as it is (to 1e-9); a constant
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from ehas_env.measurement.campaign import Campaign, validate_run
-from ehas_env.measurement.fitting import fit, recal_params, start_value
-from ehas_env.measurement.measured_inputs import (LINE_MARGIN, MIN_CUTOFF_HZ, cutoff_hz, input_names, measured,
+from ehas_env.diagnosis.fitting import fit, recal_params, start_value
+from ehas_env.diagnosis.measured_inputs import (LINE_MARGIN, MIN_CUTOFF_HZ, cutoff_hz, input_names, measured,
                                                   measured_input_stage, smoothed)
 from ehas_env.measurement.replay import ModelSpec, Replayer
 
@@ -192,8 +192,8 @@ def test_a_line_in_the_supply_log_alone_is_tried_and_refused(clean_runs):
 def test_the_docs_state_the_numbers_the_code_uses():
     from pathlib import Path
 
-    import ehas_env.measurement.measured_inputs as mi
-    from ehas_env.measurement.honesty import TERM_SHARE
+    import ehas_env.diagnosis.measured_inputs as mi
+    from ehas_env.diagnosis.honesty import TERM_SHARE
 
     doc = " ".join((Path(__file__).parents[2] / "docs" / "measurement-format.md").read_text(encoding="utf-8").split())
     words = {2.0: "twice", 4: "4th-order"}

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ehas_env.measurement import naming as N
-from ehas_env.measurement.honesty import TERM_SHARE
+from ehas_env.diagnosis import naming as N
+from ehas_env.diagnosis.honesty import TERM_SHARE
 
 PISTON = "proposal_piston_force"
 R, H = 0.05, 0.035
@@ -140,7 +140,7 @@ def test_keeps_share_is_a_share_of_the_excess_over_noise():
 
 
 def test_every_form_has_a_kind_a_place_units_and_words_beside_it():
-    from ehas_env.measurement.proposal import FORMS as TERM_FORMS
+    from ehas_env.diagnosis.proposal import FORMS as TERM_FORMS
     from ehas_env.measurement.proposal_terms import term_param
 
     places = set()

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from ehas_env.cli.main import main
-from ehas_env.measurement.acceptance import SEED
+from ehas_env.diagnosis.acceptance import SEED
 from ehas_env.measurement.campaign import write_campaign
 from ehas_env.measurement.synthetic import simulate_campaign
 

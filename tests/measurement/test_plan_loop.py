@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from ehas_env.measurement.alternatives import rivals_of
+from ehas_env.diagnosis.alternatives import rivals_of
 from ehas_env.physics.effects import REGISTRY
 from tests.independent_rig.effects import ALL
 from tests.measurement.alternatives_spurious import spurious

@@ -20,14 +20,14 @@ import pytest
 from ehas_env.cli.main import main
 from ehas_env.measurement.campaign import read_campaign, write_campaign
 from ehas_env.measurement.synthetic import simulate_campaign
-from ehas_env.measurement.experiment_design import (Envelope, chamber_ratio, check_plan, plan_test, read_diagnosis)
+from ehas_env.diagnosis.experiment_design import (Envelope, chamber_ratio, check_plan, plan_test, read_diagnosis)
 
 SUPPLY = 220.0
 SMALL = Envelope(disc_sets=(1, 7), amplitudes_deg=(25.0,), freqs_hz=(3.0,), valve_supply_bar=(140.0,))
 
 
 def inside_the_rig(run: dict) -> bool:
-    """docs/rig.md's limits, written out independently of ehas_env.measurement.experiment_design."""
+    """docs/rig.md's limits, written out independently of ehas_env.diagnosis.experiment_design."""
     if run["kind"] == "valve_open_loop":
         ex = run["excitation"]
         return ex["type"] == "chirp" and 0 < ex["amplitude_mA"] <= 20.0 and 0 < run["supply_bar"] <= 250.0
@@ -86,7 +86,7 @@ def test_the_refit_can_only_lower_the_separation(plan, diagnosis):
     """The separation left after refitting within the intervals is at most the plain difference of the two models'
     predictions, simulated here with the plant itself (not the replay the plan used), and that difference is there."""
     from ehas_env.measurement.replay import COST_SIGNALS
-    from ehas_env.measurement.experiment_design import campaign_noise
+    from ehas_env.diagnosis.experiment_design import campaign_noise
     from ehas_env.physics.rig import RigParams
     from ehas_env.simulation.plant import Plant, RigController
     from ehas_env.simulation.reference import SineReference
@@ -168,7 +168,7 @@ def test_a_run_near_the_tank_or_the_supply_pressure_is_left_out():
     """The entrained-air case of results/test_plans: at 150 bar supply a chamber fell to 3.7 bar, where the true rig's
     air parted from both models; 10 % of the supply is kept clear above the tank, and no chamber may rise above the
     supply."""
-    from ehas_env.measurement.experiment_design import pressure_limit
+    from ehas_env.diagnosis.experiment_design import pressure_limit
 
     ok = {"p_a_bar": np.array([20.0, 75.0, 130.0]), "p_b_bar": np.array([130.0, 75.0, 20.0])}
     assert pressure_limit(150.0, [ok], 0.1) is None
@@ -253,7 +253,7 @@ def test_the_rig_of_the_diagnosis_must_be_the_one_planned_on(diagnosis, tmp_path
 
 
 def test_a_plan_on_a_model_files_rig_stays_inside_that_rig(diagnosis):
-    from ehas_env.measurement.experiment_design import rig_model
+    from ehas_env.diagnosis.experiment_design import rig_model
     from ehas_env.simulation.model_file import load_model
 
     doc, exps = read_diagnosis(diagnosis)

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 
 import pytest
 
-import ehas_env.measurement.diagnosis as D
+import ehas_env.diagnosis.candidates as D
 from ehas_env.measurement.replay import ModelSpec
 
 

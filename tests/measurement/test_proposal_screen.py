@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ehas_env.measurement import proposal as P
+from ehas_env.diagnosis import proposal as P
 from ehas_env.measurement.replay import ModelSpec, Replayer
 from tests.measurement.test_replay import HIDDEN, campaign
 

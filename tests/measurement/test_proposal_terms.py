@@ -54,7 +54,7 @@ def test_the_effect_file_of_new_forms_has_its_place_and_side():
     sits at position_reading; both compile."""
     import ast
 
-    from ehas_env.measurement.proposal import Proposal, effect_source
+    from ehas_env.diagnosis.proposal import Proposal, effect_source
 
     def prop(terms):
         return Proposal(terms=terms, ci={}, cost_before=4.0, cost_after=1.5, fit_before=80.0, fit_after=95.0, fit=None)

@@ -1,13 +1,13 @@
-"""The state stage (ehas_env.measurement.state_search): its gates, and the augmentation it keeps on campaigns
+"""The state stage (ehas_env.diagnosis.states): its gates, and the augmentation it keeps on campaigns
 simulated with one (the package's synthetic campaign writer: a consistency test) and on a clean campaign."""
 from __future__ import annotations
 
 import pytest
 
 from ehas_env.measurement.campaign import Campaign, validate_run
-from ehas_env.measurement.diagnosis import FIT_WINDOW_S, fit_null
-from ehas_env.measurement.diagnosis_search import data_stage
-from ehas_env.measurement.state_search import judge, state_stage
+from ehas_env.diagnosis.candidates import FIT_WINDOW_S, fit_null
+from ehas_env.diagnosis.search import data_stage
+from ehas_env.diagnosis.states import judge, state_stage
 from ehas_env.measurement.synthetic import simulate_campaign
 
 #: what the stage tries in these tests: a lag at each of its two places and a link at each of its two (the hoses
@@ -74,7 +74,7 @@ def test_a_state_that_fails_on_top_of_its_stand_in_is_kept_in_its_place():
     """A campaign simulated with a rate-limited coil current (the package's synthetic writer): a transport delay
     fitted first stands in for it.  The stage keeps the rate limit -- on top of the delay when that passes the
     gates, else in its place (``in_place_of``) with the delay gone -- and finds S."""
-    from ehas_env.measurement.diagnosis import fit_candidate
+    from ehas_env.diagnosis.candidates import fit_candidate
 
     s, null = _search({"aug_slew_coil": {"S": 250.0}}, 3308)
     delayed = fit_candidate(s.rep, "transport_delay", null)
@@ -88,7 +88,7 @@ def test_a_state_that_fails_on_top_of_its_stand_in_is_kept_in_its_place():
 
 @pytest.mark.slow
 def test_refit_without_refits_the_model_without_the_effect():
-    from ehas_env.measurement.diagnosis import fit_candidate, refit_without
+    from ehas_env.diagnosis.candidates import fit_candidate, refit_without
 
     s, null = _search({"aug_slew_coil": {"S": 250.0}}, 3308)
     both = fit_candidate(s.rep, "aug_slew_coil", fit_candidate(s.rep, "transport_delay", null),
@@ -105,7 +105,7 @@ def test_a_state_behind_a_stand_in_is_found_on_the_model_without_it():
     over part of the lines' compliance first.  Screened on that model alone the hoses do not fit (what they add
     the bulk modulus holds); screened also on the model without it (``bare``) they are kept in its place, with
     their volume and resistance near the campaign's."""
-    from ehas_env.measurement.diagnosis import fit_candidate
+    from ehas_env.diagnosis.candidates import fit_candidate
 
     s, null = _search({"aug_hose_ab": {"V_line": 15.0, "R_line": 0.2}}, 3309)
     soft = fit_candidate(s.rep, "bulk_modulus", null)
@@ -123,7 +123,7 @@ def test_a_reading_state_is_tried_only_where_that_reading_misses():
     on its own campaign) it is skipped with the reason; a reading the model misses is tried; the position sensor,
     whose reading the loop feeds back, is always tried."""
     from ehas_env.measurement.replay import ModelSpec, Replayer
-    from ehas_env.measurement.state_search import _quiet_reading
+    from ehas_env.diagnosis.states import _quiet_reading
     from ehas_env.physics.effects import get_effect
 
     runs, truth = simulate_campaign({"aug_lag_pb_reading": {"T": 15.0}}, seed=3310, duration=3.0, perturb=False)

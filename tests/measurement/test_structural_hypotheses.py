@@ -10,7 +10,7 @@ from __future__ import annotations
 import pytest
 
 from ehas_env.measurement.campaign import Campaign, validate_run
-from ehas_env.measurement.open_diagnosis import diagnose_open
+from ehas_env.diagnosis.pipeline import diagnose_open
 from ehas_env.measurement.synthetic import simulate_campaign
 
 PLAN = ((3, 20.0, 1.0), (5, 30.0, 2.0), (1, 35.0, 3.0), (7, 10.0, 3.0))

@@ -199,7 +199,7 @@ def diagnosis_doc() -> dict:
 
 
 def _verdict_png(folder: Path, held=(HELD,)) -> Path:
-    from ehas_env.measurement.diagnosis_plots import verdict_bars
+    from ehas_env.diagnosis.plots import verdict_bars
     from ehas_env.measurement.verdict import Block, grade
 
     blocks = [Block(r, s, x, 1.0, 500, True) for r, x in (("cl_1set_35deg_3hz", 1.1), (HELD, 1.4))
@@ -435,7 +435,7 @@ def test_every_figure_title_and_label_lies_inside_the_figure_and_names_the_held_
     """Long run names and model labels, two closed-loop runs (the load-velocity figure is narrow: its long
     title was cut at both sides); the held-out run is marked in every figure that shows it.  Measured at the
     resolution each figure is saved at."""
-    from ehas_env.measurement import diagnosis_plots as plots
+    from ehas_env.diagnosis import plots as plots
     from ehas_env.output.plots import plot_run
 
     rep, sims = _fake_runs(2)
@@ -481,7 +481,7 @@ def test_the_page_renders_in_headless_chromium(tmp_path):
 
     from ehas_env.cli.report import build_page
 
-    from ehas_env.measurement import diagnosis_plots as plots
+    from ehas_env.diagnosis import plots as plots
 
     doc = diagnosis_doc()
     folder = make_folder(tmp_path, doc, "diag")

@@ -29,7 +29,7 @@ for _mod in sorted(m.name for m in pkgutil.iter_modules(__path__)):
         importlib.import_module(f"{__name__}.{_mod}")
 
 # the generic state augmentations (one class per kind, a subclass per place): outside this package, tried by the
-# diagnosis' state stage only (ehas_env.measurement.state_search)
+# diagnosis' state stage only (ehas_env.diagnosis.states)
 importlib.import_module("ehas_env.physics.augment")
 
 from ehas_env.physics.effects.loading import load_effects_path, load_external_effects  # noqa: E402

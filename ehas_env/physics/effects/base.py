@@ -242,7 +242,7 @@ class Effect:
     #: quantities only (:data:`VALVE_SIDE_QUANTITIES`).
     valve_side: ClassVar[bool] = False
     #: values of the main parameter the diagnosis' scan tries before it fits (0: the fit's default,
-    #: ehas_env.measurement.fitting.SCAN_POINTS): a cost whose valley is narrower than the default scan's
+    #: ehas_env.diagnosis.fitting.SCAN_POINTS): a cost whose valley is narrower than the default scan's
     #: spacing (the play of a joint) needs a finer scan, or the fit starts beside the valley
     scan_points: ClassVar[int] = 0
 

@@ -1,6 +1,6 @@
 """Naming a flexible term: the few physical forms (laws with units) that keep most of what it explains.
 
-:func:`ehas_env.measurement.proposal.propose` finds *where* the model lacks a term (the place of its best
+:func:`ehas_env.diagnosis.proposal.propose` finds *where* the model lacks a term (the place of its best
 sparse terms).  There, every coefficient of that place's term class
 (:mod:`ehas_env.measurement.proposal_terms`) is fitted together inside the full model: the **flexible term**,
 a function of the place's local quantities (position, velocity, pressures, flows, current, their signs and
@@ -8,13 +8,13 @@ products).  This module then **names** it: among the physical forms of :data:`FO
 place, kind, law, words and the coefficients it sets), it selects the sparse set of one or two forms that keeps
 most of the flexible term's gain, by the evidence score the proposal uses (10 log10 of the residual ratio less
 :data:`PENALTY_PER_TERM_DB` per coefficient; a second form must add :data:`ADD_TERM_DB`: the rules
-by which :mod:`ehas_env.measurement.proposal` keeps its sparse terms, held here).  Candidates are ranked on the flexible fit's linearisation
+by which :mod:`ehas_env.diagnosis.proposal` keeps its sparse terms, held here).  Candidates are ranked on the flexible fit's linearisation
 (:func:`linear_predictor`: one Jacobian, no further replays), and the chosen forms are refitted inside the model.
 
 ``keeps_share`` is a share of the excess over noise: (R_base - R_named) / (R_base - R_flexible), with R the
 residual x noise (the fit cost, 1 = noise, as the proposal's ``residual_x_noise_before`` reports it), the measure
 of honesty rule 1
-(:func:`ehas_env.measurement.honesty.term_refused`), which no named form may fail: a form whose refit removes less
+(:func:`ehas_env.diagnosis.honesty.term_refused`), which no named form may fail: a form whose refit removes less
 than 10 % of the residual's excess over noise is not named, and when none passes ``named`` is empty and the text
 says where the residual is, what it follows and that no term was found.
 """
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ehas_env.measurement.honesty import TERM_SHARE, share_removed, term_refused
+from ehas_env.diagnosis.honesty import TERM_SHARE, share_removed, term_refused
 
 #: what a named form is
 KINDS = ("friction", "leakage/flow", "compliance", "geometry/area", "valve", "sensor", "command path", "load",
@@ -332,9 +332,9 @@ def select(combos, predict, base_cost: float) -> tuple:
     -------
     (tuple of Form, float)
         The set chosen and its predicted cost; ((), base_cost) when no set beats the noise
-        (:func:`ehas_env.measurement.fitting.beats_noise`).
+        (:func:`ehas_env.diagnosis.fitting.beats_noise`).
     """
-    from ehas_env.measurement.fitting import beats_noise
+    from ehas_env.diagnosis.fitting import beats_noise
 
     best: dict[int, tuple] = {}
     for combo in combos:
@@ -511,7 +511,7 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
         The proposal's sparse terms {coefficient: SI value}: where the flexible term is fitted (their classes, at
         most two, and the other place of a mechanical load, :data:`MECHANICAL_TWIN`) and its start.
     ranges : dict
-        The largest coefficient magnitude of each coefficient (:func:`ehas_env.measurement.proposal.coefficient_range`).
+        The largest coefficient magnitude of each coefficient (:func:`ehas_env.diagnosis.proposal.coefficient_range`).
     fixed_model : ModelSpec, optional
         The effects, beta and K held while the flexible term and the named forms are fitted: the proposal's fit
         (fitted with its terms); default ``base``'s.
@@ -524,7 +524,7 @@ def name_terms(rep, base, terms: dict, ranges: dict, *, fixed_model=None, confid
     -------
     Naming
     """
-    from ehas_env.measurement import fitting as D
+    from ehas_env.diagnosis import fitting as D
     from ehas_env.measurement.proposal_terms import TERM_CLASSES
     from ehas_env.measurement.replay import ModelSpec
 
@@ -608,7 +608,7 @@ def _places(terms: dict, ranges: dict) -> list:
 def _flexible_fit(rep, base, free: list, terms: dict, fixed) -> tuple:
     """Every coefficient of one place fitted together inside the model (the flexible term), from the sparse terms;
     returns (its Fit, the linear predictor of any subset's cost around it, :func:`linear_predictor`)."""
-    from ehas_env.measurement import fitting as D
+    from ehas_env.diagnosis import fitting as D
 
     keys = [fp.name for fp in free]
     start = {(D.TERM, fp.name): float(np.clip(terms.get(fp.name, 0.0), fp.lo, fp.hi)) for fp in free}
@@ -628,9 +628,9 @@ def _flexible_fit(rep, base, free: list, terms: dict, fixed) -> tuple:
 
 
 def honest_forms(combo, base_cost: float, named_cost: float, predict) -> list:
-    """Honesty rule 1 (:func:`ehas_env.measurement.honesty.term_refused`) for every form of a named set.
+    """Honesty rule 1 (:func:`ehas_env.diagnosis.honesty.term_refused`) for every form of a named set.
 
-    The set's refit must remove :data:`ehas_env.measurement.honesty.TERM_SHARE` of the residual's excess over
+    The set's refit must remove :data:`ehas_env.diagnosis.honesty.TERM_SHARE` of the residual's excess over
     noise; of two forms, each must also remove that share of what the other alone leaves.
 
     Parameters
@@ -666,7 +666,7 @@ def judge_on_all_data(prop, residual_all, before: float) -> str | None:
     Parameters
     ----------
     prop : Proposal
-        A proposal with ``named`` and ``named_model`` (:func:`ehas_env.measurement.proposal.propose`).
+        A proposal with ``named`` and ``named_model`` (:func:`ehas_env.diagnosis.proposal.propose`).
     residual_all : callable
         residual_all(model) -> the all-data residual (x what does not repeat) of ``model`` (a ModelSpec).
     before : float

@@ -1,6 +1,6 @@
 """Acceptance figures of the open-world diagnosis (issue 12), written to ``results/diagnosis_acceptance/``.
 
-``python -m ehas_env.measurement.acceptance --out results/diagnosis_acceptance [--parts ool,pairs,clean,ci,time]``
+``python -m ehas_env.diagnosis.acceptance --out results/diagnosis_acceptance [--parts ool,pairs,clean,ci,time]``
 runs the parts named (default all) and writes one ``PART.json`` each, then ``README.md`` from every
 ``PART.json`` in the folder (``--parts readme``: the README only).  The slow diagnosis tests
 (``pytest -m slow tests/measurement/test_diagnosis_open.py``) call the same functions and, with
@@ -253,7 +253,7 @@ def _say(line: str) -> None:
 def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0: int = SEED + 100) -> list[dict]:
     """Diagnose a campaign per out-of-library effect and magnitude; one record each."""
     from ehas_env.measurement.campaign import read_campaign
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
 
     names = list(names or OOL_CASES)
     work = Path(workdir or tempfile.mkdtemp(prefix="ehas_ool_"))
@@ -291,7 +291,7 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
         if spec["name"] == "crank_spring" and p:
             rec["spring_k"] = round(spring_rate(p), 1)
             rec["spring_k_ci95"] = spring_rate_ci(p)
-            from ehas_env.measurement.fitting import TERM, confidence
+            from ehas_env.diagnosis.fitting import TERM, confidence
 
             key = "proposal_crank_torque.c_th"
             if key in res.proposal.terms:
@@ -300,7 +300,7 @@ def run_ool(names=None, cases_per_effect: int | None = None, workdir=None, seed0
                     lo, hi = confidence(res.train, res.proposal.fit, block_s=b, lags=lg)[(TERM, key)]
                     rec["spring_ci_variants"][f"block{b:g}s_lags{lg}"] = [-hi, -lo, -hi <= spec["effects"][spec["name"]]["k"] <= -lo]
         if res.proposal is not None and workdir is not None:  # the effect file --write-effect would write
-            from ehas_env.measurement.proposal import write_effect
+            from ehas_env.diagnosis.proposal import write_effect
 
             name = f"proposed_{Path(spec['out']).name}"
             rec["effect_file"] = str(write_effect(work / "written" / f"{name}.py", res.proposal, origin=spec["out"],
@@ -318,7 +318,7 @@ def reported_record(doc: dict) -> dict:
     Parameters
     ----------
     doc : dict
-        The diagnosis JSON (:meth:`~ehas_env.measurement.open_diagnosis.OpenDiagnosis.to_json`).
+        The diagnosis JSON (:meth:`~ehas_env.diagnosis.pipeline.OpenDiagnosis.to_json`).
 
     Returns
     -------
@@ -336,7 +336,7 @@ def reported_record(doc: dict) -> dict:
 
 def run_pairs(pairs=None, seed0: int = SEED + 800) -> list[dict]:
     """Two library effects hidden together: which effects the stacked diagnosis keeps, with their values."""
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
     from ehas_env.physics.effects import get_effect
 
     out = []
@@ -360,7 +360,7 @@ def run_pairs(pairs=None, seed0: int = SEED + 800) -> list[dict]:
 
 def run_clean(seeds=range(20), position_only: bool = False, duration: float = 3.0) -> list[dict]:
     """Clean campaigns (no hidden effect): the verdict per seed."""
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
 
     out = []
     seeds = list(seeds)
@@ -379,13 +379,13 @@ def run_clean(seeds=range(20), position_only: bool = False, duration: float = 3.
 def run_ci(cases=None, seed0: int = SEED + 900) -> list[dict]:
     """Single-effect campaigns: each fitted parameter of the hidden effect, its interval, and whether it holds
     the truth."""
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
 
     out = []
     for j, (n, vals) in enumerate(cases or CI_CASES):
         camp, truth = memory_campaign({n: vals}, seed0 + j, duration=3.0)
         res = diagnose_open(camp, propose=False)
-        from ehas_env.measurement.fitting import confidence
+        from ehas_env.diagnosis.fitting import confidence
 
         variants = {f"block{b:g}s_lags{l}": confidence(res.train, res.fit_train, block_s=b, lags=l)
                     for b, l in CI_VARIANTS} if res.fit_train.free else {}
@@ -416,7 +416,7 @@ RECAL_NAMES = {"beta": "bulk_modulus", "K": "valve_dynamics"}
 def run_recal(cases=None, seeds=(0, 1), seed0: int = SEED + 1100) -> list[dict]:
     """beta / K beyond what the recalibration ranges absorb: is the effect that re-opens the number named, with
     its value, and nothing else? Full campaigns and position-only logs, each case with ``seeds``."""
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
     from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
 
     nominal = {"beta": BULK_MODULUS, "K": VALVE_K}
@@ -446,7 +446,7 @@ def run_time(duration_long: float = 30.0, repeats: int = 3) -> dict:
 
     Each diagnosis runs ``repeats`` times, interleaved; the figures are the medians (``*_all``: every
     run), so that another job's burst on the shared machine does not decide a ratio."""
-    from ehas_env.measurement.open_diagnosis import diagnose_open
+    from ehas_env.diagnosis.pipeline import diagnose_open
 
     def timed(camp, **kw):
         t0, c0 = time.perf_counter(), _cpu()
@@ -521,7 +521,7 @@ def readme(out) -> str:
     parts = {p.stem: json.loads(p.read_text()) for p in sorted(out.glob("*.json"))}
     L = ["# Open-world diagnosis: acceptance figures (issue 12)", "",
          "Regenerate: each part's command is in its `PART.json` (`command`); all parts: "
-         "`python -m ehas_env.measurement.acceptance --out results/diagnosis_acceptance --ool-cases 2` "
+         "`python -m ehas_env.diagnosis.acceptance --out results/diagnosis_acceptance --ool-cases 2` "
          "(`--parts ool,pairs,clean,ci,recal,time,readme` for some), or "
          "`EHAS_ACCEPTANCE_OUT=results/diagnosis_acceptance python -m pytest -m slow -n 0 "
          "tests/measurement/test_diagnosis_open.py` then `--parts readme`. "
@@ -622,7 +622,7 @@ def _model_text(effects: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m ehas_env.measurement.acceptance", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m ehas_env.diagnosis.acceptance", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="results/diagnosis_acceptance")
     ap.add_argument("--parts", default="ool,pairs,clean,ci,recal,time,readme")
     ap.add_argument("--ool-cases", type=int, default=1, help="magnitudes per out-of-library effect (default 1)")
@@ -630,7 +630,7 @@ def main(argv=None) -> int:
     ap.add_argument("--clean-duration", type=float, default=3.0)
     args = ap.parse_args(argv)
     parts = [p.strip() for p in args.parts.split(",") if p.strip()]
-    cmd = "python -m ehas_env.measurement.acceptance " + " ".join(argv if argv is not None else sys.argv[1:])
+    cmd = "python -m ehas_env.diagnosis.acceptance " + " ".join(argv if argv is not None else sys.argv[1:])
     if "ool" in parts:
         save_part(args.out, "ool", run_ool(cases_per_effect=args.ool_cases), cmd)
     if "pairs" in parts:

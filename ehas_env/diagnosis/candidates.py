@@ -18,7 +18,7 @@ limit cycle or joint knocks cannot be matched sample by sample does not swamp
 the others); J ~ 1 means "explained down to the sensor noise".  It is
 minimised by iteratively reweighted least squares.  A candidate's score is the
 reduction of J in decibels, 10 log10(J_null / J_candidate), less
-:data:`~ehas_env.measurement.fitting.PENALTY_PER_PARAM` dB per fitted parameter of the effect (so an effect
+:data:`~ehas_env.diagnosis.fitting.PENALTY_PER_PARAM` dB per fitted parameter of the effect (so an effect
 with more parameters must explain clearly more to rank higher: Stribeck
 friction over Coulomb friction only when the breakaway peak is really there; a
 Stribeck fit without one, Fs <= :data:`DEGENERATE_STRIBECK` Fc, hands its fit to
@@ -48,9 +48,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.measurement.campaign import Campaign
-from ehas_env.measurement.keeping import agree, run_groups
-from ehas_env.measurement.honesty import at_bounds
-from ehas_env.measurement.fitting import (
+from ehas_env.diagnosis.keeping import agree, run_groups
+from ehas_env.diagnosis.honesty import at_bounds
+from ehas_env.diagnosis.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _value_of,
     beats_noise, confidence, fit, own_params, recal_params, reopens_baseline, score_db, start_value)
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
@@ -124,7 +124,7 @@ def library_effects() -> list[str]:
 
 def hypothesis_effects() -> list[str]:
     """The structural hypotheses of the library (``kind = "hypothesis"``: a baseline constant opened, such as
-    chamber B's area, the return pressure, the valve's gain per direction), tried by :func:`ehas_env.measurement.open_diagnosis.diagnose_open`
+    chamber B's area, the return pressure, the valve's gain per direction), tried by :func:`ehas_env.diagnosis.pipeline.diagnose_open`
     when the library's effects leave a campaign unexplained."""
     return sorted(n for n, c in REGISTRY.items()
                   if c.__module__.startswith("ehas_env.physics.effects.") and c.kind == "hypothesis")
@@ -718,7 +718,7 @@ def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list
     the effect leaves of the validation residual above the noise (1 noise variance) replaces it (the effect's ``step`` says
     it stood in for the hypothesis).  Without validation data the fit's cost is compared.  A sane rival that
     lost on the validation data alone is appended to ``lost`` as (effect, hypothesis): another effect the
-    campaign still misses may be what made it lose (:func:`ehas_env.measurement.open_diagnosis.diagnose_open` tries it again later).  Returns what
+    campaign still misses may be what made it lose (:func:`ehas_env.diagnosis.pipeline.diagnose_open` tries it again later).  Returns what
     is kept, as ``kept``."""
     effect, f, sims, val = kept
     rivals = [h for h in hyps if effect in get_effect(h).mistaken_for and h not in base]
@@ -838,8 +838,8 @@ def _pair_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list,
 
 def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
     """Why ``effect`` (fitted in ``f``) stands in for something else, or None when it is real: its parameters
-    refitted on two separate groups of the fitted runs (:func:`ehas_env.measurement.keeping.run_groups`), with
-    beta and K, do not agree within their 95 % intervals (:func:`ehas_env.measurement.keeping.agree`; an
+    refitted on two separate groups of the fitted runs (:func:`ehas_env.diagnosis.keeping.run_groups`), with
+    beta and K, do not agree within their 95 % intervals (:func:`ehas_env.diagnosis.keeping.agree`; an
     estimate that ran to the end of its fitted range is flagged, its interval being one-sided).
     With fewer than two closed-loop runs fitted there is nothing to compare: None."""
     groups = run_groups([c.run.name for c in rep.cases], [c.run.kind for c in rep.cases])

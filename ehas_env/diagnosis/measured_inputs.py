@@ -11,7 +11,7 @@ How the logged series becomes the model's input (:func:`measured` makes the repl
 1. gaps (empty cells) are filled by linear interpolation in time;
 2. the sensor noise is filtered out with a zero-phase low-pass (4th-order Butterworth, run forward and backward,
    ``scipy.signal.sosfiltfilt``: no lag) whose cutoff is :data:`LINE_MARGIN` times the highest spectral line of the
-   logged supply (:func:`ehas_env.measurement.disturbances.spectral_lines`), at least :data:`MIN_CUTOFF_HZ` and at
+   logged supply (:func:`ehas_env.diagnosis.disturbances.spectral_lines`), at least :data:`MIN_CUTOFF_HZ` and at
    most :data:`MAX_CUTOFF_NYQUIST` of the Nyquist frequency (no filter then): a ripple's line passes with less
    than 0.5 % loss, the white noise above the cutoff is gone;
 3. it is resampled to the simulation's steps: a closed-loop run's supply is held over each control period at the
@@ -25,8 +25,8 @@ taken as an input is no longer an output compared: ``p_s_bar`` leaves the runs' 
 Only the supply pressure is a measurable input today: the measurement format logs no return-line pressure.
 
 The diagnosis' stage (:func:`measured_input_stage`) tries it when the logged supply varies beyond its noise, and
-keeps it only when the all-data residual falls by at least :data:`ehas_env.measurement.honesty.TERM_SHARE` of its
-excess over the noise (:func:`ehas_env.measurement.honesty.term_refused`).
+keeps it only when the all-data residual falls by at least :data:`ehas_env.diagnosis.honesty.TERM_SHARE` of its
+excess over the noise (:func:`ehas_env.diagnosis.honesty.term_refused`).
 
 Examples
 --------
@@ -46,7 +46,7 @@ import time
 import numpy as np
 
 from ehas_env.measurement.campaign import Run
-from ehas_env.measurement.disturbances import SAME_LINE, spectral_lines
+from ehas_env.diagnosis.disturbances import SAME_LINE, spectral_lines
 from ehas_env.measurement.replay import COST_SIGNALS, NOISE_FLOOR, UNITS, noise_level
 
 #: logged quantities a replay can take as measured inputs, and what they are
@@ -297,7 +297,7 @@ def residual_x_noise(rep, sims, without=()) -> float:
 def measured_input_stage(full, rep, final_fit, parts, say=None) -> tuple:
     """The diagnosis' stage of measured inputs: when the logged supply pressure varies beyond its noise, the final
     model refitted with it as a measured input, kept when it removes at least
-    :data:`ehas_env.measurement.honesty.TERM_SHARE` of the all-data residual's excess over the noise.
+    :data:`ehas_env.diagnosis.honesty.TERM_SHARE` of the all-data residual's excess over the noise.
 
     Parameters
     ----------
@@ -322,8 +322,8 @@ def measured_input_stage(full, rep, final_fit, parts, say=None) -> tuple:
         ``_after`` (all data, without the input's own signal), ``share_removed``, ``refused`` (honesty rule 1's
         words, or None), ``validation_before`` / ``_after``, ``elapsed_s`` and ``text``.
     """
-    from ehas_env.measurement.fitting import _value_of, fit
-    from ehas_env.measurement.honesty import TERM_SHARE, share_removed, term_refused
+    from ehas_env.diagnosis.fitting import _value_of, fit
+    from ehas_env.diagnosis.honesty import TERM_SHARE, share_removed, term_refused
 
     say = say or (lambda msg: None)
     t0 = time.perf_counter()
@@ -383,7 +383,7 @@ def measured_input_stage(full, rep, final_fit, parts, say=None) -> tuple:
                           f"{100 * TERM_SHARE:.0f} % it must remove): not used")
     rec["kept"], rec["inputs"] = True, [name]
     if refit is None:  # nothing free to refit: the final model itself, on the fit data with the input
-        from ehas_env.measurement.fitting import Fit
+        from ehas_env.diagnosis.fitting import Fit
 
         sims = rep_in.simulate(model)
         refit = Fit(model=model, cost=rep_in.log_cost(sims), free=[], sims=sims, table=rep_in.fit_table(sims))

@@ -1,16 +1,16 @@
 """The search stages of the open-world diagnosis: the data split, the library's effects, the structural hypotheses.
 
-:func:`ehas_env.measurement.open_diagnosis.diagnose_open` runs its stages in
+:func:`ehas_env.diagnosis.pipeline.diagnose_open` runs its stages in
 order on one :class:`Search`, the state they pass along (docs/diagnosis-pipeline.md
 draws it).  This module holds the first three:
 
 * :func:`data_stage`: which runs are fitted and which validate (``holdout``,
   the fit windows), the compiled replayers;
-* :func:`library_stage`: rounds of :func:`ehas_env.measurement.diagnosis.diagnose`
+* :func:`library_stage`: rounds of :func:`ehas_env.diagnosis.candidates.diagnose`
   over the library's effects, each best candidate judged (:func:`judge_round`)
   and kept while one passes (stacking);
 * :func:`hypotheses_stage`: when the library leaves the campaign unexplained or
-  with a structured rest (:func:`ehas_env.measurement.diagnosis.hypotheses_trigger`),
+  with a structured rest (:func:`ehas_env.diagnosis.candidates.hypotheses_trigger`),
   the same rounds over the structural hypotheses; a hypothesis that lost to a
   kept library effect may be tried in its place (:func:`_swap_branch`); and the
   model kept must not leave a worse all-data residual than the library's
@@ -18,20 +18,20 @@ draws it).  This module holds the first three:
 
 The rules that judge one candidate (sanity, validation gain, agreement on
 separate groups of runs, rival hypotheses, pairs) live in
-:mod:`ehas_env.measurement.diagnosis`; this module only sequences them.
+:mod:`ehas_env.diagnosis.candidates`; this module only sequences them.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 from ehas_env.measurement.campaign import Campaign
-from ehas_env.measurement.diagnosis import (
+from ehas_env.diagnosis.candidates import (
     MAX_ROUNDS, QUIET_UNITS, Diagnosis, Step, _drop_stand_ins, _held_fit, _pair_hypotheses, _parts_cost,
     _quiet_measure, _rival_hypotheses, _sane, _share_needed, coulomb_from_stribeck, default_holdout,
     degenerate_stribeck, diagnose, fit_candidate, fit_null, fit_window_samples, hypothesis_effects, library_effects,
     lowers_validation, stands_in, windowed, with_defaults, hypotheses_trigger)
-from ehas_env.measurement.fitting import MIN_GAIN, Fit
-from ehas_env.measurement.honesty import worse_than_bare
+from ehas_env.diagnosis.fitting import MIN_GAIN, Fit
+from ehas_env.diagnosis.honesty import worse_than_bare
 from ehas_env.measurement.replay import COST_SIGNALS, Replayer
 from ehas_env.measurement.verdict import blocks_of, grade
 from ehas_env.physics.augment import augmentations
@@ -43,7 +43,7 @@ class Search:
     """What the stages of the diagnosis pass along: the data, the model kept so far, every step judged.
 
     The fields a stage reads and writes are named in its docstring; the JSON names of what they hold are those
-    of :meth:`ehas_env.measurement.open_diagnosis.OpenDiagnosis.to_json` (``stack``, ``validation``, ``model``).
+    of :meth:`ehas_env.diagnosis.pipeline.OpenDiagnosis.to_json` (``stack``, ``validation``, ``model``).
     """
 
     campaign: Campaign
@@ -105,7 +105,7 @@ def data_stage(campaign: Campaign, *, holdout=None, window_s: float, model=None,
     campaign : Campaign
         The measurements.
     holdout : list of str, optional
-        Runs kept out of the fit (default :func:`~ehas_env.measurement.diagnosis.default_holdout`).
+        Runs kept out of the fit (default :func:`~ehas_env.diagnosis.candidates.default_holdout`).
     window_s : float
         Seconds of each closed-loop run fitted.
     model : PlantModel or str, optional
@@ -165,7 +165,7 @@ def data_stage(campaign: Campaign, *, holdout=None, window_s: float, model=None,
 
 
 def judge_round(s: Search, d: Diagnosis) -> tuple | None:
-    """The best candidates of one round (:func:`~ehas_env.measurement.diagnosis.diagnose`), judged in order: the
+    """The best candidates of one round (:func:`~ehas_env.diagnosis.candidates.diagnose`), judged in order: the
     first that is sane, lowers the validation residual, (on a quiet campaign) removes the share of the structured
     rest and fits the same on separate groups of runs is kept; a library effect kept may give its place to a
     structural hypothesis it may be mistaken for.
@@ -308,7 +308,7 @@ def library_stage(s: Search) -> dict:
 
 def hypotheses_stage(s: Search) -> dict:
     """The stage of the structural hypotheses: tried when the library's model leaves the campaign unexplained or with
-    a structured rest (:func:`~ehas_env.measurement.diagnosis.hypotheses_trigger`); rounds over them (and the
+    a structured rest (:func:`~ehas_env.diagnosis.candidates.hypotheses_trigger`); rounds over them (and the
     library's effects again on top of one kept) until none passes or one explains the campaign; a lost rival may
     be tried in its library effect's place (:func:`_swap_branch`); the model kept must not leave a worse all-data
     residual than the library's (:func:`keep_no_worse`).
@@ -398,7 +398,7 @@ def _settle_swap(s: Search) -> None:
 
 
 def keep_no_worse(full: Replayer, bare: tuple, now: tuple, steps: list, say) -> tuple:
-    """Honesty rule 2 (:func:`ehas_env.measurement.honesty.worse_than_bare`): when the model the structural
+    """Honesty rule 2 (:func:`ehas_env.diagnosis.honesty.worse_than_bare`): when the model the structural
     hypotheses led to (``now``: Fit, simulation of every run, validation cost, base effects) leaves a worse
     all-data residual than the ``bare`` model the library gave before them (the same, and every step's
     (kept, reason) then), the bare model is restored and every step kept since is said not kept, with why.

@@ -1,10 +1,10 @@
 """A health trend over campaigns recorded weeks apart: parameters per campaign, and which changed (issue 33).
 
-``ehas diagnose CAMP1 CAMP2 ...`` diagnoses each campaign on its own (:func:`ehas_env.measurement.open_diagnosis.
+``ehas diagnose CAMP1 CAMP2 ...`` diagnoses each campaign on its own (:func:`ehas_env.diagnosis.pipeline.
 diagnose_open`), then sets the final models' fitted parameters side by side, each with its 95 % interval, and
 tests each parameter found in at least two campaigns with the chi-square test of one common value
-(:func:`ehas_env.measurement.drift.differ`, the per-run test's, with its model-error floor): a parameter changed
-when p < :data:`ehas_env.measurement.drift.DRIFT_P`; its size is the ratio of the last campaign's value to the
+(:func:`ehas_env.diagnosis.drift.differ`, the per-run test's, with its model-error floor): a parameter changed
+when p < :data:`ehas_env.diagnosis.drift.DRIFT_P`; its size is the ratio of the last campaign's value to the
 first's, in the order given.  An effect kept in some campaigns and not in others is said so.
 
 Examples
@@ -17,7 +17,7 @@ Examples
 """
 from __future__ import annotations
 
-from ehas_env.measurement.drift import DRIFT_P, differ
+from ehas_env.diagnosis.drift import DRIFT_P, differ
 
 
 def trend(campaigns: list[tuple[str, list[dict]]]) -> dict:

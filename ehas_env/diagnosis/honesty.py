@@ -98,7 +98,7 @@ def at_bounds(fit, effects=None) -> list[dict]:
     Parameters
     ----------
     fit : Fit
-        A fit (:class:`ehas_env.measurement.fitting.Fit`): its ``free`` parameters and ``model``.
+        A fit (:class:`ehas_env.diagnosis.fitting.Fit`): its ``free`` parameters and ``model``.
     effects : iterable of str, optional
         Only these effects (default: every effect of the fit; the baseline's beta and K and proposed terms are
         not library effects and are left out).
@@ -108,7 +108,7 @@ def at_bounds(fit, effects=None) -> list[dict]:
     list of dict
         {effect, param, value, unit, end ("lower"/"upper"), range [lo, hi], physical_bound (bool), text}.
     """
-    from ehas_env.measurement.fitting import TERM, _value_of
+    from ehas_env.diagnosis.fitting import TERM, _value_of
     from ehas_env.physics.effects import get_effect
 
     out = []

@@ -1,7 +1,7 @@
 """Fitting a model's numbers to a campaign: free parameters, the bounded least-squares fit, confidence intervals.
 
-The core the diagnosis (:mod:`ehas_env.measurement.diagnosis`), the proposal of
-a missing term (:mod:`ehas_env.measurement.proposal`) and ``ehas compare --fit``
+The core the diagnosis (:mod:`ehas_env.diagnosis.candidates`), the proposal of
+a missing term (:mod:`ehas_env.diagnosis.proposal`) and ``ehas compare --fit``
 share.  Each fitted number is mapped to u in [0, 1] over its fit range
 (:class:`FreeParam`); the cost is the geometric mean over runs and signals of
 the noise-normalised mean squared residual (:meth:`Replayer.log_cost`),

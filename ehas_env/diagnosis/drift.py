@@ -3,16 +3,16 @@
 A diagnosis fits one value of each parameter to the whole campaign.  A rig whose friction rises as it warms up,
 whose oil takes in air over a day, or whose valve wears, has parameters that differ from run to run; the one
 value then stands for none of them, and the check that an effect fits the same on two groups of runs
-(:mod:`ehas_env.measurement.keeping`) rejects it without saying which runs differ, by how much, or against what.
+(:mod:`ehas_env.diagnosis.keeping`) rejects it without saying which runs differ, by how much, or against what.
 This stage, run after the final model is chosen, says it:
 
 1. **Per run** (:func:`fit_per_run`): every fitted parameter of the final model (and the parameters of the best
    effects judged but not kept: a parameter that changes between runs makes its effect fit differently on two
    groups of runs, or fail on the validation runs) is refitted on each closed-loop run alone (its fit window),
-   from the campaign's values, with its cluster-robust 95 % interval (:func:`ehas_env.measurement.fitting.confidence`).
+   from the campaign's values, with its cluster-robust 95 % interval (:func:`ehas_env.diagnosis.fitting.confidence`).
 2. **Differ beyond their intervals?** (:func:`differ`): the chi-square test of one common value against the per-run
    values, each run's standard deviation its 95 % half-width / 1.96, never below the model-error floor of the
-   agreement rule (:data:`ehas_env.measurement.keeping.MODEL_ERROR_FLOOR`); estimates at the end of their fit range
+   agreement rule (:data:`ehas_env.diagnosis.keeping.MODEL_ERROR_FLOOR`); estimates at the end of their fit range
    are left out (no point estimate).  A parameter *drifts* when p < :data:`DRIFT_P`; or, when its values rise or
    fall at every step of the recording order over at least :data:`TREND_RUNS` runs (a steady change in time), when
    the same test with the floor lowered to :data:`TREND_FLOOR` gives p < :data:`DRIFT_P`.
@@ -45,9 +45,9 @@ from datetime import datetime
 import numpy as np
 
 from ehas_env.measurement.campaign import Campaign
-from ehas_env.measurement.fitting import SCREEN_NFEV, Fit, FreeParam, _unit, _value_of, confidence, fit
-from ehas_env.measurement.keeping import MODEL_ERROR_FLOOR
-from ehas_env.measurement.measured_inputs import input_names, measured
+from ehas_env.diagnosis.fitting import SCREEN_NFEV, Fit, FreeParam, _unit, _value_of, confidence, fit
+from ehas_env.diagnosis.keeping import MODEL_ERROR_FLOOR
+from ehas_env.diagnosis.measured_inputs import input_names, measured
 from ehas_env.measurement.replay import ModelSpec, Replayer
 
 #: per-run values differ beyond their intervals when the chi-square test of one common value gives p below this
@@ -301,7 +301,7 @@ def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreePara
     rep : Replayer
         Gives the compiled model (its ``model``, ``substeps``, ``hypotheses``); its ``n_evals`` counts the replays.
     runs : list of Run
-        The runs (each its fit window, :func:`ehas_env.measurement.diagnosis.windowed`).
+        The runs (each its fit window, :func:`ehas_env.diagnosis.candidates.windowed`).
     fixed : ModelSpec
         The model (and the start values).
     free : list of FreeParam
@@ -430,7 +430,7 @@ def per_run_stage(rep: Replayer, runs: list, windows: list, final: Fit, also: di
     runs : list of Run
         The campaign's closed-loop runs (held-out runs included), in file order.
     windows : list of Run
-        The same runs cut to their fit windows (:func:`ehas_env.measurement.diagnosis.windowed`).
+        The same runs cut to their fit windows (:func:`ehas_env.diagnosis.candidates.windowed`).
     final : Fit
         The final model, fitted: its free parameters are refitted per run.
     also : dict, optional
@@ -446,7 +446,7 @@ def per_run_stage(rep: Replayer, runs: list, windows: list, final: Fit, also: di
         ``{"per_run": {"runs": [...], "order": str}, "drift": [...]}``; ``per_run`` None when fewer than
         :data:`MIN_RUNS` closed-loop runs.
     """
-    from ehas_env.measurement.fitting import own_params
+    from ehas_env.diagnosis.fitting import own_params
 
     say = say or (lambda msg: None)
     if len(runs) < MIN_RUNS or not final.free:

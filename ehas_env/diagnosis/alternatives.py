@@ -12,9 +12,9 @@ effect it may be confused with (:func:`rivals_of`: the pairs of
 :data:`CONFUSABLE`, and the effects' own ``mistaken_for``) in its place on the
 same fit data (the rest of the model refitted with it), and compares the two on
 all the campaign's data (every run, whole length, held-out runs included) by
-the diagnosis' evidence score (:func:`~ehas_env.measurement.fitting.score_db`):
+the diagnosis' evidence score (:func:`~ehas_env.diagnosis.fitting.score_db`):
 the score difference is ``10 log10(J_alt / J_reported)`` dB less
-:data:`~ehas_env.measurement.fitting.PENALTY_PER_PARAM` per parameter the
+:data:`~ehas_env.diagnosis.fitting.PENALTY_PER_PARAM` per parameter the
 reported one has more.  Effects that were ranked in the same round as the
 reported one and beat the noise are compared the same way (their fits are on
 the same base; no new fit), unless one extends the other's law (its parameters
@@ -24,12 +24,12 @@ friction's Fc), which is the same explanation with more freedom.
 **The rule for "within".** The score difference is a mean over the fit data; its
 own uncertainty is that of a paired comparison.  The residuals of both models
 are cut into the clusters the confidence intervals use
-(:data:`~ehas_env.measurement.fitting.CI_BLOCK_S` stretches of each run, all its
+(:data:`~ehas_env.diagnosis.fitting.CI_BLOCK_S` stretches of each run, all its
 signals together); in each cluster the difference ``d_c = 10 log10(e_alt /
 e_reported)`` of the mean squared noise-normalised residuals is taken.  The
 logs resolve a difference of ``max(2 SE, MIN_SCORE)`` dB with SE = std(d_c) /
 sqrt(clusters) (two standard errors: 95 %; never finer than
-:data:`~ehas_env.measurement.fitting.MIN_SCORE`, what a candidate must score to
+:data:`~ehas_env.diagnosis.fitting.MIN_SCORE`, what a candidate must score to
 beat the noise at all).  An alternative whose score is not lower than the
 reported one's by more than that, nor by more than :data:`SEPARATED_DB` (3 dB) over
 the campaign or on any one of its runs, is *within*: listed under ``alternatives``,
@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ehas_env.measurement.fitting import CI_BLOCK_S, MIN_SCORE, PENALTY_PER_PARAM, Fit, confidence, own_params
+from ehas_env.diagnosis.fitting import CI_BLOCK_S, MIN_SCORE, PENALTY_PER_PARAM, Fit, confidence, own_params
 from ehas_env.measurement.replay import COST_SIGNALS, Replayer
 from ehas_env.physics.effects import REGISTRY, get_effect
 
@@ -235,7 +235,7 @@ class Alternative:
     params : dict
         Its fitted values (the effect's units).
     ci95 : dict
-        Parameter -> [low, high], 95 % intervals (:func:`~ehas_env.measurement.fitting.confidence`).
+        Parameter -> [low, high], 95 % intervals (:func:`~ehas_env.diagnosis.fitting.confidence`).
     score_difference_db : float
         The reported explanation's score less this one's, dB (> 0: the reported one fits better).
     resolvable_db : float
@@ -366,7 +366,7 @@ def find_alternatives(res, fit_null, fit_candidate, say=None) -> list[Alternativ
     Parameters
     ----------
     res : OpenDiagnosis
-        A diagnosis (:func:`ehas_env.measurement.open_diagnosis.diagnose_open`).
+        A diagnosis (:func:`ehas_env.diagnosis.pipeline.diagnose_open`).
     fit_null, fit_candidate : callable
         The diagnosis' own fits (``fit_null(rep, base)``: the base recalibrated; ``fit_candidate(rep, effect,
         null, base)``: an effect on top of it), passed in so that this module does not import the diagnosis

@@ -22,7 +22,7 @@ valve current, the position reading), in four steps:
    (as the diagnosis fits effects); a second and third form are added while
    each lowers the residual by at least :data:`ADD_TERM_DB`.
 
-4. **naming** (:func:`ehas_env.measurement.naming.name_terms`): at the places of
+4. **naming** (:func:`ehas_env.diagnosis.naming.name_terms`): at the places of
    the sparse terms, every coefficient of the place fitted together (the flexible
    term), then the sparse set of physical forms (laws with units, of a kind) that
    keeps most of its gain: ``Proposal.named``.
@@ -41,8 +41,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ehas_env.measurement import fitting as D
-from ehas_env.measurement.naming import ADD_TERM_DB, PENALTY_PER_TERM_DB, name_terms
+from ehas_env.diagnosis import fitting as D
+from ehas_env.diagnosis.naming import ADD_TERM_DB, PENALTY_PER_TERM_DB, name_terms
 from ehas_env.measurement.proposal_terms import TERM_CLASSES, term_param
 from ehas_env.measurement.replay import ModelSpec, Replayer
 from ehas_env.physics.rig import BAR, LPM, RigParams
@@ -279,7 +279,7 @@ class Proposal:
     screened: list = field(default_factory=list)  # [(form, J after screening)], best first
     sparse: dict = field(default_factory=dict)  # the STLSQ selection on the residual force
     validation: dict = field(default_factory=dict)  # filled by the caller: J and fit % on all data
-    #: the named physical forms (ehas_env.measurement.naming: JSON entries) and the naming's record
+    #: the named physical forms (ehas_env.diagnosis.naming: JSON entries) and the naming's record
     named: list = field(default_factory=list)
     naming: dict = field(default_factory=dict)
     named_model: object = None  # the model with the named forms (a ModelSpec; None when none is named)
@@ -424,7 +424,7 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
     confidence : callable, optional
         ``confidence(rep, fit)`` returns confidence intervals {(effect, name): (lo, hi)}.
     name : bool
-        Fit the flexible term at the sparse terms' places and name it (:func:`ehas_env.measurement.naming.name_terms`):
+        Fit the flexible term at the sparse terms' places and name it (:func:`ehas_env.diagnosis.naming.name_terms`):
         the Proposal's ``named`` (physical forms with units, values and intervals, each passing honesty rule 1 on
         the fit data) and ``naming`` (the flexible fit, the text).
     say : callable, optional

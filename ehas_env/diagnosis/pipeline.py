@@ -10,31 +10,31 @@
                          stacked     pairs, swap, disturban-
                                      honesty 2)   ces, ci95
 
-Each stage reads and writes the fields of :class:`~ehas_env.measurement.diagnosis_search.Search` its docstring
+Each stage reads and writes the fields of :class:`~ehas_env.diagnosis.search.Search` its docstring
 names and returns a record (a dict in the JSON's own terms) that :meth:`OpenDiagnosis.to_json` lists under
 ``stages`` with its time.  Adding a search is adding a function to :data:`STAGES` (docs/diagnosis-pipeline.md).
-The rules that judge one candidate live in :mod:`ehas_env.measurement.diagnosis`; the search stages in
-:mod:`ehas_env.measurement.diagnosis_search`; the honesty rules in :mod:`ehas_env.measurement.honesty`.
+The rules that judge one candidate live in :mod:`ehas_env.diagnosis.candidates`; the search stages in
+:mod:`ehas_env.diagnosis.search`; the honesty rules in :mod:`ehas_env.diagnosis.honesty`.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
 
-from ehas_env.measurement import proposal as P
+from ehas_env.diagnosis import proposal as P
 from ehas_env.measurement.campaign import Campaign
-from ehas_env.measurement.diagnosis import (
+from ehas_env.diagnosis.candidates import (
     FIT_WINDOW_S, Diagnosis, Step, _drop_stand_ins, _held_fit, _held_table, _parts_cost, _round, confidence,
     fit_candidate, fit_null, windowed)
-from ehas_env.measurement.diagnosis_search import (
+from ehas_env.diagnosis.search import (
     Search, data_stage, hypotheses_stage, library_stage, steps_back_to)
-from ehas_env.measurement.disturbances import disturbances as disturbances_of
-from ehas_env.measurement.drift import per_run_stage
-from ehas_env.measurement.fitting import Fit, _unit, _value_of, on_one_blas_thread
-from ehas_env.measurement.honesty import at_bounds, term_refused
-from ehas_env.measurement.measured_inputs import measured, measured_input_stage
-from ehas_env.measurement.naming import judge_on_all_data
-from ehas_env.measurement.state_search import state_stage
+from ehas_env.diagnosis.disturbances import disturbances as disturbances_of
+from ehas_env.diagnosis.drift import per_run_stage
+from ehas_env.diagnosis.fitting import Fit, _unit, _value_of, on_one_blas_thread
+from ehas_env.diagnosis.honesty import at_bounds, term_refused
+from ehas_env.diagnosis.measured_inputs import measured, measured_input_stage
+from ehas_env.diagnosis.naming import judge_on_all_data
+from ehas_env.diagnosis.states import state_stage
 from ehas_env.physics.augment import Augmentation
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
 from ehas_env.measurement.residuals import follows as follows_of
@@ -62,9 +62,9 @@ class OpenDiagnosis:
     follows: dict
     ci: dict
     proposal: object = None
-    alternatives: list = field(default_factory=list)  # other explanations, compared (ehas_env.measurement.alternatives)
+    alternatives: list = field(default_factory=list)  # other explanations, compared (ehas_env.diagnosis.alternatives)
     validation: dict = field(default_factory=dict)
-    per_run: dict | None = None  # parameters fitted on each run alone (ehas_env.measurement.drift)
+    per_run: dict | None = None  # parameters fitted on each run alone (ehas_env.diagnosis.drift)
     drift: list = field(default_factory=list)  # parameters that differ between runs, related to the sidecars
     disturbances: list = field(default_factory=list)  # residual lines at no harmonic of the test frequency
     grade: dict = field(default_factory=dict)
@@ -175,7 +175,7 @@ class OpenDiagnosis:
 def measured_inputs_stage(s: Search) -> dict:
     """The stage of measured boundaries: a logged quantity the model holds constant (the supply pressure) that varies
     beyond its noise is taken as a measured input when that removes at least a tenth of the residual's excess over
-    the noise (:func:`ehas_env.measurement.measured_inputs.measured_input_stage`); from then on every replayer
+    the noise (:func:`ehas_env.diagnosis.measured_inputs.measured_input_stage`); from then on every replayer
     takes it.
 
     Parameters
@@ -202,7 +202,7 @@ def states_stage(s: Search) -> dict:
     """The stage of missing states: when the model kept leaves more than a residual of ``STATE_TRIGGER`` x noise,
     each generic augmentation (a lag in a signal path, a compliance with a mass in a link, a volume with a
     resistance in a line, play in a joint: :mod:`ehas_env.physics.augment`) is tried place by place on top of it
-    (:func:`ehas_env.measurement.state_search.state_stage`); the best is kept when it removes a tenth of the
+    (:func:`ehas_env.diagnosis.states.state_stage`); the best is kept when it removes a tenth of the
     excess over the noise and lowers the validation residual.  An effect kept before it that it stood in for is
     refitted away (as for a structural hypothesis).
 
@@ -335,7 +335,7 @@ def no_worse_stage(s: Search) -> dict:
         ``residual_x_noise`` of the model the stages kept, ``book_model`` and ``recalibrated_baseline`` (the two
         figures it is held to), ``replaced_by`` (``"book model"``, ``"recalibrated baseline"`` or None).
     """
-    from ehas_env.measurement.fitting import Fit
+    from ehas_env.diagnosis.fitting import Fit
 
     res = s.result
     x = res.residual_x_noise
@@ -371,7 +371,7 @@ def no_worse_stage(s: Search) -> dict:
 def per_run_parameters_stage(s: Search) -> dict:
     """The stage of parameters per run: the final model's parameters (and the best effects judged but not kept) fitted
     on each closed-loop run alone, and those that differ between runs, related to the sidecars
-    (:func:`ehas_env.measurement.drift.per_run_stage`).
+    (:func:`ehas_env.diagnosis.drift.per_run_stage`).
 
     Parameters
     ----------
@@ -453,7 +453,7 @@ def proposal_stage(s: Search) -> dict:
     if prop is not None:
         res.proposal, res.proposal_sims = prop, ps
         res.unexplained["proposal"] = prop.to_json()
-    if refused is not None:  # honesty rule 1 (ehas_env.measurement.honesty): neither written nor recommended
+    if refused is not None:  # honesty rule 1 (ehas_env.diagnosis.honesty): neither written nor recommended
         res.unexplained["no_term"] = refused
     res.unexplained["text"] = unexplained_text(res, res.unexplained)
     return {"proposed": None if prop is None else res.unexplained["proposal"].get("where"), "refused": refused}
@@ -540,7 +540,7 @@ def _term_without_hypotheses(s: Search, prop) -> tuple | None:
     # the model reported changed: measured again, and the record says so (the reported figure is the last measure's)
     measure_again(s, why)
     if s.options.get("alternatives", True) and s.result.model.effects:
-        from ehas_env.measurement.alternatives import find_alternatives
+        from ehas_env.diagnosis.alternatives import find_alternatives
 
         s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say)
     per_run_parameters_stage(s)
@@ -550,9 +550,9 @@ def _term_without_hypotheses(s: Search, prop) -> tuple | None:
 
 def alternatives_stage(s: Search) -> dict:
     """The stage of the alternatives: the explanations each effect of the final model may be confused with, fitted in
-    its place (:func:`ehas_env.measurement.alternatives.find_alternatives`); those these logs cannot tell apart are
+    its place (:func:`ehas_env.diagnosis.alternatives.find_alternatives`); those these logs cannot tell apart are
     listed.  When the logs *prefer* one (it fits better by more than they resolve, and worse on no run by more than
-    ``SEPARATED_DB``: :func:`ehas_env.measurement.alternatives.prefers`) and it is not worse on the noise figure
+    ``SEPARATED_DB``: :func:`ehas_env.diagnosis.alternatives.prefers`) and it is not worse on the noise figure
     of all data, it becomes the reported explanation, the final model is measured again, and the one it replaced is
     compared in its place (issue 46: a swap preferred on the fit data once reported 244x after 157x).  It runs before the verdict,
     the parameters per run and the proposal, which then see the explanation reported.
@@ -572,7 +572,7 @@ def alternatives_stage(s: Search) -> dict:
     res = s.result
     if not s.options.get("alternatives", True) or not res.model.effects:
         return {"within": [], "preferred": None}
-    from ehas_env.measurement.alternatives import find_alternatives
+    from ehas_env.diagnosis.alternatives import find_alternatives
 
     res.alternatives = find_alternatives(res, fit_null, fit_candidate, s.say)
     better = sorted((a for a in res.alternatives if a.preferred), key=lambda a: a.score_difference_db)
@@ -632,7 +632,7 @@ def run_stages(s: Search, stages=STAGES) -> list:
     Parameters
     ----------
     s : Search
-        The search (from :func:`~ehas_env.measurement.diagnosis_search.data_stage`).
+        The search (from :func:`~ehas_env.diagnosis.search.data_stage`).
     stages : sequence of (str, callable)
         The stages.
 
@@ -656,30 +656,30 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                   states: bool = True, stages=None) -> OpenDiagnosis:
     """The open-world diagnosis: the best model of the library, then whether it explains the campaign.
 
-    The stages of :data:`STAGES`, in order, after the data stage (:func:`~ehas_env.measurement.diagnosis_search.data_stage`):
+    The stages of :data:`STAGES`, in order, after the data stage (:func:`~ehas_env.diagnosis.search.data_stage`):
 
-    1. Runs named by ``holdout`` (default :func:`~ehas_env.measurement.diagnosis.default_holdout`) are kept out
+    1. Runs named by ``holdout`` (default :func:`~ehas_env.diagnosis.candidates.default_holdout`) are kept out
        of the fit; the others are fitted on their windows; the validation data are the held-out runs and the
        fitted closed-loop runs beyond their windows.
-    2. ``library``: rounds of :func:`~ehas_env.measurement.diagnosis.diagnose`; the best candidate that beats
+    2. ``library``: rounds of :func:`~ehas_env.diagnosis.candidates.diagnose`; the best candidate that beats
        noise is kept when it is physically sane (after widening a range it ran into), lowers the validation
        residual by at least ``VAL_GAIN`` and fits the same on two separate groups of runs; with ``stack`` the
        kept model is the base of the next round.
     3. ``hypotheses``: the structural hypotheses, when the library's model leaves the campaign unexplained or
-       with a structured rest (:func:`~ehas_env.measurement.diagnosis.hypotheses_trigger`), judged alike; never
+       with a structured rest (:func:`~ehas_env.diagnosis.candidates.hypotheses_trigger`), judged alike; never
        kept when they make the all-data residual worse (honesty rule 2).
     4. ``measure``, ``per_run``, ``verdict``: the graded verdict on all data
        (:func:`ehas_env.measurement.verdict.grade`), what the remaining residual follows, confidence intervals,
        the parameters per run and their drift.
     5. ``proposal``: when unexplained, the missing term at a place of the model, fitted and named
-       (:func:`ehas_env.measurement.proposal.propose`); ``alternatives``: what these logs cannot tell apart.
+       (:func:`ehas_env.diagnosis.proposal.propose`); ``alternatives``: what these logs cannot tell apart.
 
     Parameters
     ----------
     campaign : Campaign
         The measurements (:func:`ehas_env.measurement.campaign.read_campaign`).
     candidates : list of str, optional
-        Effects to try (default: the library's, :func:`~ehas_env.measurement.diagnosis.library_effects`).
+        Effects to try (default: the library's, :func:`~ehas_env.diagnosis.candidates.library_effects`).
     base_effects : dict, optional
         Effects the model has from the start, {name: {param: value}} (refitted with every candidate).
     holdout : list of str, optional
@@ -701,10 +701,10 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         A model file's rig to diagnose on (docs/model-file.md; default the book's rig).
     alternatives : bool
         Fit the explanations each effect of the final model may be confused with in its place and list those
-        these logs cannot tell apart (:func:`ehas_env.measurement.alternatives.find_alternatives`).
+        these logs cannot tell apart (:func:`ehas_env.diagnosis.alternatives.find_alternatives`).
     per_run : bool
         Fit the final model's parameters on each closed-loop run alone and report those that differ between runs
-        (:func:`ehas_env.measurement.drift.per_run_stage`).
+        (:func:`ehas_env.diagnosis.drift.per_run_stage`).
     measured_inputs : bool
         Take a logged quantity the model holds constant (the supply pressure) as a measured input when that
         explains the residual (:func:`measured_inputs_stage`).
@@ -712,7 +712,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
         Look for a missing state place by place when the model kept leaves a residual (:func:`states_stage`).
     stages : sequence of (str, callable), optional
         The stages after the data stage (default :data:`STAGES`): a search of your own is a function of the
-        :class:`~ehas_env.measurement.diagnosis_search.Search` returning its record, added where it belongs
+        :class:`~ehas_env.diagnosis.search.Search` returning its record, added where it belongs
         (docs/diagnosis-pipeline.md).  ``measure`` must run before the stages that read ``s.result``.
 
     Returns
@@ -747,8 +747,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
 
 def propose_stage(rep: Replayer, full: Replayer, final: Fit, sims_all: list, parts: dict, cur_val, g: dict,
                   say) -> tuple:
-    """The missing term (:func:`ehas_env.measurement.proposal.propose`), judged on all data and by honesty rule 1
-    (:func:`ehas_env.measurement.honesty.term_refused`).
+    """The missing term (:func:`ehas_env.diagnosis.proposal.propose`), judged on all data and by honesty rule 1
+    (:func:`ehas_env.diagnosis.honesty.term_refused`).
 
     Parameters
     ----------
@@ -788,7 +788,7 @@ def propose_stage(rep: Replayer, full: Replayer, final: Fit, sims_all: list, par
     if refused is not None:
         say(f"  no term proposed: {refused}")
         return None, None, refused
-    # the named forms (ehas_env.measurement.naming) are held to honesty rule 1 on all data too
+    # the named forms (ehas_env.diagnosis.naming) are held to honesty rule 1 on all data too
     judge_on_all_data(prop, lambda m: grade(blocks_of(full, full.simulate(m), COST_SIGNALS))["residual_x_noise"],
                       g["residual_x_noise"])
     return prop, ps, None
@@ -802,7 +802,7 @@ def not_kept(steps: list, final: Fit) -> dict:
     """The effects judged but not kept (not in the final model), at most :data:`PER_RUN_NOT_KEPT`, first judged
     first: {effect: its Fit}.  A parameter that changes from run to run makes its effect fit differently on
     separate groups of runs, or fail on the validation runs; refitted run by run
-    (:func:`ehas_env.measurement.drift.per_run_stage`), it shows.
+    (:func:`ehas_env.diagnosis.drift.per_run_stage`), it shows.
 
     Parameters
     ----------

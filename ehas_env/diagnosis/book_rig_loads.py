@@ -25,7 +25,7 @@ controller's ringing into the answer; the force balance does not.
 
 Regenerate ``results/book_loads/`` with::
 
-    python -m ehas_env.measurement.book_rig_loads --out results/book_loads
+    python -m ehas_env.diagnosis.book_rig_loads --out results/book_loads
 """
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 
-COMMAND = "python -m ehas_env.measurement.book_rig_loads --out results/book_loads"
+COMMAND = "python -m ehas_env.diagnosis.book_rig_loads --out results/book_loads"
 POINTS = 4000  # samples per reference period in the force balance
 CYCLES = 3  # closed-loop replay: reference periods (the first is warm-up)
 
@@ -99,7 +99,7 @@ def fit_effect(name: str, measured: np.ndarray, rows) -> tuple[dict, float, np.n
     """
     from scipy.optimize import least_squares
 
-    from ehas_env.measurement.fitting import own_params, scan_values, start_value
+    from ehas_env.diagnosis.fitting import own_params, scan_values, start_value
     from ehas_env.physics.effects import get_effect
 
     free = own_params(name)

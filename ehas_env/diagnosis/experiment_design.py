@@ -1,7 +1,7 @@
 """The runs that decide between explanations these logs cannot tell apart (``ehas plan-test``, issue 34).
 
 A diagnosis lists under ``alternatives`` the explanations that fit its campaign
-as well as the one reported (:mod:`ehas_env.measurement.alternatives`).  This
+as well as the one reported (:mod:`ehas_env.diagnosis.alternatives`).  This
 module simulates candidate runs inside the rig's safe envelope
 (:data:`ENVELOPE`: disc sets, amplitude, frequency, a mean angle off centre,
 supply pressure, and the valve bench at another supply) with each explanation's
@@ -33,7 +33,7 @@ any kind decides, not by their physics).
 **Choice.** The best run for each pair first, then the runs that raise the
 weakest pair's separation most, while the plan stays within its limits; a run's
 separation must reach :data:`MIN_SEPARATION_DB` to be chosen at all.  A pair that
-no chosen run separates by :data:`~ehas_env.measurement.alternatives.SEPARATED_DB`
+no chosen run separates by :data:`~ehas_env.diagnosis.alternatives.SEPARATED_DB`
 (what one run decides alone) is decided by the second diagnosis over the whole
 campaign, where the planned runs are a share of the data: its next-best runs fill
 the plan's limits.
@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ehas_env.measurement.alternatives import SEPARATED_DB
+from ehas_env.diagnosis.alternatives import SEPARATED_DB
 from ehas_env.measurement.campaign import Campaign, CampaignError, validate_meta, validate_run
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
 from ehas_env.measurement.synthetic import CHIRP, chirp_current

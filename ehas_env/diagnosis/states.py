@@ -2,15 +2,15 @@
 
 Each generic augmentation of :mod:`ehas_env.physics.augment` (a lag in a signal path, a compliance with a mass
 in a link, a volume with a resistance in a line, play in a joint) is screened on top of the final model: its own
-parameters fitted with everything else held (:func:`ehas_env.measurement.diagnosis.screen_candidate`, the scan's
+parameters fitted with everything else held (:func:`ehas_env.diagnosis.candidates.screen_candidate`, the scan's
 models replayed together).  The best is refitted with the model's own numbers free
-(:func:`ehas_env.measurement.diagnosis.refine_candidate`, again from where it stopped while that still pays,
+(:func:`ehas_env.diagnosis.candidates.refine_candidate`, again from where it stopped while that still pays,
 :data:`REFINE_ROUNDS`) and judged on all data and on the validation samples:
 it is kept only when it passes :func:`judge` --
 
-* honesty rule 1 (:func:`ehas_env.measurement.honesty.term_refused`): it removes at least a tenth of the
+* honesty rule 1 (:func:`ehas_env.diagnosis.honesty.term_refused`): it removes at least a tenth of the
   all-data residual's excess over the noise;
-* the validation gate (:func:`ehas_env.measurement.diagnosis.lowers_validation`): it lowers the validation
+* the validation gate (:func:`ehas_env.diagnosis.candidates.lowers_validation`): it lowers the validation
   residual (by the share every stacked effect must).
 
 The record is in the JSON's terms (``stages[].states``): what was tried, what was kept, its parameters with 95 %
@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import math
 
-from ehas_env.measurement.diagnosis import (
+from ehas_env.diagnosis.candidates import (
     _parts_cost, lowers_validation, refine_candidate, refit_without, screen_candidate)
-from ehas_env.measurement.fitting import Fit, confidence
-from ehas_env.measurement.honesty import term_refused
+from ehas_env.diagnosis.fitting import Fit, confidence
+from ehas_env.diagnosis.honesty import term_refused
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, Replayer
 from ehas_env.measurement.verdict import blocks_of, grade
 from ehas_env.physics.augment import augmentations
