@@ -34,9 +34,6 @@ from pathlib import Path
 
 from ehas_env.ranges import number, split_list
 
-#: CPU seconds of a diagnosis per 1000 logged samples (low, high), measured on a 2-core AMD EPYC: 5 runs of 3 s
-#: (15,000 samples) took 47-175 s with the model cache warm, the high end with structural hypotheses tried
-DIAGNOSE_CPU_S_PER_KSAMPLE = (3.0, 12.0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -319,13 +316,8 @@ def run_one(args) -> int:
     if not args.quiet:
         from ehas_env.output.progress import status
 
-        from ehas_env.physics.codegen import load_scale
-
-        k = sum(r.n for r in campaign.runs) / 1000.0 * load_scale()
-        lo, hi = (round(k * c / 10.0) * 10 or 10 for c in DIAGNOSE_CPU_S_PER_KSAMPLE)
-        status(f"{len(campaign.runs)} runs read; replaying them, then fitting every candidate effect, stacking "
-               f"and checking what is left (about {lo}-{hi} s on two cores at this load; more rounds and "
-               "structural hypotheses take longer)", "diagnose")
+        status(f"{len(campaign.runs)} runs read; compiling or loading the model, then timing a replay of the "
+               "campaign to say how long the diagnosis will take", "diagnose")
         say = (lambda msg: status(msg, "diagnose"))
     model = None
     if getattr(args, "model", None):  # diagnose on that rig, its effects on (docs/model-file.md)

@@ -22,6 +22,7 @@ import time
 from dataclasses import dataclass, field
 
 from ehas_env.diagnosis import proposal as P
+from ehas_env.diagnosis.estimate import estimate, in_words
 from ehas_env.measurement.campaign import Campaign
 from ehas_env.diagnosis.candidates import (
     FIT_WINDOW_S, Diagnosis, Step, _drop_stand_ins, _held_fit, _held_table, _parts_cost, _round, confidence,
@@ -733,8 +734,12 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                    base_effects=base_effects, candidates=candidates, stack=stack, progress=progress, say=log)
     s.options = {"propose": propose, "alternatives": alternatives, "per_run": per_run, "base_effects": base_effects,
                  "measured_inputs": measured_inputs, "states": states}
+    from ehas_env.physics.codegen import load_scale
+
+    est = estimate(s.rep, load_scale())
+    s.say(in_words(est))
     s.records.append({"stage": "data", "elapsed_s": round(time.perf_counter() - t0, 2), "holdout": s.held,
-                      "fit_runs": [r.name for r in s.train_runs]})
+                      "fit_runs": [r.name for r in s.train_runs], "estimate": est})
     run_stages(s, STAGES if stages is None else stages)
     res = s.result
     if res is None:

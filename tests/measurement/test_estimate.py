@@ -1,0 +1,28 @@
+"""The time a diagnosis says at its start (ehas_env.diagnosis.estimate, issue 44 point 5): its parts, against the
+count of replays the search makes and a campaign's own book figure."""
+from __future__ import annotations
+
+import pytest
+
+from ehas_env.diagnosis import estimate as E
+from ehas_env.measurement.campaign import Campaign, validate_run
+from ehas_env.measurement.replay import Replayer
+from ehas_env.measurement.synthetic import simulate_campaign
+
+
+def _rep(effects, seed):
+    runs, _ = simulate_campaign(effects, seed=seed, duration=1.0, plan=((3, 20.0, 1.0), (1, 30.0, 3.0)))
+    return Replayer(Campaign(None, [validate_run(n, c, m) for n, c, m in runs]))
+
+
+def test_the_estimate_counts_replays_by_the_book_figure_and_leaves_the_search_count_alone():
+    clean, missed = _rep(None, 4401), _rep({"coulomb_friction": {"Fc": 900.0}}, 4402)
+    a, b = E.estimate(clean), E.estimate(missed)
+    assert clean.n_evals == 0 and missed.n_evals == 0  # the timing replays are not the search's
+    assert a["book_x_noise"] < 2.0 < 4.0 < b["book_x_noise"]
+    assert (a["replays"], b["replays"]) == (E.REPLAYS[0][1], E.REPLAYS[-1][1])
+    for est in (a, b):
+        assert est["replay_s"] > 0.0
+        assert est["estimate_s"] == pytest.approx(E.FIXED_S + est["replays"] * est["replay_s"], abs=0.1 + est["replays"] * 5e-5)
+    assert E.estimate(clean, load_scale=2.0)["estimate_s"] > a["estimate_s"] + 0.9 * E.FIXED_S
+    assert "expected: about" in E.in_words(b) and f"{b['replays']} replays" in E.in_words(b)
