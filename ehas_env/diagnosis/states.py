@@ -71,6 +71,35 @@ def _quiet_reading(full: Replayer, sims, cls, trigger: float) -> str | None:
     return None
 
 
+#: a block at one sensor's reading must remove at least this share of that reading's excess over the noise: a
+#: sensor's own error leaves its reading at the noise; one that lowers it partly stands in for physics the reading
+#: carries (a chamber's pressure offset fitted where the return line's pressure rises with the flow)
+READING_SHARE = 0.5
+
+
+def _reading_not_closed(full: Replayer, before, after, cls) -> str | None:
+    """Why a block at a sensor's reading may not be kept although it lowers the residual (None when it may): it
+    leaves more than (1 - :data:`READING_SHARE`) of its reading's excess over the noise, on all data.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as NS
+    >>> _reading_not_closed(None, None, None, NS(signal_place=NS(place="coil_current"))) is None
+    True
+    """
+    place = getattr(getattr(cls, "signal_place", None), "place", "")
+    column = SENSED_COLUMNS.get(place[:-len("_reading")]) if place.endswith("_reading") else None
+    if column is None:
+        return None
+    a, b = (grade(blocks_of(full, sims, [column]))["residual_x_noise"] for sims in (before, after))
+    removed = (a - b) / (a - 1.0) if a > 1.0 else 1.0
+    if removed >= READING_SHARE:
+        return None
+    return (f"it takes {column} from {a:.3g}x to {b:.3g}x noise on all data, {100 * removed:.0f} % of that "
+            f"reading's excess over the noise: an error of the sensor itself would leave it at the noise (at least "
+            f"{100 * READING_SHARE:.0f} % removed); the reading carries physics the block does not hold")
+
+
 def judge(all_before: float, all_after: float, val_before: float | None, val_after: float | None) -> str | None:
     """Why an augmentation may not be kept (None when it may).
 
@@ -208,7 +237,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     sims1 = full.simulate(f.model)
     all1 = grade(blocks_of(full, sims1, COST_SIGNALS))["residual_x_noise"]
     val1 = _parts_cost(full, sims1, parts)
-    why = judge(all0, all1, val0, val1)
+    why = judge(all0, all1, val0, val1) or _reading_not_closed(full, sims0, sims1, get_effect(best))
     if why is not None and not dropped:
         # on top of the model it fails; an effect kept before may have stood in for the missing state (a delay
         # of the command fitted where the coil's current is rate-limited): the state in its place
@@ -219,7 +248,8 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
             gs = full.simulate(g.model)
             a, v = grade(blocks_of(full, gs, COST_SIGNALS))["residual_x_noise"], _parts_cost(full, gs, parts)
             rank = a if v is None else v
-            if judge(all0, a, val0, v) is None and (best_in_place is None or rank < best_in_place):
+            if (judge(all0, a, val0, v) is None and _reading_not_closed(full, sims0, gs, get_effect(best)) is None
+                    and (best_in_place is None or rank < best_in_place)):
                 best_in_place, (f, all1, val1, record["in_place_of"]) = rank, (g, a, v, [other])
                 say(f"  states: {best} in place of {other}: residual {all0:.3g}x -> {a:.3g}x noise")
         if record["in_place_of"] is not None:
