@@ -736,7 +736,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
                  "measured_inputs": measured_inputs, "states": states}
     from ehas_env.physics.codegen import load_scale
 
-    est = estimate(s.rep, load_scale())
+    est = estimate(s.rep, load_scale(), candidates)
     s.say(in_words(est))
     s.records.append({"stage": "data", "elapsed_s": round(time.perf_counter() - t0, 2), "holdout": s.held,
                       "fit_runs": [r.name for r in s.train_runs], "estimate": est})

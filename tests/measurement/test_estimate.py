@@ -15,14 +15,20 @@ def _rep(effects, seed):
     return Replayer(Campaign(None, [validate_run(n, c, m) for n, c, m in runs]))
 
 
-def test_the_estimate_counts_replays_by_the_book_figure_and_leaves_the_search_count_alone():
-    clean, missed = _rep(None, 4401), _rep({"coulomb_friction": {"Fc": 900.0}}, 4402)
-    a, b = E.estimate(clean), E.estimate(missed)
-    assert clean.n_evals == 0 and missed.n_evals == 0  # the timing replays are not the search's
-    assert a["book_x_noise"] < 2.0 < 4.0 < b["book_x_noise"]
-    assert (a["replays"], b["replays"]) == (E.REPLAYS[0][1], E.REPLAYS[-1][1])
-    for est in (a, b):
+def test_the_estimate_counts_replays_by_the_book_figure_and_the_library_and_leaves_the_search_count_alone():
+    clean = _rep(None, 4401)
+    friction = _rep({"coulomb_friction": {"Fc": 900.0}}, 4402)  # one library effect ends it
+    lag = _rep({"hyp_return_pressure": {"p_t": 20.0}}, 4403)  # nothing of the library does (a return line at 20 bar)
+    a, b, c = E.estimate(clean), E.estimate(friction), E.estimate(lag)
+    assert clean.n_evals == friction.n_evals == lag.n_evals == 0  # the timing and probing replays are not the search's
+    assert a["book_x_noise"] < 2.0 < 4.0 < min(b["book_x_noise"], c["book_x_noise"])
+    assert a["replays"] == E.REPLAYS[0][1]
+    assert (b["replays"], b["library_effect"]) == (E.LIBRARY_REPLAYS, "coulomb_friction")
+    assert b["library_share_left"] <= E.LIBRARY_SHARE < c["library_share_left"]
+    assert c["replays"] == E.REPLAYS[-1][1]
+    for est in (a, b, c):
         assert est["replay_s"] > 0.0
-        assert est["estimate_s"] == pytest.approx(E.FIXED_S + est["replays"] * est["replay_s"], abs=0.1 + est["replays"] * 5e-5)
+        assert est["estimate_s"] == pytest.approx(E.FIXED_S + est["replays"] * est["replay_s"],
+                                                  abs=0.1 + est["replays"] * 5e-5)
     assert E.estimate(clean, load_scale=2.0)["estimate_s"] > a["estimate_s"] + 0.9 * E.FIXED_S
-    assert "expected: about" in E.in_words(b) and f"{b['replays']} replays" in E.in_words(b)
+    assert "expected: about" in E.in_words(c) and f"{c['replays']} replays" in E.in_words(c)
