@@ -138,6 +138,9 @@ class SignalPlace:
         The factor from ``unit`` to the unit words show, and that unit.
     where : str
         The place in words ("chamber B's pressure reading").
+    in_loop : bool
+        Whether a follower there is a rival of what makes the loop late (the position the controller feeds back: a
+        lag of it makes the loop late as a delay of its command does); a logged reading's follower is not.
     """
 
     place: str
@@ -148,6 +151,7 @@ class SignalPlace:
     span: float
     shown: tuple
     where: str
+    in_loop: bool = False
 
 
 def _reading_places() -> tuple:
@@ -166,9 +170,11 @@ READING_PLACES = _reading_places()
 #: rate: its followers start at 0 mA, the current at rest), the position sensor's reading (its rate is the piston's
 #: velocity), and every sensed output's reading
 SIGNAL_PLACES = (
+    # the coil is in the loop too, but its lag as a rival of a command delay is the structural hypothesis
+    # hyp_coil_lag (tried by the hypotheses stage): not twice
     SignalPlace("coil_current", "coil", "i", None, "mA", 10.0, (1.0, "mA"), "the valve's current path (command to coil)"),
     SignalPlace("position_reading", "position_sensor", "x", "v", "m", 0.05, (1.0e3, "mm"),
-                "the position sensor's reading"),
+                "the position sensor's reading", in_loop=True),
 ) + tuple(p for p in READING_PLACES if p.rate)  # a reading's follower keeps its error: it needs the reading's rate
 
 
@@ -185,6 +191,8 @@ class Follower(Augmentation):
     stem: ClassVar[str] = ""
     #: the kind's title, before "in <place>"
     kind_title: ClassVar[str] = ""
+    #: the effects a follower of this kind in the loop may be mistaken for (its ``mistaken_for`` there)
+    loop_rivals: ClassVar[tuple] = ()
 
     @classmethod
     def kind_params(cls, place: SignalPlace) -> tuple:
@@ -231,6 +239,9 @@ class Follower(Augmentation):
         if place.place == "position_reading":
             # after the sensor's static effects (an offset, a shape): the state acts on what the conditioner outputs
             body["chain_order"] = 100
+        # a follower in the loop makes it late, as a delay of the command does: tried in place of one kept; at a
+        # logged reading it moves that reading alone, which no delay of the command stands in for
+        body["mistaken_for"] = cls.loop_rivals if place.in_loop else ()
         return type(cls)(body["__qualname__"], (cls,), body)
 
 
@@ -261,9 +272,9 @@ class Lag(Follower):
               typical=(0.5, 8.0), si=1.0e-3, log_scale=True),
     )
     main_param = "T"
-    #: a lag makes the signal late, as a delay of the command does: the diagnosis fits it in place of a transport
-    #: delay it keeps (the signals the lag does not touch tell them apart)
-    mistaken_for = ("transport_delay",)
+    #: a lag in the loop makes it late, as a delay of the command does: the diagnosis fits it in place of a
+    #: transport delay it keeps (the signals the lag does not touch tell them apart)
+    loop_rivals = ("transport_delay",)
     explanation = (
         "A signal passes a first-order filter the model does not hold: T y' = u - y. The output follows the "
         "input's sine with gain 1/sqrt(1 + (w T)^2) and a phase lag atan(w T)."
