@@ -146,6 +146,8 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     d["pa"] = p["beta"] / (v0 + A * x) * (q_a - A * xd)
     d["pb"] = p["beta"] / (v0 - A * x) * (q_b + A * xd)
     d["ps"] = sum(v for _, v in _terms("supply_rate", p, ctx))
+    # the sensors' quantities move at these rates (a lag of a pressure reading follows them)
+    ctx.update(pa_rate=d["pa"], pb_rate=d["pb"], ps_rate=d["ps"], f_rate=A * (d["pa"] - d["pb"]))
     for name in sorted(n for n in REGISTRY if REGISTRY[n].states and "coil_current" not in REGISTRY[n].terms()):
         d.update(_own_rates(name, p, ctx))
     return d
