@@ -172,14 +172,20 @@ LIBRARY_PLACE = {
     "aug_lag_position_sensor": {"position_reading"}, "aug_link_rod_crank": {"piston_force", "crank_torque"}, "aug_link_mount": {"piston_force"},
     "aug_hose_a": {"chamber_flows"}, "aug_hose_b": {"chamber_flows"}, "aug_hose_ab": {"chamber_flows"},
 }
+#: ehas's reading places (ehas_env.physics.layout.SENSED: aug_<kind>_<output>_reading) -> the grammar's place (the
+#: supply pressure's reading stands for the supply, which the grammar has no reading of)
+READING_PLACE = {"pa": "pressure_reading_a", "pb": "pressure_reading_b", "ps": "supply", "flow_a": "flow_reading",
+                 "force": "load_reading"}
+#: ehas's generated block kinds (the stem of aug_<kind>_<place>) -> the grammar's kind
+STEM_BLOCK = {"lag": "lag", "slew": "rate_limit", "offset": "offset", "gain": "gain"}
 # the state stage's generated blocks (ehas_env/physics/augment.py, aug_<kind>_<place>): a follower or a static
 # block at the position sensor's or at another sensor's reading is a sensor's, at that reading
 for _stem in ("lag", "slew", "offset", "gain"):
     LIBRARY_KIND.setdefault(f"aug_{_stem}_position_sensor", {"sensor"})
     LIBRARY_PLACE.setdefault(f"aug_{_stem}_position_sensor", {"position_reading"})
-    for _out in ("pa", "pb", "ps", "flow_a", "force"):
+    for _out, _place in READING_PLACE.items():
         LIBRARY_KIND[f"aug_{_stem}_{_out}_reading"] = {"sensor"}
-        LIBRARY_PLACE[f"aug_{_stem}_{_out}_reading"] = {f"{_out}_reading"}
+        LIBRARY_PLACE[f"aug_{_stem}_{_out}_reading"] = {_place}
 #: words of the package's own kind strings -> kinds (used only to choose among a place's kinds)
 KIND_WORDS = (("fric", "friction"), ("damp", "friction"), ("leak", "leakage/flow"), ("flow", "leakage/flow"),
               ("compli", "compliance"), ("area", "geometry/area"), ("geometr", "geometry/area"),
@@ -488,6 +494,9 @@ LIBRARY_BLOCK = {
     "aug_link_rod_crank": {"compliance"}, "aug_link_mount": {"compliance"}, "aug_hose_a": {"volume"},
     "aug_hose_b": {"volume"}, "aug_hose_ab": {"volume"},
 }
+for _stem, _kind in STEM_BLOCK.items():  # every generated block at every place ehas has
+    for _place in ("coil", "position_sensor", *(f"{o}_reading" for o in READING_PLACE)):
+        LIBRARY_BLOCK.setdefault(f"aug_{_stem}_{_place}", {_kind})
 #: the block kinds of the proposal's named forms (:data:`NAMED_FORM_KIND`'s keys), by their law
 NAMED_FORM_BLOCK = {
     "piston_force.coulomb": {"saturation"}, "piston_force.viscous": {"gain"}, "piston_force.friction_x2": {"smooth"},
