@@ -106,7 +106,7 @@ def test_missing_effects_path_is_named(tmp_path):
     refused(lambda: Plant(effects_path=tmp_path / "nope"), "nope", "does not exist")
 
 
-KNOWN = "known effects: aug_hose_a, aug_hose_ab, aug_hose_b"  # sorted: the generic augmentations (physics/augment.py) first
+KNOWN = "known effects: aug_gain_flow_a_reading, aug_gain_force_reading"  # sorted: the generic augmentations (physics/augment.py) first
 
 
 @pytest.mark.parametrize("effects, patterns", [
