@@ -126,6 +126,9 @@ def _readme(res: dict, cmd: str) -> str:
     L = ["# How long a diagnosis takes (issue 44)", "",
          f"Regenerate: `{cmd}` (at commit {res['commit']}; load (1, 5, 15 min) at the end {res['load_end']} on 2 "
          "cores, shared with other jobs: every time below is wall time with that load).", ""]
+    for part, at in (res.get("parts") or {}).items():
+        L.append(f"* part `{part}` last run at commit {at['commit']}, load at its end {at['load_end']}")
+    L.append("")
     if "sets" in res:
         L += ["## The acceptance sets (times the runners recorded)", "",
               "| set | cases | unexplained: median / longest s | explained: median s | estimate within x2 |",
@@ -161,7 +164,7 @@ def main(argv=None) -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     old = json.loads((out / "results.json").read_text()) if (out / "results.json").is_file() else {}
-    res = {k: v for k, v in old.items() if k in ("sets", "sets_summary", "scaling", "growth")}
+    res = {k: v for k, v in old.items() if k in ("sets", "sets_summary", "scaling", "growth", "parts")}
     if a.part in ("sets", "all"):
         res["sets"] = set_times()
         res["sets_summary"] = {k: _summary(v) for k, v in res["sets"].items() if v}
@@ -172,7 +175,10 @@ def main(argv=None) -> int:
         res["growth"] = {"runs_x4": round(res["scaling"]["4x runs (20 runs of 3 s)"]["wall_s"] / base, 2),
                          "length_x10": round(res["scaling"]["10x length (5 runs of 30 s)"]["wall_s"] / base, 2)}
     res.update(commit=_commit(), load_end=_load())
-    cmd = f"python -m tests.measurement.diagnosis_speed --out {a.out} --part {a.part}"
+    if a.part != "all":  # the parts run at different times: each keeps its own commit and load
+        res.setdefault("parts", {})[a.part] = {"commit": res["commit"], "load_end": res["load_end"]}
+    cmd = f"python -m tests.measurement.diagnosis_speed --out {a.out} --part " + \
+        ("all" if "sets" in res and "scaling" in res else a.part)
     (out / "results.json").write_text(json.dumps(res, indent=2) + "\n")
     (out / "README.md").write_text(_readme(res, cmd))
     print((out / "README.md").read_text(), flush=True)
