@@ -52,12 +52,17 @@ def _sig(v, n: int = 4):
     return None if v is None or not math.isfinite(v) else float(f"{float(v):.{n}g}")
 
 
+def _reading_column(cls) -> str | None:
+    """The logged column a block at a sensor's reading moves alone (None for a block elsewhere)."""
+    place = getattr(getattr(cls, "signal_place", None), "place", "")
+    return SENSED_COLUMNS.get(place[:-len("_reading")]) if place.endswith("_reading") else None
+
+
 def _quiet_reading(full: Replayer, sims, cls, trigger: float) -> str | None:
     """Why a state at a sensor's reading is not tried (None when it is): such a state moves that reading alone,
     and the campaign does not log it among the signals judged, or its residual there is at or below ``trigger``
     (x what does not repeat), where no state of the reading can remove a tenth of the excess over noise."""
-    place = getattr(getattr(cls, "signal_place", None), "place", "")
-    column = SENSED_COLUMNS.get(place[:-len("_reading")]) if place.endswith("_reading") else None
+    column = _reading_column(cls)
     if column is None:
         return None
     if column not in COST_SIGNALS:
@@ -87,8 +92,7 @@ def _reading_not_closed(full: Replayer, before, after, cls) -> str | None:
     >>> _reading_not_closed(None, None, None, NS(signal_place=NS(place="coil_current"))) is None
     True
     """
-    place = getattr(getattr(cls, "signal_place", None), "place", "")
-    column = SENSED_COLUMNS.get(place[:-len("_reading")]) if place.endswith("_reading") else None
+    column = _reading_column(cls)
     if column is None:
         return None
     a, b = (grade(blocks_of(full, sims, [column]))["residual_x_noise"] for sims in (before, after))
