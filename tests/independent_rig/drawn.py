@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 from . import acceptance as acc
+from . import unlisted
 from .grammar import DB_HIGH, DB_LOW, KINDS, PLACES, SEED, counts, describe, drawn_cases
 from .judge import block_items, honesty, judge_blocks
 from .unlisted import _atomic, _f, _pct, baseline_residual
@@ -60,34 +61,15 @@ def run(case: dict, work: Path, out: Path, caps: dict) -> dict:
 
 
 def rejudge(rec: dict, out: Path) -> dict:
-    """The record judged again from its stored diagnosis (``OUT/diag/ID.json``) by the judge as it is now."""
-    path = out / "diag" / f"{rec['id']}.json"
-    if "place_kind" not in rec or not path.exists():
-        return rec
-    diag = json.loads(path.read_text())
-    h = rec.get("honesty") or {}
-    return {**rec, "place_kind": judge_blocks(rec["blocks"], block_items(diag)),
-            "honesty": honesty(diag, h.get("baseline"), h.get("final"))}
+    """The record judged again from its stored diagnosis by the judge as it is now (:func:`.unlisted.rejudge`)."""
+    return unlisted.rejudge(rec, out, lambda r, diag: judge_blocks(r["blocks"], block_items(diag)))
 
 
 def summarise(recs: list[dict]) -> dict:
-    """Figures against :data:`THRESHOLDS` over the cases that ran, and the right share per kind and per place."""
+    """Figures against :data:`THRESHOLDS` over the cases that ran (:func:`.unlisted.summarise`), and the right
+    share per kind and per place."""
+    s = unlisted.summarise(recs, THRESHOLDS, per="per_block")
     ok = [r for r in recs if "error" not in r and "place_kind" in r]
-    n = len(ok)
-    right = sum(1 for r in ok if r["place_kind"]["right"])
-    closed = sum(1 for r in ok if r["honesty"]["closed"])
-    s = {"campaigns": len(recs), "errors": len(recs) - n, "right_place_kind": right,
-         "right_place_kind_share": right / n if n else None,
-         "right_kind_any_form": sum(1 for r in ok if all(v["right_kind_any_form"]
-                                                         for v in r["place_kind"]["per_block"].values())),
-         "closed": closed, "closed_share": closed / n if n else None,
-         "closed_unknown": sum(1 for r in ok if r["honesty"]["closed"] is None),
-         "weak_terms": sum(1 for r in ok if r["honesty"]["weak_term"]),
-         "worsening_hypotheses": sum(1 for r in ok if r["honesty"]["worsening_hypothesis"])}
-    s["meets"] = {"right_place_kind": n > 0 and s["right_place_kind_share"] >= THRESHOLDS["right_place_kind_share"],
-                  "closed": n > 0 and s["closed_share"] >= THRESHOLDS["closed_share"],
-                  "weak_terms": s["weak_terms"] <= THRESHOLDS["weak_terms"],
-                  "worsening_hypotheses": s["worsening_hypotheses"] <= THRESHOLDS["worsening_hypotheses"]}
     s["by_kind"], s["by_place"] = _by(ok, "kind"), _by(ok, "place")
     return s
 

@@ -73,20 +73,23 @@ def run(case: dict, work: Path, out: Path, caps: dict) -> dict:
     return rec
 
 
-def rejudge(rec: dict, out: Path) -> dict:
+def rejudge(rec: dict, out: Path, place_kind=None) -> dict:
     """The record judged again from its stored diagnosis (``OUT/diag/ID.json``) by the judge as it is now (its maps
-    grow with the package's forms); the measured residuals are kept."""
+    grow with the package's forms); the measured residuals are kept.  ``place_kind(rec, diag)`` judges the place and
+    kind (default :func:`.judge.judge_place_kind` of the record's hidden effects)."""
     path = out / "diag" / f"{rec['id']}.json"
     if "place_kind" not in rec or not path.exists():
         return rec
     diag = json.loads(path.read_text())
     h = rec.get("honesty") or {}
-    return {**rec, "place_kind": judge_place_kind(rec["effects"], worded_items(diag)),
-            "honesty": honesty(diag, h.get("baseline"), h.get("final"))}
+    judged = (place_kind(rec, diag) if place_kind is not None
+              else judge_place_kind(rec["effects"], worded_items(diag)))
+    return {**rec, "place_kind": judged, "honesty": honesty(diag, h.get("baseline"), h.get("final"))}
 
 
-def summarise(recs: list[dict]) -> dict:
-    """Figures against :data:`THRESHOLDS` over the cases that ran."""
+def summarise(recs: list[dict], thresholds: dict = THRESHOLDS, per: str = "per_effect") -> dict:
+    """Figures against ``thresholds`` (default :data:`THRESHOLDS`) over the cases that ran; ``per`` names the
+    judgement's per-item table (``per_effect``, the drawn set's ``per_block``)."""
     ok = [r for r in recs if "error" not in r and "place_kind" in r]
     n = len(ok)
     right = sum(1 for r in ok if r["place_kind"]["right"])
@@ -94,15 +97,15 @@ def summarise(recs: list[dict]) -> dict:
     s = {"campaigns": len(recs), "errors": len(recs) - n, "right_place_kind": right,
          "right_place_kind_share": right / n if n else None,
          "right_kind_any_form": sum(1 for r in ok if all(v["right_kind_any_form"]
-                                                         for v in r["place_kind"]["per_effect"].values())),
+                                                         for v in r["place_kind"][per].values())),
          "closed": closed, "closed_share": closed / n if n else None,
          "closed_unknown": sum(1 for r in ok if r["honesty"]["closed"] is None),
          "weak_terms": sum(1 for r in ok if r["honesty"]["weak_term"]),
          "worsening_hypotheses": sum(1 for r in ok if r["honesty"]["worsening_hypothesis"])}
-    s["meets"] = {"right_place_kind": n > 0 and s["right_place_kind_share"] >= THRESHOLDS["right_place_kind_share"],
-                  "closed": n > 0 and s["closed_share"] >= THRESHOLDS["closed_share"],
-                  "weak_terms": s["weak_terms"] <= THRESHOLDS["weak_terms"],
-                  "worsening_hypotheses": s["worsening_hypotheses"] <= THRESHOLDS["worsening_hypotheses"]}
+    s["meets"] = {"right_place_kind": n > 0 and s["right_place_kind_share"] >= thresholds["right_place_kind_share"],
+                  "closed": n > 0 and s["closed_share"] >= thresholds["closed_share"],
+                  "weak_terms": s["weak_terms"] <= thresholds["weak_terms"],
+                  "worsening_hypotheses": s["worsening_hypotheses"] <= thresholds["worsening_hypotheses"]}
     return s
 
 
