@@ -25,7 +25,7 @@ from ehas_env.diagnosis.candidates import (
 from ehas_env.diagnosis.fitting import Fit, confidence
 from ehas_env.diagnosis.honesty import term_refused
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, Replayer
-from ehas_env.measurement.verdict import blocks_of, grade
+from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
 from ehas_env.physics.augment import augmentations
 from ehas_env.physics.effects import get_effect
 
@@ -60,20 +60,35 @@ def _reading_column(cls) -> str | None:
 
 def _quiet_reading(full: Replayer, sims, cls, trigger: float) -> str | None:
     """Why a state at a sensor's reading is not tried (None when it is): such a state moves that reading alone,
-    and the campaign does not log it among the signals judged, or its residual there is at or below ``trigger``
-    (x what does not repeat), where no state of the reading can remove a tenth of the excess over noise."""
+    and the campaign does not log it, or its residual there is at or below ``trigger`` (x what does not repeat),
+    where no state of the reading can remove a tenth of the excess over noise."""
     column = _reading_column(cls)
     if column is None:
         return None
-    if column not in COST_SIGNALS:
-        return f"{cls.where} moves {column} alone, a signal not judged"
     blocks = blocks_of(full, sims, [column])
     if not blocks:
         return f"{cls.where} moves {column} alone, which the campaign does not log"
-    level = grade(blocks)["residual_x_noise"]
-    if level <= trigger:
-        return f"{cls.where} moves {column} alone, whose residual is {level:.3g}x noise (at or below {trigger:g}x)"
+    g = grade(blocks)
+    if _quiet(g, trigger):
+        return (f"{cls.where} moves {column} alone, whose residual is {g['residual_x_noise']:.3g}x noise (at or "
+                f"below {trigger:g}x, and in no run above {1.0 + BLOCK_EXPLAINED_X:g}x)")
     return None
+
+
+def _quiet(g: dict, trigger: float) -> bool:
+    """Whether a graded residual leaves nothing for a state to look for: at or below ``trigger`` overall and in no
+    run and signal above what the verdict calls explained (a miss in one run and signal that the geometric mean
+    over all of them dilutes is one the verdict calls unexplained: it is looked for).
+
+    Examples
+    --------
+    >>> _quiet({"residual_x_noise": 1.4, "worst": {"residual_x_noise": 2.0}}, 1.5)
+    True
+    >>> _quiet({"residual_x_noise": 1.4, "worst": {"residual_x_noise": 30.0}}, 1.5)
+    False
+    """
+    worst = (g.get("worst") or {}).get("residual_x_noise", 1.0)
+    return g["residual_x_noise"] <= trigger and worst <= 1.0 + BLOCK_EXPLAINED_X
 
 
 #: a block at one sensor's reading must remove at least this share of that reading's excess over the noise: a
@@ -189,15 +204,17 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     held = set(final.model.effects)
     names = [n for n in (augmentations() if names is None else names) if n not in held]
     sims0 = full.simulate(final.model)
-    all0 = grade(blocks_of(full, sims0, COST_SIGNALS))["residual_x_noise"]
+    g0 = grade(blocks_of(full, sims0, COST_SIGNALS))
+    all0 = g0["residual_x_noise"]
     val0 = _parts_cost(full, sims0, parts)
     record = {"tried": [], "kept": None, "params": None, "ci95": None,
               "residual_x_noise_all_before": _r(all0), "residual_x_noise_all_after": None,
               "residual_x_noise_validation_before": _r(val0), "residual_x_noise_validation_after": None,
               "words": None, "skipped": None, "in_place_of": None}
-    if all0 <= trigger:
+    if _quiet(g0, trigger):
         record["skipped"] = (f"the final model's residual, {all0:.3g}x noise on all data, is at or below "
-                             f"{trigger:g}x: no state is looked for")
+                             f"{trigger:g}x and in no run and signal above {1.0 + BLOCK_EXPLAINED_X:g}x: no state "
+                             "is looked for")
         say(f"  states: {record['skipped']}")
         return None, record
     screened = {}

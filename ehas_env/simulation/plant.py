@@ -561,7 +561,11 @@ class Plant:
             res.logged = {
                 "theta_deg": out[:, K.O_SENSED].copy() if kind == "closed_loop" else m(res.theta_deg, "theta", rng),
                 "flow_lpm": m(res.flow_lpm, "flow", rng), "p_a_bar": pa, "p_b_bar": pb,
-                "p_s_bar": m(res.p_s_bar, "pressure", rng), "load_kN": self.rig.area * (pa - pb) * BAR * 1e-3,
+                "p_s_bar": m(res.p_s_bar, "pressure", rng),
+                # the load cell reads the piston force through its own reading place (a pressure reading's lag or
+                # offset is not in it); its noise is assumed the pressure transducers' seen through the area (no
+                # draw of its own: the noise of every other channel is what it was)
+                "load_kN": res.load_kN + self.rig.area * ((pa - res.p_a_bar) - (pb - res.p_b_bar)) * BAR * 1e-3,
             }
         return res
 

@@ -133,7 +133,8 @@ def test_a_reading_state_is_tried_only_where_that_reading_misses():
     assert why is not None and "p_a_bar" in why and "at or below" in why
     assert _quiet_reading(full, sims, get_effect("aug_lag_pb_reading"), 1.5) is None  # chamber B's reading lags
     assert _quiet_reading(full, sims, get_effect("aug_lag_position_sensor"), 1.5) is None
-    assert "not judged" in _quiet_reading(full, sims, get_effect("aug_lag_force_reading"), 1.5)
+    # the load reading is judged (issue 42): here it is A (P_A - P_B) of the true pressures, which the model meets
+    assert "at or below" in _quiet_reading(full, sims, get_effect("aug_lag_force_reading"), 1.5)
 
 
 @pytest.mark.slow  # a 5-run campaign, four followers screened (about 2 min on 2 cores)
@@ -162,3 +163,15 @@ def test_a_reading_block_that_leaves_most_of_its_reading_is_not_kept():
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=["aug_offset_pa_reading"])
     assert rec["kept"] == "aug_offset_pa_reading", rec
     assert rec["params"]["c"] == pytest.approx(3.0e5, rel=0.1)
+
+
+def test_a_miss_in_one_reading_that_the_overall_figure_dilutes_is_looked_for():
+    """A 2 ms lag in chamber B's pressure reading leaves the campaign at about 1.25x overall (the geometric mean
+    over every run and signal dilutes it), below the stage's trigger, but 9x in the 3 Hz run's B pressure: the
+    verdict calls that unexplained, so the stage looks (it skipped such campaigns: the drawn set's lag in a reading
+    ended "unexplained, no state looked for") and keeps the lag, near the truth."""
+    s, null = _search({"aug_lag_pb_reading": {"T": 2.0}}, 3311)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=["aug_lag_pb_reading"])
+    assert rec["residual_x_noise_all_before"] <= 1.5 and rec["skipped"] is None, rec
+    assert rec["kept"] == "aug_lag_pb_reading", rec
+    assert rec["params"]["T"] == pytest.approx(2.0, rel=0.3)
