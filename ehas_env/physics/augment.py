@@ -79,6 +79,8 @@ class Augmentation(Effect):
     where: ClassVar[str] = ""
     #: how the words show a parameter: {name: (factor from its unit, unit shown)}
     shown: ClassVar[dict] = {}
+    #: the words between the kind and its main parameter's value ("a saturation at +-10.5 L/min")
+    joins: ClassVar[str] = " of "
 
     @classmethod
     def in_words(cls, params: dict, ci: dict | None = None) -> str:
@@ -104,7 +106,7 @@ class Augmentation(Effect):
 
         p = cls.params
         rest = "".join(f" and {q.doc.split(':')[0]} {one(q)}" for q in p[1:])
-        return f"{cls.form} of {one(p[0])}{rest} in {cls.where}{cls._extra(params)}"
+        return f"{cls.form}{cls.joins}{one(p[0])}{rest} in {cls.where}{cls._extra(params)}"
 
     @classmethod
     def _extra(cls, params: dict) -> str:
@@ -152,13 +154,15 @@ class SignalPlace:
     shown: tuple
     where: str
     in_loop: bool = False
+    signed: bool = True
 
 
 def _reading_places() -> tuple:
-    """A :class:`SignalPlace` per sensed output of the model (:data:`ehas_env.physics.layout.SENSED`)."""
+    """A :class:`SignalPlace` per sensed output of the model (:data:`ehas_env.physics.layout.SENSED`); a pressure
+    (Pa) is absolute in the model, never negative: its reading is not ``signed`` (no dead zone about its zero)."""
     shown = {"Pa": (1.0e-5, "bar"), "m^3/s": (60000.0, "L/min"), "N": (1.0e-3, "kN")}
     return tuple(SignalPlace(f"{out}_reading", f"{out}_reading", arg, f"{arg}_rate" if rate else None, unit, span,
-                             shown.get(unit, (1.0, unit)), words)
+                             shown.get(unit, (1.0, unit)), words, signed=unit != "Pa")
                  for out, (arg, unit, rate, words, span) in SENSED.items())
 
 
@@ -370,6 +374,11 @@ class Static(Augmentation):
         return dict(cls.shown)
 
     @classmethod
+    def fits(cls, place: SignalPlace) -> bool:
+        """Whether the kind means something at ``place`` (every reading, unless the kind says otherwise)."""
+        return True
+
+    @classmethod
     def at(cls, place: SignalPlace) -> type:
         """The effect ``aug_<stem>_<place.short>`` that puts this kind at the reading ``place``."""
         name = f"aug_{cls.stem}_{place.short}"
@@ -415,9 +424,69 @@ class Gain(Static):
     signature = "a residual on that reading alone, proportional to the reading itself."
 
 
-#: the static kinds, each applied at every sensed output's reading
-STATIC_KINDS = (Offset, Gain)
-STATICS = tuple(kind.at(place) for kind in STATIC_KINDS for place in READING_PLACES)
+class Saturation(Static):
+    """A reading that saturates: the sensor (its range, its amplifier, its converter) reports at most ``L`` either
+    way (Jelali & Kroll 2003: sensor and amplifier ranges)."""
+
+    form = "a saturation"
+    joins = " at +-"
+    stem = "sat"
+    kind_title = "saturation"
+    expr = "min(max(u, -L), L)"
+    main_param = "L"
+    explanation = ("The sensor reports the quantity up to L either way and L beyond it: its range, its amplifier's "
+                   "or its converter's, ends inside what the rig does.")
+    signature = ("a residual on that reading alone, zero while the reading is inside +-L and growing with the "
+                 "quantity beyond it: flat tops on the large, fast runs, none on the small ones.")
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        # from a twentieth of the span (a range far too small) to five spans (never reached: no effect)
+        return (Param("L", place.unit, 5.0 * place.span, (0.05 * place.span, 5.0 * place.span),
+                      f"the largest value the reading reports either way, {place.unit} (assumed range: 0.05 to 5 "
+                      f"times the signal's span of {place.span:g} {place.unit}; the default, 5 spans, is never "
+                      "reached: no effect)", typical=(0.3 * place.span, 2.0 * place.span), log_scale=True),)
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"L": place.shown}
+
+
+class DeadZone(Static):
+    """A reading with a dead zone about its zero: the sensor reports nothing until the quantity passes ``d`` either
+    way, then the quantity less ``d`` (a turbine meter that does not turn below its threshold; a load cell's
+    mounting play taken up by a preload; Jelali & Kroll 2003: dead zones of drives and sensors)."""
+
+    form = "a dead zone"
+    joins = " of +-"
+    stem = "dz"
+    kind_title = "dead zone"
+    expr = "u - min(max(u, -d), d)"
+    main_param = "d"
+    explanation = ("The sensor reports zero while the quantity is within +-d and the quantity less d beyond it: "
+                   "its reading starts late at every reversal.")
+    signature = ("a residual on that reading alone at every zero crossing of the quantity, of size d, the same on "
+                 "every run; none where the quantity stays far from zero.")
+
+    @classmethod
+    def fits(cls, place: SignalPlace) -> bool:
+        return place.signed  # an absolute pressure is never near a zero a dead zone acts about
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        return (Param("d", place.unit, 1.0e-4 * place.span, (1.0e-4 * place.span, 0.2 * place.span),
+                      f"the dead zone's half width, {place.unit} (assumed range: 1e-4 to 0.2 times the signal's span "
+                      f"of {place.span:g} {place.unit}; the default, 1e-4 span, is below any sensor's resolution)",
+                      typical=(0.005 * place.span, 0.05 * place.span), log_scale=True),)
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"d": place.shown}
+
+
+#: the static kinds, each applied at every sensed output's reading it fits
+STATIC_KINDS = (Offset, Gain, Saturation, DeadZone)
+STATICS = tuple(kind.at(place) for kind in STATIC_KINDS for place in READING_PLACES if kind.fits(place))
 
 
 def followers() -> list[str]:

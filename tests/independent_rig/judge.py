@@ -177,10 +177,11 @@ LIBRARY_PLACE = {
 READING_PLACE = {"pa": "pressure_reading_a", "pb": "pressure_reading_b", "ps": "supply", "flow_a": "flow_reading",
                  "force": "load_reading"}
 #: ehas's generated block kinds (the stem of aug_<kind>_<place>) -> the grammar's kind
-STEM_BLOCK = {"lag": "lag", "slew": "rate_limit", "offset": "offset", "gain": "gain"}
+STEM_BLOCK = {"lag": "lag", "slew": "rate_limit", "offset": "offset", "gain": "gain", "sat": "saturation",
+              "dz": "dead_zone"}
 # the state stage's generated blocks (ehas_env/physics/augment.py, aug_<kind>_<place>): a follower or a static
 # block at the position sensor's or at another sensor's reading is a sensor's, at that reading
-for _stem in ("lag", "slew", "offset", "gain"):
+for _stem in STEM_BLOCK:
     LIBRARY_KIND.setdefault(f"aug_{_stem}_position_sensor", {"sensor"})
     LIBRARY_PLACE.setdefault(f"aug_{_stem}_position_sensor", {"position_reading"})
     for _out, _place in READING_PLACE.items():

@@ -9,6 +9,7 @@ from ehas_env.diagnosis.candidates import FIT_WINDOW_S, fit_null
 from ehas_env.diagnosis.search import data_stage
 from ehas_env.diagnosis.states import judge, state_stage
 from ehas_env.measurement.synthetic import simulate_campaign
+from ehas_env.physics.augment import reading_blocks
 
 #: what the stage tries in these tests: a lag at each of its two places and a link at each of its two (the hoses
 #: and the play are tried by the full list; four keep the test's replays few)
@@ -175,3 +176,18 @@ def test_a_miss_in_one_reading_that_the_overall_figure_dilutes_is_looked_for():
     assert rec["residual_x_noise_all_before"] <= 1.5 and rec["skipped"] is None, rec
     assert rec["kept"] == "aug_lag_pb_reading", rec
     assert rec["params"]["T"] == pytest.approx(2.0, rel=0.3)
+
+
+@pytest.mark.parametrize("effect,param,value,seed", [
+    ("aug_sat_flow_a_reading", "L", 8.0 / 60000.0, 3314),  # the flow meter's range ends at 8 L/min
+    ("aug_dz_force_reading", "d", 300.0, 3315),  # the load reading dead within +-0.3 kN
+])
+def test_a_saturated_or_dead_reading_is_found_with_its_size(effect, param, value, seed):
+    """The static kinds a range or a threshold makes, found by the state stage among the reading blocks of their
+    place (its scan of the main parameter finds where the clip acts; from the default the block does nothing)."""
+    s, null = _search({effect: {param: value}}, seed)
+    place = effect.split("_", 2)[2]
+    names = [n for n in reading_blocks() if n.endswith(place)]
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=names)
+    assert rec["kept"] == effect, rec
+    assert rec["params"][param] == pytest.approx(value, rel=0.2)

@@ -269,8 +269,8 @@ def test_static_blocks_at_readings_move_their_reading_exactly():
     nothing else moves (the loop feeds back states, not readings).  Every sensed output is a place of each."""
     from ehas_env.physics.layout import SENSED
 
-    assert {f"aug_{k.stem}_{out}_reading" for k in augment.STATIC_KINDS for out in SENSED} == \
-        set(augment.reading_blocks())
+    assert {f"aug_{k.stem}_{out}_reading" for k in augment.STATIC_KINDS for out in SENSED
+            if k is not augment.DeadZone or SENSED[out][1] != "Pa"} == set(augment.reading_blocks())
     plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=1)
     off = Plant(disc_sets=2, effects={"aug_offset_pa_reading": {"c": 2.5e5},
                                       "aug_gain_flow_a_reading": {"g": -0.04}}).simulate_closed_loop(
@@ -279,3 +279,23 @@ def test_static_blocks_at_readings_move_their_reading_exactly():
     np.testing.assert_array_equal(off.p_b_bar, plain.p_b_bar)
     np.testing.assert_allclose(off.p_a_bar - plain.p_a_bar, 2.5, rtol=1e-9)
     np.testing.assert_allclose(off.flow_lpm, 0.96 * plain.flow_lpm, rtol=1e-9, atol=1e-12)
+
+
+def test_a_saturated_and_a_dead_zone_reading_are_the_clipped_and_the_dead_zoned_quantity():
+    """A saturation at +-L of the flow meter's reading is the plain flow clipped at +-L; a dead zone of +-d in the
+    load reading is the plain load less its clip at +-d (zero inside); the other signals do not move.  No dead zone
+    at an (absolute) pressure reading."""
+    L, d = 4.0, 0.2  # L/min, kN
+    plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    cut = Plant(disc_sets=2, effects={"aug_sat_flow_a_reading": {"L": L / 60000.0},
+                                      "aug_dz_force_reading": {"d": d * 1e3}}).simulate_closed_loop(
+        amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    assert np.abs(plain.flow_lpm).max() > 1.5 * L and np.abs(plain.load_kN).max() > 3 * d  # both act
+    np.testing.assert_array_equal(cut.theta_deg, plain.theta_deg)
+    np.testing.assert_array_equal(cut.p_a_bar, plain.p_a_bar)
+    np.testing.assert_allclose(cut.flow_lpm, np.clip(plain.flow_lpm, -L, L), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(cut.load_kN, plain.load_kN - np.clip(plain.load_kN, -d, d), rtol=1e-9, atol=1e-12)
+    assert "aug_dz_pa_reading" not in augment.reading_blocks()
+    from ehas_env.physics.effects import get_effect
+
+    assert get_effect("aug_sat_flow_a_reading").in_words({"L": L / 60000.0}).startswith("a saturation at +-4 L/min")
