@@ -191,3 +191,15 @@ def test_a_saturated_or_dead_reading_is_found_with_its_size(effect, param, value
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=names)
     assert rec["kept"] == effect, rec
     assert rec["params"][param] == pytest.approx(value, rel=0.2)
+
+
+@pytest.mark.parametrize("effect,param,value", [("aug_delay_pb_reading", "tau", 4.0), ("aug_lag_pb_reading", "T", 3.0)])
+def test_a_delay_and_a_lag_of_a_reading_are_told_apart(effect, param, value):
+    """A pure delay (gain 1, phase growing with frequency) and a first-order lag (gain falling, phase saturating)
+    of chamber B's reading, each screened against the other and a rate limit at the same place: the stage keeps the
+    truth's kind with its size."""
+    s, null = _search({effect: {param: value}}, 3316)
+    names = ["aug_lag_pb_reading", "aug_delay_pb_reading", "aug_slew_pb_reading"]
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=names)
+    assert rec["kept"] == effect, rec
+    assert rec["params"][param] == pytest.approx(value, rel=0.1)
