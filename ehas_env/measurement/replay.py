@@ -118,6 +118,48 @@ class ModelSpec:
         return RigParams(beta=self.beta, K=self.K, supply=supply_bar * BAR)
 
 
+#: a logged load is the logger's own combination of the logged pressures when what the pressures' best
+#: combination leaves of it is below this share of its noise level (a load cell's reading leaves its own noise)
+DERIVED_SHARE = 0.01
+
+
+def derived_load(measured: dict, noise: float) -> bool:
+    """Whether a run's logged load is computed from its logged chamber pressures (``a P_A - b P_B`` for some
+    areas, fitted) rather than read by a load cell: what the best such combination leaves of it is below
+    :data:`DERIVED_SHARE` of its noise level.  Such a column is not compared with the model (the pressures are, and
+    a miss in them would be counted twice; a pressure reading's own error, an offset, would leave it missed
+    however well the model reads the chamber); a load cell's reading is (its own lag or range shows there alone).
+
+    Parameters
+    ----------
+    measured : dict
+        The run's logged signals (``load_kN``, ``p_a_bar``, ``p_b_bar``).
+    noise : float
+        The load's noise level, kN.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> pa, pb = 100 + 40 * rng.standard_normal(500), 100 + 40 * rng.standard_normal(500)
+    >>> derived_load({"load_kN": 0.5 * (pa - pb), "p_a_bar": pa, "p_b_bar": pb}, 0.01)
+    True
+    >>> derived_load({"load_kN": 0.5 * (pa - pb) + 0.01 * rng.standard_normal(500), "p_a_bar": pa,
+    ...               "p_b_bar": pb}, 0.01)
+    False
+    """
+    if not {"load_kN", "p_a_bar", "p_b_bar"} <= set(measured):
+        return False
+    y = np.asarray(measured["load_kN"], dtype=float)
+    X = np.column_stack([np.asarray(measured["p_a_bar"], float), -np.asarray(measured["p_b_bar"], float)])
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    left = y - X @ coef
+    return bool(np.sqrt(np.mean(left ** 2)) <= DERIVED_SHARE * noise)
+
+
 @dataclass
 class _Case:
     """What one run needs for fast replays (arrays built once)."""
@@ -136,6 +178,7 @@ class _Case:
     cmd: np.ndarray | None = None
     skip: int = 0  # leading samples left out of cost and fit (the warm-up of a window cut from a valve run)
     supply: np.ndarray | None = None  # the measured supply, Pa, one per simulation step (None: the sidecar's)
+    derived: tuple = ()  # logged columns the logger computed from others (:func:`derived_load`): not compared
 
     @property
     def hist_len(self) -> int:
@@ -249,6 +292,10 @@ class Replayer:
             case = _Case(run, signals, measured, {}, run.dt, run.n, False,
                          cmd=np.ascontiguousarray(run.columns["current_mA"], dtype=float))
         case.noise = {s: max(noise_level(y), NOISE_FLOOR[s]) for s, y in measured.items()}
+        if "load_kN" in case.signals and derived_load(measured, case.noise["load_kN"]):
+            # the logger's A (P_A - P_B) of the logged pressures: nothing of its own to compare (counted twice else)
+            case.signals = tuple(s for s in case.signals if s != "load_kN")
+            case.derived = ("load_kN",)
         window = run.meta.get("window") or {}
         case.skip = int(window.get("skip", 0))
         for s, nz in (window.get("noise") or {}).items():

@@ -62,7 +62,7 @@ CASES = [
 ]
 
 
-def judge(drift: list, quantity: str | None, ratio: float) -> dict:
+def judge(drift: list, quantity: str | None, ratio: float, follows: str = "recording order") -> dict:
     """Whether a diagnosis' ``drift`` names the truth: the parameter, the direction, the size within :data:`TOL`.
 
     Parameters
@@ -73,6 +73,10 @@ def judge(drift: list, quantity: str | None, ratio: float) -> dict:
         The drifting quantity (a key of :data:`NAMES`), None for a campaign without drift.
     ratio : float
         The truth's ratio last / first.
+    follows : str
+        What the truth's change runs along, as the report names it (the schedule runs in recording order here;
+        a recorded condition's sidecar key in :mod:`.conditions`, the ratio then from its least value to its
+        largest).
 
     Returns
     -------
@@ -92,7 +96,7 @@ def judge(drift: list, quantity: str | None, ratio: float) -> dict:
     best = None
     for d in drift:
         if d["parameter"] not in NAMES[quantity] or d.get("ratio_first_last") is None or \
-                d.get("follows") != "recording order":  # the schedule runs in recording order: first -> last is that
+                d.get("follows") != follows:  # the schedule runs in recording order: first -> last is that
             continue
         err = abs((d["ratio_first_last"] - 1.0) / (ratio - 1.0) - 1.0)
         right = d["direction"] == ("rises" if ratio > 1 else "falls")
@@ -107,13 +111,8 @@ def run_case(case, workdir: Path, log=print) -> dict:
     name, effects, schedule, quantity, ratio, seed = case
     runs, truth = simulate(effects, seed=seed, duration=DURATION, plan=PLAN, valve=False, schedule=schedule)
     camp_dir = write(workdir / f"camp_{seed}", runs, truth, overwrite=True)
-    out = workdir / f"diag_{seed}.json"
     t0 = time.perf_counter()
-    code, stdout, stderr, _ = _run([ehas_exe(), "diagnose", str(camp_dir), "--json", str(out), "--quiet",
-                                    "--overwrite"], log=workdir / f"diag_{seed}.log")
-    if code != 0:
-        raise SystemExit(f"ehas diagnose failed on {name} (seed {seed}): {stderr.strip()[-500:]}")
-    doc = json.loads(out.read_text())
+    doc = diagnose(camp_dir, workdir, seed, name)
     for d in doc["drift"]:
         log("    " + d["text"])
     j = judge(doc["drift"], quantity, ratio)
@@ -123,6 +122,51 @@ def run_case(case, workdir: Path, log=print) -> dict:
             "verdict": doc["verdict"], "residual_x_noise": doc["residual_x_noise"],
             "kept": [st["effect"] for st in doc["stack"] if st["kept"]],
             "elapsed_s": round(time.perf_counter() - t0, 1)}
+
+
+def diagnose(camp_dir: Path, workdir: Path, seed: int, name: str) -> dict:
+    """``ehas diagnose CAMP --json`` in another process (``workdir/diag_SEED.json`` and its log): the JSON."""
+    out = workdir / f"diag_{seed}.json"
+    code, stdout, stderr, _ = _run([ehas_exe(), "diagnose", str(camp_dir), "--json", str(out), "--quiet",
+                                    "--overwrite"], log=workdir / f"diag_{seed}.log")
+    if code != 0:
+        raise SystemExit(f"ehas diagnose failed on {name} (seed {seed}): {stderr.strip()[-500:]}")
+    return json.loads(out.read_text())
+
+
+def run_all(cases: list, path: Path, command: str, run_one, idx=None, fresh: bool = False,
+            key=lambda c: (c[0], c[5])) -> list:
+    """Run the cases not yet recorded in ``path`` (``{"records": [...], "command": ...}``), one at a time, each
+    record written as soon as it is made (resumable): the records, old and new.
+
+    Parameters
+    ----------
+    cases : list
+        The cases; ``key(case)`` is (name, seed), matched against a record's ``case`` and ``seed``.
+    path : Path
+        The JSON of records.
+    command : str
+        Stored beside the records.
+    run_one : callable
+        ``run_one(case, workdir, log=...)`` -> record (with ``ok`` and ``drift``).
+    idx : sequence of int, optional
+        Indices into ``cases`` (default all).
+    fresh : bool
+        Ignore the records already in ``path``.
+    """
+    recs = [] if fresh or not path.exists() else json.loads(path.read_text())["records"]
+    idx = range(len(cases)) if idx is None else idx
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in idx:
+            name, seed = key(cases[i])
+            if any(r["case"] == name and r["seed"] == seed for r in recs):
+                continue
+            print(f"[{i + 1}/{len(cases)}] {name} (seed {seed})", flush=True)
+            rec = run_one(cases[i], Path(tmp), log=lambda m: print(m, flush=True))
+            print(f"  -> {'ok' if rec['ok'] else 'NOT ok'}: {rec['drift'] and rec['drift'][0]['text']}", flush=True)
+            recs.append(rec)
+            atomic_write_text(path, json.dumps({"records": recs, "command": command}, indent=1) + "\n")
+    return recs
 
 
 def readme(recs: list, command: str) -> str:
@@ -172,18 +216,8 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     command = "python -m tests.independent_rig.drift " + " ".join(sys.argv[1:] if argv is None else argv)
     path = out / "drift.json"
-    recs = [] if a.fresh or not path.exists() else json.loads(path.read_text())["records"]
-    idx = range(len(CASES)) if a.cases is None else [int(i) for i in a.cases.split(",")]
-    with tempfile.TemporaryDirectory() as tmp:
-        for i in idx:
-            case = CASES[i]
-            if any(r["case"] == case[0] and r["seed"] == case[5] for r in recs):
-                continue
-            print(f"[{i + 1}/{len(CASES)}] {case[0]} (seed {case[5]})", flush=True)
-            rec = run_case(case, Path(tmp), log=lambda m: print(m, flush=True))
-            print(f"  -> {'ok' if rec['ok'] else 'NOT ok'}: {rec['drift'] and rec['drift'][0]['text']}", flush=True)
-            recs.append(rec)
-            atomic_write_text(path, json.dumps({"records": recs, "command": command}, indent=1) + "\n")
+    idx = None if a.cases is None else [int(i) for i in a.cases.split(",")]
+    recs = run_all(CASES, path, command, run_case, idx, a.fresh)
     for r in recs:  # judged again from the stored report: the rule is this file's, not the run's
         r.update(judge(r["drift"], r["quantity"], r["ratio_true"]))
     order = {(c[0], c[5]): k for k, c in enumerate(CASES)}

@@ -159,3 +159,23 @@ def test_a_proposed_term_at_zero_changes_nothing_when_the_extended_model_has_mor
         for case, a, b in zip(rep.cases, ref, sims):
             for k in a:
                 np.testing.assert_allclose(b[k], a[k], rtol=1e-9, atol=1e-9, err_msg=f"{case.run.name} {k}")
+
+
+def test_a_load_the_logger_computes_from_the_pressures_is_not_compared_and_a_load_cells_reading_is():
+    """A logged load that is the logged pressures' combination (a logger's A (P_A - P_B)) carries nothing of its
+    own: it is not compared (a pressure reading's offset would be counted twice, in the pressure and in the load);
+    a load cell's reading (here ehas's sensor layer, the piston force read apart from chamber B's lagged pressure
+    reading) is."""
+    camp, truth = campaign(None, 5101)
+    rep = Replayer(camp)
+    for case in rep.cases:
+        if case.run.kind == "closed_loop":
+            c = case.run.columns
+            cols = {"t": case.run.t, **c, "load_kN": 0.3 * c["p_a_bar"] - 0.28 * c["p_b_bar"]}
+            logger = Campaign(None, [validate_run(case.run.name, cols, case.run.meta)])
+            (own,) = Replayer(logger).cases
+            assert "load_kN" not in own.signals and own.derived == ("load_kN",)
+    cell, _ = campaign({"aug_lag_pb_reading": {"T": 15.0}}, 5102)
+    for case in Replayer(cell).cases:
+        if case.run.kind == "closed_loop":
+            assert "load_kN" in case.signals and case.derived == ()
