@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 
 from ehas_env.diagnosis.candidates import (
-    _parts_cost, lowers_validation, refine_candidate, refit_without, screen_candidate)
+    _parts_cost, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate)
 from ehas_env.diagnosis.fitting import Fit, confidence
 from ehas_env.diagnosis.honesty import term_refused
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, Replayer
@@ -239,9 +239,12 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
             screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
             entry["cost_ratio" if dropped is None else "cost_ratio_without_hypotheses"] = _r(f.cost / final.cost, 4)
         record["tried"].append(entry)
-    better = {key: fb for key, fb in screened.items() if fb[0].cost < final.cost}
+    lower = {key: fb for key, fb in screened.items() if fb[0].cost < final.cost}
+    better = {key: fb for key, fb in lower.items() if sanity(fb[0], key[0]) is None}
     if not better:
-        record["words"] = "no augmentation lowers the fit's residual"
+        record["words"] = ("no augmentation lowers the fit's residual" if not lower else
+                           "every augmentation that lowers the fit's residual ran to an end of its range (" +
+                           "; ".join(f"{k[0]}: {sanity(fb[0], k[0])}" for k, fb in list(lower.items())[:3]) + ")")
         say(f"  states: {record['words']}")
         return None, record
     key = min(better, key=lambda kk: better[kk][0].cost)
@@ -258,7 +261,10 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     sims1 = full.simulate(f.model)
     all1 = grade(blocks_of(full, sims1, COST_SIGNALS))["residual_x_noise"]
     val1 = _parts_cost(full, sims1, parts)
-    why = judge(all0, all1, val0, val1) or _reading_not_closed(full, sims0, sims1, get_effect(best))
+    # a parameter that ran to an end of its kind's range is no value of the kind: the data ask for something else
+    # (a dead zone as wide as its range, zeroing a reading the model misses by far, is not a dead zone)
+    why = (sanity(f, best) or judge(all0, all1, val0, val1)
+           or _reading_not_closed(full, sims0, sims1, get_effect(best)))
     if why is not None and not dropped:
         # on top of the model it fails; an effect kept before may have stood in for the missing state (a delay
         # of the command fitted where the coil's current is rate-limited): the state in its place
@@ -269,7 +275,8 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
             gs = full.simulate(g.model)
             a, v = grade(blocks_of(full, gs, COST_SIGNALS))["residual_x_noise"], _parts_cost(full, gs, parts)
             rank = a if v is None else v
-            if (judge(all0, a, val0, v) is None and _reading_not_closed(full, sims0, gs, get_effect(best)) is None
+            if (sanity(g, best) is None and judge(all0, a, val0, v) is None
+                    and _reading_not_closed(full, sims0, gs, get_effect(best)) is None
                     and (best_in_place is None or rank < best_in_place)):
                 best_in_place, (f, all1, val1, record["in_place_of"]) = rank, (g, a, v, [other])
                 say(f"  states: {best} in place of {other}: residual {all0:.3g}x -> {a:.3g}x noise")

@@ -336,17 +336,21 @@ class RateLimit(Follower):
 
     @classmethod
     def kind_params(cls, place: SignalPlace) -> tuple:
-        # from 2 to 10^4 spans a second (the coil: 20 mA/s to 100 mA/ms, typically 0.1 to 20 mA/ms)
+        # from 0.05 to 10^4 spans a second (the coil: 0.5 mA/s to 100 mA/ms, typically 5 mA/s to 20 mA/ms; a span
+        # is the sensor's range, which the rig's signals may fill a small part of: the load's 50 kN against a few
+        # kN, whose rate limit of 10 kN/s is 0.2 spans a second)
         unit = f"{place.unit}/s"
-        return (Param("S", unit, 200.0 * place.span, (2.0 * place.span, 1.0e4 * place.span),
-                      f"largest rate of change of the signal, {unit} (assumed range: 2 to 10^4 times the signal's "
+        return (Param("S", unit, 200.0 * place.span, (0.05 * place.span, 1.0e4 * place.span),
+                      f"largest rate of change of the signal, {unit} (assumed range: 0.05 to 10^4 times the signal's "
                       f"span of {place.span:g} {place.unit} a second; at the coil the amplifier's voltage headroom "
                       "over the coil's inductance: a 10 mA coil of 1 H on 10 V headroom, 10 mA/ms)",
-                      typical=(10.0 * place.span, 2000.0 * place.span), log_scale=True),)
+                      typical=(0.5 * place.span, 2000.0 * place.span), log_scale=True),)
 
     @classmethod
     def kind_shown(cls, place: SignalPlace) -> dict:
-        return {"S": (place.shown[0] * 1.0e-3, f"{place.shown[1]}/ms")}
+        if place.unit == "mA":  # a coil's current: mA/ms, as amplifiers are specified
+            return {"S": (place.shown[0] * 1.0e-3, f"{place.shown[1]}/ms")}
+        return {"S": (place.shown[0], f"{place.shown[1]}/s")}
 
 
 class Delay(Follower):

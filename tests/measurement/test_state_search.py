@@ -203,3 +203,18 @@ def test_a_delay_and_a_lag_of_a_reading_are_told_apart(effect, param, value):
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=names)
     assert rec["kept"] == effect, rec
     assert rec["params"][param] == pytest.approx(value, rel=0.1)
+
+
+def test_a_block_that_runs_to_an_end_of_its_range_is_not_kept_and_the_right_kind_is():
+    """A load reading rate-limited at 10 kN/s (its sensor's span is 50 kN: a fifth of a span a second): a dead zone
+    of the reading lowers the residual only by running to the widest its range allows (zeroing a reading the model
+    misses by far), and is not kept, with why; the rate limit is, with its rate (drawn set d05: the dead zone at
+    +-10 [10, 10] kN was kept)."""
+    s, null = _search({"aug_slew_force_reading": {"S": 1.0e4}}, 3317)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=["aug_dz_force_reading"])
+    assert rec["kept"] is None and "end of its range" in rec["words"], rec
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None,
+                           names=["aug_dz_force_reading", "aug_slew_force_reading"])
+    assert rec["kept"] == "aug_slew_force_reading", rec
+    assert rec["params"]["S"] == pytest.approx(1.0e4, rel=0.1)
+    assert "kN/s in the load reading" in rec["words"]
