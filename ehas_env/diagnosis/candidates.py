@@ -222,10 +222,12 @@ def coulomb_from_stribeck(rep: Replayer, f: Fit) -> Fit:
     return fit(rep, free, start, fixed)
 
 
-def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | None = None) -> Fit:
+def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | None = None,
+                     scan_extra: tuple = ()) -> Fit:
     """Stage 1: the effect's own parameters only, on top of the null model (scan, then a short fit).
 
-    ``screened`` holds the fits of effects screened before (warm starts, see :data:`NESTED`).
+    ``screened`` holds the fits of effects screened before (warm starts, see :data:`NESTED`); ``scan_extra``
+    values of the main parameter the data point at, scanned with its grid (:func:`~.fitting.fit`).
     """
     free = own_params(effect)
     start = {(fp.effect, fp.name): start_value(fp) for fp in free}
@@ -236,7 +238,7 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
             start[(effect, mine)] = prev.model.effects[inner][theirs]
     main = next(fp for fp in free if fp.name == get_effect(effect).main_param)
     f = fit(rep, free, start, null.model, scan=main, max_nfev=SCREEN_NFEV * len(free), tol=1e-3,
-            null_cost=null.cost)
+            null_cost=null.cost, scan_extra=scan_extra)
     if f.cost >= null.cost and len(free) > 1:
         # the main parameter alone, the others at their typical middle, never beat the null model (an unbalance
         # whose heavy side is between the sine's and the cosine's): fit them all together from the effect's

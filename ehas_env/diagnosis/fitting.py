@@ -296,13 +296,15 @@ def on_one_blas_thread(func):
 
 def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | None = None, *,
         scan: FreeParam | None = None, max_nfev: int = MAX_NFEV, tol: float = 1e-4,
-        null_cost: float | None = None) -> Fit:
+        null_cost: float | None = None, scan_extra: tuple = ()) -> Fit:
     """Fit the ``free`` parameters from ``start``: a scan of ``scan`` first, then bounded least squares.
 
     Works in u in [0, 1] per parameter; the Jacobian is a forward difference whose
     perturbed models are simulated together (:meth:`Replayer.simulate_many`).
     With ``null_cost``, a candidate whose scan never beats it is not fitted further
     (it explains nothing anywhere in its range; its best scan point is returned).
+    ``scan_extra``: values of ``scan`` the data point at, added to its grid (a saturated reading's peak: the
+    valley of a clip level is narrower than the grid's steps).
     """
     u0 = np.array([fp.u(start[(fp.effect, fp.name)]) for fp in free])
     evals0 = rep.n_evals
@@ -318,7 +320,8 @@ def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | No
     if scan is not None:
         k = free.index(scan)
         grid = []
-        for value in scan_values(scan):
+        extra = [v for v in scan_extra if scan.lo <= v <= scan.hi]
+        for value in sorted(scan_values(scan) + [float(v) for v in extra]):
             u = u0.copy()
             u[k] = scan.u(value)
             grid.append(u)

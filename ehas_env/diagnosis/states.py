@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ehas_env.diagnosis.candidates import (
     _parts_cost, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate)
 from ehas_env.diagnosis.fitting import Fit, confidence
@@ -73,6 +75,21 @@ def _quiet_reading(full: Replayer, sims, cls, trigger: float) -> str | None:
         return (f"{cls.where} moves {column} alone, whose residual is {g['residual_x_noise']:.3g}x noise (at or "
                 f"below {trigger:g}x, and in no run above {1.0 + BLOCK_EXPLAINED_X:g}x)")
     return None
+
+
+def _scan_hint(full: Replayer, cls) -> tuple:
+    """The values of a reading block's main parameter its logged reading points at (:meth:`Static.scan_hint` of
+    the reading's largest magnitude over every run, in the place's SI unit); () for any other block."""
+    column = _reading_column(cls)
+    hint = getattr(cls, "scan_hint", None)
+    if column is None or hint is None:
+        return ()
+    # the closed-loop runs' readings (a reading's blocks act there: the valve bench's flow is the bench's meter)
+    peaks = [float(np.max(np.abs(c.measured[column]))) for c in full.cases
+             if c.run.kind == "closed_loop" and column in c.measured]
+    if not peaks:
+        return ()
+    return tuple(hint(max(peaks) / cls.signal_place.shown[0]))
 
 
 def _quiet(g: dict, trigger: float) -> bool:
@@ -235,7 +252,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         for base, dropped in bases:
             if name in base.model.effects:
                 continue
-            f = screen_candidate(rep, name, base)
+            f = screen_candidate(rep, name, base, scan_extra=_scan_hint(full, cls))
             screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
             entry["cost_ratio" if dropped is None else "cost_ratio_without_hypotheses"] = _r(f.cost / final.cost, 4)
         record["tried"].append(entry)

@@ -419,6 +419,12 @@ class Static(Augmentation):
         return True
 
     @classmethod
+    def scan_hint(cls, peak: float) -> tuple:
+        """Values of the main parameter the logged reading points at, given its largest magnitude ``peak`` (in
+        the place's SI unit): scanned with the fit's grid (none unless the kind says)."""
+        return ()
+
+    @classmethod
     def at(cls, place: SignalPlace) -> type:
         """The effect ``aug_<stem>_<place.short>`` that puts this kind at the reading ``place``."""
         name = f"aug_{cls.stem}_{place.short}"
@@ -490,6 +496,12 @@ class Saturation(Static):
     @classmethod
     def kind_shown(cls, place: SignalPlace) -> dict:
         return {"L": place.shown}
+
+    @classmethod
+    def scan_hint(cls, peak: float) -> tuple:
+        # a saturated reading never reports more than L: its largest magnitude is L (the valley of the clip level
+        # is as narrow as the stretch the clip cuts off, narrower than the scan's steps)
+        return (peak,)
 
 
 class DeadZone(Static):

@@ -218,3 +218,13 @@ def test_a_block_that_runs_to_an_end_of_its_range_is_not_kept_and_the_right_kind
     assert rec["kept"] == "aug_slew_force_reading", rec
     assert rec["params"]["S"] == pytest.approx(1.0e4, rel=0.1)
     assert "kN/s in the load reading" in rec["words"]
+
+
+def test_a_reading_saturated_in_one_run_only_is_found_from_its_peak():
+    """The flow meter's reading saturated at 24 L/min, which only the 1-set 35 deg 3 Hz run reaches (27 L/min):
+    the clip level's valley is narrower than the scan's steps; a saturated reading never reports more than L, so
+    its logged peak is scanned with the grid (``Saturation.scan_hint``) and the stage keeps the saturation at it."""
+    s, null = _search({"aug_sat_flow_a_reading": {"L": 24.0 / 60000.0}}, 3318)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=["aug_sat_flow_a_reading"])
+    assert rec["kept"] == "aug_sat_flow_a_reading", rec
+    assert rec["params"]["L"] * 60000.0 == pytest.approx(24.0, rel=0.02)
