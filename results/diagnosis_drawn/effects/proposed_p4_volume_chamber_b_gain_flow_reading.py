@@ -1,8 +1,8 @@
-"""proposed_p4_volume_chamber_b_gain_flow_reading: a term proposed by ehas diagnose for /tmp/drawn-work/p4_volume@chamber_b+gain@flow_reading/campaign.
+"""proposed_p4_volume_chamber_b_gain_flow_reading: a term proposed by ehas diagnose for /tmp/w5A/p4_volume@chamber_b+gain@flow_reading/campaign.
 
 i_valve [mA] += c_i3·i^3   with c_i3 = -0.0001387 1/mA^2 (95 % CI -0.0001464 to -0.000131)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 11.9 -> 9.52; fit 89.6 % -> 89.8 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 11.9 -> 9.52; fit 89.6 % -> 89.7 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """

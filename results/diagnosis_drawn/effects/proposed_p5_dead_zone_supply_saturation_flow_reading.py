@@ -1,8 +1,8 @@
-"""proposed_p5_dead_zone_supply_saturation_flow_reading: a term proposed by ehas diagnose for /tmp/drawn-work/p5_dead_zone@supply+saturation@flow_reading/campaign.
+"""proposed_p5_dead_zone_supply_saturation_flow_reading: a term proposed by ehas diagnose for /tmp/w5B/p5_dead_zone@supply+saturation@flow_reading/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_rsup2·the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): supply drop per supply flow squared   with c_rsup2 = 4.085e+12 Pa s^2/m^6 (95 % CI 4.038e+12 to 4.131e+12)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 4.32 -> 2.14; fit 93.2 % -> 95.4 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 4.32 -> 2.14; fit 93.2 % -> 95.7 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """

@@ -1,8 +1,8 @@
-"""proposed_p6_lag_land_b_offset_chamber_b: a term proposed by ehas diagnose for /tmp/drawn-work/p6_lag@land_b+offset@chamber_b/campaign.
+"""proposed_p6_lag_land_b_offset_chamber_b: a term proposed by ehas diagnose for /tmp/w5A/p6_lag@land_b+offset@chamber_b/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_ext·(-p_A, -p_B)   with c_ext = -1.921e-13 m^3/s/Pa (95 % CI -2.249e-13 to -1.593e-13)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 620 -> 520; fit 28.9 % -> 44.1 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 620 -> 520; fit 28.9 % -> 47.7 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
