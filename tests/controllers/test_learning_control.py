@@ -82,8 +82,10 @@ def test_ilc_converges_on_the_model_to_what_does_not_repeat():
     from ehas_env.simulation.sensors import Sensors
 
     gain, amp, sigma = 0.5, 20.0, Sensors().theta_noise_deg
-    _, fixed = _run(PIFF.book(), 4, amp, 2.0, 14, sensors=Sensors())
-    _, m = _run(ILC(PIFF.book(), gain=gain, q_cutoff_hz=20.0), 4, amp, 2.0, 14, sensors=Sensors())
+    # one noise seed for both runs: the ILC's base-loop cycles then see the fixed loop's noise (unseeded, each run
+    # drew its own and the two loops' worst cycles differed by up to 0.4 %, beyond the 0.1 % asserted below)
+    _, fixed = _run(PIFF.book(), 4, amp, 2.0, 14, sensors=Sensors(), seed=20261129)
+    _, m = _run(ILC(PIFF.book(), gain=gain, q_cutoff_hz=20.0), 4, amp, 2.0, 14, sensors=Sensors(), seed=20261129)
     per = m["cycle_rms_pct"]
     floor = 100 * sigma * np.sqrt(1 + gain / (2 - gain)) / amp
     assert fixed["steady_rms_pct"] > 10 * floor  # there is something to learn

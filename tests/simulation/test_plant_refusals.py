@@ -106,7 +106,17 @@ def test_missing_effects_path_is_named(tmp_path):
     refused(lambda: Plant(effects_path=tmp_path / "nope"), "nope", "does not exist")
 
 
-KNOWN = "known effects: aug_gain_flow_a_reading, aug_gain_force_reading"  # sorted: the generic augmentations (physics/augment.py) first
+def _known() -> str:
+    """How a refusal's list of known effects starts: every registered effect, sorted (the generated blocks of
+    physics/augment.py first, their names starting with aug_)."""
+    from ehas_env.physics.effects import REGISTRY
+
+    first = sorted(REGISTRY)[:2]
+    assert all(n.startswith("aug_") for n in first)
+    return "known effects: " + ", ".join(first)
+
+
+KNOWN = _known()
 
 
 @pytest.mark.parametrize("effects, patterns", [
