@@ -178,31 +178,31 @@ def test_a_miss_in_one_reading_that_the_overall_figure_dilutes_is_looked_for():
     assert rec["params"]["T"] == pytest.approx(2.0, rel=0.3)
 
 
-@pytest.mark.parametrize("effect,param,value,seed", [
-    ("aug_sat_flow_a_reading", "L", 8.0 / 60000.0, 3314),  # the flow meter's range ends at 8 L/min
-    ("aug_dz_force_reading", "d", 300.0, 3315),  # the load reading dead within +-0.3 kN
-])
-def test_a_saturated_or_dead_reading_is_found_with_its_size(effect, param, value, seed):
-    """The static kinds a range or a threshold makes, found by the state stage among the reading blocks of their
-    place (its scan of the main parameter finds where the clip acts; from the default the block does nothing)."""
-    s, null = _search({effect: {param: value}}, seed)
+def _at_place(effect: str) -> list:
+    """Every static block at the reading ``effect`` is put at (its rivals there)."""
     place = effect.split("_", 2)[2]
-    names = [n for n in reading_blocks() if n.endswith(place)]
-    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=names)
-    assert rec["kept"] == effect, rec
-    assert rec["params"][param] == pytest.approx(value, rel=0.2)
+    return [n for n in reading_blocks() if n.endswith(place)]
 
 
-@pytest.mark.parametrize("effect,param,value", [("aug_delay_pb_reading", "tau", 4.0), ("aug_lag_pb_reading", "T", 3.0)])
-def test_a_delay_and_a_lag_of_a_reading_are_told_apart(effect, param, value):
-    """A pure delay (gain 1, phase growing with frequency) and a first-order lag (gain falling, phase saturating)
-    of chamber B's reading, each screened against the other and a rate limit at the same place: the stage keeps the
-    truth's kind with its size."""
-    s, null = _search({effect: {param: value}}, 3316)
-    names = ["aug_lag_pb_reading", "aug_delay_pb_reading", "aug_slew_pb_reading"]
-    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=names)
+FOLLOWERS_PB = ["aug_lag_pb_reading", "aug_delay_pb_reading", "aug_slew_pb_reading"]
+
+
+@pytest.mark.parametrize("effect,param,value,seed,rivals,rel", [
+    # the static kinds a range or a threshold makes, among the reading blocks of their place (the scan of the main
+    # parameter finds where the clip acts; from the default the block does nothing)
+    ("aug_sat_flow_a_reading", "L", 8.0 / 60000.0, 3314, None, 0.2),  # the flow meter's range ends at 8 L/min
+    ("aug_dz_force_reading", "d", 300.0, 3315, None, 0.2),  # the load reading dead within +-0.3 kN
+    # a pure delay (gain 1, phase growing with frequency) and a first-order lag (gain falling, phase saturating) of
+    # chamber B's reading, each screened against the other and a rate limit at the same place
+    ("aug_delay_pb_reading", "tau", 4.0, 3316, FOLLOWERS_PB, 0.1),
+    ("aug_lag_pb_reading", "T", 3.0, 3316, FOLLOWERS_PB, 0.1),
+])
+def test_a_reading_block_is_told_from_its_rivals_at_its_place_with_its_size(effect, param, value, seed, rivals, rel):
+    """The state stage keeps the truth's kind among its rivals at the same reading, with its size."""
+    s, null = _search({effect: {param: value}}, seed)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=rivals or _at_place(effect))
     assert rec["kept"] == effect, rec
-    assert rec["params"][param] == pytest.approx(value, rel=0.1)
+    assert rec["params"][param] == pytest.approx(value, rel=rel)
 
 
 def test_a_block_that_runs_to_an_end_of_its_range_is_not_kept_and_the_right_kind_is():
