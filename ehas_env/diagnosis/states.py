@@ -249,10 +249,11 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
             record["tried"].append(entry)
             continue
         say(f"  states {k}/{len(names)}: {cls.title}")
+        hint = _scan_hint(full, cls)
         for base, dropped in bases:
             if name in base.model.effects:
                 continue
-            f = screen_candidate(rep, name, base, scan_extra=_scan_hint(full, cls))
+            f = screen_candidate(rep, name, base, scan_extra=hint)
             screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
             entry["cost_ratio" if dropped is None else "cost_ratio_without_hypotheses"] = _r(f.cost / final.cost, 4)
         record["tried"].append(entry)
