@@ -182,6 +182,51 @@ def _words(name: str, values: dict, ci: dict) -> str:
         return words(values)
 
 
+def _in_place(rep: Replayer, full: Replayer, parts: dict, on_top: Fit, kept: list, why_not, say, best: str,
+              all0: float) -> tuple | None:
+    """The state in place of one effect kept before it: each of ``kept`` taken out of ``on_top`` (the model with
+    the state) in turn and the rest refitted; the one that passes ``why_not`` (returns None) with the lowest
+    validation residual (the all-data one without validation samples), as (fit, all-data figure, validation
+    residual, the effect taken out), or None when none passes; each better one said (``best`` in place of it, the
+    all-data figure from ``all0``)."""
+    found, best_rank = None, None
+    for other in kept:
+        g = refit_without(rep, on_top, other)
+        gs = full.simulate(g.model)
+        a, v = grade(blocks_of(full, gs, COST_SIGNALS))["residual_x_noise"], _parts_cost(full, gs, parts)
+        rank = a if v is None else v
+        if why_not(g, gs, a, v) is None and (best_rank is None or rank < best_rank):
+            found, best_rank = (g, a, v, other), rank
+            say(f"  states: {best} in place of {other}: residual {all0:.3g}x -> {a:.3g}x noise")
+    return found
+
+
+def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, bases: list, trigger: float,
+                tried: list, say) -> dict:
+    """Each augmentation of ``names`` screened on each (model, effects it set aside) of ``bases``, those at a quiet
+    reading skipped: {(name, the effects set aside or None): (screened fit, its base)}; an entry per name appended
+    to ``tried`` (its cost over the final model's, or why it was skipped)."""
+    screened = {}
+    for k, name in enumerate(names, 1):
+        cls = get_effect(name)
+        entry = {"effect": name, "where": getattr(cls, "where", cls.title)}
+        quiet = _quiet_reading(full, sims0, cls, trigger)
+        if quiet:
+            entry["skipped"] = quiet
+            tried.append(entry)
+            continue
+        say(f"  states {k}/{len(names)}: {cls.title}")
+        hint = _scan_hint(full, cls)
+        for base, dropped in bases:
+            if name in base.model.effects:
+                continue
+            f = screen_candidate(rep, name, base, scan_extra=hint)
+            screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
+            entry["cost_ratio" if dropped is None else "cost_ratio_without_hypotheses"] = _r(f.cost / final.cost, 4)
+        tried.append(entry)
+    return screened
+
+
 def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, names=None,
                 trigger: float = STATE_TRIGGER, bare: Fit | None = None) -> tuple:
     """Try each generic augmentation on top of the final model; keep the best when it passes :func:`judge`.
@@ -234,29 +279,12 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
                              "is looked for")
         say(f"  states: {record['skipped']}")
         return None, record
-    screened = {}
     # on the final model; and on the library's model before the structural hypotheses (``bare``), whose kept
     # hypotheses may have stood in for the state (a dead volume where a hose is) and do not compose with it
     bases = [(final, None)]
     if bare is not None and set(bare.model.effects) != held:
         bases.append((bare, sorted(held - set(bare.model.effects))))
-    for k, name in enumerate(names, 1):
-        cls = get_effect(name)
-        entry = {"effect": name, "where": getattr(cls, "where", cls.title)}
-        quiet = _quiet_reading(full, sims0, cls, trigger)
-        if quiet:
-            entry["skipped"] = quiet
-            record["tried"].append(entry)
-            continue
-        say(f"  states {k}/{len(names)}: {cls.title}")
-        hint = _scan_hint(full, cls)
-        for base, dropped in bases:
-            if name in base.model.effects:
-                continue
-            f = screen_candidate(rep, name, base, scan_extra=hint)
-            screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
-            entry["cost_ratio" if dropped is None else "cost_ratio_without_hypotheses"] = _r(f.cost / final.cost, 4)
-        record["tried"].append(entry)
+    screened = _screen_all(rep, full, final, sims0, names, bases, trigger, record["tried"], say)
     lower = {key: fb for key, fb in screened.items() if fb[0].cost < final.cost}
     better = {key: fb for key, fb in lower.items() if sanity(fb[0], key[0]) is None}
     if not better:
@@ -281,24 +309,18 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     val1 = _parts_cost(full, sims1, parts)
     # a parameter that ran to an end of its kind's range is no value of the kind: the data ask for something else
     # (a dead zone as wide as its range, zeroing a reading the model misses by far, is not a dead zone)
-    why = (sanity(f, best) or judge(all0, all1, val0, val1)
-           or _reading_not_closed(full, sims0, sims1, get_effect(best)))
+
+    def why_not(g: Fit, gs, a: float, v) -> str | None:  # the rules a model with the state must pass
+        return sanity(g, best) or judge(all0, a, val0, v) or _reading_not_closed(full, sims0, gs, get_effect(best))
+
+    why = why_not(f, sims1, all1, val1)
     if why is not None and not dropped:
         # on top of the model it fails; an effect kept before may have stood in for the missing state (a delay
         # of the command fitted where the coil's current is rate-limited): the state in its place
-        best_in_place = None  # the best in place by the validation residual (the all-data one without samples)
-        on_top = f  # each effect is taken out of the model on top, one at a time
-        for other in list(final.model.effects):
-            g = refit_without(rep, on_top, other)
-            gs = full.simulate(g.model)
-            a, v = grade(blocks_of(full, gs, COST_SIGNALS))["residual_x_noise"], _parts_cost(full, gs, parts)
-            rank = a if v is None else v
-            if (sanity(g, best) is None and judge(all0, a, val0, v) is None
-                    and _reading_not_closed(full, sims0, gs, get_effect(best)) is None
-                    and (best_in_place is None or rank < best_in_place)):
-                best_in_place, (f, all1, val1, record["in_place_of"]) = rank, (g, a, v, [other])
-                say(f"  states: {best} in place of {other}: residual {all0:.3g}x -> {a:.3g}x noise")
-        if record["in_place_of"] is not None:
+        found = _in_place(rep, full, parts, f, list(final.model.effects), why_not, say, best, all0)
+        if found is not None:
+            f, all1, val1, other = found
+            record["in_place_of"] = [other]
             why = None
     record["residual_x_noise_all_after"] = _r(all1)
     record["residual_x_noise_validation_after"] = _r(val1)
