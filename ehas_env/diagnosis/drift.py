@@ -45,7 +45,7 @@ from datetime import datetime
 import numpy as np
 
 from ehas_env.measurement.campaign import Campaign
-from ehas_env.diagnosis.fitting import SCREEN_NFEV, Fit, FreeParam, _unit, _value_of, confidence, fit
+from ehas_env.diagnosis.fitting import SCREEN_NFEV, Fit, FreeParam, _unit, _value_of, confidence, fit, run_range
 from ehas_env.diagnosis.keeping import MODEL_ERROR_FLOOR
 from ehas_env.diagnosis.measured_inputs import input_names, measured
 from ehas_env.measurement.replay import ModelSpec, Replayer
@@ -305,7 +305,8 @@ def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreePara
     fixed : ModelSpec
         The model (and the start values).
     free : list of FreeParam
-        The parameters refitted.
+        The parameters refitted (the baseline's beta and K over the ranges of the effects that re-open them,
+        :func:`ehas_env.diagnosis.fitting.run_range`).
 
     Returns
     -------
@@ -313,6 +314,7 @@ def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreePara
         Per run: ``run`` and {label: (value, (low, high), at_range_end)} under ``params``.
     """
     out = []
+    free = [run_range(fp) for fp in free]  # a run's beta or K may lie beyond the campaign's recalibration range
     start = {(fp.effect, fp.name): _value_of(fixed, fp) for fp in free}
     for run in runs:
         sub = Replayer(Campaign(rep.campaign.path, [run]), substeps=rep.substeps, model=rep.model,
