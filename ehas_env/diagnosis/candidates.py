@@ -918,6 +918,29 @@ class Step:
     fit_val: float | None
 
 
+#: a model change that moves the validation samples by less than this (mean square, noise variances per sample:
+#: a tenth of the noise's RMS) is not exercised there: the held-out data cannot judge it either way
+UNEXERCISED = 0.01
+
+
+def validation_moved(rep: Replayer, sims_a, sims_b, parts: dict) -> float | None:
+    """How far two models' simulations differ over the validation samples ``parts`` = {case index: first sample}:
+    the mean square of their difference in noise variances per sample (None without validation samples).
+
+    A block that only the fitted runs reach (a reading's clip at a level the held-out run never attains) leaves
+    the held-out simulation as it was; :data:`UNEXERCISED` tells that apart from a change the data refuse."""
+    tot, n = 0.0, 0
+    for i, k0 in parts.items():
+        case, a, b = rep.cases[i], sims_a[i], sims_b[i]
+        if a is None or b is None or k0 >= case.run.n - 10:
+            continue
+        for s in case.signals:
+            if s in COST_SIGNALS:
+                d = (a[s][k0:] - b[s][k0:]) / case.noise[s]
+                tot, n = tot + float(np.dot(d, d)), n + d.size
+    return tot / n if n else None
+
+
 def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
     """Geometric-mean residual (noise variances) over the samples ``parts`` = {case index: first sample}."""
     blocks = []

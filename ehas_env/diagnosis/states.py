@@ -11,7 +11,9 @@ it is kept only when it passes :func:`judge` --
 * honesty rule 1 (:func:`ehas_env.diagnosis.honesty.term_refused`): it removes at least a tenth of the
   all-data residual's excess over the noise;
 * the validation gate (:func:`ehas_env.diagnosis.candidates.lowers_validation`): it lowers the validation
-  residual (by the share every stacked effect must).
+  residual (by the share every stacked effect must) -- unless it leaves the held-out runs as they were
+  (:func:`ehas_env.diagnosis.candidates.validation_moved`: a clip only the fitted runs reach), where held-out
+  data cannot judge it; its words then say it is not proven on held-out data (``held_out_reached`` False).
 
 The record is in the JSON's terms (``stages[].states``): what was tried, what was kept, its parameters with 95 %
 intervals, the residuals before and after, and the augmentation in words.
@@ -23,7 +25,8 @@ import math
 import numpy as np
 
 from ehas_env.diagnosis.candidates import (
-    _parts_cost, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate)
+    UNEXERCISED, _parts_cost, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate,
+    validation_moved)
 from ehas_env.diagnosis.fitting import Fit, confidence
 from ehas_env.diagnosis.honesty import term_refused
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, Replayer
@@ -136,7 +139,8 @@ def _reading_not_closed(full: Replayer, before, after, cls) -> str | None:
             f"{100 * READING_SHARE:.0f} % removed); the reading carries physics the block does not hold")
 
 
-def judge(all_before: float, all_after: float, val_before: float | None, val_after: float | None) -> str | None:
+def judge(all_before: float, all_after: float, val_before: float | None, val_after: float | None,
+          val_moved: float | None = None) -> str | None:
     """Why an augmentation may not be kept (None when it may).
 
     Parameters
@@ -146,6 +150,10 @@ def judge(all_before: float, all_after: float, val_before: float | None, val_aft
     val_before, val_after : float or None
         The validation residuals (noise variances) without and with it (None: the campaign has no validation
         samples; the gate is then the all-data rule alone).
+    val_moved : float, optional
+        How far the augmentation moves the validation samples (:func:`ehas_env.diagnosis.candidates.
+        validation_moved`): below :data:`ehas_env.diagnosis.candidates.UNEXERCISED` the held-out runs do not
+        reach it, and the gate is the all-data rule alone (the words of a kept state say so).
 
     Returns
     -------
@@ -160,11 +168,14 @@ def judge(all_before: float, all_after: float, val_before: float | None, val_aft
     'the best term of the dictionary, refitte'
     >>> judge(3.0, 2.0, 4.0, 3.99)
     'the validation residual goes from 4 to 3.99 noise variances: not lower by the share every kept effect must remove'
+    >>> judge(3.0, 2.0, 4.0, 4.0, val_moved=0.001) is None   # the held-out run never reaches it
+    True
     """
     refused = term_refused(all_before, all_after)
     if refused is not None:
         return refused
-    if val_before is not None and val_after is not None and not lowers_validation(val_before, val_after):
+    if val_before is not None and val_after is not None and not lowers_validation(val_before, val_after) \
+            and not (val_moved is not None and val_moved < UNEXERCISED):
         return (f"the validation residual goes from {val_before:.3g} to {val_after:.3g} noise variances: not lower "
                 "by the share every kept effect must remove")
     return None
@@ -258,7 +269,8 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         augmentation's name, place and the screened fit's cost over the final model's), ``kept`` (name or None),
         ``params`` and ``ci95`` (of the kept one, in its parameters' units), ``residual_x_noise_all_before`` /
         ``_after``, ``residual_x_noise_validation_before`` / ``_after``, ``words`` (the augmentation in
-        physical words, or why none was kept), ``skipped`` (why the stage did not run, or None), ``in_place_of``
+        physical words, or why none was kept), ``skipped`` (why the stage did not run, or None), ``held_out_reached`` (whether the kept one moves the
+        held-out runs at all; None without validation samples), ``in_place_of``
         (the effects kept before that the augmentation replaces -- the structural hypotheses, when it did best on
         the library's model ``bare``; or one effect refitted away because on top of it the augmentation fails
         :func:`judge` and in its place passes -- or None).
@@ -272,7 +284,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     record = {"tried": [], "kept": None, "params": None, "ci95": None,
               "residual_x_noise_all_before": _r(all0), "residual_x_noise_all_after": None,
               "residual_x_noise_validation_before": _r(val0), "residual_x_noise_validation_after": None,
-              "words": None, "skipped": None, "in_place_of": None}
+              "words": None, "skipped": None, "in_place_of": None, "held_out_reached": None}
     if _quiet(g0, trigger):
         record["skipped"] = (f"the final model's residual, {all0:.3g}x noise on all data, is at or below "
                              f"{trigger:g}x and in no run and signal above {1.0 + BLOCK_EXPLAINED_X:g}x: no state "
@@ -311,7 +323,8 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     # (a dead zone as wide as its range, zeroing a reading the model misses by far, is not a dead zone)
 
     def why_not(g: Fit, gs, a: float, v) -> str | None:  # the rules a model with the state must pass
-        return sanity(g, best) or judge(all0, a, val0, v) or _reading_not_closed(full, sims0, gs, get_effect(best))
+        return sanity(g, best) or judge(all0, a, val0, v, validation_moved(full, sims0, gs, parts)) \
+            or _reading_not_closed(full, sims0, gs, get_effect(best))
 
     why = why_not(f, sims1, all1, val1)
     if why is not None and not dropped:
@@ -330,7 +343,12 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         say(f"  states: {record['words']}")
         return None, record
     ci = {name: tuple(v) for (eff, name), v in confidence(rep, f).items() if eff == best}
+    moved = validation_moved(full, sims0, full.simulate(f.model), parts)
+    unproven = moved is not None and moved < UNEXERCISED
     record.update(kept=best, params={k: _sig(v) for k, v in values.items()},
-                  ci95={k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()}, words=_words(best, values, ci))
+                  ci95={k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()},
+                  words=_words(best, values, ci) + (" (the held-out runs never reach it: judged on the fitted runs "
+                                                    "alone, not proven on held-out data)" if unproven else ""),
+                  held_out_reached=not unproven if moved is not None else None)
     say(f"  states: kept {record['words']}; residual {all0:.3g}x -> {all1:.3g}x noise")
     return f, record
