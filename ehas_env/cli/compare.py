@@ -124,6 +124,8 @@ def run(args) -> int:
         tables[label_after] = rep.fit_table(sims[label_after])
 
     print(campaign.summary())
+    if rep.not_compared_text():
+        print(rep.not_compared_text())
     print()
     if base_model is not None:
         print(held_out_text(base_model, campaign, tables["baseline"]))
@@ -282,7 +284,9 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
         ``before`` and ``after`` (each: ``residual_x_noise`` and ``verdict`` as the diagnosis defines them,
         ``residual_x_sensor_noise``, ``fit_percent`` overall, ``per_signal``, ``per_run``), ``residual_x_noise``
         (after), ``recalibrated`` (with ``--fit``: the baseline with beta and K refitted alone, the same keys as
-        ``before``), ``fitted`` (value, ci95 [low, high], unit per parameter), ``command``, ``elapsed_s``.
+        ``before``), ``fitted`` (value, ci95 [low, high], unit per parameter), ``not_compared`` ({run: [column]}:
+        logged columns judged nowhere, :meth:`~ehas_env.measurement.replay.Replayer.not_compared`), ``command``,
+        ``elapsed_s``.
     """
     from ehas_env.measurement.replay import COST_SIGNALS
     from ehas_env.measurement.verdict import blocks_json, blocks_of, grade
@@ -303,7 +307,7 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
     recal = {"recalibrated": side(RECALIBRATED)} if RECALIBRATED in tables else {}
     return {"campaign": str(campaign_path), "command": command, "elapsed_s": round(elapsed_s, 1),
             "residual_x_noise": after["residual_x_noise"], "verdict": after["verdict"],
-            "before": before, **recal, "after": after,
+            "before": before, **recal, "after": after, "not_compared": rep.not_compared(),
             "fitted": [{"effect": r["effect"], "param": r["param"], "value": r["value"],
                         "ci95": [r["low"], r["high"]], "unit": r["unit"]} for r in (ci or [])]}
 

@@ -126,6 +126,7 @@ class OpenDiagnosis:
         doc["residual_x_sensor_noise"] = round(self.cost_all, 3)
         doc["grade"] = self.grade
         doc["blocks"] = blocks_json(self.blocks)  # every run and signal judged: figure, floor, where the floor came from
+        doc["not_compared"] = self.full.not_compared()  # logged columns judged nowhere (a load computed by the logger)
         # beta and K are fitted relative to the book's rig (replay.Replayer.absolute): report the rig's own numbers
         rig = self.full.absolute(self.model)
         scale = {"beta": rig.beta / self.model.beta if self.model.beta else 1.0,
@@ -738,6 +739,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
 
     est = estimate(s.rep, load_scale(), candidates)
     s.say(in_words(est))
+    if s.full.not_compared_text():
+        s.say(s.full.not_compared_text())
     s.records.append({"stage": "data", "elapsed_s": round(time.perf_counter() - t0, 2), "holdout": s.held,
                       "fit_runs": [r.name for r in s.train_runs], "estimate": est})
     run_stages(s, STAGES if stages is None else stages)

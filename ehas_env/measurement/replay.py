@@ -528,6 +528,25 @@ class Replayer:
         n = sum(b.size for b in blocks)
         return float(np.exp(sum(b.size * np.log(max(float(np.dot(b, b)) / b.size, 1e-300)) for b in blocks) / n))
 
+    def not_compared(self) -> dict[str, list[str]]:
+        """The logged columns left out of every comparison, per run: {run: [column, ...]} (only runs with some).
+
+        A load the logger computed from the logged pressures (:func:`derived_load`) has no reading of its own:
+        judged, it would count a pressure reading's miss twice.
+        """
+        return {c.run.name: list(c.derived) for c in self.cases if c.derived}
+
+    def not_compared_text(self) -> str | None:
+        """:meth:`not_compared` in one line (None when nothing is left out)."""
+        left = self.not_compared()
+        if not left:
+            return None
+        cols = sorted({c for cs in left.values() for c in cs})
+        return (f"not compared: {', '.join(cols)} in {len(left)} of {len(self.cases)} runs "
+                f"({', '.join(sorted(left))}): the logger computed it from the logged pressures "
+                f"(a P_A - b P_B leaves less than {100 * DERIVED_SHARE:g} % of its noise), so it holds no reading "
+                "of its own and judging it would count a pressure's miss twice")
+
     def informative(self, case: _Case, signal: str) -> bool:
         return float(np.std(case.measured[signal])) > INFORMATIVE * case.noise[signal]
 

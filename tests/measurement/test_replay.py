@@ -175,7 +175,11 @@ def test_a_load_the_logger_computes_from_the_pressures_is_not_compared_and_a_loa
             logger = Campaign(None, [validate_run(case.run.name, cols, case.run.meta)])
             (own,) = Replayer(logger).cases
             assert "load_kN" not in own.signals and own.derived == ("load_kN",)
+            # and the user is told, by run, in the words compare and diagnose print
+            assert Replayer(logger).not_compared() == {case.run.name: ["load_kN"]}
+            assert Replayer(logger).not_compared_text().startswith("not compared: load_kN in 1 of 1 runs")
     cell, _ = campaign({"aug_lag_pb_reading": {"T": 15.0}}, 5102)
     for case in Replayer(cell).cases:
         if case.run.kind == "closed_loop":
             assert "load_kN" in case.signals and case.derived == ()
+    assert Replayer(cell).not_compared() == {} and Replayer(cell).not_compared_text() is None
