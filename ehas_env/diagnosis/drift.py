@@ -63,6 +63,12 @@ MIN_RUNS = 3
 #: not the time, rarely part per-run values by more than this: K per run on clean campaigns within 1 %)
 TREND_RUNS = 5
 TREND_FLOOR = 0.05
+#: a quantity the logs show (the mean chamber pressure) is related to only when the runs' values of it span at
+#: least this share of its level: a symmetric valve holds the mean near Ps / 2 in every run (109.9-110.1 bar on
+#: five runs of the conditions set), and a parameter ranked along such a spread follows chance or the runs'
+#: settings, not it (beta that fell along the oil temperature, rank correlation -0.8, was reported as "40.7 % per
+#: 0.1 bar of mean chamber pressure", -0.9)
+LOGGED_SPAN = 0.01
 #: the sidecar key of a run's start time (ISO 8601, e.g. "2026-11-27T09:30:00"); optional
 RECORDED_KEY = "recorded"
 
@@ -226,8 +232,8 @@ def run_features(runs) -> tuple[dict, str]:
         ``recording order`` (by the sidecar's ``recorded`` start time when every run has one, else the file
         order, named ``file order``), ``disc sets``, ``amplitude (deg)``, ``frequency (Hz)``, ``supply (bar)``,
         every condition each sidecar records as a number (:func:`recorded_conditions`: a rig's
-        ``oil_temperature_C``), ``mean chamber pressure (bar)`` (when both chamber pressures are logged); and the
-        order's name.
+        ``oil_temperature_C``), ``mean chamber pressure (bar)`` (when both chamber pressures are logged and its
+        values span at least :data:`LOGGED_SPAN` of its level); and the order's name.
 
     Raises
     ------
@@ -255,8 +261,9 @@ def run_features(runs) -> tuple[dict, str]:
     conds = recorded_conditions(runs)
     logged = {}
     if all("p_a_bar" in r.columns and "p_b_bar" in r.columns for r in runs):
-        logged["mean chamber pressure (bar)"] = [float(np.mean(0.5 * (r.columns["p_a_bar"] + r.columns["p_b_bar"])))
-                                                 for r in runs]
+        mean_p = [float(np.mean(0.5 * (r.columns["p_a_bar"] + r.columns["p_b_bar"]))) for r in runs]
+        if np.ptp(mean_p) >= LOGGED_SPAN * abs(float(np.mean(mean_p))):
+            logged["mean chamber pressure (bar)"] = mean_p
     return {**feats, **conds, **logged}, order_name
 
 

@@ -121,6 +121,20 @@ def test_recording_order_from_the_sidecars():
         DR.run_features([_run("a", _meta(3, "2026-11-27T10:00:00")), _run("b", _meta(5, "yesterday"))])
 
 
+def test_a_logged_quantity_that_barely_changes_between_runs_is_not_related_to():
+    """The mean chamber pressure of runs that hold it within 1 % of its level ranks chance: it is not offered as
+    what a parameter follows; spread wider, it is (its values as the logs give them)."""
+    def with_pressures(name, sets, mean_bar):
+        r = _run(name, _meta(sets))
+        cols = {"t": r.t, **r.columns, "p_a_bar": np.full(r.n, mean_bar + 30.0), "p_b_bar": np.full(r.n, mean_bar - 30.0)}
+        return validate_run(name, cols, r.meta)
+
+    narrow = [with_pressures(n, k, 110.0 + 0.05 * k) for n, k in (("a", 1), ("b", 3), ("c", 5))]
+    assert "mean chamber pressure (bar)" not in DR.run_features(narrow)[0]
+    wide = [with_pressures(n, k, 100.0 + 5.0 * k) for n, k in (("a", 1), ("b", 3), ("c", 5))]
+    np.testing.assert_allclose(DR.run_features(wide)[0]["mean chamber pressure (bar)"], [105.0, 115.0, 125.0])
+
+
 def _campaign(schedule, effects, seed, n_runs=4):
     from tests.independent_rig.campaign import simulate
 
