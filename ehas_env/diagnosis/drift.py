@@ -14,8 +14,10 @@ This stage, run after the final model is chosen, says it:
    values, each run's standard deviation its 95 % half-width / 1.96, never below the model-error floor of the
    agreement rule (:data:`ehas_env.diagnosis.keeping.MODEL_ERROR_FLOOR`); estimates at the end of their fit range
    are left out (no point estimate).  A parameter *drifts* when p < :data:`DRIFT_P`; or, when its values rise or
-   fall at every step of the recording order over at least :data:`TREND_RUNS` runs (a steady change in time), when
-   the same test with the floor lowered to :data:`TREND_FLOOR` gives p < :data:`DRIFT_P`.
+   fall at every step of the recording order over at least :data:`TREND_RUNS` runs (a steady change in time), or
+   of a condition the sidecars record (an oil temperature: the model's own errors follow the runs' settings, not
+   what the operator measures beside them), when the same test with the floor lowered to :data:`TREND_FLOOR` gives
+   p < :data:`DRIFT_P`.
 3. **Against what?** (:func:`relate`): Spearman's rank correlation of the per-run values with each quantity the
    sidecars record (:func:`run_features`: recording order, from the optional sidecar key ``recorded``, an ISO 8601
    start time, else the file order; disc sets; amplitude; frequency; supply pressure; the logged mean chamber
@@ -338,7 +340,7 @@ def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreePara
     return out
 
 
-def drift_of(per_run: list[dict], features: dict, units: dict) -> list[dict]:
+def drift_of(per_run: list[dict], features: dict, units: dict, steady_along=None) -> list[dict]:
     """The parameters whose per-run values differ beyond their intervals, each related to the recorded quantities.
 
     Parameters
@@ -349,6 +351,12 @@ def drift_of(per_run: list[dict], features: dict, units: dict) -> list[dict]:
         :func:`run_features`' quantities (one value per run of ``per_run``).
     units : dict
         {label: unit}.
+    steady_along : sequence of str, optional
+        The quantities along which values that rise (or fall) at every step over at least :data:`TREND_RUNS` runs
+        are tested with the floor lowered to :data:`TREND_FLOOR` (default: the first of ``features``, the recording
+        order).  Only what the sidecars record apart from the runs' settings belongs here -- the time and the
+        measured conditions (an oil temperature): the model's own errors follow the settings (disc sets,
+        amplitude, frequency), never these.
 
     Returns
     -------
@@ -367,7 +375,8 @@ def drift_of(per_run: list[dict], features: dict, units: dict) -> list[dict]:
         vals = [v for _, v, _ in inner]
         cis = [ci for _, _, ci in inner]
         p, c, dof = differ(vals, cis)
-        steady = ordered(vals, [features[next(iter(features))][i] for i in idx]) if features else False
+        along = [next(iter(features))] if steady_along is None and features else list(steady_along or ())
+        steady = any(ordered(vals, [features[q][i] for i in idx]) for q in along if q in features)
         if p >= DRIFT_P and steady and len(vals) >= TREND_RUNS:
             p, c, dof = differ(vals, cis, TREND_FLOOR)  # a steady change in time (see TREND_FLOOR)
         if p >= DRIFT_P:
@@ -461,6 +470,7 @@ def per_run_stage(rep: Replayer, runs: list, windows: list, final: Fit, also: di
     if len(runs) < MIN_RUNS or not final.free:
         return {"per_run": None, "drift": []}
     feats, order = run_features(runs)
+    steady_along = [order, *recorded_conditions(runs)]  # recorded apart from the settings (see drift_of)
     wins = list(windows)
     say(f"fitting the model's {len(final.free)} parameters on each of {len(runs)} runs alone (drift between runs)")
     groups = [(None, final.model, list(final.free))]
@@ -478,7 +488,7 @@ def per_run_stage(rep: Replayer, runs: list, windows: list, final: Fit, also: di
         units.update({_label(fp): _unit(fp.effect, fp.name) for fp in free})
         for row, r in zip(per, res):
             row["params"].update({k: v for k, v in r["params"].items() if k not in row["params"]})
-        drift += [d for d in drift_of(res, feats, units) if d["parameter"] not in {x["parameter"] for x in drift}]
+        drift += [d for d in drift_of(res, feats, units, steady_along) if d["parameter"] not in {x["parameter"] for x in drift}]
     for d in drift:
         say("  " + d["text"])
     rows = []

@@ -85,6 +85,23 @@ def test_a_steady_change_in_time_is_seen_below_the_model_error_floor():
     assert DR.drift_of(_table([1.270, 1.277, 1.283, 1.290, 1.296]), {"recording order": [1, 2, 3, 4, 5]}, {}) == []
 
 
+def test_a_steady_change_along_a_recorded_condition_is_seen_below_the_model_error_floor():
+    """K falling 0.8x along the oil temperature the sidecars record (the conditions set's seed 7: per-run fits
+    within 0.1 % of the truth, the runs recorded in an order unrelated to the temperature) lies within the 10 %
+    floor, but falls at every step of the temperature: named, following it.  The same values steady along a run
+    setting (disc sets) are not: the model's own errors follow the settings."""
+    k = [1.069, 1.073, 1.226, 1.282, 1.026]
+    oil = [53.8, 53.2, 29.4, 20.5, 60.6]
+    feats = {"recording order": [2, 4, 1, 5, 3], "oil_temperature_C": oil}
+    assert DR.drift_of(_table(k), feats, {}) == []  # steady along the order alone: nothing
+    (d,) = DR.drift_of(_table(k), feats, {"valve_dynamics.K": "LPM/mA"},
+                       steady_along=["recording order", "oil_temperature_C"])
+    assert d["follows"] == "oil_temperature_C" and d["direction"] == "falls"
+    assert d["ratio_first_last"] == pytest.approx(0.8, rel=0.02)
+    settings = {"recording order": [2, 4, 1, 5, 3], "disc sets": oil}
+    assert DR.drift_of(_table(k), settings, {}, steady_along=["recording order"]) == []
+
+
 def test_estimates_within_the_model_error_floor_raise_no_alarm():
     """Tight intervals (noise only) and values 8 % apart: what two simulators of one rig differ by (the floor of the
     agreement rule, keeping.MODEL_ERROR_FLOOR): no drift."""
