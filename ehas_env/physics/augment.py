@@ -172,7 +172,8 @@ READING_PLACES = _reading_places()
 
 #: every place where a signal passes on: the valve's coil (the current the torque motor acts on, a chain without a
 #: rate: its followers start at 0 mA, the current at rest), the position sensor's reading (its rate is the piston's
-#: velocity), and every sensed output's reading
+#: velocity), and every sensed output's reading the model has a rate of (the flow meter's reading has none: the
+#: model's flow there is the land's plus the valve's side flows, which the state rates do not see)
 SIGNAL_PLACES = (
     # the coil is in the loop too, but its lag as a rival of a command delay is the structural hypothesis
     # hyp_coil_lag (tried by the hypotheses stage): not twice
@@ -382,8 +383,46 @@ class Delay(Follower):
                  "every harmonic alike; a lag fitted to it comes out shorter on the fast runs' harmonics.")
 
 
+class Play(Follower):
+    """Play (backlash, hysteresis) in a signal path: what is passed on stays put until the signal that comes has
+    moved ``b`` past it, then follows it at that distance -- the output of a play operator of half width ``b``
+    (Tao & Kokotovic 1996, backlash; at the coil, the torque motor's magnetic hysteresis, a few % of rated current
+    in servo-valve data sheets; at a reading, a linkage's or a gauge's mechanical play).
+
+    The follower ``y' = (d - clip(d, -b, b)) / T_p``: still while the gap ``d = u - y`` is within ``+-b``, closing
+    what exceeds it with the time constant ``T_p``, far faster than the runs resolve."""
+
+    form = "a play"
+    joins = " of +-"
+    stem = "play"
+    kind_title = "play (backlash)"
+    law = "(d - min(max(d, -b), b)) / T_p"
+    constants = (
+        Param("T_p", "s", 1.0e-4, (1.0e-5, 1.0e-2),
+              "time constant with which the output closes the gap beyond the play (assumed: as the rate limit's "
+              "small-signal constant, faster than anything the 1-3 Hz runs resolve)"),
+    )
+    main_param = "b"
+    explanation = ("The output stays where it is until the input has moved the play's half width b past it, then "
+                   "follows at that distance: at every reversal the output holds while the input crosses 2 b.")
+    signature = ("a residual of size up to b right after every reversal of the signal, flat while the output "
+                 "holds; the same on every run (not growing with frequency as a lag's does).")
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        # from 1e-4 span (below any resolution: no effect) to 0.2 span
+        return (Param("b", place.unit, 1.0e-4 * place.span, (1.0e-4 * place.span, 0.2 * place.span),
+                      f"the play's half width, {place.unit} (assumed range: 1e-4 to 0.2 times the signal's span of "
+                      f"{place.span:g} {place.unit}; the default, 1e-4 span, is below any sensor's resolution: no "
+                      "effect)", typical=(0.002 * place.span, 0.05 * place.span), log_scale=True),)
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"b": place.shown}
+
+
 #: the follower kinds, each applied at every signal place it can be put (a delay needs the place's rate)
-FOLLOWER_KINDS = (Lag, RateLimit, Delay)
+FOLLOWER_KINDS = (Lag, RateLimit, Delay, Play)
 #: the product, generated once (registered as effects when this module is imported)
 FOLLOWERS = tuple(kind.at(place) for kind in FOLLOWER_KINDS for place in SIGNAL_PLACES
                   if place.rate or not kind.needs_rate)

@@ -238,33 +238,58 @@ def test_pressure_reading_lag_is_the_first_order_filter_of_the_pressure(T_ms):
     assert np.max(np.abs(lagged.p_b_bar - want)) < 0.02 * moved
 
 
-def test_the_docs_kind_of_ones_own_is_a_play_at_every_place():
+def test_the_docs_kind_of_ones_own_is_a_one_way_lag_at_every_place():
     """docs/effects-and-controllers.md's worked example, the file as the page shows it: loaded with effects_path,
-    its play is an effect at every signal place, and at chamber B's pressure reading the reading stays within
-    half the width of the pressure (and no more than that plus the catch-up), the angle untouched.  In a child
-    process: the example's effects must not join this session's registry."""
+    its one-way lag is an effect at every signal place, and at chamber B's pressure reading the reading never falls
+    below the pressure (a rise passes at once, within T_up's lag) and stays above it after every fall; the angle is
+    untouched.  In a child process: the example's effects must not join this session's registry."""
     import subprocess
     import sys
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
     page = (root / "docs" / "effects-and-controllers.md").read_text(encoding="utf-8")
-    shown = page.split("`docs/examples/my_kinds/play_kind.py`", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
-    assert shown == (root / "docs" / "examples" / "my_kinds" / "play_kind.py").read_text(encoding="utf-8")
+    shown = page.split("`docs/examples/my_kinds/snubber_kind.py`", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    assert shown == (root / "docs" / "examples" / "my_kinds" / "snubber_kind.py").read_text(encoding="utf-8")
     code = (
         "import numpy as np\n"
         "from ehas_env.simulation.plant import Plant\n"
         "from ehas_env.physics.augment import SIGNAL_PLACES, followers\n"
         "a = Plant(disc_sets=3).simulate_closed_loop(amplitude_deg=20.0, freq_hz=2.0, cycles=2)\n"
-        "b = Plant(disc_sets=3, effects={'aug_play_pb_reading': {'w': 2.0e5}},\n"
+        "b = Plant(disc_sets=3, effects={'aug_snub_pb_reading': {'T_down': 5.0, 'T_up': 0.05}},\n"
         "          effects_path='docs/examples/my_kinds').simulate_closed_loop(amplitude_deg=20.0, freq_hz=2.0, cycles=2)\n"
-        "assert all(f'aug_play_{p.short}' in followers() for p in SIGNAL_PLACES)\n"
+        "assert all(f'aug_snub_{p.short}' in followers() for p in SIGNAL_PLACES)\n"
         "assert np.array_equal(a.theta_deg, b.theta_deg)\n"
-        "print(float(np.abs(b.p_b_bar - a.p_b_bar).max()))\n")
+        "d = b.p_b_bar - a.p_b_bar\n"
+        "print(float(d.min()), float(d.max()))\n")
     r = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr[-1500:]
-    gap = float(r.stdout.strip().splitlines()[-1])
-    assert 0.95 < gap < 1.2  # bar: half the 2 bar width, and the short catch-up (T_play) beyond it
+    low, high = map(float, r.stdout.strip().splitlines()[-1].split())
+    assert low > -0.01  # bar: a rise passes within T_up = 0.05 ms (the reading's quantum is 0.01 bar)
+    assert high > 0.3  # bar: a fall lags by T_down = 5 ms (0.78 bar on this 2 Hz run)
+
+
+def test_a_played_reading_is_the_play_operator_of_the_reading():
+    """A play of +-b in chamber B's pressure reading (the built-in kind) is the play operator applied to the plain
+    reading, computed here sample by sample (y = min(max(y, u - b), u + b), from y = u at the start), within the
+    catch-up of its fast follower; nothing the loop feeds back moves."""
+    b = 0.8  # bar
+    plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=2)
+    played = Plant(disc_sets=2, effects={"aug_play_pb_reading": {"b": b * 1e5}}).simulate_closed_loop(
+        amplitude_deg=15.0, freq_hz=2.0, cycles=2)
+    np.testing.assert_array_equal(played.theta_deg, plain.theta_deg)
+    u = plain.p_b_bar
+    want = np.empty_like(u)
+    y = u[0]
+    for k, uk in enumerate(u):
+        y = min(max(y, uk - b), uk + b)
+        want[k] = y
+    moved = np.max(np.abs(want - u))
+    assert moved > 0.7 * b  # the play shows: the reading holds at every reversal
+    assert np.max(np.abs(played.p_b_bar - want)) < 0.05 * b
+    from ehas_env.physics.effects import get_effect
+
+    assert get_effect("aug_play_pb_reading").in_words({"b": b * 1e5}).startswith("a play of +-0.8 bar")
 
 
 def test_static_blocks_at_readings_move_their_reading_exactly():
