@@ -641,12 +641,17 @@ def run_stages(s: Search, stages=STAGES) -> list:
     Returns
     -------
     list of dict
-        One record per stage: ``stage``, ``elapsed_s`` and what the stage returned.
+        One record per stage: ``stage``, ``elapsed_s``, ``replays`` (the campaign's replays it made, fit data and
+        all data) and what the stage returned.
     """
+    def replays():  # of the fit data and of all data (a replay of all data costs more: both are counted)
+        return s.rep.n_evals + s.full.n_evals
+
     for name, stage in stages:
-        t = time.perf_counter()
+        t, n = time.perf_counter(), replays()
         out = stage(s) or {}
-        s.records.append({"stage": name, "elapsed_s": round(time.perf_counter() - t, 2), **out})
+        s.records.append({"stage": name, "elapsed_s": round(time.perf_counter() - t, 2), "replays": replays() - n,
+                          **out})
     return s.records
 
 
