@@ -29,7 +29,7 @@ from ehas_env.diagnosis.candidates import (
     validation_moved)
 from ehas_env.diagnosis.fitting import Fit, confidence
 from ehas_env.diagnosis.honesty import term_refused
-from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, Replayer
+from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, ModelSpec, Replayer
 from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
 from ehas_env.physics.augment import augmentations
 from ehas_env.physics.effects import get_effect
@@ -80,19 +80,41 @@ def _quiet_reading(full: Replayer, sims, cls, trigger: float) -> str | None:
     return None
 
 
-def _scan_hint(full: Replayer, cls) -> tuple:
-    """The values of a reading block's main parameter its logged reading points at (:meth:`Static.scan_hint` of
-    the reading's largest magnitude over every run, in the place's SI unit); () for any other block."""
+#: samples either side of the central difference that gives a logged signal's rate (over 10 samples a position
+#: sensor's 9 um of noise is about 1 mm/s in the rate at 1 kHz: far below any rate a limit in the runs acts at)
+RATE_HALF_SPAN = 5
+
+
+def _logged_at_place(full: Replayer, cls) -> list:
+    """The closed-loop runs' logged signal at a block's place, in the place's SI unit, as (samples, period) pairs:
+    a sensor's reading from its column, the position sensor's from the logged angle (x = r sin theta on the
+    model's crank); [] where nothing logged is the place's signal (the coil's current)."""
+    place = getattr(getattr(cls, "signal_place", None), "place", "")
     column = _reading_column(cls)
+    out = []
+    for c in full.cases:
+        if c.run.kind != "closed_loop":  # a block at a reading acts there (the valve bench's flow is its meter)
+            continue
+        if place == "position_reading" and "theta_deg" in c.measured:
+            r = full.plant(ModelSpec(), c.run).rig.radius
+            out.append((r * np.sin(np.radians(c.measured["theta_deg"])), c.run.dt))
+        elif column is not None and column in c.measured:
+            out.append((c.measured[column] / cls.signal_place.shown[0], c.run.dt))
+    return out
+
+
+def _scan_hint(full: Replayer, cls) -> tuple:
+    """The values of a block's main parameter its logged signal points at (:meth:`Augmentation.scan_hint` of the
+    signal's largest magnitude and largest rate over every closed-loop run, the rate a central difference over
+    :data:`RATE_HALF_SPAN` samples either side); () for a block whose place logs nothing."""
+    logged = _logged_at_place(full, cls)
     hint = getattr(cls, "scan_hint", None)
-    if column is None or hint is None:
+    if not logged or hint is None:
         return ()
-    # the closed-loop runs' readings (a reading's blocks act there: the valve bench's flow is the bench's meter)
-    peaks = [float(np.max(np.abs(c.measured[column]))) for c in full.cases
-             if c.run.kind == "closed_loop" and column in c.measured]
-    if not peaks:
-        return ()
-    return tuple(hint(max(peaks) / cls.signal_place.shown[0]))
+    k = RATE_HALF_SPAN
+    peak = max(float(np.max(np.abs(y))) for y, _ in logged)
+    rate = max(float(np.max(np.abs(y[2 * k:] - y[:-2 * k]))) / (2 * k * dt) for y, dt in logged if y.size > 2 * k)
+    return tuple(float(v) for v in hint(peak, rate))
 
 
 def _quiet(g: dict, trigger: float) -> bool:

@@ -112,6 +112,14 @@ class Augmentation(Effect):
     def _extra(cls, params: dict) -> str:
         return ""
 
+    @classmethod
+    def scan_hint(cls, peak: float, peak_rate: float) -> tuple:
+        """Values of the main parameter the logged signal at the block's place points at, given its largest
+        magnitude ``peak`` and its largest rate of change ``peak_rate`` over the runs (the place's SI unit, and
+        per second): scanned with the fit's grid, whose steps are wider than the valley of a clip or a limit
+        (none unless the kind says)."""
+        return ()
+
 
 # -- a follower in a signal path: a kind defined once, applied at every signal place --------------------------------
 
@@ -348,6 +356,12 @@ class RateLimit(Follower):
                       typical=(0.5 * place.span, 2000.0 * place.span), log_scale=True),)
 
     @classmethod
+    def scan_hint(cls, peak: float, peak_rate: float) -> tuple:
+        # a rate-limited signal never changes faster than S: its largest rate is S (a limit just below the runs'
+        # fastest rate acts on their peaks alone, a valley far narrower than the scan's steps)
+        return (peak_rate,)
+
+    @classmethod
     def kind_shown(cls, place: SignalPlace) -> dict:
         if place.unit == "mA":  # a coil's current: mA/ms, as amplifiers are specified
             return {"S": (place.shown[0] * 1.0e-3, f"{place.shown[1]}/ms")}
@@ -458,12 +472,6 @@ class Static(Augmentation):
         return True
 
     @classmethod
-    def scan_hint(cls, peak: float) -> tuple:
-        """Values of the main parameter the logged reading points at, given its largest magnitude ``peak`` (in
-        the place's SI unit): scanned with the fit's grid (none unless the kind says)."""
-        return ()
-
-    @classmethod
     def at(cls, place: SignalPlace) -> type:
         """The effect ``aug_<stem>_<place.short>`` that puts this kind at the reading ``place``."""
         name = f"aug_{cls.stem}_{place.short}"
@@ -537,7 +545,7 @@ class Saturation(Static):
         return {"L": place.shown}
 
     @classmethod
-    def scan_hint(cls, peak: float) -> tuple:
+    def scan_hint(cls, peak: float, peak_rate: float) -> tuple:
         # a saturated reading never reports more than L: its largest magnitude is L (the valley of the clip level
         # is as narrow as the stretch the clip cuts off, narrower than the scan's steps)
         return (peak,)
