@@ -223,14 +223,19 @@ def coulomb_from_stribeck(rep: Replayer, f: Fit) -> Fit:
 
 
 def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | None = None,
-                     scan_extra: tuple = ()) -> Fit:
+                     scan_extra: tuple = (), start_at: dict | None = None) -> Fit:
     """Stage 1: the effect's own parameters only, on top of the null model (scan, then a short fit).
 
     ``screened`` holds the fits of effects screened before (warm starts, see :data:`NESTED`); ``scan_extra``
-    values of the main parameter the data point at, scanned with its grid (:func:`~.fitting.fit`).
+    values of the main parameter the data point at, scanned with its grid (:func:`~.fitting.fit`); ``start_at``
+    {parameter: value} starts of its other parameters the data point at (a knee inside the logged range), in
+    place of their typical middle.
     """
     free = own_params(effect)
     start = {(fp.effect, fp.name): start_value(fp) for fp in free}
+    for fp in free:
+        if fp.name in (start_at or {}):
+            start[(fp.effect, fp.name)] = min(max(float(start_at[fp.name]), fp.lo), fp.hi)
     inner, mapping = NESTED.get(effect, (None, {}))
     prev = (screened or {}).get(inner)
     if prev is not None and prev.cost < null.cost * (1.0 - SKIP_MARGIN):
@@ -243,7 +248,8 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
         # the main parameter alone, the others at their typical middle, never beat the null model (an unbalance
         # whose heavy side is between the sine's and the cosine's): fit them all together from the effect's
         # defaults (no effect), where the first step sees every direction
-        defaults = {(fp.effect, fp.name): min(max(get_effect(effect).param(fp.name).default, fp.lo), fp.hi)
+        defaults = {(fp.effect, fp.name): min(max((start_at or {}).get(fp.name, get_effect(effect).param(fp.name).default),
+                                                  fp.lo), fp.hi)
                     for fp in free}
         g = fit(rep, free, defaults, null.model, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
         f = g if g.cost < f.cost else f

@@ -104,17 +104,18 @@ def _logged_at_place(full: Replayer, cls) -> list:
 
 
 def _scan_hint(full: Replayer, cls) -> tuple:
-    """The values of a block's main parameter its logged signal points at (:meth:`Augmentation.scan_hint` of the
-    signal's largest magnitude and largest rate over every closed-loop run, the rate a central difference over
-    :data:`RATE_HALF_SPAN` samples either side); () for a block whose place logs nothing."""
+    """What a block's logged signal points at: the values of its main parameter scanned with the grid and the
+    starts of its others (:meth:`Augmentation.scan_hint`, :meth:`Augmentation.start_hint` of the signal's largest
+    magnitude and largest rate over every closed-loop run, the rate a central difference over
+    :data:`RATE_HALF_SPAN` samples either side); ((), {}) for a block whose place logs nothing."""
     logged = _logged_at_place(full, cls)
-    hint = getattr(cls, "scan_hint", None)
-    if not logged or hint is None:
-        return ()
+    if not logged or not hasattr(cls, "scan_hint"):
+        return (), {}
     k = RATE_HALF_SPAN
     peak = max(float(np.max(np.abs(y))) for y, _ in logged)
-    rate = max(float(np.max(np.abs(y[2 * k:] - y[:-2 * k]))) / (2 * k * dt) for y, dt in logged if y.size > 2 * k)
-    return tuple(float(v) for v in hint(peak, rate))
+    rate = max((float(np.max(np.abs(y[2 * k:] - y[:-2 * k]))) / (2 * k * dt) for y, dt in logged if y.size > 2 * k),
+               default=0.0)
+    return tuple(float(v) for v in cls.scan_hint(peak, rate)), dict(cls.start_hint(peak, rate))
 
 
 def _quiet(g: dict, trigger: float) -> bool:
@@ -249,11 +250,11 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
             tried.append(entry)
             continue
         say(f"  states {k}/{len(names)}: {cls.title}")
-        hint = _scan_hint(full, cls)
+        hint, start_at = _scan_hint(full, cls)
         for base, dropped in bases:
             if name in base.model.effects:
                 continue
-            f = screen_candidate(rep, name, base, scan_extra=hint)
+            f = screen_candidate(rep, name, base, scan_extra=hint, start_at=start_at)
             screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
             entry["cost_ratio" if dropped is None else "cost_ratio_without_hypotheses"] = _r(f.cost / final.cost, 4)
         tried.append(entry)

@@ -120,6 +120,13 @@ class Augmentation(Effect):
         (none unless the kind says)."""
         return ()
 
+    @classmethod
+    def start_hint(cls, peak: float, peak_rate: float) -> dict:
+        """Starts of the kind's other parameters the logged signal at its place points at ({name: value}, in their
+        units; the signal's largest magnitude ``peak`` and rate ``peak_rate`` in the place's SI unit): where their
+        typical middle would leave the main parameter's scan without effect (none unless the kind says)."""
+        return {}
+
 
 # -- a follower in a signal path: a kind defined once, applied at every signal place --------------------------------
 
@@ -583,8 +590,64 @@ class DeadZone(Static):
         return {"d": place.shown}
 
 
+class Knee(Static):
+    """A reading whose slope changes beyond a knee: the sensor reports the quantity as it is within ``+-k`` and with
+    its slope changed by the share ``g`` beyond (a transducer's characteristic that bends at the end of its linear
+    range, a load cell's mounting that stiffens or gives beyond a preload; piecewise-linear, the simplest of
+    MATLAB's nonlinearity estimators for a Hammerstein-Wiener output block)."""
+
+    form = "a slope change"
+    stem = "knee"
+    kind_title = "slope change beyond a knee"
+    expr = "u + g * (u - min(max(u, -k), k))"
+    main_param = "k"
+    shown = {"g": (100.0, "%")}
+    explanation = ("The sensor reports the quantity within +-k as it is, and beyond it with the slope 1 + g: a "
+                   "characteristic that bends at k.")
+    signature = ("a residual on that reading alone, zero while the quantity is within +-k and growing in "
+                 "proportion to how far beyond it is: on the large runs' peaks, none on the small runs.")
+
+    @classmethod
+    def fits(cls, place: SignalPlace) -> bool:
+        return place.signed  # a knee either way about zero: an absolute pressure has no zero it bends about
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        return (Param("g", "-", 0.0, (-0.9, 3.0),
+                      "the change of slope beyond the knee, a share of the slope within (assumed range: -90 % "
+                      "to +300 %; 0, the default, is no knee)", typical=(0.1, 0.6)),
+                Param("k", place.unit, 0.3 * place.span, (0.001 * place.span, 3.0 * place.span),
+                      f"knee: the magnitude beyond which the slope changes, {place.unit} (assumed range: 0.001 to 3 "
+                      f"times the signal's span of {place.span:g} {place.unit}: a sensor's span is its range, which "
+                      "the rig may fill a small part of)",
+                      typical=(0.005 * place.span, 0.6 * place.span), log_scale=True))
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"g": (100.0, "%"), "k": place.shown}
+
+    @classmethod
+    def scan_hint(cls, peak: float, peak_rate: float) -> tuple:
+        # knees within the reading's logged range (the grid's steps over a sensor's span, a factor 3.6 apart, may
+        # put one point at most where the rig's readings reach); k is in the place's unit
+        return (0.25 * peak, 0.5 * peak, 0.75 * peak)
+
+    @classmethod
+    def start_hint(cls, peak: float, peak_rate: float) -> dict:
+        # from no slope change (when the typical one's sign is wrong), the knee inside the logged range
+        return {"k": 0.5 * peak}
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a slope change of 50.2 [45, 55] % beyond +-0.675 [0.65, 0.7] kN in the load reading"."""
+        ci = ci or {}
+        (gs, gu), (ks, ku) = cls.shown["g"], cls.shown["k"]
+        return (f"{cls.form} of {_fmt(params['g'], ci.get('g'), gs)} {gu} beyond +-{_fmt(params['k'], ci.get('k'), ks)} "
+                f"{ku} in {cls.where}")
+
+
 #: the static kinds, each applied at every sensed output's reading it fits
-STATIC_KINDS = (Offset, Gain, Saturation, DeadZone)
+STATIC_KINDS = (Offset, Gain, Saturation, DeadZone, Knee)
 STATICS = tuple(kind.at(place) for kind in STATIC_KINDS for place in READING_PLACES if kind.fits(place))
 
 

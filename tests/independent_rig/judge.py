@@ -178,7 +178,8 @@ READING_PLACE = {"pa": "pressure_reading_a", "pb": "pressure_reading_b", "ps": "
                  "force": "load_reading"}
 #: ehas's generated block kinds (the stem of aug_<kind>_<place>) -> the grammar's kind
 STEM_BLOCK = {"lag": "lag", "slew": "rate_limit", "offset": "offset", "gain": "gain", "sat": "saturation",
-              "dz": "dead_zone", "delay": "delay", "play": "play"}
+              "dz": "dead_zone", "delay": "delay", "play": "play",
+              "knee": "piecewise_linear"}
 # the state stage's generated blocks (ehas_env/physics/augment.py, aug_<kind>_<place>): a follower or a static
 # block at the position sensor's or at another sensor's reading is a sensor's, at that reading
 for _stem in STEM_BLOCK:

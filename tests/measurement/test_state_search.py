@@ -192,6 +192,8 @@ FOLLOWERS_PB = ["aug_lag_pb_reading", "aug_delay_pb_reading", "aug_slew_pb_readi
     # parameter finds where the clip acts; from the default the block does nothing)
     ("aug_sat_flow_a_reading", "L", 8.0 / 60000.0, 3314, None, 0.2),  # the flow meter's range ends at 8 L/min
     ("aug_dz_force_reading", "d", 300.0, 3315, None, 0.2),  # the load reading dead within +-0.3 kN
+    # a play of +-0.8 bar in chamber B's reading, among the followers there and its static blocks
+    ("aug_play_pb_reading", "b", 0.8e5, 3321, FOLLOWERS_PB + ["aug_play_pb_reading", "aug_offset_pb_reading"], 0.2),
     # a pure delay (gain 1, phase growing with frequency) and a first-order lag (gain falling, phase saturating) of
     # chamber B's reading, each screened against the other and a rate limit at the same place
     ("aug_delay_pb_reading", "tau", 4.0, 3316, FOLLOWERS_PB, 0.1),
@@ -203,6 +205,16 @@ def test_a_reading_block_is_told_from_its_rivals_at_its_place_with_its_size(effe
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=rivals or _at_place(effect))
     assert rec["kept"] == effect, rec
     assert rec["params"][param] == pytest.approx(value, rel=rel)
+
+
+def test_a_knee_in_a_reading_is_found_with_its_slope_change_and_its_knee():
+    """The load reading's slope 50 % steeper beyond +-0.3 kN (a piecewise-linear characteristic): among the blocks
+    of the load reading the stage keeps the knee, with both numbers (the drawn set's d28, a slope change of
+    +50 % beyond +-0.675 kN in the load reading, had nothing that could say it)."""
+    s, null = _search({"aug_knee_force_reading": {"g": 0.5, "k": 300.0}}, 3322)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=_at_place("aug_knee_force_reading"))
+    assert rec["kept"] == "aug_knee_force_reading", rec
+    assert rec["params"]["g"] == pytest.approx(0.5, rel=0.2) and rec["params"]["k"] == pytest.approx(300.0, rel=0.2)
 
 
 def test_a_block_that_runs_to_an_end_of_its_range_is_not_kept_and_the_right_kind_is():

@@ -297,8 +297,9 @@ def test_static_blocks_at_readings_move_their_reading_exactly():
     nothing else moves (the loop feeds back states, not readings).  Every sensed output is a place of each."""
     from ehas_env.physics.layout import SENSED
 
-    assert {f"aug_{k.stem}_{out}_reading" for k in augment.STATIC_KINDS for out in SENSED
-            if k is not augment.DeadZone or SENSED[out][1] != "Pa"} == set(augment.reading_blocks())
+    assert {f"aug_{k.stem}_{p.short}" for k in augment.STATIC_KINDS for p in augment.READING_PLACES
+            if k.fits(p)} == set(augment.reading_blocks())
+    assert {p.place for p in augment.READING_PLACES} == {f"{out}_reading" for out in SENSED}
     plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=1)
     off = Plant(disc_sets=2, effects={"aug_offset_pa_reading": {"c": 2.5e5},
                                       "aug_gain_flow_a_reading": {"g": -0.04}}).simulate_closed_loop(
@@ -327,6 +328,25 @@ def test_a_saturated_and_a_dead_zone_reading_are_the_clipped_and_the_dead_zoned_
     from ehas_env.physics.effects import get_effect
 
     assert get_effect("aug_sat_flow_a_reading").in_words({"L": L / 60000.0}).startswith("a saturation at +-4 L/min")
+
+
+def test_a_reading_with_a_knee_is_the_quantity_with_its_slope_changed_beyond_it():
+    """A slope change of +50 % beyond +-0.3 kN in the load reading is the plain load u + 0.5 (u - clip(u, +-0.3));
+    nothing else moves; none at an (absolute) pressure reading; worded with the knee."""
+    g, k = 0.5, 0.3  # -, kN
+    plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    bent = Plant(disc_sets=2, effects={"aug_knee_force_reading": {"g": g, "k": k * 1e3}}).simulate_closed_loop(
+        amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    assert np.abs(plain.load_kN).max() > 2 * k  # it acts
+    np.testing.assert_array_equal(bent.theta_deg, plain.theta_deg)
+    np.testing.assert_array_equal(bent.p_a_bar, plain.p_a_bar)
+    u = plain.load_kN
+    np.testing.assert_allclose(bent.load_kN, u + g * (u - np.clip(u, -k, k)), rtol=1e-9, atol=1e-12)
+    assert "aug_knee_pa_reading" not in augment.reading_blocks()
+    from ehas_env.physics.effects import get_effect
+
+    assert get_effect("aug_knee_force_reading").in_words({"g": g, "k": k * 1e3}) == \
+        "a slope change of 50 % beyond +-0.3 kN in the load reading (A (P_A - P_B))"
 
 
 def test_a_delayed_reading_is_the_reading_shifted_by_the_delay():
