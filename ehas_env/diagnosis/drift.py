@@ -176,7 +176,7 @@ def relate(values, intervals, features: dict) -> dict:
                quantity_from=float(x.min()), quantity_to=float(x.max()),
                direction="rises" if last > first else "falls",
                ratio_first_last=float(last / first) if first * last > 0 else None)
-    if abs(rho) >= FOLLOW_RHO:
+    if abs(rho) >= FOLLOW_RHO - 1e-9:  # a rank correlation is a ratio of integers: 0.8 comes out as 0.7999999...
         out["follows"] = best
     return out
 

@@ -102,6 +102,19 @@ def test_a_steady_change_along_a_recorded_condition_is_seen_below_the_model_erro
     assert DR.drift_of(_table(k), settings, {}, steady_along=["recording order"]) == []
 
 
+def test_a_rank_correlation_of_exactly_the_threshold_follows():
+    """Five runs one transposition from the condition's order rank-correlate at exactly 0.8 (1 - 6 * 4 / 120),
+    which the floating-point Spearman gives as 0.7999999999999999: it reaches FOLLOW_RHO all the same (the
+    conditions set's beta falling along the oil temperature was reported to follow nothing)."""
+    from scipy.stats import spearmanr
+
+    v = [1.0, 2.0, 3.0, 4.0, 5.0]
+    oil = [20.0, 10.0, 40.0, 30.0, 50.0]  # two adjacent pairs swapped: sum of squared rank differences 4
+    assert spearmanr(oil, v)[0] < DR.FOLLOW_RHO  # the float falls short of the exact 0.8
+    r = DR.relate(v, [(x - 0.01, x + 0.01) for x in v], {"oil_temperature_C": oil})
+    assert r["correlations"]["oil_temperature_C"] == pytest.approx(0.8) and r["follows"] == "oil_temperature_C"
+
+
 def test_estimates_within_the_model_error_floor_raise_no_alarm():
     """Tight intervals (noise only) and values 8 % apart: what two simulators of one rig differ by (the floor of the
     agreement rule, keeping.MODEL_ERROR_FLOOR): no drift."""
