@@ -6,12 +6,13 @@ bounds, doc), its explanation, residual signature and its words; the followers a
 from the place's description, the links and hoses have a subclass per place that holds only the terms that put the
 kind's state there:
 
-* **followers** in a signal path, each kind defined once and applied at every :class:`SignalPlace` the model has
+* **followers** in a signal path, each kind defined once (:class:`Follower`: the signal passed on follows the
+  one that comes by a law of their gap) and applied at every :class:`SignalPlace` the model has
   (:data:`SIGNAL_PLACES`: the current at the valve's coil, the position sensor's reading, and every sensed output's
-  reading, :data:`ehas_env.physics.layout.SENSED`): a lag, a rate limit, a pure delay, a play
-  (:mod:`ehas_env.physics.followers`); and **static blocks** at every sensor's reading (:data:`READING_PLACES`): an
-  offset, a scale error, a saturation, a dead zone, a knee (:mod:`ehas_env.physics.statics`).  A new kind is one
-  class; a new sensed output is a new place for every kind;
+  reading, :data:`ehas_env.physics.layout.SENSED`): a **lag** (:class:`Lag`, a first-order filter
+  ``T y' = u - y``: a coil's inductance, an LVDT demodulator's filter, a pressure transducer's) and a **rate
+  limit** (:class:`RateLimit`: an amplifier's voltage headroom, a conditioner's slew rate).  A new kind is one
+  class with its law; a new sensed output is a new place for every kind (:func:`followers`);
 * **compliance with a mass** in a mechanical link: the rod-crank joint (:class:`LinkRodCrank`, the piston a mass
   of its own on a spring) and the actuator's mount (:class:`LinkMount`, the cylinder's body a mass on a spring);
 * **volume with a resistance** in a hydraulic path: a hose between the valve's port and chamber A or B, or a
@@ -127,7 +128,7 @@ class Augmentation(Effect):
         return {}
 
 
-# -- the places a generated block is put at (the kinds: ehas_env.physics.followers, ehas_env.physics.statics) ------
+# -- a follower in a signal path: a kind defined once, applied at every signal place --------------------------------
 
 @dataclass(frozen=True)
 class SignalPlace:
@@ -197,6 +198,71 @@ SIGNAL_PLACES = (
 ) + tuple(p for p in READING_PLACES if p.rate)  # a reading's follower keeps its error: it needs the reading's rate
 
 
+class Follower(Augmentation):
+    """A kind of state in a signal path: the signal passed on, ``y``, follows the signal that comes, ``u``, by a law
+    of the gap ``d = u - y``: ``y' = law(d)``.  One class per kind holds its parameters, words and law (a Python
+    expression in ``d`` and its parameters); :meth:`at` makes the effect that puts it at a :class:`SignalPlace`,
+    and :func:`followers` the whole product.  Where the place has a rate for its signal, the state is the error
+    ``e = y - u`` (``e' = law(-e) - u'``, 0 at rest wherever the run starts), else ``y`` itself from rest."""
+
+    #: y' as a Python expression of the gap d = u - y and the kind's parameters and constants
+    law: ClassVar[str] = ""
+    #: the kind in an effect's name and in its state's name
+    stem: ClassVar[str] = ""
+    #: the kind's title, before "in <place>"
+    kind_title: ClassVar[str] = ""
+    #: the effects a follower of this kind in the loop may be mistaken for (its ``mistaken_for`` there)
+    loop_rivals: ClassVar[tuple] = ()
+    #: what is passed on is ``u + through * (y - u)``: 1 passes the follower's output ``y``; 2 passes ``2 y - u``,
+    #: the all-pass a first-order Pade delay is (:class:`Delay`), which needs the place's rate (the error form)
+    through: ClassVar[float] = 1.0
+    #: whether the kind needs the place's rate (the error form) to be put there
+    needs_rate: ClassVar[bool] = False
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        """The kind's parameters at ``place`` (a rate limit's range scales with the place's span)."""
+        return cls.params
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        """How the words show the kind's parameters at ``place``: {name: (factor from its unit, unit shown)}."""
+        return dict(cls.shown)
+
+    @classmethod
+    def at(cls, place: SignalPlace) -> type:
+        """The effect (a registered subclass) that puts this kind at ``place``.
+
+        Parameters
+        ----------
+        place : SignalPlace
+
+        Returns
+        -------
+        type
+            The class ``aug_<stem>_<place.short>``; its terms are written as source (the compiled model copies a
+            term's source text), so the effect is an effect like any other file's.
+        """
+        name = f"aug_{cls.stem}_{place.short}"
+        args = ", ".join(p.name for p in cls.kind_params(place) + cls.constants)
+        if place.rate:  # the error e = y - u: e' = law(-e) - u'
+            state = f"e_{cls.stem}"
+            rates = (f"def state_rates({place.rate}, {state}, {args}):\n    d = -{state}\n"
+                     f"    return {cls.law} - {place.rate}\n")
+            gain = "" if cls.through == 1.0 else f"{cls.through!r} * "
+            passed = f"def {place.place}({place.value}, {state}):\n    return {place.value} + {gain}{state}\n"
+        else:  # y itself, from rest
+            state = f"{place.value}_{cls.stem}"
+            rates = f"def state_rates({place.value}, {state}, {args}):\n    d = {place.value} - {state}\n    return {cls.law}\n"
+            passed = f"def {place.place}({state}):\n    return {state}\n"
+        body = {"states": ((state, place.unit, 0.0),)}
+        if place.place == "position_reading":
+            # after the sensor's static effects (an offset, a shape): the state acts on what the conditioner outputs
+            body["chain_order"] = 100
+        # a follower in the loop makes it late, as a delay of the command does: tried in place of one kept; at a
+        # logged reading it moves that reading alone, which no delay of the command stands in for
+        body["mistaken_for"] = cls.loop_rivals if place.in_loop else ()
+        return _block_class(cls, place, name, (rates, passed), body)
 
 
 def _block_class(kind, place: SignalPlace, name: str, texts, body: dict) -> type:
@@ -225,12 +291,411 @@ def _compiled_source(label: str, text: str) -> dict:
             and v.__code__.co_filename == filename}
 
 
+class Lag(Follower):
+    """A first-order lag ``T y' = u - y`` of a signal: what the model passes on is ``y`` instead of ``u``."""
+
+    form = "a first-order lag"
+    stem = "lag"
+    kind_title = "first-order lag"
+    law = "d / T"
+    params = (
+        Param("T", "ms", 2.0, (0.05, 50.0),
+              "time constant: a filter's, a coil's inductance over its resistance, a demodulator's smoothing "
+              "(assumed range: tenths of a ms to tens of ms; Merritt sec. 5.8, an LVDT conditioner's 1-5 ms)",
+              typical=(0.5, 8.0), si=1.0e-3, log_scale=True),
+    )
+    main_param = "T"
+    #: a lag in the loop makes it late, as a delay of the command does: the diagnosis fits it in place of a
+    #: transport delay it keeps (the signals the lag does not touch tell them apart)
+    loop_rivals = ("transport_delay",)
+    explanation = (
+        "A signal passes a first-order filter the model does not hold: T y' = u - y. The output follows the "
+        "input's sine with gain 1/sqrt(1 + (w T)^2) and a phase lag atan(w T)."
+    )
+    signature = (
+        "a residual in quadrature with the signal, growing with frequency up to the corner 1/(2 pi T); a "
+        "transport delay fitted to it comes out different on slow and fast runs (the lag's phase saturates)."
+    )
+
+    @classmethod
+    def _extra(cls, params: dict) -> str:
+        return f" (corner {1.0 / (2.0 * math.pi * params['T'] * 1e-3):.3g} Hz)"
 
 
+class RateLimit(Follower):
+    """A rate limit in a signal path: the signal passed on cannot change faster than ``S``.
+
+    The follower ``y' = S tanh((u - y) / (S T_ss))``: a first-order follower of time constant T_ss for small
+    steps, never faster than S for large ones (tanh keeps the right-hand side smooth for the integrator).  At the
+    coil: a servo amplifier drives the torque motor's coil through its inductance with a bounded voltage, so the
+    current rises at most (V_max - R i) / L, about constant (Jelali & Kroll 2003, the servo amplifier; Merritt
+    1967, the torque motor); at a reading, a conditioner's slew-rate limit."""
+
+    form = "a rate limit"
+    stem = "slew"
+    kind_title = "rate limit"
+    law = "S * math.tanh(d / (S * T_ss))"
+    constants = (
+        Param("T_ss", "s", 1.0e-4, (1.0e-5, 1.0e-2),
+              "small-signal time constant of the follower (assumed: a current-feedback amplifier's 1.6 kHz "
+              "bandwidth, faster than anything the 1-3 Hz runs resolve)"),
+    )
+    main_param = "S"
+    explanation = (
+        "The signal follows its input, but no faster than the rate S (at the coil: what the amplifier's voltage "
+        "can drive through the coil's inductance): a step or a fast reversal becomes a ramp."
+    )
+    signature = (
+        "a residual at the signal's fast reversals, growing with the runs' frequency and amplitude; a small sine "
+        "is passed unchanged (a lag fitted to it comes out longer on the fast, large runs)."
+    )
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        # from 0.05 to 10^4 spans a second (the coil: 0.5 mA/s to 100 mA/ms, typically 5 mA/s to 20 mA/ms; a span
+        # is the sensor's range, which the rig's signals may fill a small part of: the load's 50 kN against a few
+        # kN, whose rate limit of 10 kN/s is 0.2 spans a second)
+        unit = f"{place.unit}/s"
+        return (Param("S", unit, 200.0 * place.span, (0.05 * place.span, 1.0e4 * place.span),
+                      f"largest rate of change of the signal, {unit} (assumed range: 0.05 to 10^4 times the signal's "
+                      f"span of {place.span:g} {place.unit} a second; at the coil the amplifier's voltage headroom "
+                      "over the coil's inductance: a 10 mA coil of 1 H on 10 V headroom, 10 mA/ms)",
+                      typical=(0.5 * place.span, 2000.0 * place.span), log_scale=True),)
+
+    @classmethod
+    def scan_hint(cls, peak: float, peak_rate: float) -> tuple:
+        # a rate-limited signal never changes faster than S: its largest rate is S (a limit just below the runs'
+        # fastest rate acts on their peaks alone, a valley far narrower than the scan's steps)
+        return (peak_rate,)
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        if place.unit == "mA":  # a coil's current: mA/ms, as amplifiers are specified
+            return {"S": (place.shown[0] * 1.0e-3, f"{place.shown[1]}/ms")}
+        return {"S": (place.shown[0], f"{place.shown[1]}/s")}
 
 
+class Delay(Follower):
+    """A pure delay of a signal (a converter's or a digital filter's latency, a transducer's transport time): what
+    the model passes on is ``u(t - tau)``, taken as the first-order Pade all-pass ``(1 - s tau/2) / (1 + s tau/2)``:
+    a lag ``y`` of time constant ``tau / 2`` and ``2 y - u`` passed on.  Gain 1 at every frequency, phase
+    ``-2 atan(w tau / 2)``: within 1 % of the delay's ``-w tau`` while ``w tau < 0.35`` (a 3 Hz run's tenth harmonic
+    under a 2 ms delay).  At the command the library's ``transport_delay`` is the delay."""
+
+    form = "a pure delay"
+    stem = "delay"
+    kind_title = "pure delay"
+    law = "d / (0.5 * tau)"
+    through = 2.0
+    needs_rate = True
+    params = (
+        Param("tau", "ms", 1.0, (0.1, 30.0),
+              "the delay: a converter's or filter's latency, a transducer's transport time (assumed range: a tenth "
+              "of a ms -- its lag tau/2 then the lag's shortest, what the integrator's sub-step holds -- to tens of "
+              "ms; Jelali & Kroll 2003, transport delays of digital drives and transducers)",
+              typical=(0.2, 5.0), si=1.0e-3, log_scale=True),
+    )
+    main_param = "tau"
+    #: a delay of the position fed back makes the loop late as a delay of the command does
+    loop_rivals = ("transport_delay",)
+    explanation = ("A signal arrives tau late: the output is the input's sine with gain 1 and a phase lag w tau "
+                   "growing in proportion to frequency (no corner, unlike a lag).")
+    signature = ("a residual in quadrature with the signal, proportional to frequency and to the signal's rate at "
+                 "every harmonic alike; a lag fitted to it comes out shorter on the fast runs' harmonics.")
 
 
+class Play(Follower):
+    """Play (backlash, hysteresis) in a signal path: what is passed on stays put until the signal that comes has
+    moved ``b`` past it, then follows it at that distance -- the output of a play operator of half width ``b``
+    (Tao & Kokotovic 1996, backlash; at the coil, the torque motor's magnetic hysteresis, a few % of rated current
+    in servo-valve data sheets; at a reading, a linkage's or a gauge's mechanical play).
+
+    The follower ``y' = (d - clip(d, -b, b)) / T_p``: still while the gap ``d = u - y`` is within ``+-b``, closing
+    what exceeds it with the time constant ``T_p``, far faster than the runs resolve."""
+
+    form = "a play"
+    joins = " of +-"
+    stem = "play"
+    kind_title = "play (backlash)"
+    law = "(d - min(max(d, -b), b)) / T_p"
+    constants = (
+        Param("T_p", "s", 1.0e-4, (1.0e-5, 1.0e-2),
+              "time constant with which the output closes the gap beyond the play (assumed: as the rate limit's "
+              "small-signal constant, faster than anything the 1-3 Hz runs resolve)"),
+    )
+    main_param = "b"
+    explanation = ("The output stays where it is until the input has moved the play's half width b past it, then "
+                   "follows at that distance: at every reversal the output holds while the input crosses 2 b.")
+    signature = ("a residual of size up to b right after every reversal of the signal, flat while the output "
+                 "holds; the same on every run (not growing with frequency as a lag's does).")
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        # from 1e-4 span (below any resolution: no effect) to 0.2 span
+        return (Param("b", place.unit, 1.0e-4 * place.span, (1.0e-4 * place.span, 0.2 * place.span),
+                      f"the play's half width, {place.unit} (assumed range: 1e-4 to 0.2 times the signal's span of "
+                      f"{place.span:g} {place.unit}; the default, 1e-4 span, is below any sensor's resolution: no "
+                      "effect)", typical=(0.002 * place.span, 0.05 * place.span), log_scale=True),)
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"b": place.shown}
+
+
+#: the follower kinds, each applied at every signal place it can be put (a delay needs the place's rate)
+FOLLOWER_KINDS = (Lag, RateLimit, Delay, Play)
+#: the product, generated once (registered as effects when this module is imported)
+FOLLOWERS = tuple(kind.at(place) for kind in FOLLOWER_KINDS for place in SIGNAL_PLACES
+                  if place.rate or not kind.needs_rate)
+
+
+# -- a static block at a sensor's reading: a kind defined once, applied at every reading -----------------------------
+
+class Static(Augmentation):
+    """A kind of static block at a sensor's reading: what the sensor reports is ``expr`` of the model's output
+    ``u`` and the kind's parameters (no state).  :meth:`at` puts it at a reading place (:data:`READING_PLACES`);
+    the position sensor's and the coil's static errors are the library's (``hyp_position_offset``,
+    ``hyp_position_shape``, ``valve_null_bias``)."""
+
+    #: what the sensor reports, a Python expression of the output ``u`` and the kind's parameters
+    expr: ClassVar[str] = ""
+    stem: ClassVar[str] = ""
+    kind_title: ClassVar[str] = ""
+    screen_from_defaults = False  # no state: nothing a re-opened beta or K could have taken over
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        """The kind's parameters at ``place``."""
+        return cls.params
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        """How the words show the kind's parameters at ``place``."""
+        return dict(cls.shown)
+
+    @classmethod
+    def fits(cls, place: SignalPlace) -> bool:
+        """Whether the kind means something at ``place`` (every reading, unless the kind says otherwise)."""
+        return True
+
+    @classmethod
+    def at(cls, place: SignalPlace) -> type:
+        """The effect ``aug_<stem>_<place.short>`` that puts this kind at the reading ``place``."""
+        name = f"aug_{cls.stem}_{place.short}"
+        args = ", ".join(p.name for p in cls.kind_params(place))
+        text = (f"def {place.place}({place.value}, {args}):\n    u = {place.value}\n    return {cls.expr}\n")
+        return _block_class(cls, place, name, (text,), {})
+
+
+class Offset(Static):
+    """An offset of a sensor's reading (a transducer's zero that drifted, a wrong tare)."""
+
+    form = "an offset"
+    stem = "offset"
+    kind_title = "offset"
+    expr = "u + c"
+    main_param = "c"
+    explanation = "The sensor reports the quantity plus a constant c: its zero is off."
+    signature = "a constant residual on that reading alone, the same in every run and at every instant."
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        return (Param("c", place.unit, 0.0, (-0.1 * place.span, 0.1 * place.span),
+                      f"the reading's offset, {place.unit} (assumed range: +-10 % of the signal's span of "
+                      f"{place.span:g} {place.unit})", typical=(0.003 * place.span, 0.03 * place.span)),)
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"c": place.shown}
+
+
+class Gain(Static):
+    """A scale error of a sensor's reading (a transducer's calibration off)."""
+
+    form = "a scale error"
+    stem = "gain"
+    kind_title = "scale error"
+    expr = "u * (1.0 + g)"
+    main_param = "g"
+    shown = {"g": (100.0, "%")}
+    params = (Param("g", "-", 0.0, (-0.2, 0.2), "the reading's scale error, a share (assumed range: +-20 %)",
+                    typical=(0.005, 0.05)),)
+    explanation = "The sensor reports the quantity times (1 + g): its calibration is off."
+    signature = "a residual on that reading alone, proportional to the reading itself."
+
+
+class Saturation(Static):
+    """A reading that saturates: the sensor (its range, its amplifier, its converter) reports at most ``L`` either
+    way (Jelali & Kroll 2003: sensor and amplifier ranges)."""
+
+    form = "a saturation"
+    joins = " at +-"
+    stem = "sat"
+    kind_title = "saturation"
+    expr = "min(max(u, -L), L)"
+    main_param = "L"
+    explanation = ("The sensor reports the quantity up to L either way and L beyond it: its range, its amplifier's "
+                   "or its converter's, ends inside what the rig does.")
+    signature = ("a residual on that reading alone, zero while the reading is inside +-L and growing with the "
+                 "quantity beyond it: flat tops on the large, fast runs, none on the small ones.")
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        # from a twentieth of the span (a range far too small) to five spans (never reached: no effect)
+        return (Param("L", place.unit, 5.0 * place.span, (0.05 * place.span, 5.0 * place.span),
+                      f"the largest value the reading reports either way, {place.unit} (assumed range: 0.05 to 5 "
+                      f"times the signal's span of {place.span:g} {place.unit}; the default, 5 spans, is never "
+                      "reached: no effect)", typical=(0.3 * place.span, 2.0 * place.span), log_scale=True),)
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"L": place.shown}
+
+    @classmethod
+    def scan_hint(cls, peak: float, peak_rate: float) -> tuple:
+        # a saturated reading never reports more than L: its largest magnitude is L (the valley of the clip level
+        # is as narrow as the stretch the clip cuts off, narrower than the scan's steps)
+        return (peak,)
+
+
+class DeadZone(Static):
+    """A reading with a dead zone about its zero: the sensor reports nothing until the quantity passes ``d`` either
+    way, then the quantity less ``d`` (a turbine meter that does not turn below its threshold; a load cell's
+    mounting play taken up by a preload; Jelali & Kroll 2003: dead zones of drives and sensors)."""
+
+    form = "a dead zone"
+    joins = " of +-"
+    stem = "dz"
+    kind_title = "dead zone"
+    expr = "u - min(max(u, -d), d)"
+    main_param = "d"
+    explanation = ("The sensor reports zero while the quantity is within +-d and the quantity less d beyond it: "
+                   "its reading starts late at every reversal.")
+    signature = ("a residual on that reading alone at every zero crossing of the quantity, of size d, the same on "
+                 "every run; none where the quantity stays far from zero.")
+
+    @classmethod
+    def fits(cls, place: SignalPlace) -> bool:
+        return place.signed  # an absolute pressure is never near a zero a dead zone acts about
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        return (Param("d", place.unit, 1.0e-4 * place.span, (1.0e-4 * place.span, 0.2 * place.span),
+                      f"the dead zone's half width, {place.unit} (assumed range: 1e-4 to 0.2 times the signal's span "
+                      f"of {place.span:g} {place.unit}; the default, 1e-4 span, is below any sensor's resolution)",
+                      typical=(0.005 * place.span, 0.05 * place.span), log_scale=True),)
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"d": place.shown}
+
+
+class Knee(Static):
+    """A reading whose slope changes beyond a knee: the sensor reports the quantity as it is within ``+-k`` and with
+    its slope changed by the share ``g`` beyond (a transducer's characteristic that bends at the end of its linear
+    range, a load cell's mounting that stiffens or gives beyond a preload; piecewise-linear, the simplest of
+    MATLAB's nonlinearity estimators for a Hammerstein-Wiener output block)."""
+
+    form = "a slope change"
+    stem = "knee"
+    kind_title = "slope change beyond a knee"
+    expr = "u + g * (u - min(max(u, -k), k))"
+    main_param = "k"
+    shown = {"g": (100.0, "%")}
+    explanation = ("The sensor reports the quantity within +-k as it is, and beyond it with the slope 1 + g: a "
+                   "characteristic that bends at k.")
+    signature = ("a residual on that reading alone, zero while the quantity is within +-k and growing in "
+                 "proportion to how far beyond it is: on the large runs' peaks, none on the small runs.")
+
+    @classmethod
+    def fits(cls, place: SignalPlace) -> bool:
+        return place.signed  # a knee either way about zero: an absolute pressure has no zero it bends about
+
+    @classmethod
+    def kind_params(cls, place: SignalPlace) -> tuple:
+        return (Param("g", "-", 0.0, (-0.9, 3.0),
+                      "the change of slope beyond the knee, a share of the slope within (assumed range: -90 % "
+                      "to +300 %; 0, the default, is no knee)", typical=(0.1, 0.6)),
+                Param("k", place.unit, 0.3 * place.span, (0.001 * place.span, 3.0 * place.span),
+                      f"knee: the magnitude beyond which the slope changes, {place.unit} (assumed range: 0.001 to 3 "
+                      f"times the signal's span of {place.span:g} {place.unit}: a sensor's span is its range, which "
+                      "the rig may fill a small part of)",
+                      typical=(0.005 * place.span, 0.6 * place.span), log_scale=True))
+
+    @classmethod
+    def kind_shown(cls, place: SignalPlace) -> dict:
+        return {"g": (100.0, "%"), "k": place.shown}
+
+    @classmethod
+    def scan_hint(cls, peak: float, peak_rate: float) -> tuple:
+        # knees within the reading's logged range (the grid's steps over a sensor's span, a factor 3.6 apart, may
+        # put one point at most where the rig's readings reach); k is in the place's unit
+        return (0.25 * peak, 0.5 * peak, 0.75 * peak)
+
+    @classmethod
+    def start_hint(cls, peak: float, peak_rate: float) -> dict:
+        # from no slope change (when the typical one's sign is wrong), the knee inside the logged range
+        return {"k": 0.5 * peak}
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a slope change of 50.2 [45, 55] % beyond +-0.675 [0.65, 0.7] kN in the load reading"."""
+        ci = ci or {}
+        (gs, gu), (ks, ku) = cls.shown["g"], cls.shown["k"]
+        return (f"{cls.form} of {_fmt(params['g'], ci.get('g'), gs)} {gu} beyond +-{_fmt(params['k'], ci.get('k'), ks)} "
+                f"{ku} in {cls.where}")
+
+
+#: the static kinds, each applied at every sensed output's reading it fits
+STATIC_KINDS = (Offset, Gain, Saturation, DeadZone, Knee)
+STATICS = tuple(kind.at(place) for kind in STATIC_KINDS for place in READING_PLACES if kind.fits(place))
+
+
+def followers() -> list[str]:
+    """The names of every follower kind at every signal place: :data:`FOLLOWER_KINDS` x :data:`SIGNAL_PLACES`, and
+    the followers a user's effect file made with :meth:`Follower.at` (a kind of one's own joins the state stage
+    as the built-in ones do).
+
+    Returns
+    -------
+    list of str
+        E.g. ``aug_lag_coil``, ``aug_lag_position_sensor``, ``aug_lag_pb_reading``, ``aug_slew_coil``, in the order
+        they registered.
+
+    Examples
+    --------
+    >>> names = followers()
+    >>> "aug_lag_pb_reading" in names and "aug_slew_position_sensor" in names
+    True
+    >>> from ehas_env.physics.effects import get_effect
+    >>> get_effect("aug_lag_pb_reading").in_words({"T": 2.1})
+    "a first-order lag of 2.1 ms in chamber B's pressure reading (corner 75.8 Hz)"
+    """
+    from ehas_env.physics.effects.base import REGISTRY
+
+    return [n for n, c in REGISTRY.items()
+            if isinstance(getattr(c, "signal_place", None), SignalPlace) and issubclass(c, Follower)]
+
+
+def reading_blocks() -> list[str]:
+    """The names of every static kind at every sensor's reading (:data:`STATIC_KINDS` x :data:`READING_PLACES`),
+    and those a user's file made with :meth:`Static.at`.
+
+    Returns
+    -------
+    list of str
+        E.g. ``aug_offset_pb_reading``, ``aug_gain_flow_a_reading``.
+
+    Examples
+    --------
+    >>> from ehas_env.physics.effects import get_effect
+    >>> get_effect("aug_offset_pb_reading").in_words({"c": 1.5e5})
+    "an offset of 1.5 bar in chamber B's pressure reading"
+    """
+    from ehas_env.physics.effects.base import REGISTRY
+
+    return [n for n, c in REGISTRY.items()
+            if isinstance(getattr(c, "signal_place", None), SignalPlace) and issubclass(c, Static)]
 
 
 # -- a compliance with a mass in a mechanical link -------------------------------------------------------------------
@@ -500,20 +965,5 @@ def augmentations() -> list[str]:
     """
     first = ["aug_lag_coil", "aug_slew_coil", "aug_lag_position_sensor"]  # the usual ones, tried first
     order = (LinkRodCrank, LinkMount, HoseAB, HoseA, HoseB)
-    return (first + [c.name for c in order] + list(PLAY) + [n for n in _followers.followers() if n not in first]
-            + _statics.reading_blocks())
-
-
-# the kinds of block, each in its own module (they build on the places above): imported here so that importing
-# this module -- which ehas_env.physics.effects does -- registers every generated block; as modules, not names,
-# so that importing one of them first works too (it imports this module, which then finds it mid-import)
-from ehas_env.physics import followers as _followers, statics as _statics  # noqa: E402
-
-
-def __getattr__(name: str):
-    """The kinds' names, reached from here as before they had modules of their own (``augment.Follower``,
-    ``augment.followers``; the docs' kind of one's own imports ``Follower`` from here)."""
-    for module in (_followers, _statics):
-        if hasattr(module, name):
-            return getattr(module, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return (first + [c.name for c in order] + list(PLAY) + [n for n in followers() if n not in first]
+            + reading_blocks())
