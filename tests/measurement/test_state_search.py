@@ -252,3 +252,25 @@ def test_a_position_reading_rate_limited_at_the_fastest_runs_peak_is_found_from_
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=["aug_slew_position_sensor"])
     assert rec["kept"] == "aug_slew_position_sensor", rec
     assert rec["params"]["S"] == pytest.approx(0.55, rel=0.03)
+
+
+def test_a_block_the_held_out_run_never_reaches_leaves_its_validation_samples_as_they_were():
+    """``validation_moved``: a flow-meter saturation at 24 L/min, which only the 1-set 35 deg 3 Hz run reaches (the
+    held-out run peaks far below), moves the validation samples by nothing; a Coulomb friction of 200 N moves them
+    by many noise variances.  The validation gate lets the first be judged on the fitted runs alone (the drawn
+    set's d19: refused at 1.42 -> 1.42 before)."""
+    from ehas_env.diagnosis.candidates import UNEXERCISED, validation_moved
+    from ehas_env.measurement.replay import ModelSpec
+
+    s, null = _search({}, 3323)
+    assert s.held and all("1set" not in h for h in s.held)
+    base = s.full.simulate(null.model)
+    clipped = ModelSpec(effects={"aug_sat_flow_a_reading": {"L": 24.0 / 60000.0}}, beta=null.model.beta,
+                        K=null.model.K)
+    rubbing = ModelSpec(effects={"coulomb_friction": {"Fc": 200.0}}, beta=null.model.beta, K=null.model.K)
+    held = {i: 0 for i in s.held_idx}  # the held-out run alone (the fitted runs' tails beyond 3 s validate too)
+    assert validation_moved(s.full, base, s.full.simulate(clipped), held) < UNEXERCISED
+    assert validation_moved(s.full, base, s.full.simulate(rubbing), held) > 100 * UNEXERCISED
+    # the tail of the 1-set run beyond its fit window reaches the clip: there it moves
+    assert validation_moved(s.full, base, s.full.simulate(clipped), s.parts) > UNEXERCISED
+    assert validation_moved(s.full, base, s.full.simulate(clipped), {}) is None
