@@ -1,8 +1,8 @@
-"""proposed_d00_saturation_return: a term proposed by ehas diagnose for /tmp/drawn-work/d00_saturation@return/campaign.
+"""proposed_d00_saturation_return: a term proposed by ehas diagnose for /tmp/drawnAw/d00_saturation@return/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_ret·the outflow land's flow times -1 / (2 p_out): return back-pressure   with c_ret = 2.159e+05 Pa (95 % CI 2.086e+05 to 2.232e+05)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.9 -> 1.34; fit 91.2 % -> 95.9 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.9 -> 1.34; fit 90.5 % -> 96.0 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """

@@ -1,8 +1,8 @@
-"""proposed_d03_smooth_return: a term proposed by ehas diagnose for /tmp/drawn-work/d03_smooth@return/campaign.
+"""proposed_d03_smooth_return: a term proposed by ehas diagnose for /tmp/drawnBw/d03_smooth@return/campaign.
 
 i_valve [mA] += c_i3·i^3   with c_i3 = -0.0001414 1/mA^2 (95 % CI -0.0001461 to -0.0001367)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.46 -> 1.59; fit 95.8 % -> 96.1 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.46 -> 1.59; fit 96.1 % -> 96.3 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """

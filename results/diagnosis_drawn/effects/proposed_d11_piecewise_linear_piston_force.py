@@ -1,4 +1,4 @@
-"""proposed_d11_piecewise_linear_piston_force: a term proposed by ehas diagnose for /tmp/w5A/d11_piecewise_linear@piston_force/campaign.
+"""proposed_d11_piecewise_linear_piston_force: a term proposed by ehas diagnose for /tmp/drawnBw/d11_piecewise_linear@piston_force/campaign.
 
 F_piston [N] += c_vv·v |v| + c_v·v   with c_vv = -2235 N s^2/m^2 (95 % CI -2349 to -2120); c_v = -628.9 N s/m (95 % CI -702.6 to -555.2)
 

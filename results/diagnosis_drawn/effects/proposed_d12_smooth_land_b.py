@@ -1,8 +1,8 @@
-"""proposed_d12_smooth_land_b: a term proposed by ehas diagnose for /tmp/drawn-work/d12_smooth@land_b/campaign.
+"""proposed_d12_smooth_land_b: a term proposed by ehas diagnose for /tmp/drawnAw/d12_smooth@land_b/campaign.
 
 i_valve [mA] += c_i3·i^3   with c_i3 = 0.0001745 1/mA^2 (95 % CI 0.0001719 to 0.0001772)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 3.04 -> 1.82; fit 95.3 % -> 95.7 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 3.04 -> 1.82; fit 95.5 % -> 95.7 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """

@@ -1,4 +1,4 @@
-"""proposed_d21_gain_supply: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/w5B/d21_gain@supply/campaign.
+"""proposed_d21_gain_supply: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/drawnBw/d21_gain@supply/campaign.
 
 The supply line loses 4.99 bar at 25 LPM before the valve (growing with the square of the flow).
 dp_25 = 4.99 bar (95 % CI 4.773 to 5.217)

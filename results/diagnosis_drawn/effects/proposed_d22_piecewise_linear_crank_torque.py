@@ -1,4 +1,4 @@
-"""proposed_d22_piecewise_linear_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/w5A/d22_piecewise_linear@crank_torque/campaign.
+"""proposed_d22_piecewise_linear_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/drawnAw/d22_piecewise_linear@crank_torque/campaign.
 
 A drag torque on the load grows with the square of its speed: 16.9 N m at 10 rad/s.
 T_10 = 16.93 N m (95 % CI 16.8 to 17.06)

@@ -1,4 +1,4 @@
-"""proposed_d24_volume_chamber_b: entrained air: a bulk modulus that falls at low pressure, found by ehas diagnose on /tmp/w5A/d24_volume@chamber_b/campaign.
+"""proposed_d24_volume_chamber_b: entrained air: a bulk modulus that falls at low pressure, found by ehas diagnose on /tmp/drawnAw/d24_volume@chamber_b/campaign.
 
 The oil carries 4.87 % of free air (at atmospheric pressure): its bulk modulus is 0.20 of the oil's at 10 bar, nearly the oil's at 100 bar.
 air = 4.867 % (95 % CI 0.1545 to 50)

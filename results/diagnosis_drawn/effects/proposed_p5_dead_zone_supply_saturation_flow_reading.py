@@ -1,8 +1,8 @@
-"""proposed_p5_dead_zone_supply_saturation_flow_reading: a term proposed by ehas diagnose for /tmp/w5B/p5_dead_zone@supply+saturation@flow_reading/campaign.
+"""proposed_p5_dead_zone_supply_saturation_flow_reading: a term proposed by ehas diagnose for /tmp/drawnBw/p5_dead_zone@supply+saturation@flow_reading/campaign.
 
-(Q_A, Q_B) [m^3/s] += c_rsup2·the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): supply drop per supply flow squared   with c_rsup2 = 4.085e+12 Pa s^2/m^6 (95 % CI 4.038e+12 to 4.131e+12)
+(Q_A, Q_B) [m^3/s] += c_rsup2·the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): supply drop per supply flow squared   with c_rsup2 = 4.117e+12 Pa s^2/m^6 (95 % CI 4.066e+12 to 4.167e+12)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 4.32 -> 2.14; fit 93.2 % -> 95.7 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 3.52 -> 1.54; fit 93.6 % -> 96.0 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
@@ -13,12 +13,12 @@ class ProposedP5DeadZoneSupplySaturationFlowReading(Effect):
     name = "proposed_p5_dead_zone_supply_saturation_flow_reading"
     title = "proposed term (chamber flows)"
     params = (
-        Param("q_rsup2", "Pa s^2/m^6", 4.0847e+12, (0.0, 8.1694e+13),
-              "turbulent supply drop: supply pressure drop per supply flow squared (fitted: 4.085e+12, 95 % CI 4.038e+12 to 4.131e+12)", typical=(2.04235e+12, 8.1694e+12)),
+        Param("q_rsup2", "Pa s^2/m^6", 4.11664e+12, (0.0, 8.23328e+13),
+              "turbulent supply drop: supply pressure drop per supply flow squared (fitted: 4.117e+12, 95 % CI 4.066e+12 to 4.167e+12)", typical=(2.05832e+12, 8.23328e+12)),
     )
     main_param = "q_rsup2"
     valve_side = True
-    explanation = "Proposed by the diagnosis, not yet a physical explanation: (Q_A, Q_B) [m^3/s] += c_rsup2·the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): supply drop per supply flow squared with c_rsup2 = 4.085e+12 Pa s^2/m^6 (95 % CI 4.038e+12 to 4.131e+12)"
+    explanation = "Proposed by the diagnosis, not yet a physical explanation: (Q_A, Q_B) [m^3/s] += c_rsup2·the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): supply drop per supply flow squared with c_rsup2 = 4.117e+12 Pa s^2/m^6 (95 % CI 4.066e+12 to 4.167e+12)"
     signature = "the residual it was fitted to: the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): supply drop per supply flow squared"
 
     @staticmethod

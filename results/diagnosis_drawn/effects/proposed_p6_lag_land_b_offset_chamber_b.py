@@ -1,4 +1,4 @@
-"""proposed_p6_lag_land_b_offset_chamber_b: a term proposed by ehas diagnose for /tmp/w5A/p6_lag@land_b+offset@chamber_b/campaign.
+"""proposed_p6_lag_land_b_offset_chamber_b: a term proposed by ehas diagnose for /tmp/drawnAw/p6_lag@land_b+offset@chamber_b/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_ext·(-p_A, -p_B)   with c_ext = -1.921e-13 m^3/s/Pa (95 % CI -2.249e-13 to -1.593e-13)
 
