@@ -34,3 +34,16 @@ def test_the_estimate_counts_replays_by_the_book_figure_and_the_library_and_leav
     assert loaded["estimate_s"] == pytest.approx(2.0 * E.FIXED_S + loaded["replays"] * loaded["replay_s"],
                                                  abs=0.1 + loaded["replays"] * 5e-5)
     assert "expected: about" in E.in_words(c) and f"{c['replays']} replays" in E.in_words(c)
+
+
+def test_a_miss_in_one_reading_that_the_overall_figure_dilutes_counts_as_a_search_that_goes_on():
+    """An offset of 1 bar in chamber B's reading leaves the book model's overall figure at or below 2 (one signal of
+    five) but that reading far above what the verdict calls explained: the hypotheses and the states run, so the
+    estimate counts the replays of a figure between 2 and 4, not a clean campaign's."""
+    from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec
+    from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
+
+    rep = _rep({"aug_offset_pb_reading": {"c": 1.0e5}}, 4404)
+    g = grade(blocks_of(rep, rep.simulate(ModelSpec()), COST_SIGNALS))
+    assert g["residual_x_noise"] <= E.REPLAYS[0][0] < 1.0 + BLOCK_EXPLAINED_X < g["worst"]["residual_x_noise"]
+    assert E.estimate(rep)["replays"] == E.REPLAYS[1][1]
