@@ -443,14 +443,14 @@ def run_one(args) -> int:
 
         sims = {"baseline": res.baseline_all}
         tabs = {"baseline": tables["baseline"]}
-        label = model = None
+        label = after = None  # the report's model with the effects (``model`` stays the rig diagnosed on)
         if res.model.effects:
             label = "+ " + " + ".join(res.model.effects)
             sims[label], tabs[label] = res.sims_all, tables["final model"]
-            model = res.model
+            after = res.model
         with outputs as tmp:
             path = write_report(tmp, res.full, sims, tabs, campaign=campaign, command=command, after_label=label,
-                                after_model=model, fitted=True, diagnosis=first, title="Diagnosis",
+                                after_model=after, fitted=True, diagnosis=first, title="Diagnosis",
                                 holdout=res.holdout)
             extra = ["## 6. Stacking, confidence and validation", "", "```", _stack_text(res), "",
                      _model_text(res), "", _validation_text(res), "```", "",

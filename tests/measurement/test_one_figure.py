@@ -21,7 +21,7 @@ def diagnosed(tmp_path_factory):
     camp = write_campaign(tmp / "camp", runs)
     assert main(["diagnose", str(camp), "--quiet", "--candidates", "coulomb_friction,viscous_friction",
                  "--no-hypotheses", "--no-propose", "--json", str(tmp / "d.json"),
-                 "--save-model", str(tmp / "m.json")]) == 0
+                 "--save-model", str(tmp / "m.json"), "--out", str(tmp / "out")]) == 0
     return tmp, camp, json.loads((tmp / "d.json").read_text())
 
 
@@ -51,3 +51,13 @@ def test_the_reported_model_is_the_last_measured_and_never_worse_than_the_book(d
     blocks = doc["blocks"]
     assert {b["run"] for b in blocks} == {r for r in doc["validation"]["fit_runs"]} | set(v["holdout"])
     assert all(b["judged_from_s"] == 0.0 for b in blocks)
+
+
+def test_the_model_diagnose_out_writes_is_the_one_save_model_writes(diagnosed):
+    """``--out DIR`` writes DIR/model.json beside the report: the final model on the rig diagnosed on, the same as
+    ``--save-model`` (the report's model with the effects once took the rig's name in the code, and the README's
+    ``ehas diagnose ... --out`` failed with an internal error whenever an effect was kept)."""
+    tmp, _, doc = diagnosed
+    out, saved = (json.loads((tmp / f).read_text()) for f in ("out/model.json", "m.json"))
+    assert out["effects"] == saved["effects"] and "coulomb_friction" in out["effects"]
+    assert out["calibration"]["residual_x_noise"] == saved["calibration"]["residual_x_noise"] == doc["residual_x_noise"]
