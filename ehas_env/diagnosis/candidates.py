@@ -929,6 +929,20 @@ class Step:
 UNEXERCISED = 0.01
 
 
+def _validation_samples(rep: Replayer, parts: dict, *sims_lists):
+    """The validation samples ``parts`` = {case index: first sample}, per run and judged signal: (case, signal, first
+    sample, [each of ``sims_lists``' simulated samples there]); a run any of them did not simulate, or whose
+    validation stretch is shorter than 10 samples, is left out.  One definition of what validates, for
+    :func:`_parts_cost` and :func:`validation_moved`."""
+    for i, k0 in parts.items():
+        case, sims = rep.cases[i], [sl[i] for sl in sims_lists]
+        if any(sim is None for sim in sims) or k0 >= case.run.n - 10:
+            continue
+        for s in case.signals:
+            if s in COST_SIGNALS:
+                yield case, s, k0, [sim[s][k0:] for sim in sims]
+
+
 def validation_moved(rep: Replayer, sims_a, sims_b, parts: dict) -> float | None:
     """How far two models' simulations differ over the validation samples ``parts`` = {case index: first sample}:
     the mean square of their difference in noise variances per sample (None without validation samples).
@@ -936,27 +950,16 @@ def validation_moved(rep: Replayer, sims_a, sims_b, parts: dict) -> float | None
     A block that only the fitted runs reach (a reading's clip at a level the held-out run never attains) leaves
     the held-out simulation as it was; :data:`UNEXERCISED` tells that apart from a change the data refuse."""
     tot, n = 0.0, 0
-    for i, k0 in parts.items():
-        case, a, b = rep.cases[i], sims_a[i], sims_b[i]
-        if a is None or b is None or k0 >= case.run.n - 10:
-            continue
-        for s in case.signals:
-            if s in COST_SIGNALS:
-                d = (a[s][k0:] - b[s][k0:]) / case.noise[s]
-                tot, n = tot + float(np.dot(d, d)), n + d.size
+    for case, s, _, (a, b) in _validation_samples(rep, parts, sims_a, sims_b):
+        d = (a - b) / case.noise[s]
+        tot, n = tot + float(np.dot(d, d)), n + d.size
     return tot / n if n else None
 
 
 def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
     """Geometric-mean residual (noise variances) over the samples ``parts`` = {case index: first sample}."""
-    blocks = []
-    for i, k0 in parts.items():
-        case, sim = rep.cases[i], sims[i]
-        if sim is None or k0 >= case.run.n - 10:
-            continue
-        for s in case.signals:
-            if s in COST_SIGNALS:
-                blocks.append((case.measured[s][k0:] - sim[s][k0:]) / case.noise[s])
+    blocks = [(case.measured[s][k0:] - sim) / case.noise[s]
+              for case, s, k0, (sim,) in _validation_samples(rep, parts, sims)]
     if not blocks:
         return None
     n = sum(b.size for b in blocks)

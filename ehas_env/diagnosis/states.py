@@ -220,8 +220,8 @@ def _in_place(rep: Replayer, full: Replayer, parts: dict, on_top: Fit, kept: lis
               all0: float) -> tuple | None:
     """The state in place of one effect kept before it: each of ``kept`` taken out of ``on_top`` (the model with
     the state) in turn and the rest refitted; the one that passes ``why_not`` (returns None) with the lowest
-    validation residual (the all-data one without validation samples), as (fit, all-data figure, validation
-    residual, the effect taken out), or None when none passes; each better one said (``best`` in place of it, the
+    validation residual (the all-data one without validation samples), as (fit, its simulation of every run,
+    all-data figure, validation residual, the effect taken out), or None when none passes; each better one said (``best`` in place of it, the
     all-data figure from ``all0``)."""
     found, best_rank = None, None
     for other in kept:
@@ -230,7 +230,7 @@ def _in_place(rep: Replayer, full: Replayer, parts: dict, on_top: Fit, kept: lis
         a, v = grade(blocks_of(full, gs, COST_SIGNALS))["residual_x_noise"], _parts_cost(full, gs, parts)
         rank = a if v is None else v
         if why_not(g, gs, a, v) is None and (best_rank is None or rank < best_rank):
-            found, best_rank = (g, a, v, other), rank
+            found, best_rank = (g, gs, a, v, other), rank
             say(f"  states: {best} in place of {other}: residual {all0:.3g}x -> {a:.3g}x noise")
     return found
 
@@ -355,7 +355,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         # of the command fitted where the coil's current is rate-limited): the state in its place
         found = _in_place(rep, full, parts, f, list(final.model.effects), why_not, say, best, all0)
         if found is not None:
-            f, all1, val1, other = found
+            f, sims1, all1, val1, other = found
             record["in_place_of"] = [other]
             why = None
     record["residual_x_noise_all_after"] = _r(all1)
@@ -366,7 +366,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         say(f"  states: {record['words']}")
         return None, record
     ci = {name: tuple(v) for (eff, name), v in confidence(rep, f).items() if eff == best}
-    moved = validation_moved(full, sims0, full.simulate(f.model), parts)
+    moved = validation_moved(full, sims0, sims1, parts)  # sims1: the kept model's (on top or in place)
     unproven = moved is not None and moved < UNEXERCISED
     record.update(kept=best, params={k: _sig(v) for k, v in values.items()},
                   ci95={k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()},
