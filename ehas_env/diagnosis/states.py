@@ -103,11 +103,36 @@ def _logged_at_place(full: Replayer, cls) -> list:
     return out
 
 
-def _scan_hint(full: Replayer, cls) -> tuple:
+def _balance_quantity(full: Replayer, sims, cls) -> list:
+    """A balance block's local quantity (:class:`~ehas_env.physics.balance_blocks.BalancePlace`) over the
+    closed-loop runs as the final model simulates them (``sims``: every run's signals), in SI: the crank's rate, the
+    piston's velocity r cos(theta) omega, a chamber's pressure; [] for another block or a quantity the replay does
+    not return."""
+    q = getattr(getattr(cls, "balance_place", None), "quantity", None)
+    out = []
+    for c, sim in zip(full.cases, sims):
+        if q is None or sim is None or c.run.kind != "closed_loop" or "omega_deg_s" not in sim:
+            continue
+        w = np.radians(sim["omega_deg_s"])
+        r = full.plant(ModelSpec(), c.run).rig.radius
+        values = {"omega": lambda: w, "v": lambda: r * np.cos(np.radians(sim["theta_deg"])) * w,
+                  "pa": lambda: sim["p_a_bar"] * 1.0e5, "pb": lambda: sim["p_b_bar"] * 1.0e5}
+        if q in values:
+            out.append(values[q]())
+    return out
+
+
+def _scan_hint(full: Replayer, cls, sims=None) -> tuple:
     """What a block's logged signal points at: the values of its main parameter scanned with the grid and the
     starts of its others (:meth:`Augmentation.scan_hint`, :meth:`Augmentation.start_hint` of the signal's largest
     magnitude and largest rate over every closed-loop run, the rate a central difference over
-    :data:`RATE_HALF_SPAN` samples either side); ((), {}) for a block whose place logs nothing."""
+    :data:`RATE_HALF_SPAN` samples either side); ((), {}) for a block whose place logs nothing.  A term at a
+    balance takes its quantity's largest magnitude from the final model's simulation ``sims`` (what the model
+    computes there, logged or not: :func:`_balance_quantity`)."""
+    quantity = _balance_quantity(full, sims, cls) if sims is not None else []
+    if quantity:  # a term at a balance: its break inside the range the quantity reaches
+        peak = max(float(np.max(np.abs(y))) for y in quantity)
+        return tuple(float(v) for v in cls.scan_hint(peak, 0.0)), dict(cls.start_hint(peak, 0.0))
     logged = _logged_at_place(full, cls)
     if not logged or not hasattr(cls, "scan_hint"):
         return (), {}
@@ -250,7 +275,7 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
             tried.append(entry)
             continue
         say(f"  states {k}/{len(names)}: {cls.title}")
-        hint, start_at = _scan_hint(full, cls)
+        hint, start_at = _scan_hint(full, cls, sims0)
         for base, dropped in bases:
             if name in base.model.effects:
                 continue

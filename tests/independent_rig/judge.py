@@ -188,6 +188,15 @@ for _stem in STEM_BLOCK:
     for _out, _place in READING_PLACE.items():
         LIBRARY_KIND[f"aug_{_stem}_{_out}_reading"] = {"sensor"}
         LIBRARY_PLACE[f"aug_{_stem}_{_out}_reading"] = {_place}
+#: ehas's static terms at a balance (ehas_env/physics/balance_blocks.py, aug_<kind>_<place>): the stem -> the grammar's
+#: kind, the place -> ehas's place (the side narrowed by the words: "chamber A's flow balance")
+BALANCE_STEM_BLOCK = {"beyond": "dead_zone", "saturating": "saturation", "cubic": "smooth"}
+BALANCE_PLACE = {"piston_velocity": ("piston_force", "friction"), "crank_rate": ("crank_torque", "friction"),
+                 "chamber_a": ("chamber_flows", "leakage/flow"), "chamber_b": ("chamber_flows", "leakage/flow")}
+for _stem in BALANCE_STEM_BLOCK:
+    for _short, (_place, _kind) in BALANCE_PLACE.items():
+        LIBRARY_KIND[f"aug_{_stem}_{_short}"] = {_kind, "load"} if _place != "chamber_flows" else {_kind}
+        LIBRARY_PLACE[f"aug_{_stem}_{_short}"] = {_place}
 #: words of the package's own kind strings -> kinds (used only to choose among a place's kinds)
 KIND_WORDS = (("fric", "friction"), ("damp", "friction"), ("leak", "leakage/flow"), ("flow", "leakage/flow"),
               ("compli", "compliance"), ("area", "geometry/area"), ("geometr", "geometry/area"),
@@ -499,6 +508,9 @@ LIBRARY_BLOCK = {
 for _stem, _kind in STEM_BLOCK.items():  # every generated block at every place ehas has
     for _place in ("coil", "position_sensor", *(f"{o}_reading" for o in READING_PLACE)):
         LIBRARY_BLOCK.setdefault(f"aug_{_stem}_{_place}", {_kind})
+for _stem, _kind in BALANCE_STEM_BLOCK.items():
+    for _short in BALANCE_PLACE:
+        LIBRARY_BLOCK.setdefault(f"aug_{_stem}_{_short}", {_kind})
 #: the block kinds of the proposal's named forms (:data:`NAMED_FORM_KIND`'s keys), by their law
 NAMED_FORM_BLOCK = {
     "piston_force.coulomb": {"saturation"}, "piston_force.viscous": {"gain"}, "piston_force.friction_x2": {"smooth"},

@@ -29,8 +29,10 @@ for _mod in sorted(m.name for m in pkgutil.iter_modules(__path__)):
         importlib.import_module(f"{__name__}.{_mod}")
 
 # the generic state augmentations (one class per kind, a subclass per place): outside this package, tried by the
-# diagnosis' state stage only (ehas_env.diagnosis.states)
+# diagnosis' state stage only (ehas_env.diagnosis.states); and the static terms at the balances (one class per kind,
+# applied at every balance place)
 importlib.import_module("ehas_env.physics.augment")
+importlib.import_module("ehas_env.physics.balance_blocks")
 
 from ehas_env.physics.effects.loading import load_effects_path, load_external_effects  # noqa: E402
 

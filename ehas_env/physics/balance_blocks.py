@@ -1,0 +1,288 @@
+"""Static blocks at the model's balances: a term of a balance's local quantity, each kind defined once (issue 43).
+
+The followers and the reading blocks of :mod:`ehas_env.physics.augment` act where a signal passes on; a rig's
+missing physics as often acts *inside a balance*: a spring that meets a gap (a force beyond some stroke), a relief
+or a seal that cracks open above a pressure (a flow beyond it), a friction that holds a level once the crank moves
+(a torque that saturates with the rate), a drag that hardens (a cubic).  Each is a term ``t(q)`` of one local
+quantity ``q`` added to one balance: the block-oriented (Hammerstein-Wiener) nonlinearity estimators a MATLAB user
+knows (dead zone, saturation, polynomial), put inside the physical model where they act.
+
+* **Places** (:data:`BALANCE_PLACES`): every balance the model computes with each of its own rate-setting local
+  quantities -- the piston's force balance with the piston's velocity, the crank's torque balance with its rate,
+  each chamber's flow balance with its pressure.  A place is one :class:`BalancePlace` (what the balance returns,
+  which quantity, their units and typical sizes on the rig, their words); its quantity must be one the model
+  defines where that balance's terms are called (checked against
+  :data:`~ehas_env.physics.effects.base.PLACE_QUANTITIES`), so a place the model cannot compute is refused when
+  this module is imported.
+* **Kinds** (:data:`BALANCE_KINDS`): :class:`Beyond` (a dead zone: zero within +-k, rising with a slope beyond),
+  :class:`Saturating` (proportional within +-k, a constant level beyond: friction-like), :class:`Cubic` (a
+  hardening or softening term).  A kind is one class with its law (an expression of the quantity ``u``, its
+  parameters and the place's scale ``S``), its parameters (sized by the place), words and residual signature.
+
+The product is registered as hypothesis effects ``aug_<stem>_<place>`` (:func:`balance_blocks`) and tried by the
+diagnosis' state stage after the followers and reading blocks, fitted inside the full model and judged as they are;
+a user's kind or place is a subclass or one :class:`BalancePlace` and a call of :meth:`BalanceStatic.at`.
+
+Examples
+--------
+>>> from ehas_env.physics.effects import get_effect
+>>> get_effect("aug_beyond_crank_rate").in_words({"c": -2.8, "k": 5.8})
+'a term beyond +-5.8 rad/s of the crank rate, -2.8 N m per 10 rad/s beyond it, added to the crank torque balance'
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from ehas_env.physics.effects.augmentation import Augmentation, fmt_interval, term_functions
+from ehas_env.physics.effects.base import PLACE_QUANTITIES, Param
+
+
+@dataclass(frozen=True)
+class BalancePlace:
+    """A balance of the model and one local quantity a missing term there may be a function of.
+
+    Attributes
+    ----------
+    place : str
+        The model's place whose term the block is (``piston_force``, ``crank_torque``, ``chamber_flows``).
+    short : str
+        The place in an effect's name (``aug_<kind>_<short>``).
+    quantity : str
+        The local quantity, an argument the model defines where the place's terms are called (``v``, ``omega``,
+        ``pa`` ...).
+    q_unit, q_span, q_shown : str, float, (float, str)
+        The quantity's SI unit, its typical span on the rig (the book's: +-30 deg at 3 Hz is 10 rad/s at the
+        crank, 0.5 m/s at the piston; the pressures up to the supply's 100-200 bar), and how words show it
+        (factor from the SI unit, unit).
+    out_unit, out_span, out_shown : str, float, (float, str)
+        What the balance's term is (N, N m, m^3/s), the size of a missing term there that would matter (assumed:
+        a tenth of the piston's stall force of about 50 kN, its torque at the 50 mm crank; the valve's rated 25
+        L/min), and how words show it.
+    returns : str
+        The place's return value with the term ``t`` in it (``"t"``; a chamber's flow: ``"t, 0.0"``).
+    where : str
+        The balance in words ("the crank torque balance").
+    words : str
+        The quantity in words ("the crank rate").
+    centred : bool
+        Whether the quantity swings about zero (a rate, a velocity); an absolute pressure does not, and a term
+        beyond +-k of it is a term above k.
+    """
+
+    place: str
+    short: str
+    quantity: str
+    q_unit: str
+    q_span: float
+    q_shown: tuple
+    out_unit: str
+    out_span: float
+    out_shown: tuple
+    returns: str
+    where: str
+    words: str
+    centred: bool = True
+
+
+_LPM = (60000.0, "L/min")
+_BAR = (1.0e-5, "bar")
+#: every balance of the model with its own rate-setting local quantity (the piston's force with its velocity, the
+#: crank's torque with its rate, each chamber's flow with its pressure)
+BALANCE_PLACES = (
+    BalancePlace("piston_force", "piston_velocity", "v", "m/s", 0.5, (1.0, "m/s"), "N", 5.0e3, (1.0, "N"), "t",
+                 "the piston force balance", "the piston velocity"),
+    BalancePlace("crank_torque", "crank_rate", "omega", "rad/s", 10.0, (1.0, "rad/s"), "N m", 250.0, (1.0, "N m"),
+                 "t", "the crank torque balance", "the crank rate"),
+    BalancePlace("chamber_flows", "chamber_a", "pa", "Pa", 1.0e7, _BAR, "m^3/s", 25.0 / 60000.0, _LPM, "t, 0.0",
+                 "chamber A's flow balance", "chamber A's pressure", centred=False),
+    BalancePlace("chamber_flows", "chamber_b", "pb", "Pa", 1.0e7, _BAR, "m^3/s", 25.0 / 60000.0, _LPM, "0.0, t",
+                 "chamber B's flow balance", "chamber B's pressure", centred=False),
+)
+
+
+def check_place(place: BalancePlace) -> BalancePlace:
+    """``place``, or a one-line ValueError when the model does not compute its quantity where that balance's terms
+    are called (:data:`~ehas_env.physics.effects.base.PLACE_QUANTITIES`): no such place."""
+    if place.quantity not in PLACE_QUANTITIES.get(place.place, ()):
+        raise ValueError(f"balance place {place.short}: the model has no '{place.quantity}' at {place.place} (it "
+                         f"has {', '.join(sorted(PLACE_QUANTITIES.get(place.place, ()))) or 'no such place'})")
+    return place
+
+
+for _p in BALANCE_PLACES:
+    check_place(_p)
+
+
+class BalanceStatic(Augmentation):
+    """A kind of static term at a balance: ``t = expr(u)`` of the place's local quantity ``u``, its parameters and
+    the place's scale ``S`` (no state).  :meth:`at` puts it at a :class:`BalancePlace`."""
+
+    #: the term, a Python expression of the quantity ``u``, the kind's parameters and the place's scale ``S``
+    expr: ClassVar[str] = ""
+    stem: ClassVar[str] = ""
+    kind_title: ClassVar[str] = ""
+    main_param = "c"
+    screen_from_defaults = False  # no state: nothing a re-opened beta or K could have taken over
+    #: where this kind's break starts, a share of the quantity's largest logged magnitude (None: no break)
+    break_share: ClassVar[float | None] = None
+
+    @classmethod
+    def fits(cls, place: BalancePlace) -> bool:
+        """Whether the kind means something at ``place`` (every balance, unless the kind says otherwise)."""
+        return True
+
+    @classmethod
+    def kind_params(cls, place: BalancePlace) -> tuple:
+        """The kind's parameters at ``place``: the term's size ``c`` (signed, in the balance's unit) and, for a
+        kind with a break, the break ``k`` (in the quantity's unit)."""
+        c = Param("c", place.out_unit, 0.0, (-place.out_span, place.out_span),
+                  f"the term's size, {place.out_unit} (signed; assumed range: +-{place.out_span:g} {place.out_unit}, "
+                  "a tenth of what the balance carries at full load)",
+                  typical=(1.0e-3 * place.out_span, 0.1 * place.out_span))
+        if cls.break_share is None:
+            return (c,)
+        k = Param("k", place.q_unit, 0.5 * place.q_span, (1.0e-3 * place.q_span, 2.0 * place.q_span),
+                  f"the break, {place.q_unit} (assumed range: 0.001 to 2 times the quantity's span of "
+                  f"{place.q_span:g} {place.q_unit})", typical=(0.05 * place.q_span, place.q_span), log_scale=True)
+        return c, k
+
+    @classmethod
+    def start_hint(cls, peak: float, peak_rate: float) -> dict:
+        # the break inside the quantity's logged range (where a break the logs cannot reach would leave the size's
+        # scan without effect)
+        return {} if cls.break_share is None or peak <= 0.0 else {"k": cls.break_share * peak}
+
+    @classmethod
+    def at(cls, place: BalancePlace) -> type:
+        """The effect ``aug_<stem>_<place.short>`` that adds this kind's term to the balance ``place``.
+
+        Parameters
+        ----------
+        place : BalancePlace
+
+        Returns
+        -------
+        type
+            A registered subclass; its term is written as source (the compiled model copies a term's text).
+        """
+        name = f"aug_{cls.stem}_{place.short}"
+        check_place(place)
+        params = cls.kind_params(place)
+        args = ", ".join([p.name for p in params] + ["S"])
+        text = (f"def {place.place}({place.quantity}, {args}):\n    u = {place.quantity}\n    t = {cls.expr}\n"
+                f"    return {place.returns}\n")
+        scale = Param("S", place.q_unit, place.q_span, (0.0, 1.0e30),
+                      f"the quantity's typical span on the rig, {place.q_unit} (the term's scale)")
+        body = {"name": name, "title": f"{cls.kind_title} in {place.where}", "where": place.where, "params": params,
+                "constants": (scale,), "balance_place": place,
+                "shown": {"c": place.out_shown, "k": place.q_shown},
+                "__module__": cls.__module__, "__qualname__": f"{cls.__name__}At_{place.short}",
+                "__doc__": f"{cls.kind_title} in {place.where} (generated by {cls.__name__}.at)."}
+        body.update({k: staticmethod(v) for k, v in term_functions(f"{name}.{place.place}", text).items()})
+        return type(cls)(body["__qualname__"], (cls,), body)
+
+    @classmethod
+    def _q(cls, value: float, ci=None) -> str:
+        f, unit = cls.balance_place.q_shown
+        return f"{fmt_interval(value, ci, f)} {unit}"
+
+    @classmethod
+    def _c(cls, value: float, ci=None) -> str:
+        f, unit = cls.balance_place.out_shown
+        return f"{fmt_interval(value, ci, f)} {unit}"
+
+
+class Beyond(BalanceStatic):
+    """A term that is zero while the quantity is within +-k and rises with the slope c / S beyond (a dead zone, as
+    the block-oriented nonlinearity estimators call it: a spring that meets a gap, a relief or a seal that cracks
+    open above a pressure, a drag that sets in above a speed)."""
+
+    form = "a term beyond a threshold"
+    stem = "beyond"
+    kind_title = "term beyond a threshold"
+    expr = "c * (u - min(max(u, -k), k)) / S"
+    break_share = 0.5
+    explanation = ("The balance gets a term that is zero while the quantity stays within +-k and grows in "
+                   "proportion to how far beyond it is: something that engages only past a threshold.")
+    signature = ("a residual that appears only where the quantity passes +-k (the large, fast runs' peaks), none "
+                 "on the small runs, and grows with the excess.")
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a term beyond +-5.8 rad/s of the crank rate, -2.8 N m per 10 rad/s beyond it, added to the crank
+        torque balance" (an absolute pressure: "above 45 bar")."""
+        ci, p = ci or {}, cls.balance_place
+        side = "beyond +-" if p.centred else "above "
+        return (f"a term {side}{cls._q(params['k'], ci.get('k'))} of {p.words}, {cls._c(params['c'], ci.get('c'))} "
+                f"per {cls._q(p.q_span)} {'beyond' if p.centred else 'above'} it, added to {p.where}")
+
+
+class Saturating(BalanceStatic):
+    """A term proportional to the quantity within +-k that holds its level c beyond (a saturation: a friction
+    that holds its level once the part moves, a flow that a restriction limits)."""
+
+    form = "a saturating term"
+    stem = "saturating"
+    kind_title = "saturating term"
+    expr = "c * min(max(u / k, -1.0), 1.0)"
+    break_share = 0.2
+
+    explanation = ("The balance gets a term that grows with the quantity up to +-k and holds the level c beyond: "
+                   "a friction-like or a limited term.")
+    signature = ("a residual that changes sign with the quantity and keeps the same level on every run beyond "
+                 "+-k (the small runs as much as the large ones).")
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a saturating term of the crank rate, -2.8 N m reached at +-0.5 rad/s, added to the crank torque
+        balance"."""
+        ci, p = ci or {}, cls.balance_place
+        return (f"a saturating term of {p.words}, {cls._c(params['c'], ci.get('c'))} reached at "
+                f"{'+-' if p.centred else ''}{cls._q(params['k'], ci.get('k'))}, added to {p.where}")
+
+
+class Cubic(BalanceStatic):
+    """A term in the cube of the quantity (a smooth nonlinearity: a drag or a spring that hardens, a leak that
+    grows faster than the pressure)."""
+
+    form = "a cubic term"
+    stem = "cubic"
+    kind_title = "cubic term"
+    expr = "c * (u / S) ** 3"
+    explanation = ("The balance gets a term in the cube of the quantity: small near zero, steep at the largest "
+                   "values.")
+    signature = "a residual at the quantity's largest values on the large runs, growing as its cube."
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a cubic term of the piston velocity, -454 N at 0.5 m/s, added to the piston force balance"."""
+        ci, p = ci or {}, cls.balance_place
+        return (f"a cubic term of {p.words}, {cls._c(params['c'], ci.get('c'))} at {cls._q(p.q_span)}, added to "
+                f"{p.where}")
+
+
+#: the kinds of static term at a balance, each applied at every balance place it fits
+BALANCE_KINDS = (Beyond, Saturating, Cubic)
+BALANCE_BLOCKS = tuple(kind.at(place) for kind in BALANCE_KINDS for place in BALANCE_PLACES if kind.fits(place))
+
+
+def balance_blocks() -> list[str]:
+    """The names of every static kind at every balance place (:data:`BALANCE_KINDS` x :data:`BALANCE_PLACES`),
+    and those a user's file made with :meth:`BalanceStatic.at`, in the order they registered.
+
+    Returns
+    -------
+    list of str
+        E.g. ``aug_beyond_chamber_a``, ``aug_saturating_crank_rate``, ``aug_cubic_piston_velocity``.
+
+    Examples
+    --------
+    >>> names = balance_blocks()
+    >>> "aug_beyond_chamber_a" in names and "aug_cubic_piston_velocity" in names
+    True
+    """
+    from ehas_env.physics.effects.base import REGISTRY
+
+    return [n for n, c in REGISTRY.items() if isinstance(getattr(c, "balance_place", None), BalancePlace)
+            and issubclass(c, BalanceStatic)]

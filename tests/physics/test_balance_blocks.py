@@ -1,0 +1,67 @@
+"""The static terms at the model's balances (ehas_env.physics.balance_blocks) against analytic truth: a term beyond
+a break at the smallest break is the library's viscous friction of slope c / S; beyond every value the run reaches it
+is nothing; a chamber's term above a pressure the run never reaches is nothing, and one below it takes flow out
+of that chamber alone."""
+import numpy as np
+import pytest
+
+from ehas_env.physics import augment, balance_blocks
+from ehas_env.physics.effects import REGISTRY, get_effect
+from ehas_env.simulation.plant import Plant
+
+
+def _run(effects):
+    return Plant(disc_sets=3, effects=effects).simulate_closed_loop(amplitude_deg=20.0, freq_hz=2.0, cycles=3)
+
+
+def test_every_kind_at_every_balance_place_is_registered_tried_and_worded():
+    names = balance_blocks.balance_blocks()
+    assert len(names) == sum(1 for k in balance_blocks.BALANCE_KINDS for p in balance_blocks.BALANCE_PLACES
+                             if k.fits(p))
+    assert set(names) <= set(augment.augmentations())  # the state stage tries them
+    for n in names:
+        cls = REGISTRY[n]
+        assert cls.kind == "hypothesis" and cls.main_param == "c"
+        words = cls.in_words({p.name: p.default or 0.3 * p.bounds[1] for p in cls.params},
+                             {p.name: (0.1, 0.2) for p in cls.params})
+        assert cls.where in words and cls.balance_place.words in words and "[" in words
+
+
+def test_a_place_the_model_cannot_compute_is_refused():
+    # the rod joint's gap is computed for the joint's force alone, not where the chambers' flows are
+    bad = balance_blocks.BalancePlace("chamber_flows", "gap_a", "gap", "m", 1.0e-3, (1.0e3, "mm"), "m^3/s", 1.0e-4,
+                                      (60000.0, "L/min"), "t, 0.0", "chamber A's flow balance", "the joint's gap")
+    with pytest.raises(ValueError, match="no 'gap' at chamber_flows"):
+        balance_blocks.check_place(bad)
+    with pytest.raises(ValueError, match="no 'gap' at chamber_flows"):
+        balance_blocks.Beyond.at(bad)
+
+
+def test_beyond_the_smallest_break_is_a_viscous_friction():
+    place = get_effect("aug_beyond_piston_velocity").balance_place
+    b = 3000.0  # N s/m
+    k = get_effect("aug_beyond_piston_velocity").param("k").bounds[0]
+    ref = _run({"viscous_friction": {"b": b}})
+    blk = _run({"aug_beyond_piston_velocity": {"c": -b * place.q_span, "k": k}})
+    base = _run({})
+    # the two differ by b k sign(v) (1.5 N of a friction of hundreds): far less than the friction's own effect
+    d_ref = np.max(np.abs(ref.theta_deg - base.theta_deg))
+    assert d_ref > 0.05
+    assert np.max(np.abs(blk.theta_deg - ref.theta_deg)) < 0.01 * d_ref
+
+
+def test_beyond_what_the_run_reaches_is_nothing_and_below_it_acts():
+    base = _run({})
+    assert np.max(np.abs(np.radians(base.omega_deg_s))) < 10.0
+    far = _run({"aug_beyond_crank_rate": {"c": -200.0, "k": 19.9}})  # 20 rad/s: twice the run's peak rate
+    assert np.array_equal(far.theta_deg, base.theta_deg)
+    near = _run({"aug_beyond_crank_rate": {"c": -200.0, "k": 2.0}})
+    assert np.max(np.abs(near.theta_deg - base.theta_deg)) > 0.05
+
+
+def test_a_chamber_term_acts_on_its_own_chamber():
+    base = _run({})
+    never = _run({"aug_beyond_chamber_a": {"c": -4.0e-5, "k": 1.9e7}})  # above 190 bar: never reached
+    assert np.array_equal(never.p_a_bar, base.p_a_bar)
+    leak = _run({"aug_beyond_chamber_a": {"c": -4.0e-5, "k": 2.0e6}})  # a relief from A above 20 bar
+    assert np.max(np.abs(leak.p_a_bar - base.p_a_bar)) > 1.0
