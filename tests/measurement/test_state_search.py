@@ -10,6 +10,7 @@ from ehas_env.diagnosis.search import data_stage
 from ehas_env.diagnosis.states import judge, state_stage
 from ehas_env.measurement.synthetic import simulate_campaign
 from ehas_env.physics.augment import reading_blocks
+from ehas_env.physics.balance_blocks import balance_blocks
 
 #: what the stage tries in these tests: a lag at each of its two places and a link at each of its two (the hoses
 #: and the play are tried by the full list; four keep the test's replays few)
@@ -215,6 +216,28 @@ def test_a_knee_in_a_reading_is_found_with_its_slope_change_and_its_knee():
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=_at_place("aug_knee_force_reading"))
     assert rec["kept"] == "aug_knee_force_reading", rec
     assert rec["params"]["g"] == pytest.approx(0.5, rel=0.2) and rec["params"]["k"] == pytest.approx(300.0, rel=0.2)
+
+
+def _at_balance(effect: str) -> list:
+    """Every static term at the balance place ``effect`` is put at (its rivals there: the other kinds)."""
+    place = "_" + effect.split("_", 2)[2]
+    return [n for n in balance_blocks() if n.endswith(place)]
+
+
+@pytest.mark.parametrize("effect,params,seed", [
+    # a relief from chamber A that cracks above 45 bar (the drawn set's d15 had only a leak to drain to say it)
+    ("aug_beyond_chamber_a", {"c": -1.5e-6, "k": 4.5e6}, 3331),
+    pytest.param("aug_saturating_crank_rate", {"c": -6.0, "k": 1.0}, 3332, marks=pytest.mark.slow),
+])
+def test_a_term_at_a_balance_is_told_from_the_other_kinds_there_with_its_size(effect, params, seed):
+    """A term of a balance's local quantity: among the kinds at that balance the state stage keeps the truth's,
+    with its size and its break within 20 %."""
+    s, null = _search({effect: params}, seed)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=_at_balance(effect))
+    assert len(_at_balance(effect)) == 3
+    assert rec["kept"] == effect, rec
+    for name, value in params.items():
+        assert rec["params"][name] == pytest.approx(value, rel=0.2), rec
 
 
 def test_a_block_that_runs_to_an_end_of_its_range_is_not_kept_and_the_right_kind_is():
