@@ -106,17 +106,19 @@ def _logged_at_place(full: Replayer, cls) -> list:
 def _balance_quantity(full: Replayer, sims, cls) -> list:
     """A balance block's local quantity (:class:`~ehas_env.physics.balance_blocks.BalancePlace`) over the
     closed-loop runs as the final model simulates them (``sims``: every run's signals), in SI: the crank's rate, the
-    piston's velocity r cos(theta) omega, a chamber's pressure; [] for another block or a quantity the replay does
-    not return."""
+    piston's velocity r cos(theta) omega, a chamber's pressure, the valve's opening (K i); [] for another block or a
+    quantity the replay does not return."""
     q = getattr(getattr(cls, "balance_place", None), "quantity", None)
     out = []
     for c, sim in zip(full.cases, sims):
         if q is None or sim is None or c.run.kind != "closed_loop" or "omega_deg_s" not in sim:
             continue
         w = np.radians(sim["omega_deg_s"])
-        r = full.plant(ModelSpec(), c.run).rig.radius
-        values = {"omega": lambda: w, "v": lambda: r * np.cos(np.radians(sim["theta_deg"])) * w,
-                  "pa": lambda: sim["p_a_bar"] * 1.0e5, "pb": lambda: sim["p_b_bar"] * 1.0e5}
+        rig = full.plant(ModelSpec(), c.run).rig
+        # the valve's opening as no-load flow: its gain (LPM/mA) times the current, the steady opening
+        values = {"omega": lambda: w, "v": lambda: rig.radius * np.cos(np.radians(sim["theta_deg"])) * w,
+                  "pa": lambda: sim["p_a_bar"] * 1.0e5, "pb": lambda: sim["p_b_bar"] * 1.0e5,
+                  "qc": lambda: rig.K * sim["current_mA"] / 60000.0}
         if q in values:
             out.append(values[q]())
     return out

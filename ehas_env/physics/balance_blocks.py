@@ -9,15 +9,16 @@ knows (dead zone, saturation, polynomial), put inside the physical model where t
 
 * **Places** (:data:`BALANCE_PLACES`): every balance the model computes with each of its own rate-setting local
   quantities -- the piston's force balance with the piston's velocity, the crank's torque balance with its rate,
-  each chamber's flow balance with its pressure.  A place is one :class:`BalancePlace` (what the balance returns,
-  which quantity, their units and typical sizes on the rig, their words); its quantity must be one the model
-  defines where that balance's terms are called (checked against
-  :data:`~ehas_env.physics.effects.base.PLACE_QUANTITIES`), so a place the model cannot compute is refused when
-  this module is imported.
-* **Kinds** (:data:`BALANCE_KINDS`): :class:`Beyond` (a dead zone: zero within +-k, rising with a slope beyond),
-  :class:`Saturating` (proportional within +-k, a constant level beyond: friction-like), :class:`Cubic` (a
-  hardening or softening term).  A kind is one class with its law (an expression of the quantity ``u``, its
-  parameters and the place's scale ``S``), its parameters (sized by the place), words and residual signature.
+  each chamber's flow balance with its pressure, and the pressures at the valve's supply and return lands with the
+  valve's opening (a chain the lands meter between: ``lands`` of the compiled model).  A place is one
+  :class:`BalancePlace` (what the balance returns, which quantity, their units and typical sizes on the rig, their
+  words); its quantity must be one the model defines where that balance's terms are called (checked against
+  :data:`~ehas_env.physics.effects.base.PLACE_QUANTITIES`), so a place the model cannot compute is refused.
+* **Kinds** (:data:`BALANCE_KINDS`): :class:`Proportional` (the linear block), :class:`Beyond` (a dead zone: zero
+  within +-k, rising with a slope beyond), :class:`Saturating` (proportional within +-k, a constant level beyond:
+  friction-like), :class:`Cubic` (a hardening or softening term).  A kind is one class with its law (an expression
+  of the quantity ``u``, its parameters and the place's scale ``S``), its parameters (sized by the place), words
+  and residual signature.
 
 The product is registered as hypothesis effects ``aug_<stem>_<place>`` (:func:`balance_blocks`) and tried by the
 diagnosis' state stage after the followers and reading blocks, fitted inside the full model and judged as they are;
@@ -83,6 +84,9 @@ class BalancePlace:
     where: str
     words: str
     centred: bool = True
+    #: the values a place of a chain passes on, which its term gets and returns (the lands' pressures: ``p_sup``,
+    #: ``p_ret``); () for a balance's sum
+    chain: tuple = ()
 
 
 _LPM = (60000.0, "L/min")
@@ -98,13 +102,22 @@ BALANCE_PLACES = (
                  "chamber A's flow balance", "chamber A's pressure", centred=False),
     BalancePlace("chamber_flows", "chamber_b", "pb", "Pa", 1.0e7, _BAR, "m^3/s", 25.0 / 60000.0, _LPM, "0.0, t",
                  "chamber B's flow balance", "chamber B's pressure", centred=False),
+    # the pressures the valve's lands meter between, each with the valve's opening (a line's drop or a back
+    # pressure that changes with the flow through it; the opening's sign says which line the flow takes)
+    BalancePlace("land_pressures", "supply", "qc", "m^3/s", 25.0 / 60000.0, _LPM, "Pa", 3.0e6, _BAR,
+                 "p_sup + t, p_ret", "the supply pressure at the valve's lands",
+                 "the spool's opening (as no-load flow)", chain=("p_sup", "p_ret")),
+    BalancePlace("land_pressures", "return", "qc", "m^3/s", 25.0 / 60000.0, _LPM, "Pa", 3.0e6, _BAR,
+                 "p_sup, p_ret + t", "the return pressure at the valve's lands",
+                 "the spool's opening (as no-load flow)", chain=("p_sup", "p_ret")),
 )
 
 
 def check_place(place: BalancePlace) -> BalancePlace:
     """``place``, or a one-line ValueError when the model does not compute its quantity where that balance's terms
     are called (:data:`~ehas_env.physics.effects.base.PLACE_QUANTITIES`): no such place."""
-    if place.quantity not in PLACE_QUANTITIES.get(place.place, ()):
+    if place.quantity not in PLACE_QUANTITIES.get(place.place, ()) or not set(place.chain) <= PLACE_QUANTITIES.get(
+            place.place, set()):
         raise ValueError(f"balance place {place.short}: the model has no '{place.quantity}' at {place.place} (it "
                          f"has {', '.join(sorted(PLACE_QUANTITIES.get(place.place, ()))) or 'no such place'})")
     return place
@@ -169,8 +182,8 @@ class BalanceStatic(Augmentation):
         name = f"aug_{cls.stem}_{place.short}"
         check_place(place)
         params = cls.kind_params(place)
-        args = ", ".join([p.name for p in params] + ["S"])
-        text = (f"def {place.place}({place.quantity}, {args}):\n    u = {place.quantity}\n    t = {cls.expr}\n"
+        args = ", ".join([place.quantity, *place.chain] + [p.name for p in params] + ["S"])
+        text = (f"def {place.place}({args}):\n    u = {place.quantity}\n    t = {cls.expr}\n"
                 f"    return {place.returns}\n")
         scale = Param("S", place.q_unit, place.q_span, (0.0, 1.0e30),
                       f"the quantity's typical span on the rig, {place.q_unit} (the term's scale)")
@@ -191,6 +204,26 @@ class BalanceStatic(Augmentation):
     def _c(cls, value: float, ci=None) -> str:
         f, unit = cls.balance_place.out_shown
         return f"{fmt_interval(value, ci, f)} {unit}"
+
+
+class Proportional(BalanceStatic):
+    """A term in proportion to the quantity (a leak from one chamber alone, a line's laminar drop, a damping at one
+    balance: the linear block, where the library's laws put it at both chambers or at one body)."""
+
+    form = "a proportional term"
+    stem = "prop"
+    kind_title = "proportional term"
+    expr = "c * u / S"
+    explanation = "The balance gets a term in proportion to the quantity."
+    signature = "a residual that follows the quantity itself, in every run, in proportion to it."
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a term proportional to chamber A's pressure, -0.18 L/min per 100 bar, added to chamber A's flow
+        balance"."""
+        ci, p = ci or {}, cls.balance_place
+        return (f"a term proportional to {p.words}, {cls._c(params['c'], ci.get('c'))} per {cls._q(p.q_span)}, "
+                f"added to {p.where}")
 
 
 class Beyond(BalanceStatic):
@@ -263,7 +296,7 @@ class Cubic(BalanceStatic):
 
 
 #: the kinds of static term at a balance, each applied at every balance place it fits
-BALANCE_KINDS = (Beyond, Saturating, Cubic)
+BALANCE_KINDS = (Proportional, Beyond, Saturating, Cubic)
 BALANCE_BLOCKS = tuple(kind.at(place) for kind in BALANCE_KINDS for place in BALANCE_PLACES if kind.fits(place))
 
 

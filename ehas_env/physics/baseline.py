@@ -11,7 +11,7 @@ current in mA), compiled by numba and inlined.
 Examples
 --------
 >>> from ehas_env.physics.baseline import land_flows
->>> qa, qb, qs = land_flows(1e-4, 110e5, 110e5, 220e5, 70e5)
+>>> qa, qb, qs = land_flows(1e-4, 110e5, 110e5, 220e5, 0.0, 70e5)
 >>> round(qa / 1e-4, 4), qa == qs      # 110 bar across a 35-bar-rated land: sqrt(110/35)
 (1.7728, True)
 """
@@ -39,18 +39,20 @@ def amplifier(i_cmd, i_max):
 
 
 @njit(cache=True, inline="always")
-def land_flows(qc, pa, pb, ps, rated_drop):
-    """Per-land orifice law, critically lapped, tank at 0: (Q into A, Q into B, Q from supply), m^3/s.
+def land_flows(qc, pa, pb, ps, pt, rated_drop):
+    """Per-land orifice law, critically lapped: (Q into A, Q into B, Q from supply), m^3/s.
 
     ``qc`` is the valve's no-load flow at the rated drop (both lands in series),
-    so each land passes qc * sqrt(dp / (rated_drop / 2)).
+    so each land passes qc * sqrt(dp / (rated_drop / 2)); ``ps`` is the pressure at
+    the supply land, ``pt`` at the return lands (the book's: the supply's and the
+    tank's 0; the model's ``lands`` applies the effects' ``land_pressures``).
     """
     half = 0.5 * rated_drop
     if qc >= 0.0:
         qs = qc * signed_root((ps - pa) / half)
-        return qs, -qc * signed_root(pb / half), qs
+        return qs, -qc * signed_root((pb - pt) / half), qs
     qs = -qc * signed_root((ps - pb) / half)
-    return qc * signed_root(pa / half), qs, qs
+    return qc * signed_root((pa - pt) / half), qs, qs
 
 
 @njit(cache=True, inline="always")

@@ -102,7 +102,7 @@ def measure(s, P, out):
     out[O_OMEGA] = s[8] / (r * math.cos(th))
     # the meter in line A sits at the valve's port: the land's flow at the port's pressures
     pva, pvb = port_pressures(s, P)
-    qa, _, _ = land_flows(s[2], pva, pvb, s[6], P[I_DROP])
+    qa, _, _ = lands(s[2], pva, pvb, s[6], P)
     # every sensed output through its reading place (ehas_env.physics.layout.SENSED)
     out[O_FLOW] = flow_a_reading(qa + valve_side_flows(s[2], pva, pvb, s[6], P)[0], P, s)
     out[O_PA] = pa_reading(s[4], P, s)
@@ -206,13 +206,13 @@ def bench_flow(qc, supply, scale, P):
     if P[I_EFFECTS_ON] == 0.0:
         return qc * scale
     ea, eb = valve_side_flows(qc, 0.5 * supply, 0.5 * supply, supply, P)
-    if ea == 0.0 and eb == 0.0:  # no valve-side effect acts: the lapped lands' exact figure
+    if ea == 0.0 and eb == 0.0 and not lands_changed(P):  # nothing acts at the lands: their exact figure
         return qc * scale
     lo, hi = 0.0, supply
     qa = 0.0
     for _ in range(60):
         pm = 0.5 * (lo + hi)
-        la, lb, _ = land_flows(qc, pm, pm, supply, P[I_DROP])
+        la, lb, _ = lands(qc, pm, pm, supply, P)
         ea, eb = valve_side_flows(qc, pm, pm, supply, P)
         qa = la + ea
         if qa + lb + eb > 0.0:  # more enters the ports than leaves: their pressure is higher

@@ -19,11 +19,15 @@ to the book model (:func:`.judge.worded_items`), and whether a campaign whose hi
 :data:`VISIBLE_DB` or more above the noise on a key signal (:func:`effect_db`) is called explained with nothing
 added (must be 0), and clean campaigns called unexplained (must be 0).
 
+(c) The full diagnosis of each of :data:`DIAGNOSED` (``fade``, ``rest``, ``rest_bump``) at one commit: the final
+figure of each within :data:`AGREE` of the ``fade`` one's, the same verdict words (the acceptance's agreement, on
+what the diagnosis reports; ``--part c``).
+
 Checkpoints: each finished case is ``OUT/cases/ID.json`` (part a, and part b once run); a rerun skips what is
 there (Ctrl-C and rerun resumes).  Campaigns go to ``--work``.
 
     python -m tests.independent_rig.start_conditions --out results/verdict_start_conditions
-        [--part a|b|ab] [--only ID[,ID]] [--limit N] [--jobs N] [--work DIR] [--readme-only] [--redo]
+        [--part a|b|ab|c] [--only ID[,ID]] [--limit N] [--jobs N] [--work DIR] [--readme-only] [--redo]
 """
 from __future__ import annotations
 
@@ -268,26 +272,27 @@ def part_a(case: dict, work: Path) -> dict:
     return rec
 
 
-def part_b(case: dict, work: Path, out: Path) -> dict:
-    """The full diagnosis of the ``rest`` variant."""
+def part_b(case: dict, work: Path, out: Path, variant: str = "rest") -> dict:
+    """The full diagnosis of the ``variant`` campaign (part b: ``rest``)."""
     t0 = time.time()
     wdir = work / case["id"]
-    camp = wdir / "rest"
-    _generate(case, "rest", camp)
-    diag_json = wdir / "diag_rest.json"
+    camp = wdir / variant
+    _generate(case, variant, camp)
+    diag_json = wdir / f"diag_{variant}.json"
     if diag_json.exists():
         diag_json.unlink()
     model = acc.rig_model(case["rig"])
     cmd = [acc.ehas_exe(), "diagnose", str(camp), "--json", str(diag_json), "--quiet", "--overwrite"] + (
         ["--model", str(model)] if model else [])
-    code, stdout, stderr, wall = acc._run(cmd, log=wdir / "diagnose_rest.log")
+    code, stdout, stderr, wall = acc._run(cmd, log=wdir / f"diagnose_{variant}.log")
     rec = {"command": shlex.join(cmd), "wall_s": round(wall, 1)}
     if code != 0 or not diag_json.exists():
         rec["error"] = f"diagnose exited {code}: {(stderr or stdout).strip().splitlines()[-1:]}"
         return rec
     diag = json.loads(diag_json.read_text())
     (out / "diag").mkdir(exist_ok=True)
-    (out / "diag" / f"{case['id']}.json").write_text(json.dumps(diag, indent=1) + "\n")
+    name = case["id"] if variant == "rest" else f"{case['id']}.{variant}"
+    (out / "diag" / f"{name}.json").write_text(json.dumps(diag, indent=1) + "\n")
     items = worded_items(diag)
     rec.update({"verdict": diag.get("verdict"), "residual_x_noise": diag.get("residual_x_noise"),
                 "kept": kept_effects(diag), "named": [i["label"] for i in items],
@@ -295,6 +300,24 @@ def part_b(case: dict, work: Path, out: Path) -> dict:
                 "alternatives": [a.get("effect") or a.get("name") or a.get("label")
                                  for a in diag.get("alternatives") or [] if isinstance(a, dict)],
                 "elapsed_s": diag.get("elapsed_s"), "b_s": round(time.time() - t0, 1)})
+    return rec
+
+
+#: part c: the variants whose diagnoses are compared (the acceptance's: with a fade-in, without, with a bump)
+DIAGNOSED = ("fade", "rest", "rest_bump")
+
+
+def part_c(case: dict, work: Path, out: Path) -> dict:
+    """The full diagnosis of each of :data:`DIAGNOSED` at one commit, and whether their figures agree: each
+    variant's diagnosed figure within :data:`AGREE` of the ``fade`` one's, and the same verdict words."""
+    rec = {v: part_b(case, work, out, v) for v in DIAGNOSED}
+    base = rec["fade"].get("residual_x_noise")
+    for v in DIAGNOSED:
+        x = rec[v].get("residual_x_noise")
+        rec[v]["ratio_to_fade"] = round(x / base, 4) if x is not None and base else None
+    rec["agree"] = all(rec[v]["ratio_to_fade"] is not None and abs(rec[v]["ratio_to_fade"] - 1.0) <= AGREE
+                       for v in DIAGNOSED)
+    rec["same_verdict"] = len({rec[v].get("verdict") for v in DIAGNOSED}) == 1
     return rec
 
 
@@ -380,6 +403,18 @@ def summarise(recs: list[dict]) -> dict:
                                              if r["b"]["verdict"] == "explained" and r["b"]["added_nothing"]],
          "clean_diagnosed": sum(1 for r in b if not r["effects"]),
          "clean_unexplained": [r["id"] for r in b if not r["effects"] and r["b"]["verdict"] == "unexplained"]}
+    c = [r for r in recs if "c" in r and all("error" not in r["c"][v] for v in DIAGNOSED)]
+    s["part_c"] = {"cases": len(c), "agree": sum(1 for r in c if r["c"]["agree"]),
+                   "same_verdict": sum(1 for r in c if r["c"]["same_verdict"]),
+                   "beyond": [r["id"] for r in c if not r["c"]["agree"]],
+                   "verdict_changed": [r["id"] for r in c if not r["c"]["same_verdict"]],
+                   "visible_explained_nothing_added": sorted(
+                       f"{r['id']} ({v})" for r in c for v in DIAGNOSED
+                       if r["effects"] and (((r.get("a") or {}).get("effect") or {}).get("best_db") or -1e9)
+                       >= VISIBLE_DB and r["c"][v].get("verdict") == "explained" and r["c"][v].get("added_nothing")),
+                   "clean_unexplained": sorted(f"{r['id']} ({v})" for r in c for v in DIAGNOSED
+                                               if not r["effects"] and r["c"][v].get("verdict") == "unexplained"),
+                   "commits": sorted({r["c"].get("ehas_commit") for r in c if r["c"].get("ehas_commit")})}
     s["meets"] = {"agree_within_10pct_book": bool(s["book"]["cases"])
                   and s["book"]["agree_all_variants"] == s["book"]["cases"],
                   "agree_within_10pct_true_bk": bool(s["true_bk"]["cases"])
@@ -401,7 +436,7 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
     nb = sum(1 for r in recs if "b" in r)
     L = ["# The verdict on campaigns as rigs record them (issue 42, point 3)", "",
          f"Regenerate (resumable; finished cases in `cases/` are kept): `{command}` (part a and b; "
-         "`--part a` for the figures alone).", "",
+         "`--part a` for the figures alone; `--part c` for the diagnoses of `fade`, `rest` and `rest_bump`).", "",
          "## What", "",
          "Campaigns of the independent generator (`tests/independent_rig/`, plain NumPy/SciPy sharing no code with "
          "the package; `docs/independent-generator.md`, \"Start conditions\"): every hidden class of the generator "
@@ -470,8 +505,32 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
           f"explained with nothing added to the book model: {len(summ['visible_explained_nothing_added'])} "
           f"({', '.join(summ['visible_explained_nothing_added']) or 'none'}; threshold 0). Clean campaigns "
           f"diagnosed: {summ['clean_diagnosed']}; called unexplained: {len(summ['clean_unexplained'])} "
-          "(threshold 0).", "",
-          "## Every campaign", "",
+          "(threshold 0).", ""]
+    pc = summ.get("part_c") or {}
+    if pc.get("cases"):
+        L += [f"(c) Diagnosed with a fade-in, from rest and from rest with the knock (`fade`, `rest`, `rest_bump`, "
+              f"at {', '.join(pc['commits'])}; `--part c`): {pc['cases']} campaigns. The final figure of `rest` and "
+              f"`rest_bump` within {100 * AGREE:g} % of `fade`'s: {pc['agree']}/{pc['cases']} (beyond: "
+              f"{', '.join(pc['beyond']) or 'none'}); the same verdict words in all three: "
+              f"{pc['same_verdict']}/{pc['cases']} (changed: {', '.join(pc['verdict_changed']) or 'none'}). Visible "
+              f"effects called explained with nothing added: {', '.join(pc['visible_explained_nothing_added']) or 'none'}"
+              f"; clean campaigns called unexplained: {', '.join(pc['clean_unexplained']) or 'none'}.", "",
+              "| case | fade: verdict, figure | rest | rest_bump | within 10 % | added (fade / rest / rest_bump) |",
+              "|---|---|---|---|---|---|"]
+        for r in recs:
+            cc = r.get("c")
+            if not cc:
+                continue
+            cell = {v: (f"{(cc.get(v) or {}).get('verdict', (cc.get(v) or {}).get('error'))} "
+                        f"{_f((cc.get(v) or {}).get('residual_x_noise'))}"
+                        + (f" ({_f(cc[v].get('ratio_to_fade'))})" if v != "fade" and cc[v].get("ratio_to_fade") else ""))
+                    for v in DIAGNOSED}
+            added = " / ".join(", ".join((cc.get(v) or {}).get("named") or (cc.get(v) or {}).get("kept") or ["-"])
+                               for v in DIAGNOSED)
+            L.append(f"| {r['id']} | {cell['fade']} | {cell['rest']} | {cell['rest_bump']} | {_f(cc.get('agree'))} "
+                     f"| {added} |")
+        L.append("")
+    L += ["## Every campaign", "",
           "Each cell: `residual_x_noise` (x what does not repeat) of the book model / of the model at the "
           "campaign's beta and K, each with its verdict (e explained, s small structured residual, u unexplained) "
           "and, beside `fade`, its ratio to the `fade` figure. Effect dB: the hidden effect's own contribution on "
@@ -656,8 +715,9 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="results/verdict_start_conditions")
     ap.add_argument("--work", default=os.path.join(tempfile.gettempdir(), "ehas_start_conditions"),
                     help="campaigns and compare/diagnosis files (large; not committed)")
-    ap.add_argument("--part", choices=("a", "b", "ab"), default="ab",
-                    help="a: the figures of every variant; b: the diagnosis of the rest variant")
+    ap.add_argument("--part", choices=("a", "b", "ab", "c"), default="ab",
+                    help="a: the figures of every variant; b: the diagnosis of the rest variant; c: the diagnoses "
+                         "of the fade, rest and rest_bump variants at one commit, compared")
     ap.add_argument("--only", default="", help="case ids, comma-separated")
     ap.add_argument("--limit", type=int, default=0, help="run at most this many new cases")
     ap.add_argument("--jobs", type=int, default=1, help="cases run at once")
@@ -688,7 +748,8 @@ def main(argv=None) -> int:
                 todo.append((c, need))
     if a.limit:
         todo = todo[:a.limit]
-    guess = sum((GUESS_A_S if "a" in n else 0) + (GUESS_B_S if "b" in n else 0) for _, n in todo)
+    guess = sum((GUESS_A_S if "a" in n else 0) + (GUESS_B_S if "b" in n else 0)
+                + (len(DIAGNOSED) * GUESS_B_S if "c" in n else 0) for _, n in todo)
     print(f"[start] {len(selected)} cases selected, {len(todo)} to run; about {guess / 60 / max(1, a.jobs):.0f} min "
           f"(first guess {GUESS_A_S:.0f} s part a, {GUESS_B_S:.0f} s part b)", flush=True)
 
@@ -697,6 +758,8 @@ def main(argv=None) -> int:
         for part in need:
             if part == "a":
                 new = {"a": part_a(c, work), "ehas_commit": acc._commit()}
+            elif part == "c":
+                new = {"c": {**part_c(c, work, out), "ehas_commit": acc._commit()}}
             else:
                 new = {"b": {**part_b(c, work, out), "ehas_commit": acc._commit()}}
             # the record as stored now (another process may have written its other part meanwhile), with this part
@@ -716,6 +779,11 @@ def main(argv=None) -> int:
                 figs = ", ".join(f"{n} {_f(x.get('residual_x_noise'))}/{_f((tv.get(n) or {}).get('residual_x_noise'))}"
                                  for n, x in v.items())
                 b = rec.get("b") or {}
+                cc = rec.get("c") or {}
+                if cc:
+                    figs += "; diagnosed " + ", ".join(f"{v} {(cc.get(v) or {}).get('verdict')} "
+                                                       f"{_f((cc.get(v) or {}).get('residual_x_noise'))}"
+                                                       for v in DIAGNOSED)
                 print(f"[start] {k}/{len(todo)} {c['id']} ({'+'.join(need)}): {figs}; effect "
                       f"{_f((rec.get('a') or {}).get('effect', {}).get('best_db'))} dB"
                       + (f"; diagnosis {b.get('verdict', b.get('error'))} {_f(b.get('residual_x_noise'))}, added "

@@ -234,7 +234,7 @@ def test_a_term_at_a_balance_is_told_from_the_other_kinds_there_with_its_size(ef
     with its size and its break within 20 %."""
     s, null = _search({effect: params}, seed)
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=_at_balance(effect))
-    assert len(_at_balance(effect)) == 3
+    assert len(_at_balance(effect)) == 4
     assert rec["kept"] == effect, rec
     for name, value in params.items():
         assert rec["params"][name] == pytest.approx(value, rel=0.2), rec

@@ -65,3 +65,28 @@ def test_a_chamber_term_acts_on_its_own_chamber():
     assert np.array_equal(never.p_a_bar, base.p_a_bar)
     leak = _run({"aug_beyond_chamber_a": {"c": -4.0e-5, "k": 2.0e6}})  # a relief from A above 20 bar
     assert np.max(np.abs(leak.p_a_bar - base.p_a_bar)) > 1.0
+
+
+@pytest.mark.parametrize("effect,c_bar", [("aug_saturating_supply", -20.0), ("aug_saturating_return", 20.0)])
+def test_a_pressure_at_the_lands_meters_the_bench_flow_as_the_orifice_law_says(effect, c_bar):
+    """On the flow bench (ports joined) the lands meter between the supply and the return pressure: the flow is
+    qc sqrt((p_sup - p_ret) / rated drop).  A supply 20 bar lower at the lands, or a return 20 bar above the tank
+    (a saturating term of the opening at its smallest break: a step of c at any opening), gives the flow of the
+    bench at 20 bar less supply, sqrt((Ps - 20) / Ps) of it."""
+    cmd = np.full(400, 10.0)  # mA: a steady opening
+    k = get_effect(effect).param("k").bounds[0]
+    base = Plant(disc_sets=1).simulate_valve_test(cmd, supply_bar=140.0)
+    with_term = Plant(disc_sets=1, effects={effect: {"c": c_bar * 1e5, "k": k}}).simulate_valve_test(
+        cmd, supply_bar=140.0)
+    ratio = with_term.flow_lpm[-1] / base.flow_lpm[-1]
+    assert ratio == pytest.approx(np.sqrt(120.0 / 140.0), rel=2e-3)
+
+
+def test_the_lands_at_the_supply_and_the_tank_are_the_book_model_bit_for_bit():
+    """With no effect at the lands the model's flows are the book's law as it was (the tank at 0 bar exactly)."""
+    from ehas_env.physics.baseline import land_flows
+
+    m = Plant(disc_sets=1).model
+    P = Plant(disc_sets=1).param_vector
+    for qc, pa, pb in [(2e-4, 120e5, 60e5), (-2e-4, 80e5, 130e5), (0.0, 100e5, 100e5)]:
+        assert m.lands(qc, pa, pb, 210e5, P) == land_flows(qc, pa, pb, 210e5, 0.0, P[m.IDX["rated_drop"]])

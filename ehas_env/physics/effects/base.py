@@ -37,6 +37,10 @@ PLACES = {
     "position_reading": ("the piston position the position sensor (LVDT) reads, m (gets the reading so far as "
                          "argument x; the angle the rig logs and its controller sees is asin(reading / r); it "
                          "may read the effect's own states: a lag of the reading)"),
+    "land_pressures": ("(pressure at the valve's supply land, at its return lands), Pa: what the lands meter "
+                       "between (gets them so far as arguments p_sup, p_ret: the supply pressure and the tank's 0 "
+                       "unless an effect puts a line's drop or a back pressure between; it may use the valve's "
+                       "opening qc and the supply pressure ps)"),
     "port_pressures": ("(pressure at the valve's port A, at its port B), Pa: where the flow meter in line A "
                        "meters the land's flow (gets the ports' pressures so far as arguments pa, pb, the "
                        "chambers' unless an effect puts something between; it may read the effect's own states: "
@@ -64,6 +68,7 @@ PLACE_QUANTITIES["valve_current"] = frozenset({"i"})
 PLACE_QUANTITIES["position_reading"] = frozenset({"x"})
 PLACE_QUANTITIES["coil_current"] = frozenset({"i"})
 PLACE_QUANTITIES["port_pressures"] = frozenset({"pa", "pb"})
+PLACE_QUANTITIES["land_pressures"] = frozenset({"qc", "ps", "p_sup", "p_ret"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
 #: the sensed outputs' rates, known where the effects' state rates are computed (after the balances)
 RATE_QUANTITIES = tuple(f"{arg}_rate" for arg, _, rate, _, _ in _SENSED.values() if rate)
@@ -76,7 +81,7 @@ VALVE_SIDE_QUANTITIES = ("qc", "pa", "pb", "ps", "p_load", "q_a", "q_b", "q_supp
 #: what an effect is (Effect.kind)
 KINDS = ("physical", "recalibration", "hypothesis")
 #: how many numbers a term returns at each place (state_rates: one per state, a number for one state)
-RETURNS = {"chamber_flows": 2, "port_pressures": 2}
+RETURNS = {"chamber_flows": 2, "port_pressures": 2, "land_pressures": 2}
 #: the only outside names a term's body may use: the compiled model copies the body alone into a module
 #: that imports these (ehas_env.physics.codegen)
 TERM_GLOBALS = ("math", "np")
@@ -645,7 +650,7 @@ def _sample_point() -> dict:
         _POINT.update(theta=th, omega=om, x=x, v=v, xp=x, vp=v, pa=12.0e6, pb=9.0e6, ps=rig.SUPPLY_PRESSURE,
                       p_load=3.0e6, qc=2.0e-4, qc_dot=1.0e-3, q_a=1.5e-4, q_b=-1.5e-4, q_supply=1.5e-4, i=5.0,
                       gap=1.0e-4, gap_rate=0.01, q=1.5e-4, f=rig.AREA * 3.0e6, pa_rate=1.0e8, pb_rate=-1.0e8, ps_rate=0.0,
-                      f_rate=rig.AREA * 2.0e8)
+                      f_rate=rig.AREA * 2.0e8, p_sup=rig.SUPPLY_PRESSURE, p_ret=0.0)
         slots = dict.fromkeys(layout.BASE_SLOTS, 1.0)
         slots.update(inertia=2 * rig.INERTIA_PER_SET, radius=rig.CRANK_RADIUS, area=rig.AREA,
                      half_stroke=rig.HALF_STROKE, supply=rig.SUPPLY_PRESSURE, rated_drop=rig.RATED_VALVE_DROP,
