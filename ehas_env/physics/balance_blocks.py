@@ -87,6 +87,9 @@ class BalancePlace:
     #: the values a place of a chain passes on, which its term gets and returns (the lands' pressures: ``p_sup``,
     #: ``p_ret``); () for a balance's sum
     chain: tuple = ()
+    #: the term's variable ``u`` as an expression of ``quantity`` ("" for the quantity itself; the lands': the flow
+    #: through them whatever its direction, ``abs(qc)``)
+    value: str = ""
 
 
 _LPM = (60000.0, "L/min")
@@ -102,14 +105,17 @@ BALANCE_PLACES = (
                  "chamber A's flow balance", "chamber A's pressure", centred=False),
     BalancePlace("chamber_flows", "chamber_b", "pb", "Pa", 1.0e7, _BAR, "m^3/s", 25.0 / 60000.0, _LPM, "0.0, t",
                  "chamber B's flow balance", "chamber B's pressure", centred=False),
-    # the pressures the valve's lands meter between, each with the valve's opening (a line's drop or a back
-    # pressure that changes with the flow through it; the opening's sign says which line the flow takes)
+    # the pressures the valve's lands meter between, each with the flow through the supply and the return line:
+    # the valve's opening as no-load flow, whichever way it opens (a line's drop or a back pressure grows with the
+    # flow through it, whatever its direction)
     BalancePlace("land_pressures", "supply", "qc", "m^3/s", 25.0 / 60000.0, _LPM, "Pa", 3.0e6, _BAR,
                  "p_sup + t, p_ret", "the supply pressure at the valve's lands",
-                 "the spool's opening (as no-load flow)", chain=("p_sup", "p_ret")),
+                 "the valve's opening (as no-load flow, either way)", centred=False, chain=("p_sup", "p_ret"),
+                 value="abs(qc)"),
     BalancePlace("land_pressures", "return", "qc", "m^3/s", 25.0 / 60000.0, _LPM, "Pa", 3.0e6, _BAR,
                  "p_sup, p_ret + t", "the return pressure at the valve's lands",
-                 "the spool's opening (as no-load flow)", chain=("p_sup", "p_ret")),
+                 "the valve's opening (as no-load flow, either way)", centred=False, chain=("p_sup", "p_ret"),
+                 value="abs(qc)"),
 )
 
 
@@ -183,7 +189,7 @@ class BalanceStatic(Augmentation):
         check_place(place)
         params = cls.kind_params(place)
         args = ", ".join([place.quantity, *place.chain] + [p.name for p in params] + ["S"])
-        text = (f"def {place.place}({args}):\n    u = {place.quantity}\n    t = {cls.expr}\n"
+        text = (f"def {place.place}({args}):\n    u = {place.value or place.quantity}\n    t = {cls.expr}\n"
                 f"    return {place.returns}\n")
         scale = Param("S", place.q_unit, place.q_span, (0.0, 1.0e30),
                       f"the quantity's typical span on the rig, {place.q_unit} (the term's scale)")
