@@ -240,6 +240,23 @@ def test_a_term_at_a_balance_is_told_from_the_other_kinds_there_with_its_size(ef
         assert rec["params"][name] == pytest.approx(value, rel=0.2), rec
 
 
+def test_terms_at_other_balances_are_not_screened_where_their_linearisation_removes_nothing():
+    """Every static term at every balance, on a campaign with a relief from chamber A: the terms at the piston, the
+    crank and the lands remove nothing on their linearisation (one replay each) and are not screened, with why; the
+    truth is screened and kept, with its size."""
+    s, null = _search({"aug_beyond_chamber_a": {"c": -1.5e-6, "k": 4.5e6}}, 3331)
+    n0 = s.rep.n_evals
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=balance_blocks())
+    assert rec["kept"] == "aug_beyond_chamber_a" and rec["params"]["k"] == pytest.approx(4.5e6, rel=0.1), rec
+    by = {t["effect"]: t for t in rec["tried"]}
+    for name, t in by.items():
+        if "piston" in name or "crank" in name or name.endswith(("_supply", "_return")):
+            assert "linearisation removes" in t["skipped"] and t["linear_share"] < 0.01, t
+    assert "skipped" not in by["aug_beyond_chamber_a"] and by["aug_beyond_chamber_a"]["linear_share"] > 0.1
+    # one replay for each term skipped; a screen of 15-45 for the six screened (measured: 255 in all)
+    assert s.rep.n_evals - n0 < 24 + 6 * 45
+
+
 def test_a_block_that_runs_to_an_end_of_its_range_is_not_kept_and_the_right_kind_is():
     """A load reading rate-limited at 10 kN/s (its sensor's span is 50 kN: a fifth of a span a second): a dead zone
     of the reading lowers the residual only by running to the widest its range allows (zeroing a reading the model
