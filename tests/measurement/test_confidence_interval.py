@@ -55,3 +55,27 @@ def test_compare_prints_and_stores_an_unbounded_interval_as_such():
     json.dumps([row], allow_nan=False)
     text = describe_model(ModelSpec(effects={"coulomb_friction": {"Fc": 300.0}}), ci=[row])
     assert "Fc = 300 N (95 % CI 12.5 to unbounded)" in text
+
+
+def test_a_number_the_data_do_not_inform_is_unbounded_not_exactly_known():
+    """On the valve bench alone (its ports joined through the meter, no piston) the valve's gain K is fitted and
+    known to a fraction of a percent; a friction on the piston does not enter the bench's replay at all: its
+    interval is the whole range the effect allows, not the zero width the pseudo-inverse gives a number with no
+    variance."""
+    from ehas_env.diagnosis.fitting import baseline_params, confidence, fit, own_params, start_value
+    from ehas_env.measurement.campaign import Campaign, validate_run
+    from ehas_env.measurement.replay import ModelSpec, Replayer
+    from ehas_env.measurement.synthetic import simulate_campaign
+    from ehas_env.physics.effects import get_effect
+
+    runs, _ = simulate_campaign(seed=5, plan=(), duration=2.0)
+    rep = Replayer(Campaign(None, [validate_run(n, c, m) for n, c, m in runs]))
+    assert [c.run.kind for c in rep.cases] == ["valve_open_loop"]
+    free = [fp for fp in baseline_params() if fp.name == "K"] + own_params("coulomb_friction")
+    f = fit(rep, free, {(fp.effect, fp.name): start_value(fp) for fp in free},
+            ModelSpec(effects={"coulomb_friction": {}}), max_nfev=8, tol=1e-3)
+    ci = confidence(rep, f)
+    k_lo, k_hi = ci[(None, "K")]
+    assert 0.0 < (k_hi - k_lo) < 0.05 * f.model.K
+    # unbounded either way: the whole range the effect allows
+    assert ci[("coulomb_friction", "Fc")] == get_effect("coulomb_friction").param("Fc").bounds
