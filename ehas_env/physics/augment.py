@@ -115,15 +115,15 @@ READING_PLACES = _reading_places()
 
 #: every place where a signal passes on: the valve's coil (the current the torque motor acts on, a chain without a
 #: rate: its followers start at 0 mA, the current at rest), the position sensor's reading (its rate is the piston's
-#: velocity), and every sensed output's reading the model has a rate of (the flow meter's reading has none: the
-#: model's flow there is the land's plus the valve's side flows, which the state rates do not see)
+#: velocity), and every sensed output's reading (the flow meter's has no rate in the balances: its followers keep
+#: what they pass on, from 0 L/min at rest, the flow the model meters computed for them, ``q``)
 SIGNAL_PLACES = (
     # the coil is in the loop too, but its lag as a rival of a command delay is the structural hypothesis
     # hyp_coil_lag (tried by the hypotheses stage): not twice
     SignalPlace("coil_current", "coil", "i", None, "mA", 10.0, (1.0, "mA"), "the valve's current path (command to coil)"),
     SignalPlace("position_reading", "position_sensor", "x", "v", "m", 0.05, (1.0e3, "mm"),
                 "the position sensor's reading", in_loop=True),
-) + tuple(p for p in READING_PLACES if p.rate)  # a reading's follower keeps its error: it needs the reading's rate
+) + READING_PLACES  # a reading's follower keeps its error where the reading has a rate, itself where not
 
 
 class Follower(Augmentation):

@@ -326,6 +326,14 @@ class ModelSource:
                         if at_lands else "False"))
         a("")
         a('@njit(cache=True, inline="always")')
+        a("def metered_flow(s, P):")
+        a('    """The flow the meter in line A sees at the valve\'s port, m^3/s, before its reading chain: the land\'s')
+        a('    flow at the ports\' pressures and the valve-side effects\' flows (measure; a follower of the meter)."""')
+        a("    pva, pvb = port_pressures(s, P)")
+        a("    qa, _, _ = lands(s[2], pva, pvb, s[6], P)")
+        a("    return qa + valve_side_flows(s[2], pva, pvb, s[6], P)[0]")
+        a("")
+        a('@njit(cache=True, inline="always")')
         a("def valve_side_flows(qc, pa, pb, ps, P):")
         a('    """Flows into lines A and B added at the valve\'s lands by valve-side effects (Effect.valve_side),')
         a('    m^3/s: what meters in the lines read beyond the critically lapped lands\' flows."""')
@@ -430,6 +438,9 @@ class ModelSource:
             for out, (arg, _, rate, _, _) in layout.SENSED.items():
                 if rate:
                     a(f"    {arg}_rate = {rate}")
+        if any("q" in c.term_args("state_rates") for c in rated if "state_rates" in c.terms()):
+            # the flow meter's reading before its chain (it has no rate in the balances: a follower keeps its own)
+            a("    q = metered_flow(s, P)")
         for cls in self.effects:
             if not cls.states or "coil_current" in cls.terms():  # a coil effect's rates: in coil_current
                 continue

@@ -100,11 +100,9 @@ def measure(s, P, out):
     th = math.asin(min(max(s[7] / r, -1.0), 1.0))
     out[O_THETA] = math.asin(min(max(position_reading(s[7], P, s) / r, -1.0), 1.0))
     out[O_OMEGA] = s[8] / (r * math.cos(th))
-    # the meter in line A sits at the valve's port: the land's flow at the port's pressures
-    pva, pvb = port_pressures(s, P)
-    qa, _, _ = lands(s[2], pva, pvb, s[6], P)
-    # every sensed output through its reading place (ehas_env.physics.layout.SENSED)
-    out[O_FLOW] = flow_a_reading(qa + valve_side_flows(s[2], pva, pvb, s[6], P)[0], P, s)
+    # the meter in line A sits at the valve's port: the land's flow at the port's pressures; every sensed output
+    # through its reading place (ehas_env.physics.layout.SENSED)
+    out[O_FLOW] = flow_a_reading(metered_flow(s, P), P, s)
     out[O_PA] = pa_reading(s[4], P, s)
     out[O_PB] = pb_reading(s[5], P, s)
     out[O_PS] = ps_reading(s[6], P, s)

@@ -79,13 +79,40 @@ def coil_current(state: dict, i: float, p: dict) -> tuple[float, dict]:
     return i, rates
 
 
+def lands(qc: float, pa: float, pb: float, ps: float, p: dict) -> tuple:
+    """Merritt's per-land law between the pressures at the supply and return lands (the supply's and the tank's 0,
+    unless the effects' ``land_pressures`` chain changes them): (Q into A, Q into B, Q from supply)."""
+    half = p["rated_drop"] / 2.0
+    p_sup, p_ret = ps, 0.0
+    for name in _chain("land_pressures", p):
+        p_sup, p_ret = _term(name, "land_pressures", p, {"qc": qc, "ps": ps, "p_sup": p_sup, "p_ret": p_ret})
+    if qc >= 0.0:
+        q_a = qc * _root(p_sup - pa, half)
+        return q_a, -qc * _root(pb - p_ret, half), q_a
+    q_b = -qc * _root(p_sup - pb, half)
+    return qc * _root(pa - p_ret, half), q_b, q_b
+
+
+def metered_flow(state: dict, p: dict) -> float:
+    """The flow the meter in line A reads before its chain: the land's flow at the ports' pressures (the chambers'
+    unless a ``port_pressures`` term puts a line between) and the valve-side effects' flows there."""
+    qc, ps = state["qc"], state["ps"]
+    own = {k: v for k, v in state.items() if "." in k}
+    pva, pvb = state["pa"], state["pb"]
+    for name in _chain("port_pressures", p):
+        pva, pvb = _term(name, "port_pressures", p, {**own, "pa": pva, "pb": pvb})
+    q_a, q_b, q_s = lands(qc, pva, pvb, ps, p)
+    ctx = {"qc": qc, "pa": pva, "pb": pvb, "ps": ps, "p_load": pva - pvb, "q_a": q_a, "q_b": q_b, "q_supply": q_s}
+    side = [n for n in _chain("chamber_flows", p) if REGISTRY[n].valve_side]
+    return q_a + sum(_term(n, "chamber_flows", p, ctx)[0] for n in sorted(side))
+
+
 def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     """Time derivatives of the named state for the valve current ``i_valve_mA`` (after the current chain)."""
     th, om = state["theta"], state["omega"]
     qc, qcd = state["qc"], state["qc_dot"]
     pa, pb, ps = state["pa"], state["pb"], state["ps"]
     r, A = p["radius"], p["area"]
-    half = p["rated_drop"] / 2.0
     d = {}
     i_valve_mA, coil_rates = coil_current(state, i_valve_mA, p)
     d.update(coil_rates)
@@ -103,15 +130,8 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
         d["qc_dot"] = p["wn"] ** 2 * (p["K"] * i_valve_mA - qc) - 2.0 * p["zeta"] * p["wn"] * qcd
         d["theta_a"] = d["omega_a"] = 0.0
 
-    # per-land orifice law, tank at 0
-    if qc >= 0.0:
-        q_a = qc * _root(ps - pa, half)
-        q_b = -qc * _root(pb - 0.0, half)
-        q_supply = q_a
-    else:
-        q_a = qc * _root(pa - 0.0, half)
-        q_b = -qc * _root(ps - pb, half)
-        q_supply = q_b
+    # per-land orifice law, between the pressures at the lands
+    q_a, q_b, q_supply = lands(qc, pa, pb, ps, p)
 
     joint = any(p.get(f"{n}.on") and "joint_force" in REGISTRY[n].terms() for n in REGISTRY)
     if joint:
@@ -148,6 +168,7 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
     d["ps"] = sum(v for _, v in _terms("supply_rate", p, ctx))
     # the sensors' quantities move at these rates (a lag of a pressure reading follows them)
     ctx.update(pa_rate=d["pa"], pb_rate=d["pb"], ps_rate=d["ps"], f_rate=A * (d["pa"] - d["pb"]))
+    ctx["q"] = metered_flow(state, p)  # the flow meter's reading has no rate: its followers get the reading
     for name in sorted(n for n in REGISTRY if REGISTRY[n].states and "coil_current" not in REGISTRY[n].terms()):
         d.update(_own_rates(name, p, ctx))
     return d

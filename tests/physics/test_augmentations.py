@@ -24,7 +24,8 @@ def test_every_kind_has_a_place_registered_and_named():
     assert set(augment.followers()) <= set(names)
     assert len(augment.FOLLOWERS) == sum(1 for k in augment.FOLLOWER_KINDS for p in augment.SIGNAL_PLACES
                                          if p.rate or not k.needs_rate)
-    assert len(augment.FOLLOWERS) == len(augment.FOLLOWER_KINDS) * len(augment.SIGNAL_PLACES) - 1  # no coil delay
+    # no delay at the coil or the flow meter: neither has a rate in the balances (a delay passes 2 y - u)
+    assert len(augment.FOLLOWERS) == len(augment.FOLLOWER_KINDS) * len(augment.SIGNAL_PLACES) - 2
     assert {c.name for c in augment.FOLLOWERS} <= set(augment.followers())
     for n in [n for n in names if n != "backlash"]:
         cls = REGISTRY[n]
@@ -364,3 +365,21 @@ def test_a_delayed_reading_is_the_reading_shifted_by_the_delay():
     assert np.sqrt(np.mean((late.p_b_bar - shifted)[k] ** 2)) < 0.01 * moved
     np.testing.assert_array_equal(late.theta_deg, plain.theta_deg)
     assert "aug_delay_coil" not in augment.followers() and "aug_delay_position_sensor" in augment.followers()
+
+
+def test_a_flow_meter_lag_is_the_first_order_filter_of_the_metered_flow():
+    """The flow meter's reading has no rate in the balances: its lag keeps the reading itself, from 0 L/min at
+    rest, fed the flow the model meters (the land's at the port's pressures). The logged flow is the plain run's
+    flow through T y' = u - y from 0 (scipy's lsim, independent of the model); nothing else moves."""
+    from scipy import signal
+
+    T_ms = 4.0
+    plain = Plant(disc_sets=3).simulate_closed_loop(amplitude_deg=20.0, freq_hz=2.0, cycles=3)
+    lagged = Plant(disc_sets=3, effects={"aug_lag_flow_a_reading": {"T": T_ms}}).simulate_closed_loop(
+        amplitude_deg=20.0, freq_hz=2.0, cycles=3)
+    np.testing.assert_array_equal(lagged.theta_deg, plain.theta_deg)
+    u = plain.flow_lpm
+    _, want, _ = signal.lsim(([1.0], [T_ms * 1e-3, 1.0]), u, plain.t - plain.t[0])
+    moved = np.max(np.abs(lagged.flow_lpm - u))
+    assert moved > 0.2  # L/min: the lag shows
+    assert np.max(np.abs(lagged.flow_lpm - want)) < 0.03 * moved

@@ -38,6 +38,32 @@ def test_kernel_rhs_matches_reference(effect):
         assert_rhs_matches_twin(plant, s, rng.uniform(-20, 20))
 
 
+def _balance_terms():
+    from ehas_env.physics.balance_blocks import balance_blocks
+
+    return balance_blocks()
+
+
+@pytest.mark.parametrize("effect", _balance_terms())
+def test_kernel_rhs_matches_reference_with_a_term_at_a_balance(effect):
+    """A static term at a balance at a size that acts (its default size is 0: nothing to compare), the break
+    inside the states drawn: the compiled right-hand side and the plain-Python twin's agree (the lands' pressures,
+    the chambers' flows, the piston's force, the crank's torque)."""
+    cls = REGISTRY[effect]
+    params = {"c": 0.3 * cls.param("c").bounds[1]}
+    if any(p.name == "k" for p in cls.params):
+        params["k"] = 0.3 * cls.balance_place.q_span
+    rng = np.random.default_rng(11)
+    plant = Plant(disc_sets=4, effects={effect: params})
+    for _ in range(20):
+        s = np.array([
+            rng.uniform(-0.6, 0.6), rng.uniform(-12, 12), rng.uniform(-4e-4, 4e-4), rng.uniform(-0.05, 0.05),
+            rng.uniform(10e5, 210e5), rng.uniform(10e5, 210e5), rng.uniform(150e5, 220e5), 0.0, rng.uniform(-0.1, 0.1),
+        ])
+        s[7] = 0.05 * math.sin(s[0]) + rng.uniform(-4e-4, 4e-4)
+        assert_rhs_matches_twin(plant, s, rng.uniform(-20, 20))
+
+
 # -- analytic checks -----------------------------------------------------------
 
 def test_clamped_piston_steady_flow_is_merritt():

@@ -72,7 +72,8 @@ PLACE_QUANTITIES["land_pressures"] = frozenset({"qc", "ps", "p_sup", "p_ret"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
 #: the sensed outputs' rates, known where the effects' state rates are computed (after the balances)
 RATE_QUANTITIES = tuple(f"{arg}_rate" for arg, _, rate, _, _ in _SENSED.values() if rate)
-PLACE_QUANTITIES["state_rates"] = frozenset(_AT_RATES + RATE_QUANTITIES)
+#: and the flow meter's reading before its chain (``q``: computed for the state rates only when a term takes it)
+PLACE_QUANTITIES["state_rates"] = frozenset(_AT_RATES + RATE_QUANTITIES + ("q",))
 for _out, (_arg, *_rest) in _SENSED.items():
     PLACE_QUANTITIES[f"{_out}_reading"] = frozenset({_arg})
 #: the quantities a valve-side chamber_flows term (``Effect.valve_side``) may take: the valve's own, known
