@@ -1,4 +1,4 @@
-"""proposed_d00_saturation_return: a term proposed by ehas diagnose for /tmp/drawnAw/d00_saturation@return/campaign.
+"""proposed_d00_saturation_return: a term proposed by ehas diagnose for /tmp/dr1_work/d00_saturation@return/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_ret·the outflow land's flow times -1 / (2 p_out): return back-pressure   with c_ret = 2.159e+05 Pa (95 % CI 2.086e+05 to 2.232e+05)
 

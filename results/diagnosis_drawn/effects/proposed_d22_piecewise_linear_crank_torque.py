@@ -1,8 +1,8 @@
-"""proposed_d22_piecewise_linear_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/drawnAw/d22_piecewise_linear@crank_torque/campaign.
+"""proposed_d22_piecewise_linear_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/dr1_work/d22_piecewise_linear@crank_torque/campaign.
 
-A drag torque on the load grows with the square of its speed: 16.9 N m at 10 rad/s.
-T_10 = 16.93 N m (95 % CI 16.8 to 17.06)
-Residual against what does not repeat: 2.3x -> 1.09x.
+A drag torque on the load grows with the square of its speed: 10.8 N m at 10 rad/s.
+T_10 = 10.8 N m (95 % CI 10.13 to 11.51)
+Residual against what does not repeat: 2.3x -> 1.07x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param
@@ -12,10 +12,10 @@ class ProposedD22PiecewiseLinearCrankTorque(Effect):
     name = "proposed_d22_piecewise_linear_crank_torque"
     title = "drag torque growing with the square of the crank rate"
     params = (
-        Param("T_10", "N m", 16.9283, (0.0, 2000.0),
+        Param("T_10", "N m", 10.7995, (0.0, 2000.0),
               "drag torque on the crank at 10 rad/s (air or oil drag on the discs, a fan, a damper; assumed "
               "range: up to the torque the actuator gives at a fifth of its stall force)",
-              typical=(8.46413, 33.8565), log_scale=True),
+              typical=(5.39974, 21.599), log_scale=True),
     )
     main_param = "T_10"
     explanation = (

@@ -1,4 +1,4 @@
-"""proposed_d23_volume_chamber_b: dead volume of each chamber (hoses, ports, manifolds), found by ehas diagnose on /tmp/drawnBw/d23_volume@chamber_b/campaign.
+"""proposed_d23_volume_chamber_b: dead volume of each chamber (hoses, ports, manifolds), found by ehas diagnose on /tmp/dr2_work/d23_volume@chamber_b/campaign.
 
 The dead volumes are 22.3 cm^3 on chamber A's side and 38 cm^3 on chamber B's (the baseline: 20 each).
 dV_a = 2.321 cm^3 (95 % CI -6.723 to 11.37)

@@ -1,58 +1,25 @@
-"""proposed_d24_volume_chamber_b: entrained air: a bulk modulus that falls at low pressure, found by ehas diagnose on /tmp/drawnAw/d24_volume@chamber_b/campaign.
+"""proposed_d24_volume_chamber_b: a term proposed by ehas diagnose for /tmp/dr1_work/d24_volume@chamber_b/campaign.
 
-The oil carries 4.87 % of free air (at atmospheric pressure): its bulk modulus is 0.20 of the oil's at 10 bar, nearly the oil's at 100 bar.
-air = 4.867 % (95 % CI 0.1545 to 50)
-Residual against what does not repeat: 5.09x -> 4.14x.
-Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+T_crank [N m] += c_th3·theta^3   with c_th3 = -34.43 N m/rad^3 (95 % CI -39.36 to -29.51)
+
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 4.27 -> 3.77; fit 81.7 % -> 82.0 %.
+Rename the file, the class and ``name``, give the parameters physical names and documentation,
+then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param
 
 
 class ProposedD24VolumeChamberB(Effect):
     name = "proposed_d24_volume_chamber_b"
-    title = "entrained air: a bulk modulus that falls at low pressure"
+    title = "proposed term (crank torque)"
     params = (
-        Param("air", "%", 4.86738, (0.0, 50.0),
-              "volume of free air in the oil at atmospheric pressure, per cent of the oil's volume, in the "
-              "isothermal law (assumed range: 0.1 % for well-bled systems to several % for aerated ones; the bound "
-              "is wider because air that compresses polytropically, exponent n up to 1.4, gives the isothermal law's "
-              "compressibility at 10-100 bar with (p / p_atm)^(1 - 1/n) / n = 1.4-2.7 times its own fraction)",
-              typical=(2.43369, 9.73477), log_scale=True, si=0.01),
+        Param("t_th3", "N m/rad^3", 34.4327, (0.0, 688.653),
+              "hardening spring: torque per rad^3 (fitted: -34.43, 95 % CI -39.36 to -29.51)", typical=(17.2163, 68.8653)),
     )
-    constants = (
-        Param("p_atm", "Pa", 1.0e5, (0.0, 1e6), "atmospheric pressure; chamber pressures are gauge (book: tank at 0)"),
-        Param("p_min", "Pa", 2.0e4, (0.0, 1e6),
-              "least absolute pressure the air's law is evaluated at (assumed: dissolved gas keeps a cavitating "
-              "chamber from the law's singularity)"),
-    )
-    main_param = "air"
-    # a lower constant bulk modulus takes up part of its signature (the library's recalibration of beta)
-    mistaken_for = ("bulk_modulus",)
-    explanation = (
-        "Air bubbles in the oil are compressed isothermally: a volume fraction a at atmospheric pressure adds "
-        "a p_atm / p^2 to the fluid's compressibility, 1 / beta_eff = 1 / beta + a p_atm / p^2 (p absolute). "
-        "The oil is soft at low chamber pressure and stiff at high: unlike a lower constant bulk modulus, the "
-        "hydraulic spring changes over each cycle with the pressures."
-    )
-    signature = (
-        "pressure residuals largest where a chamber is near tank pressure (the draining side), small at high "
-        "pressure; a hydraulic resonance that shifts over the cycle; a constant bulk modulus fitted to it "
-        "differs between runs at different pressures."
-    )
-
-    @classmethod
-    def in_words(cls, params: dict) -> str:
-        """The fitted hypothesis in words."""
-        a = params["air"] * 0.01
-        at10 = 1.0 / (1.0 + 1.0e9 * a * 1.0e5 / (11.0e5) ** 2)
-        return (f"the oil carries {params['air']:.3g} % of free air (at atmospheric pressure): its bulk modulus is "
-                f"{at10:.2f} of the oil's at 10 bar, nearly the oil's at 100 bar")
+    main_param = "t_th3"
+    explanation = 'Proposed by the diagnosis, not yet a physical explanation: T_crank [N m] += c_th3·theta^3 with c_th3 = -34.43 N m/rad^3 (95 % CI -39.36 to -29.51)'
+    signature = 'the residual it was fitted to: theta^3'
 
     @staticmethod
-    def chamber_flows(pa, pb, q_a, q_b, v, area, beta, air, p_atm, p_min):
-        # continuity with beta_eff instead of beta: the extra flow that scales the chamber's rate by beta_eff/beta
-        pa_abs = max(pa + p_atm, p_min)
-        pb_abs = max(pb + p_atm, p_min)
-        ra = 1.0 / (1.0 + beta * air * p_atm / (pa_abs * pa_abs))
-        rb = 1.0 / (1.0 + beta * air * p_atm / (pb_abs * pb_abs))
-        return (q_a - area * v) * (ra - 1.0), (q_b + area * v) * (rb - 1.0)
+    def crank_torque(theta, t_th3):
+        return -(t_th3 * theta ** 3)
