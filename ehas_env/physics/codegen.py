@@ -164,6 +164,12 @@ class ModelSource:
     def _on(self, cls) -> str:
         return f"P[{self.idx[f'{cls.name}.on']}] != 0.0"
 
+    def _any_on(self, classes) -> str:
+        """The expression that is true when any of ``classes`` is on (``False`` for none)."""
+        if not classes:
+            return "False"
+        return "P[I_EFFECTS_ON] != 0.0 and (" + " or ".join(f"({self._on(c)})" for c in classes) + ")"
+
     def _with(self, place: str):
         return [c for c in self.effects if place in c.terms()]
 
@@ -322,8 +328,7 @@ class ModelSource:
         a('@njit(cache=True, inline="always")')
         a("def lands_changed(P):")
         a('    """True when an effect changes the pressures at the lands (the valve bench then bisects)."""')
-        a("    return " + ("P[I_EFFECTS_ON] != 0.0 and (" + " or ".join(f"({self._on(c)})" for c in at_lands) + ")"
-                        if at_lands else "False"))
+        a("    return " + self._any_on(at_lands))
         a("")
         a('@njit(cache=True, inline="always")')
         a("def metered_flow(s, P):")
@@ -358,8 +363,7 @@ class ModelSource:
         a('@njit(cache=True, inline="always")')
         a("def two_body(P):")
         a('    """True when a rod-joint effect is on: piston and crank are separate bodies."""')
-        a("    return " + ("P[I_EFFECTS_ON] != 0.0 and (" + " or ".join(f"({self._on(c)})" for c in joint) + ")"
-                        if joint else "False"))
+        a("    return " + self._any_on(joint))
         a("")
         a('@njit(cache=True, inline="always")')
         a("def derivatives(s, i_valve, P, ds):")
