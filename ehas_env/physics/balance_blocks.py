@@ -10,11 +10,13 @@ knows (dead zone, saturation, polynomial), put inside the physical model where t
 * **Places** (:data:`BALANCE_PLACES`): every balance the model computes with each of its own rate-setting local
   quantities -- the piston's force balance with the piston's velocity, the crank's torque balance with its rate,
   each chamber's flow balance with its pressure, and the pressures at the valve's supply and return lands with the
-  valve's opening (a chain the lands meter between: ``lands`` of the compiled model).  A place is one
+  valve's opening (a chain the lands meter between: ``lands`` of the compiled model), and each land's flow out of its
+  port with that flow (the chain after the orifice law, ``land_flows``).  A place is one
   :class:`BalancePlace` (what the balance returns, which quantity, their units and typical sizes on the rig, their
   words); its quantity must be one the model defines where that balance's terms are called (checked against
   :data:`~ehas_env.physics.effects.base.PLACE_QUANTITIES`), so a place the model cannot compute is refused.
-* **Kinds** (:data:`BALANCE_KINDS`): :class:`Proportional` (the linear block), :class:`Beyond` (a dead zone: zero
+* **Kinds** (:data:`BALANCE_KINDS`): :class:`Constant` (the offset block), :class:`Proportional` (the linear
+  block), :class:`Beyond` (a dead zone: zero
   within +-k, rising with a slope beyond), :class:`Saturating` (proportional within +-k, a constant level beyond:
   friction-like), :class:`Cubic` (a hardening or softening term).  A kind is one class with its law (an expression
   of the quantity ``u``, its parameters and the place's scale ``S``), its parameters (sized by the place), words
@@ -117,6 +119,13 @@ BALANCE_PLACES = (
                  "p_sup, p_ret + t", "the return pressure at the valve's lands",
                  "the valve's opening (as no-load flow, either way)", centred=False, chain=("p_sup", "p_ret"),
                  value="abs(qc)"),
+    # each land's flow out of its port (a chain after the orifice law: ``lands`` of the compiled model), with that
+    # flow itself: a land that passes more or less than the law says (a worn edge, a leak past the land), which
+    # the flow meter in line A sees as the chamber does
+    BalancePlace("land_flows", "land_a", "q_a", "m^3/s", 25.0 / 60000.0, _LPM, "m^3/s", 25.0 / 60000.0, _LPM,
+                 "q_a + t, q_b", "land A's flow (out of the valve's port A)", "land A's flow", chain=("q_a", "q_b")),
+    BalancePlace("land_flows", "land_b", "q_b", "m^3/s", 25.0 / 60000.0, _LPM, "m^3/s", 25.0 / 60000.0, _LPM,
+                 "q_a, q_b + t", "land B's flow (out of the valve's port B)", "land B's flow", chain=("q_a", "q_b")),
 )
 
 
@@ -189,7 +198,8 @@ class BalanceStatic(Augmentation):
         name = f"aug_{cls.stem}_{place.short}"
         check_place(place)
         params = cls.kind_params(place)
-        args = ", ".join([place.quantity, *place.chain] + [p.name for p in params] + ["S"])
+        args = ", ".join([place.quantity] + [q for q in place.chain if q != place.quantity]
+                         + [p.name for p in params] + ["S"])
         text = (f"def {place.place}({args}):\n    u = {place.value or place.quantity}\n    t = {cls.expr}\n"
                 f"    return {place.returns}\n")
         scale = Param("S", place.q_unit, place.q_span, (0.0, 1.0e30),
@@ -214,6 +224,34 @@ class BalanceStatic(Augmentation):
     def _c(cls, value: float, ci=None) -> str:
         f, unit = cls.balance_place.out_shown
         return f"{fmt_interval(value, ci, f)} {unit}"
+
+
+class Constant(BalanceStatic):
+    """A constant term (the offset block): a constant force or torque, a constant leak into or out of one chamber,
+    a land that passes a constant flow more or less than the orifice law, a constant drop or back pressure at the
+    lands."""
+
+    form = "a constant term"
+    stem = "const"
+    kind_title = "constant term"
+    expr = "c"
+    explanation = "The balance gets a constant term, whatever the quantity does."
+    signature = ("a residual of one sign that the loop works against on every run alike (a steady offset of the "
+                 "pressures or the current that holds it), the same on small runs as on large ones.")
+
+    @classmethod
+    def fits(cls, place: BalancePlace) -> bool:
+        """A constant term belongs to the balance, not to a quantity: it is put at the first of the built-in places
+        of each balance (a place of one's own at a balance already there, the crank's torque with its angle, would
+        be the same term again)."""
+        same = [p for p in BALANCE_PLACES if (p.place, p.returns) == (place.place, place.returns)]
+        return not same or same[0] == place
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a constant term of -0.64 L/min added to land A's flow (out of the valve's port A)"."""
+        ci = ci or {}
+        return f"a constant term of {cls._c(params['c'], ci.get('c'))} added to {cls.balance_place.where}"
 
 
 class Proportional(BalanceStatic):
@@ -306,7 +344,7 @@ class Cubic(BalanceStatic):
 
 
 #: the kinds of static term at a balance, each applied at every balance place it fits
-BALANCE_KINDS = (Proportional, Beyond, Saturating, Cubic)
+BALANCE_KINDS = (Constant, Proportional, Beyond, Saturating, Cubic)
 BALANCE_BLOCKS = tuple(kind.at(place) for kind in BALANCE_KINDS for place in BALANCE_PLACES if kind.fits(place))
 
 

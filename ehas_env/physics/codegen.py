@@ -315,7 +315,8 @@ class ModelSource:
         a("def lands(qc, pa, pb, ps, P):")
         a('    """The lands\' flows (Q into A, Q into B, Q from supply), m^3/s: the baseline\'s orifice law at the')
         a('    pressures at the supply and return lands -- the supply\'s and the tank\'s 0 unless an effect\'s')
-        a('    land_pressures term puts a line\'s drop or a back pressure between."""')
+        a('    land_pressures term puts a line\'s drop or a back pressure between; then each land\'s flow as the')
+        a('    effects\' land_flows terms change it (the supply\'s draw stays the orifice law\'s)."""')
         a("    p_sup, p_ret = ps, 0.0")
         at_lands = self._with("land_pressures")
         if at_lands:
@@ -323,12 +324,22 @@ class ModelSource:
             for cls in at_lands:
                 a(f"        if {self._on(cls)}:")
                 a(f"            p_sup, p_ret = {self._call(cls, 'land_pressures')}")
-        a("    return land_flows(qc, pa, pb, p_sup, p_ret, P[I_DROP])")
+        at_flows = self._with("land_flows")
+        if not at_flows:
+            a("    return land_flows(qc, pa, pb, p_sup, p_ret, P[I_DROP])")
+        else:
+            a("    q_a, q_b, q_supply = land_flows(qc, pa, pb, p_sup, p_ret, P[I_DROP])")
+            a("    if P[I_EFFECTS_ON] != 0.0:")
+            for cls in at_flows:
+                a(f"        if {self._on(cls)}:")
+                a(f"            q_a, q_b = {self._call(cls, 'land_flows')}")
+            a("    return q_a, q_b, q_supply")
         a("")
         a('@njit(cache=True, inline="always")')
         a("def lands_changed(P):")
-        a('    """True when an effect changes the pressures at the lands (the valve bench then bisects)."""')
-        a("    return " + self._any_on(at_lands))
+        a('    """True when an effect changes the pressures at the lands or a land\'s flow (the valve bench then')
+        a('    bisects)."""')
+        a("    return " + self._any_on(at_lands + at_flows))
         a("")
         a('@njit(cache=True, inline="always")')
         a("def metered_flow(s, P):")

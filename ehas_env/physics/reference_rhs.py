@@ -81,16 +81,21 @@ def coil_current(state: dict, i: float, p: dict) -> tuple[float, dict]:
 
 def lands(qc: float, pa: float, pb: float, ps: float, p: dict) -> tuple:
     """Merritt's per-land law between the pressures at the supply and return lands (the supply's and the tank's 0,
-    unless the effects' ``land_pressures`` chain changes them): (Q into A, Q into B, Q from supply)."""
+    unless the effects' ``land_pressures`` chain changes them), each land's flow then as the ``land_flows`` chain
+    changes it: (Q into A, Q into B, Q from supply -- the orifice law's)."""
     half = p["rated_drop"] / 2.0
     p_sup, p_ret = ps, 0.0
     for name in _chain("land_pressures", p):
         p_sup, p_ret = _term(name, "land_pressures", p, {"qc": qc, "ps": ps, "p_sup": p_sup, "p_ret": p_ret})
     if qc >= 0.0:
         q_a = qc * _root(p_sup - pa, half)
-        return q_a, -qc * _root(pb - p_ret, half), q_a
-    q_b = -qc * _root(p_sup - pb, half)
-    return qc * _root(pa - p_ret, half), q_b, q_b
+        q_b, q_s = -qc * _root(pb - p_ret, half), q_a
+    else:
+        q_b = -qc * _root(p_sup - pb, half)
+        q_a, q_s = qc * _root(pa - p_ret, half), q_b
+    for name in _chain("land_flows", p):
+        q_a, q_b = _term(name, "land_flows", p, {"qc": qc, "pa": pa, "pb": pb, "ps": ps, "q_a": q_a, "q_b": q_b})
+    return q_a, q_b, q_s
 
 
 def metered_flow(state: dict, p: dict) -> float:

@@ -190,10 +190,12 @@ for _stem in STEM_BLOCK:
         LIBRARY_PLACE[f"aug_{_stem}_{_out}_reading"] = {_place}
 #: ehas's static terms at a balance (ehas_env/physics/balance_blocks.py, aug_<kind>_<place>): the stem -> the grammar's
 #: kind, the place -> ehas's place (the side narrowed by the words: "chamber A's flow balance")
-BALANCE_STEM_BLOCK = {"prop": "gain", "beyond": "dead_zone", "saturating": "saturation", "cubic": "smooth"}
+BALANCE_STEM_BLOCK = {"const": "offset", "prop": "gain", "beyond": "dead_zone", "saturating": "saturation",
+                      "cubic": "smooth"}
 BALANCE_PLACE = {"piston_velocity": ("piston_force", "friction"), "crank_rate": ("crank_torque", "friction"),
                  "chamber_a": ("chamber_flows", "leakage/flow"), "chamber_b": ("chamber_flows", "leakage/flow"),
-                 "supply": ("supply", "supply/return"), "return": ("return", "supply/return")}
+                 "supply": ("supply", "supply/return"), "return": ("return", "supply/return"),
+                 "land_a": ("chamber_flows", "leakage/flow"), "land_b": ("chamber_flows", "leakage/flow")}
 for _stem in BALANCE_STEM_BLOCK:
     for _short, (_place, _kind) in BALANCE_PLACE.items():
         LIBRARY_KIND[f"aug_{_stem}_{_short}"] = {_kind, "load"} if _kind == "friction" else {_kind}

@@ -7,10 +7,12 @@ import pytest
 from ehas_env.measurement.campaign import Campaign, validate_run
 from ehas_env.diagnosis.candidates import FIT_WINDOW_S, fit_null
 from ehas_env.diagnosis.search import data_stage
+from ehas_env.diagnosis import states
 from ehas_env.diagnosis.states import judge, state_stage
 from ehas_env.measurement.synthetic import simulate_campaign
 from ehas_env.physics.augment import reading_blocks
-from ehas_env.physics.balance_blocks import balance_blocks
+from ehas_env.physics.balance_blocks import BALANCE_KINDS, balance_blocks
+from ehas_env.physics.effects import REGISTRY
 
 #: what the stage tries in these tests: a lag at each of its two places and a link at each of its two (the hoses
 #: and the play are tried by the full list; four keep the test's replays few)
@@ -234,7 +236,7 @@ def test_a_term_at_a_balance_is_told_from_the_other_kinds_there_with_its_size(ef
     with its size and its break within 20 %."""
     s, null = _search({effect: params}, seed)
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=_at_balance(effect))
-    assert len(_at_balance(effect)) == 4
+    assert len(_at_balance(effect)) == len(BALANCE_KINDS)  # the constant term among them
     assert rec["kept"] == effect, rec
     for name, value in params.items():
         assert rec["params"][name] == pytest.approx(value, rel=0.2), rec
@@ -251,10 +253,14 @@ def test_terms_at_other_balances_are_not_screened_where_their_linearisation_remo
     by = {t["effect"]: t for t in rec["tried"]}
     for name, t in by.items():
         if "piston" in name or "crank" in name or name.endswith(("_supply", "_return")):
-            assert "linearisation removes" in t["skipped"] and t["linear_share"] < 0.01, t
+            # below its kind's bar: 1 % with a break to place, half of what a kept term removes without one
+            assert "linearisation removes" in t["skipped"] and t["linear_share"] < states._proxy_bar(
+                REGISTRY[name]) <= 0.034, t
     assert "skipped" not in by["aug_beyond_chamber_a"] and by["aug_beyond_chamber_a"]["linear_share"] > 0.1
-    # one replay for each term skipped; a screen of 15-45 for the six screened (measured: 255 in all)
-    assert s.rep.n_evals - n0 < 24 + 6 * 45
+    # one replay for each term's linearisation; a screen of 15-45 for each screened (measured: 347 in all for the
+    # 40 terms, 10 of them screened -- those at chamber A and B and at the lands A and B, whose flows fill them)
+    screened = [t for t in rec["tried"] if "skipped" not in t]
+    assert len(screened) <= 12 and s.rep.n_evals - n0 < len(rec["tried"]) + 45 * len(screened)
 
 
 def test_a_block_that_runs_to_an_end_of_its_range_is_not_kept_and_the_right_kind_is():

@@ -24,7 +24,15 @@ def test_every_kind_at_every_balance_place_is_registered_tried_and_worded():
         assert cls.kind == "hypothesis" and cls.main_param == "c"
         words = cls.in_words({p.name: p.default or 0.3 * p.bounds[1] for p in cls.params},
                              {p.name: (0.1, 0.2) for p in cls.params})
-        assert cls.where in words and cls.balance_place.words in words and "[" in words
+        assert cls.where in words and "[" in words
+        # a term of the quantity names it (a constant term is none: it names the balance alone)
+        assert cls.balance_place.words in words or issubclass(cls, balance_blocks.Constant)
+    # a constant term belongs to the balance: a place of one's own at a balance already there does not get it again
+    crank_angle = balance_blocks.BalancePlace("crank_torque", "crank_angle", "theta", "rad", 0.5, (57.3, "deg"),
+                                              "N m", 250.0, (1.0, "N m"), "t", "the crank torque balance",
+                                              "the crank angle")
+    assert not balance_blocks.Constant.fits(crank_angle) and balance_blocks.Beyond.fits(crank_angle)
+    assert all(balance_blocks.Constant.fits(p) for p in balance_blocks.BALANCE_PLACES)
 
 
 def test_a_place_the_model_cannot_compute_is_refused():
@@ -80,6 +88,40 @@ def test_a_pressure_at_the_lands_meters_the_bench_flow_as_the_orifice_law_says(e
         cmd, supply_bar=140.0)
     ratio = with_term.flow_lpm[-1] / base.flow_lpm[-1]
     assert ratio == pytest.approx(np.sqrt(120.0 / 140.0), rel=2e-3)
+
+
+def test_a_constant_flow_at_a_land_is_the_chambers_and_the_meter_in_its_line_reads_it():
+    """A land that passes a constant c more than the orifice law (``aug_const_land_a``) fills chamber A as a
+    constant c into chamber A's balance (``aug_const_chamber_a``) does -- the same angle and pressures -- but the
+    flow meter in line A, at the valve's port, sees it: its reading is c above the chamber term's at every sample;
+    land B's term leaves the meter's reading alone."""
+    c = -0.6 / 60000.0  # m^3/s: -0.6 L/min
+    land = _run({"aug_const_land_a": {"c": c}})
+    chamber = _run({"aug_const_chamber_a": {"c": c}})
+    base = _run({})
+    assert np.max(np.abs(land.p_a_bar - base.p_a_bar)) > 0.5  # it acts
+    np.testing.assert_allclose(land.theta_deg, chamber.theta_deg, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(land.p_a_bar, chamber.p_a_bar, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(land.flow_lpm - chamber.flow_lpm, -0.6, rtol=0, atol=1e-6)
+    other = _run({"aug_const_land_b": {"c": c}})
+    chamber_b = _run({"aug_const_chamber_b": {"c": c}})
+    np.testing.assert_allclose(other.p_b_bar, chamber_b.p_b_bar, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(other.flow_lpm, chamber_b.flow_lpm, rtol=0, atol=1e-9)
+
+
+def test_a_land_term_of_its_own_flow_is_added_to_the_orifice_law():
+    """The compiled model's ``lands`` with a cubic term at land B: the orifice law's flows, land B's with
+    c (q_b / S)^3 added, land A's and the supply's draw unchanged."""
+    from ehas_env.physics.baseline import land_flows
+
+    c, span = 0.4 / 60000.0, get_effect("aug_cubic_land_b").balance_place.q_span
+    plant = Plant(disc_sets=1, effects={"aug_cubic_land_b": {"c": c}})
+    P = plant.param_vector
+    for qc, pa, pb in [(2e-4, 120e5, 60e5), (-2e-4, 80e5, 130e5)]:
+        qa, qb, qs = land_flows(qc, pa, pb, 210e5, 0.0, P[plant.model.IDX["rated_drop"]])
+        got = plant.model.lands(qc, pa, pb, 210e5, P)
+        assert got[0] == qa and got[2] == qs
+        assert got[1] == pytest.approx(qb + c * (qb / span) ** 3, rel=1e-12)
 
 
 def test_the_lands_at_the_supply_and_the_tank_are_the_book_model_bit_for_bit():

@@ -41,6 +41,10 @@ PLACES = {
                        "between (gets them so far as arguments p_sup, p_ret: the supply pressure and the tank's 0 "
                        "unless an effect puts a line's drop or a back pressure between; it may use the valve's "
                        "opening qc and the supply pressure ps)"),
+    "land_flows": ("(flow out of the valve's port A, out of port B), m^3/s: what each land passes (gets them so far "
+                   "as arguments q_a, q_b: the orifice law's between the lands' pressures unless an effect changes a "
+                   "land's flow; it may use the valve's opening qc, the ports' pressures pa, pb and the supply "
+                   "pressure ps; the supply's draw stays the orifice law's)"),
     "port_pressures": ("(pressure at the valve's port A, at its port B), Pa: where the flow meter in line A "
                        "meters the land's flow (gets the ports' pressures so far as arguments pa, pb, the "
                        "chambers' unless an effect puts something between; it may read the effect's own states: "
@@ -69,6 +73,7 @@ PLACE_QUANTITIES["position_reading"] = frozenset({"x"})
 PLACE_QUANTITIES["coil_current"] = frozenset({"i"})
 PLACE_QUANTITIES["port_pressures"] = frozenset({"pa", "pb"})
 PLACE_QUANTITIES["land_pressures"] = frozenset({"qc", "ps", "p_sup", "p_ret"})
+PLACE_QUANTITIES["land_flows"] = frozenset({"qc", "pa", "pb", "ps", "q_a", "q_b"})
 PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
 #: the sensed outputs' rates, known where the effects' state rates are computed (after the balances)
 RATE_QUANTITIES = tuple(f"{arg}_rate" for arg, _, rate, _, _ in _SENSED.values() if rate)
@@ -82,7 +87,7 @@ VALVE_SIDE_QUANTITIES = ("qc", "pa", "pb", "ps", "p_load", "q_a", "q_b", "q_supp
 #: what an effect is (Effect.kind)
 KINDS = ("physical", "recalibration", "hypothesis")
 #: how many numbers a term returns at each place (state_rates: one per state, a number for one state)
-RETURNS = {"chamber_flows": 2, "port_pressures": 2, "land_pressures": 2}
+RETURNS = {"chamber_flows": 2, "port_pressures": 2, "land_pressures": 2, "land_flows": 2}
 #: the only outside names a term's body may use: the compiled model copies the body alone into a module
 #: that imports these (ehas_env.physics.codegen)
 TERM_GLOBALS = ("math", "np")
