@@ -367,8 +367,8 @@ def run_one(args) -> int:
     for line in _findings_lines(res):  # per-run drift, disturbances, fits on a bound (issue 33)
         print(line)
     written = next_line = None
-    if res.state:  # a generic augmentation kept (the states stage's, or one fitted in place of a library effect)
-        print(f"missing state kept: {res.state} ({get_effect(res.state).in_words(res.model.effects[res.state])})")
+    for name in res.states:  # generic augmentations kept (the states stage's, or one fitted in place of an effect)
+        print(f"missing state kept: {name} ({get_effect(name).in_words(res.model.effects[name])})")
     hyp = res.hypothesis
     if hyp is not None:
         h = res.hypothesis_json()
@@ -421,7 +421,8 @@ def run_one(args) -> int:
                                  values=res.model.effects)
         print("next: " + next_line)
     elapsed = time.perf_counter() - t0
-    print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
+    print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays, "
+          f"{getattr(res, 'n_coarse', 0)} of them coarse)")
 
     command = "ehas diagnose " + " ".join(shlex.quote(a) for a in _argv())
     from ehas_env.output.files import atomic_write_text

@@ -397,10 +397,12 @@ def _model(page, doc: dict) -> None:
         page.heading("Structural hypothesis kept")
         page.paragraph(". ".join(str(hyp[k]) for k in ("title", "words") if hyp.get(k)) + ". Fitted: "
                        + _values_text(hyp.get("params"), hyp.get("units"), hyp.get("ci95")))
-    state = doc.get("state")
-    if isinstance(state, dict) and state.get("words"):
-        page.heading("Missing state kept")
-        page.paragraph(f"{state.get('kept', '')}: {state['words']}")
+    states = doc.get("states") if isinstance(doc.get("states"), list) else [doc.get("state")]
+    states = [st for st in states if isinstance(st, dict) and st.get("words")]
+    if states:
+        page.heading("Missing state kept" if len(states) == 1 else "Missing states kept")
+        for st in states:
+            page.paragraph(f"{st.get('kept', '')}: {st['words']}")
 
 
 def _search(page, doc: dict) -> None:

@@ -74,6 +74,7 @@ class OpenDiagnosis:
     stages: list = field(default_factory=list)  # one record per stage run (STAGES): stage, elapsed_s, what it found
     elapsed_s: float = 0.0
     n_evals: int = 0
+    n_coarse: int = 0  # of n_evals, the replays a fit steered by at fewer sub-steps (fitting.COARSE_SUBSTEPS)
 
     @property
     def verdict(self) -> str:
@@ -97,9 +98,14 @@ class OpenDiagnosis:
 
     @property
     def state(self) -> str | None:
-        """The generic augmentation (a missing state, :mod:`ehas_env.physics.augment`) in the final model, if one
-        was kept."""
-        return next((n for n in self.model.effects if issubclass(get_effect(n), Augmentation)), None)
+        """The first generic augmentation (a missing state, :mod:`ehas_env.physics.augment`) in the final model, if
+        one was kept."""
+        return next(iter(self.states), None)
+
+    @property
+    def states(self) -> list[str]:
+        """Every generic augmentation in the final model (the states stage keeps up to ``MAX_STATES``)."""
+        return [n for n in self.model.effects if issubclass(get_effect(n), Augmentation)]
 
     def hypothesis_json(self) -> dict | None:
         """The kept hypothesis: effect, values, 95 % intervals, in words (None when none was kept)."""
@@ -163,10 +169,12 @@ class OpenDiagnosis:
         doc["disturbances"] = self.disturbances
         doc["stages"] = self.stages
         # a missing state kept (the states stage's record: the augmentation, its values with intervals, in words)
-        doc["state"] = next(({k: r[k] for k in ("kept", "words", "params", "ci95", "residual_x_noise_all_before",
-                                                "residual_x_noise_all_after") if k in r}
-                             for r in self.stages if r.get("stage") == "states" and r.get("kept")
-                             and r["kept"] in self.model.effects), None)
+        # every missing state kept, in the order found (the states stage's first search, then those on top of it)
+        doc["states"] = [{k: r[k] for k in ("kept", "words", "params", "ci95", "residual_x_noise_all_before",
+                                            "residual_x_noise_all_after") if k in r}
+                         for st in self.stages if st.get("stage") == "states"
+                         for r in [st, *(st.get("more") or [])] if r.get("kept") and r["kept"] in self.model.effects]
+        doc["state"] = doc["states"][0] if doc["states"] else None  # the first (as before a second was looked for)
         doc["measured_inputs"] = self.measured_inputs
         return doc
 
@@ -200,13 +208,19 @@ def measured_inputs_stage(s: Search) -> dict:
     return rec
 
 
+#: missing blocks the states stage keeps one after another: a second is looked for on top of the first where the
+#: first leaves the campaign unexplained (two blocks hidden in one rig: each alone closes only part of the miss)
+MAX_STATES = 2
+
+
 def states_stage(s: Search) -> dict:
     """The stage of missing states: when the model kept leaves more than a residual of ``STATE_TRIGGER`` x noise,
     each generic augmentation (a lag in a signal path, a compliance with a mass in a link, a volume with a
-    resistance in a line, play in a joint: :mod:`ehas_env.physics.augment`) is tried place by place on top of it
-    (:func:`ehas_env.diagnosis.states.state_stage`); the best is kept when it removes a tenth of the
-    excess over the noise and lowers the validation residual.  An effect kept before it that it stood in for is
-    refitted away (as for a structural hypothesis).
+    resistance in a line, play in a joint, a static term at a balance: :mod:`ehas_env.physics.augment`) is tried
+    place by place on top of it (:func:`ehas_env.diagnosis.states.state_stage`); the best is kept when it removes a
+    tenth of the excess over the noise and lowers the validation residual.  An effect kept before it that it stood in
+    for is refitted away (as for a structural hypothesis).  Where one is kept and the residual still asks, the
+    search runs again on top of it, up to :data:`MAX_STATES` blocks.
 
     Parameters
     ----------
@@ -216,38 +230,55 @@ def states_stage(s: Search) -> dict:
     Returns
     -------
     dict
-        The stage's record (``tried``, ``kept``, ``params``, ``ci95``, residuals before and after, ``words``,
-        ``skipped``).
+        The first search's record (``tried``, ``kept``, ``params``, ``ci95``, residuals before and after, ``words``,
+        ``skipped``) and ``more``: the records of the searches on top of it (each as the first's), when any ran.
     """
     if not s.options.get("states", True):
         return {"skipped": "not asked for", "kept": None}
     bare = s.bare[0] if s.bare is not None and not s.full.inputs else None
     f, rec = state_stage(s.rep, s.full, s.current, s.parts, s.say, bare=bare)
-    if f is not None:
-        name = rec["kept"]
-        sims = s.full.simulate(f.model)
-        val = _parts_cost(s.full, sims, s.parts)
-        replaced = rec.get("in_place_of") or []
-        val_after = rec["residual_x_noise_validation_after"]  # None: the campaign has no validation samples
-        why = (f"stands in for {name} ({get_effect(name).title}): with {name} in its place the residual on all "
-               f"data is {rec['residual_x_noise_all_after']:.3g}x noise"
-               + ("" if val_after is None else f" and the validation residual {val_after:.3g} noise variances"))
-        if replaced and set(replaced) == set(s.current.model.effects) - set(bare.model.effects if bare else ()):
-            steps_back_to(s.steps, s.bare[4], why)  # the library's model back, the hypotheses said not kept
-            s.base = s.bare[3]
-        else:
-            for step in s.steps:
-                if step.kept and step.effect in replaced:
-                    step.kept, step.reason = False, why
-        s.steps.append(Step(name, True, f"{rec['words']}; a missing state: removes at least a tenth of the "
-                            "residual's excess over the noise and lowers the validation residual", f, f.cost, val,
-                            _held_fit(s.full, sims, s.held_idx)))
-        s.say(f"  {name}: kept ({rec['words']})")
-        # an effect or a structural hypothesis kept before it may have stood in for the missing state
-        current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, name, s.steps, s.say,
-                                             kinds=("physical", "recalibration", "hypothesis"))
-        s.keep(current, sims, val)
+    if f is None:
+        return rec
+    _keep_state(s, f, rec, bare)
+    more = []
+    while len(more) + 1 < MAX_STATES:
+        s.say("  states: looking for another on top of it")
+        f, again = state_stage(s.rep, s.full, s.current, s.parts, s.say)
+        more.append(again)
+        if f is None:
+            break
+        _keep_state(s, f, again, None)
+    rec["more"] = more
     return rec
+
+
+def _keep_state(s: Search, f, rec: dict, bare) -> None:
+    """The augmentation ``rec`` kept (its model ``f``) made the model kept: a step, the effects it stood in for said
+    not kept (the structural hypotheses, when it did best on the library's model ``bare``), then any effect kept
+    before that it makes unnecessary refitted away."""
+    name = rec["kept"]
+    sims = s.full.simulate(f.model)
+    val = _parts_cost(s.full, sims, s.parts)
+    replaced = rec.get("in_place_of") or []
+    val_after = rec["residual_x_noise_validation_after"]  # None: the campaign has no validation samples
+    why = (f"stands in for {name} ({get_effect(name).title}): with {name} in its place the residual on all "
+           f"data is {rec['residual_x_noise_all_after']:.3g}x noise"
+           + ("" if val_after is None else f" and the validation residual {val_after:.3g} noise variances"))
+    if bare is not None and replaced and set(replaced) == set(s.current.model.effects) - set(bare.model.effects):
+        steps_back_to(s.steps, s.bare[4], why)  # the library's model back, the hypotheses said not kept
+        s.base = s.bare[3]
+    else:
+        for step in s.steps:
+            if step.kept and step.effect in replaced:
+                step.kept, step.reason = False, why
+    s.steps.append(Step(name, True, f"{rec['words']}; a missing state: removes at least a tenth of the "
+                        "residual's excess over the noise and lowers the validation residual", f, f.cost, val,
+                        _held_fit(s.full, sims, s.held_idx)))
+    s.say(f"  {name}: kept ({rec['words']})")
+    # an effect or a structural hypothesis kept before it may have stood in for the missing state
+    current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, name, s.steps, s.say,
+                                         kinds=("physical", "recalibration", "hypothesis"))
+    s.keep(current, sims, val)
 
 
 def measure_stage(s: Search) -> dict:
@@ -755,6 +786,7 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     res.stages = s.records
     res.elapsed_s = time.perf_counter() - t0
     res.n_evals = s.rep.n_evals + s.full.n_evals
+    res.n_coarse = s.rep.n_coarse + s.full.n_coarse
     return res
 
 

@@ -331,7 +331,7 @@ def states_kept(diag: dict) -> list[str]:
     ``aug_*`` effects of the final model."""
     names = []
     for st in diag.get("stages") or []:
-        for rec in ((st, st.get("states")) if isinstance(st, dict) else ()):
+        for rec in ((st, st.get("states"), *(st.get("more") or [])) if isinstance(st, dict) else ()):
             if isinstance(rec, dict) and isinstance(rec.get("kept"), str) and rec["kept"].startswith("aug_"):
                 names.append(rec["kept"])
     names += [n for n in ((diag.get("model") or {}).get("effects") or {}) if str(n).startswith("aug_")]

@@ -320,3 +320,34 @@ def test_a_block_the_held_out_run_never_reaches_leaves_its_validation_samples_as
     # the tail of the 1-set run beyond its fit window reaches the clip: there it moves
     assert validation_moved(s.full, base, s.full.simulate(clipped), s.parts) > UNEXERCISED
     assert validation_moved(s.full, base, s.full.simulate(clipped), {}) is None
+
+
+@pytest.mark.slow  # two searches of three blocks on a 5-run campaign (about 1 min on 2 cores)
+def test_the_stage_keeps_a_second_block_on_top_of_the_first(monkeypatch):
+    """Two blocks hidden in one rig -- an offset of 2 bar in chamber B's pressure reading and a land A that passes
+    0.6 L/min less than the orifice law -- each alone closes only part of the miss: the states stage keeps one,
+    looks again on top of it and keeps the other (``MAX_STATES``), each with its size; the diagnosis' ``states``
+    lists both.  With one search (``MAX_STATES`` = 1, as before) the second is lost."""
+    from ehas_env.diagnosis import pipeline
+    from ehas_env.diagnosis.candidates import _parts_cost
+
+    truth = {"aug_offset_pb_reading": {"c": 2.0e5}, "aug_const_land_a": {"c": -0.6 / 60000.0}}
+    names = ["aug_offset_pb_reading", "aug_const_land_a", "aug_lag_pb_reading"]
+    real = pipeline.state_stage
+    monkeypatch.setattr(pipeline, "state_stage", lambda *a, **k: real(*a, **{**k, "names": names}))
+
+    def stage(max_states):
+        s, null = _search(truth, 3340)
+        sims = s.full.simulate(null.model)
+        s.keep(null, sims, _parts_cost(s.full, sims, s.parts))
+        monkeypatch.setattr(pipeline, "MAX_STATES", max_states)
+        return s, pipeline.states_stage(s)
+
+    s, rec = stage(2)
+    kept = [rec["kept"]] + [r["kept"] for r in rec["more"]]
+    assert sorted(kept) == sorted(truth), rec
+    for r in [rec, *rec["more"]]:
+        assert r["params"]["c"] == pytest.approx(truth[r["kept"]]["c"], rel=0.2), r
+    assert set(truth) <= set(s.current.model.effects)
+    s1, rec1 = stage(1)
+    assert rec1["more"] == [] and len(set(truth) & set(s1.current.model.effects)) == 1
