@@ -421,8 +421,7 @@ def run_one(args) -> int:
                                  values=res.model.effects)
         print("next: " + next_line)
     elapsed = time.perf_counter() - t0
-    print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays, "
-          f"{getattr(res, 'n_coarse', 0)} of them coarse)")
+    print(f"diagnosed {len(campaign.runs)} runs in {elapsed:.1f} s ({res.n_evals} replays)")
 
     command = "ehas diagnose " + " ".join(shlex.quote(a) for a in _argv())
     from ehas_env.output.files import atomic_write_text

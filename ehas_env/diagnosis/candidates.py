@@ -862,7 +862,6 @@ def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
         gf = fit(sub, free, start, f.model, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
         ci = confidence(sub, gf)
         rep.n_evals += sub.n_evals
-        rep.n_coarse += sub.n_coarse
         for fp in free:
             if fp.effect == effect:
                 # an estimate at the end of its fitted range has a one-sided interval (keeping.agree)

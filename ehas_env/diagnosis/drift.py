@@ -332,7 +332,6 @@ def fit_per_run(rep: Replayer, runs: list, fixed: ModelSpec, free: list[FreePara
         f = fit(sub, free, start, fixed, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
         ci = confidence(sub, f)
         rep.n_evals += sub.n_evals
-        rep.n_coarse += sub.n_coarse
         params = {}
         for fp in free:
             v = _value_of(f.model, fp)

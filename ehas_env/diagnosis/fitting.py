@@ -36,19 +36,6 @@ IRLS_ROUNDS = 2  # reweighting rounds of the least-squares fit of the log cost
 SKIP_MARGIN = 0.002  # a scan must beat the null model by this fraction to be fitted further
 SCREEN_NFEV = 8  # least-squares steps per parameter when screening a candidate
 MAX_NFEV = 15  # ... when refining one (each step also costs one replay per parameter)
-#: the integrator's sub-steps of the replays a fit only steers by -- its scan's grid and the Jacobian of its
-#: least-squares steps; the residual each step is judged on, the scan's best and every cost a decision reads stay
-#: the full replay's (the replayer's ``substeps``, 10).  Measured on the drawn set's d00 (rig_c, the baseline
-#: model): 4 sub-steps move every signal by at most 0.0014 of its noise (5: 0.0007; 3: 0.0037, and a position
-#: reading's rate limit goes unstable at 3) at 0.41 of the time (7.8 against 19.2 ms a replay of the campaign); over
-#: every effect at both ends of every parameter's fit range the cost moves by less than 1e-3 of itself but for the
-#: stiff ones (a hose's smallest volume, the stiffest link, a chamber term far beyond its size: up to 4x), which the
-#: guard :data:`COARSE_TOL` sees
-COARSE_SUBSTEPS = 4
-#: a coarse replay steers a fit only while, where both are known (a scan's best and its ends, each Jacobian's base
-#: point), it is within this RMS of the full one in every run and signal, in noise units; past it, or at a number
-#: resolved in sub-steps (:data:`STAIRCASE`), the fit goes on with full replays
-COARSE_TOL = 0.01
 
 
 def score_db(before: float, after: float, n_params: int) -> float:
@@ -206,85 +193,35 @@ class Objective:
         The fitted numbers.
     fixed : ModelSpec, optional
         Everything else of the model.
-    coarse : bool
-        Steer by coarse replays where they are trusted (:data:`COARSE_SUBSTEPS`, :meth:`trusted`): the scan's grid
-        and the Jacobian of :func:`fit`; the intervals of :func:`confidence` are always on full replays.
     """
 
-    def __init__(self, rep: Replayer, free: list[FreeParam], fixed: ModelSpec | None = None, *,
-                 coarse: bool = False):
+    def __init__(self, rep: Replayer, free: list[FreeParam], fixed: ModelSpec | None = None):
         self.rep, self.free, self.fixed = rep, free, fixed
         self.memo: dict[bytes, tuple] = {}
-        # the coarse replays a fit steers by (None: full replays throughout): see COARSE_SUBSTEPS
-        self.cheap = None
-        if coarse and rep.substeps > COARSE_SUBSTEPS and not any((fp.effect, fp.name) in STAIRCASE for fp in free):
-            self.cheap = rep.coarse(COARSE_SUBSTEPS)
-        self.memo_c: dict[bytes, tuple] = {}
 
     def model(self, u) -> ModelSpec:
         """The model at ``u``."""
         return model_from(self.free, {(fp.effect, fp.name): fp.value(x) for fp, x in zip(self.free, u)}, self.fixed)
 
-    def _blocks_on(self, rep: Replayer, memo: dict, U) -> list:
-        U = [np.asarray(u, dtype=float) for u in U]
-        todo = list({u.tobytes(): u for u in U if u.tobytes() not in memo}.values())
-        if todo:
-            for u, sims in zip(todo, rep.simulate_many([self.model(u) for u in todo])):
-                memo[u.tobytes()] = (rep.cost_blocks(sims), sims)
-        return [memo[u.tobytes()][0] for u in U]
-
     def blocks(self, U) -> list:
         """Noise-normalised residual blocks (:meth:`Replayer.cost_blocks`) at every u of ``U``."""
-        return self._blocks_on(self.rep, self.memo, U)
-
-    def steering_blocks(self, U) -> list:
-        """:meth:`blocks` of the coarse replays while they are trusted (:meth:`trusted`), else the full ones."""
-        if self.cheap is None:
-            return self.blocks(U)
-        return self._blocks_on(self.cheap, self.memo_c, U)
-
-    def agrees(self, U) -> list[bool]:
-        """Whether the coarse replay is within :data:`COARSE_TOL` of the full one at each u of ``U``, in every run
-        and signal (both made here, each set side by side)."""
-        if self.cheap is None:
-            return [False for _ in U]
-        with np.errstate(over="ignore", invalid="ignore"):  # a diverged replay is a disagreement, not a warning
-            return self._agree(self.blocks(U), self.steering_blocks(U))
-
-    @staticmethod
-    def _agree(fulls, coarses) -> list[bool]:
-        return [len(full) == len(coarse) and all(
-                a.size == b.size and bool(np.all(np.isfinite(b)))
-                and math.sqrt(float(np.dot(a - b, a - b)) / max(a.size, 1)) <= COARSE_TOL
-                for a, b in zip(full, coarse))
-                for full, coarse in zip(fulls, coarses)]
-
-    def trusted(self, U) -> bool:
-        """Whether the coarse replays agree with the full ones at every u of ``U`` (:meth:`agrees`); when not, the
-        objective steers by full replays from then on."""
-        if self.cheap is None or not all(self.agrees(U)):
-            self.cheap = None
-            return False
-        return True
+        U = [np.asarray(u, dtype=float) for u in U]
+        todo = [u for u in U if u.tobytes() not in self.memo]
+        if todo:
+            for u, sims in zip(todo, self.rep.simulate_many([self.model(u) for u in todo])):
+                self.memo[u.tobytes()] = (self.rep.cost_blocks(sims), sims)
+        return [self.memo[u.tobytes()][0] for u in U]
 
     def sims(self, u) -> list:
         """The simulated runs at ``u``."""
         self.blocks([u])
         return self.memo[np.asarray(u, dtype=float).tobytes()][1]
 
-    @staticmethod
-    def cost_of(b: list) -> float:
-        """Geometric mean over (run, signal) blocks of their mean square (see :meth:`Replayer.log_cost`)."""
-        n = sum(x.size for x in b)
-        return float(np.exp(sum(x.size * np.log(max(float(np.dot(x, x)) / x.size, 1e-300)) for x in b) / n))
-
     def cost(self, u) -> float:
         """Geometric mean over (run, signal) blocks (see :meth:`Replayer.log_cost`)."""
-        return self.cost_of(self.blocks([u])[0])
-
-    def steering_cost(self, u) -> float:
-        """:meth:`cost` on the replays a fit steers by (:meth:`steering_blocks`)."""
-        return self.cost_of(self.steering_blocks([u])[0])
+        b = self.blocks([u])[0]
+        n = sum(x.size for x in b)
+        return float(np.exp(sum(x.size * np.log(max(float(np.dot(x, x)) / x.size, 1e-300)) for x in b) / n))
 
     def weights(self, u) -> list[float]:
         """Each block's weight at ``u``: 1 / its RMS (the log cost's gradient there)."""
@@ -295,12 +232,9 @@ class Objective:
         return np.concatenate([wi * x for wi, x in zip(w, self.blocks([u])[0])])
 
     def jacobian(self, u, w) -> np.ndarray:
-        """Forward-difference Jacobian of :meth:`weighted` at ``u`` (steps toward the inside of [0, 1]), on the
-        coarse replays where they are trusted at ``u`` (:meth:`trusted`: the full replay there is the step's own),
-        else on full ones."""
+        """Forward-difference Jacobian of :meth:`weighted` at ``u`` (steps toward the inside of [0, 1])."""
         u = np.asarray(u, dtype=float)
-        on = self.steering_blocks if self.trusted([u]) else self.blocks
-        f0 = np.concatenate([wi * x for wi, x in zip(w, on([u])[0])])
+        f0 = self.weighted(u, w)
         U, H = [], []
         for i, fp in enumerate(self.free):
             h = fp.step if u[i] + fp.step <= 1.0 else -fp.step
@@ -308,9 +242,8 @@ class Objective:
             du[i] += h
             U.append(du)
             H.append(h)
-        moved = on(U)
-        return np.column_stack([(np.concatenate([wi * x for wi, x in zip(w, b)]) - f0) / h
-                                for b, h in zip(moved, H)])
+        self.blocks(U)
+        return np.column_stack([(self.weighted(du, w) - f0) / h for du, h in zip(U, H)])
 
 
 def model_from(free: list[FreeParam], values: dict, fixed: ModelSpec | None = None) -> ModelSpec:
@@ -399,7 +332,7 @@ def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | No
     """
     u0 = np.array([fp.u(start[(fp.effect, fp.name)]) for fp in free])
     evals0 = rep.n_evals
-    obj = Objective(rep, free, fixed, coarse=True)
+    obj = Objective(rep, free, fixed)
     blocks, cost = obj.blocks, obj.cost
 
     def result(u) -> Fit:
@@ -416,19 +349,10 @@ def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | No
             u = u0.copy()
             u[k] = scan.u(value)
             grid.append(u)
-        # on the coarse replays, checked where the full one is made anyway (the best) and at the grid's ends (a
-        # stiffness grows toward one end of a range: an end the coarse replay misses, whose full cost is below the
-        # best's, may hide the valley there); else the grid again on full ones
-        obj.steering_blocks(grid)
-        best = int(np.argmin([obj.steering_cost(u) for u in grid]))
-        if obj.cheap is not None:
-            ok_best, *ok_ends = obj.agrees([grid[best], grid[0], grid[-1]])
-            if not ok_best or any(not ok and cost(e) < cost(grid[best])
-                                  for ok, e in zip(ok_ends, (grid[0], grid[-1]))):
-                obj.cheap = None
-                blocks(grid)
-                best = int(np.argmin([cost(u) for u in grid]))
-        if null_cost is not None and cost(grid[best]) >= null_cost * (1.0 - SKIP_MARGIN):
+        blocks(grid)
+        costs = [cost(u) for u in grid]
+        best = int(np.argmin(costs))
+        if null_cost is not None and costs[best] >= null_cost * (1.0 - SKIP_MARGIN):
             return result(grid[best])
         # zoom: a finer scan between the best point's neighbours
         left = grid[max(best - 1, 0)][k]
@@ -438,8 +362,8 @@ def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | No
             u = grid[best].copy()
             u[k] = x
             fine.append(u)
-        obj.steering_blocks(fine)
-        u0 = min(grid + fine, key=obj.steering_cost)
+        blocks(fine)
+        u0 = min(grid + fine, key=cost)
     # iteratively reweighted least squares for the log cost: each block weighted by its
     # residual level at the round's start point (the log cost's gradient there)
     u_ref = np.clip(u0, 0.0, 1.0)

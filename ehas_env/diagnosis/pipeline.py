@@ -74,7 +74,6 @@ class OpenDiagnosis:
     stages: list = field(default_factory=list)  # one record per stage run (STAGES): stage, elapsed_s, what it found
     elapsed_s: float = 0.0
     n_evals: int = 0
-    n_coarse: int = 0  # of n_evals, the replays a fit steered by at fewer sub-steps (fitting.COARSE_SUBSTEPS)
 
     @property
     def verdict(self) -> str:
@@ -786,7 +785,6 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
     res.stages = s.records
     res.elapsed_s = time.perf_counter() - t0
     res.n_evals = s.rep.n_evals + s.full.n_evals
-    res.n_coarse = s.rep.n_coarse + s.full.n_coarse
     return res
 
 

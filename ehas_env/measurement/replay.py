@@ -266,10 +266,7 @@ class Replayer:
         self.inputs = dict(inputs or {})
         self.cases = [self._case(r) for r in campaign.runs]
         self.n_evals = 0
-        self.n_coarse = 0  # of n_evals, the replays at fewer sub-steps (:meth:`coarse`)
         self._executor = None  # (pid, ThreadPoolExecutor) of :meth:`_pool`
-        self._owner = None  # the replayer a coarse one stands in for (it counts the replays)
-        self._coarse: dict = {}
 
     @property
     def runs(self) -> list[Run]:
@@ -392,45 +389,13 @@ class Replayer:
         """
         return self.simulate_many([model], runs)[0]
 
-    def coarse(self, substeps: int) -> "Replayer":
-        """This replayer at ``substeps`` integrator sub-steps a control period (fewer: a cheaper, less exact
-        replay), sharing its runs, model and threads; its replays count in this one's ``n_evals`` (and
-        ``n_coarse``).  What it is good for is the caller's to check (:class:`ehas_env.diagnosis.fitting.Objective`
-        compares it with the full replay where both exist).
-
-        Parameters
-        ----------
-        substeps : int
-            1 to this replayer's ``substeps``.
-
-        Returns
-        -------
-        Replayer
-            Itself when ``substeps`` is its own.
-        """
-        if substeps == self.substeps:
-            return self
-        if not 1 <= substeps < self.substeps:
-            raise ValueError(f"coarse substeps: expected 1 to {self.substeps - 1}, got {substeps}")
-        if substeps not in self._coarse:
-            import copy
-
-            c = copy.copy(self)
-            c.substeps, c._coarse, c._owner = substeps, {}, self
-            self._coarse[substeps] = c
-        return self._coarse[substeps]
-
     def simulate_many(self, models: list[ModelSpec], runs=None) -> list[list[dict[str, np.ndarray] | None]]:
         """:meth:`simulate` for several models at once: every (model, run) replay side by side on the cores.
 
         The compiled drivers release the GIL, so Python threads run them in parallel (a ``prange`` driver
         did this before and cost a compile of its own, 4 s of a first diagnosis).
         """
-        if self._owner is not None:
-            self._owner.n_evals += len(models)
-            self._owner.n_coarse += len(models)
-        else:
-            self.n_evals += len(models)
+        self.n_evals += len(models)
         jobs = [(m, i) for m in range(len(models)) for i in range(len(self.cases)) if runs is None or i in runs]
         # the plants (and a first compiled model) are made here, one after the other; only the compiled runs go
         # to the threads
@@ -456,8 +421,6 @@ class Replayer:
         (and again in a forked child: the parent's threads are not there)."""
         import os
 
-        if self._owner is not None:  # a coarse twin runs on its owner's threads
-            return self._owner._pool()
         if self._executor is None or self._executor[0] != os.getpid():
             from concurrent.futures import ThreadPoolExecutor
 
@@ -467,9 +430,8 @@ class Replayer:
         return self._executor[1]
 
     def __getstate__(self):
-        """A replayer sent to another process leaves its threads and its coarse twins behind (it makes its own
-        there)."""
-        return {**self.__dict__, "_executor": None, "_coarse": {}}
+        """A replayer sent to another process leaves its threads behind (it makes its own there)."""
+        return {**self.__dict__, "_executor": None}
 
     def _prepare(self, model: ModelSpec, case: _Case) -> _Job:
         """What one replay of ``case`` with ``model`` needs: its compiled model, parameters, initial state and
