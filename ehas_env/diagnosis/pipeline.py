@@ -170,7 +170,7 @@ class OpenDiagnosis:
         # a missing state kept (the states stage's record: the augmentation, its values with intervals, in words)
         # every missing state kept, in the order found (the states stage's first search, then those on top of it)
         doc["states"] = [{k: r[k] for k in ("kept", "words", "params", "ci95", "residual_x_noise_all_before",
-                                            "residual_x_noise_all_after") if k in r}
+                                            "residual_x_noise_all_after", "within") if k in r}
                          for st in self.stages if st.get("stage") == "states"
                          for r in [st, *(st.get("more") or [])] if r.get("kept") and r["kept"] in self.model.effects]
         doc["state"] = doc["states"][0] if doc["states"] else None  # the first (as before a second was looked for)

@@ -364,6 +364,33 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
     return screened
 
 
+#: a screened block whose fit data's cost is within this many dB of the kept one's: the fitted runs cannot part them
+#: (what a candidate must score to beat the noise at all, :data:`~ehas_env.diagnosis.fitting.MIN_SCORE`)
+WITHIN_DB = MIN_SCORE
+#: ... listed at most this many, closest first
+WITHIN_LISTED = 4
+
+
+def _within(screened: dict, key) -> list:
+    """The other blocks of ``screened`` ({(name, set aside): (fit, base)}) whose screened cost is within
+    :data:`WITHIN_DB` of ``key``'s (closest first, at most :data:`WITHIN_LISTED`): {effect, where, cost_ratio
+    (theirs over the kept one's)}."""
+    best = screened[key][0].cost
+    out = sorted(((fb[0].cost / best, k[0]) for k, fb in screened.items()
+                  if k[0] != key[0] and fb[0].cost <= best * 10.0 ** (WITHIN_DB / 10.0)))
+    seen, listed = set(), []
+    for ratio, name in out:
+        if name not in seen and len(listed) < WITHIN_LISTED:
+            seen.add(name)
+            cls = get_effect(name)
+            listed.append({"effect": name, "where": getattr(cls, "where", cls.title), "cost_ratio": _r(ratio, 4)})
+    return listed
+
+
+def _listed(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
+
+
 def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, names=None,
                 trigger: float = STATE_TRIGGER, bare: Fit | None = None) -> tuple:
     """Try each generic augmentation on top of the final model; keep the best when it passes :func:`judge`.
@@ -399,7 +426,8 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         held-out runs at all; None without validation samples), ``in_place_of``
         (the effects kept before that the augmentation replaces -- the structural hypotheses, when it did best on
         the library's model ``bare``; or one effect refitted away because on top of it the augmentation fails
-        :func:`judge` and in its place passes -- or None).
+        :func:`judge` and in its place passes -- or None), ``within`` (the other blocks whose screened cost is
+        within :data:`WITHIN_DB` of the kept one's: {effect, where, cost_ratio}; the words name them).
     """
     held = set(final.model.effects)
     names = [n for n in (augmentations() if names is None else names) if n not in held]
@@ -410,7 +438,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     record = {"tried": [], "kept": None, "params": None, "ci95": None,
               "residual_x_noise_all_before": _r(all0), "residual_x_noise_all_after": None,
               "residual_x_noise_validation_before": _r(val0), "residual_x_noise_validation_after": None,
-              "words": None, "skipped": None, "in_place_of": None, "held_out_reached": None}
+              "words": None, "skipped": None, "in_place_of": None, "held_out_reached": None, "within": []}
     if _quiet(g0, trigger):
         record["skipped"] = (f"the final model's residual, {all0:.3g}x noise on all data, is at or below "
                              f"{trigger:g}x and in no run and signal above {1.0 + BLOCK_EXPLAINED_X:g}x: no state "
@@ -433,6 +461,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         return None, record
     key = min(better, key=lambda kk: better[kk][0].cost)
     (best, dropped), (f, base) = key, better[key]
+    near = _within(better, key)
     f = refine_candidate(rep, best, f, base, dict(base.model.effects))
     for _ in range(REFINE_ROUNDS):
         g = refine_candidate(rep, best, f, base, dict(base.model.effects))
@@ -473,8 +502,11 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     unproven = moved is not None and moved < UNEXERCISED
     record.update(kept=best, params={k: _sig(v) for k, v in values.items()},
                   ci95={k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()},
+                  within=near,
                   words=_words(best, values, ci) + (" (the held-out runs never reach it: judged on the fitted runs "
-                                                    "alone, not proven on held-out data)" if unproven else ""),
+                                                    "alone, not proven on held-out data)" if unproven else "")
+                  + ("" if not near else "; the fitted runs cannot part it from " + _listed(
+                      [f"{get_effect(n['effect']).title} ({n['cost_ratio']:.3g}x its cost)" for n in near])),
                   held_out_reached=not unproven if moved is not None else None)
     say(f"  states: kept {record['words']}; residual {all0:.3g}x -> {all1:.3g}x noise")
     return f, record

@@ -35,6 +35,21 @@ def test_judge_refuses_what_does_not_lower_the_validation_residual():
     assert "validation residual" in judge(3.0, 2.0, 4.0, 3.95)  # lower, but by less than the share (2 %)
 
 
+def test_the_blocks_the_fitted_runs_cannot_part_from_the_kept_one_are_listed_closest_first():
+    """Within 0.3 dB of the kept block's screened cost (x1.072): listed with their cost over its, closest first; a
+    block screened on two bases once, at its better; one 0.35 dB above, not."""
+    from types import SimpleNamespace as NS
+
+    cost = {("aug_offset_pa_reading", None): 0.7519, ("aug_offset_pb_reading", None): 0.7553,
+            ("aug_const_return", None): 0.7855, ("aug_const_return", ("hyp_x",)): 0.7700,
+            ("aug_lag_pb_reading", None): 0.7519 * 10 ** 0.035}
+    screened = {k: (NS(cost=c), None) for k, c in cost.items()}
+    near = states._within(screened, ("aug_offset_pa_reading", None))
+    assert [n["effect"] for n in near] == ["aug_offset_pb_reading", "aug_const_return"]
+    assert near[1]["cost_ratio"] == pytest.approx(0.77 / 0.7519, abs=1e-4)
+    assert "return pressure" in near[1]["where"]
+
+
 def _search(effects, seed):
     runs, truth = simulate_campaign(effects, seed=seed, duration=3.5)
     camp = Campaign(None, [validate_run(n, c, m) for n, c, m in runs])
