@@ -297,8 +297,12 @@ def part_b(case: dict, work: Path, out: Path, variant: str = "rest") -> dict:
     rec.update({"verdict": diag.get("verdict"), "residual_x_noise": diag.get("residual_x_noise"),
                 "kept": kept_effects(diag), "named": [i["label"] for i in items],
                 "added_nothing": not items and not kept_effects(diag),
+                # what the logs cannot part from what was kept: the alternatives stage's, and the blocks within
+                # reach of each state kept (the states stage's ``within``)
                 "alternatives": [a.get("effect") or a.get("name") or a.get("label")
-                                 for a in diag.get("alternatives") or [] if isinstance(a, dict)],
+                                 for a in diag.get("alternatives") or [] if isinstance(a, dict)]
+                + [w.get("effect") for st in diag.get("states") or [] if isinstance(st, dict)
+                   for w in st.get("within") or [] if isinstance(w, dict)],
                 "elapsed_s": diag.get("elapsed_s"), "b_s": round(time.time() - t0, 1)})
     return rec
 
