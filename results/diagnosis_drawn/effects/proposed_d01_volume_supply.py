@@ -1,4 +1,4 @@
-"""proposed_d01_volume_supply: a term proposed by ehas diagnose for /tmp/dr2_work/d01_volume@supply/campaign.
+"""proposed_d01_volume_supply: a term proposed by ehas diagnose for /tmp/drB_work/d01_volume@supply/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_rsup·the inflow land's flow times -|q_S| / (2 (p_S - p_in)): supply drop per supply flow   with c_rsup = 3.4e+09 Pa s/m^3 (95 % CI 3.388e+09 to 3.412e+09)
 

@@ -1,4 +1,4 @@
-"""proposed_d06_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/dr1_work/d06_compliance@crank_torque/campaign.
+"""proposed_d06_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/drA_work/d06_compliance@crank_torque/campaign.
 
 The load path is a spring of 144 N/um between piston and crank (6.97 um per kN of load).
 k_load = 1.435e+08 N/m (95 % CI 1.308e+08 to 1.576e+08)

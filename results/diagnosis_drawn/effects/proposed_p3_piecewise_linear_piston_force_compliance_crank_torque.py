@@ -1,4 +1,4 @@
-"""proposed_p3_piecewise_linear_piston_force_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/dr2_work/p3_piecewise_linear@piston_force+compliance@crank_torque/campaign.
+"""proposed_p3_piecewise_linear_piston_force_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/drB_work/p3_piecewise_linear@piston_force+compliance@crank_torque/campaign.
 
 The load path is a spring of 113 N/um between piston and crank (8.83 um per kN of load).
 k_load = 1.132e+08 N/m (95 % CI 1.094e+08 to 1.171e+08)

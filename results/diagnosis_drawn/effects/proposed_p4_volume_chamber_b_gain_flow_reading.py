@@ -1,4 +1,4 @@
-"""proposed_p4_volume_chamber_b_gain_flow_reading: a term proposed by ehas diagnose for /tmp/dr1_work/p4_volume@chamber_b+gain@flow_reading/campaign.
+"""proposed_p4_volume_chamber_b_gain_flow_reading: a term proposed by ehas diagnose for /tmp/drA_work/p4_volume@chamber_b+gain@flow_reading/campaign.
 
 i_valve [mA] += c_i3·i^3   with c_i3 = -0.0001387 1/mA^2 (95 % CI -0.0001464 to -0.000131)
 

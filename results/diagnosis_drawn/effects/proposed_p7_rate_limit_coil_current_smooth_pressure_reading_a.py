@@ -1,4 +1,4 @@
-"""proposed_p7_rate_limit_coil_current_smooth_pressure_reading_a: a term proposed by ehas diagnose for /tmp/dr2_work/p7_rate_limit@coil_current+smooth@pressure_reading_a/campaign.
+"""proposed_p7_rate_limit_coil_current_smooth_pressure_reading_a: a term proposed by ehas diagnose for /tmp/drB_work/p7_rate_limit@coil_current+smooth@pressure_reading_a/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_intsq·(-sign(p_L) sqrt|p_L|, +sign(p_L) sqrt|p_L|)   with c_intsq = -1.992e-10 m^3/s/Pa^0.5 (95 % CI -2.262e-10 to -1.721e-10)
 
