@@ -1,4 +1,4 @@
-"""proposed_d14_compliance_piston_force: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/dr1_work/d14_compliance@piston_force/campaign.
+"""proposed_d14_compliance_piston_force: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/drA_work/d14_compliance@piston_force/campaign.
 
 The load path is a spring of 46.3 N/um between piston and crank (21.6 um per kN of load).
 k_load = 4.627e+07 N/m (95 % CI 4.392e+07 to 4.874e+07)

@@ -1,4 +1,4 @@
-"""proposed_d22_piecewise_linear_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/dr1_work/d22_piecewise_linear@crank_torque/campaign.
+"""proposed_d22_piecewise_linear_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/drA_work/d22_piecewise_linear@crank_torque/campaign.
 
 A drag torque on the load grows with the square of its speed: 10.8 N m at 10 rad/s.
 T_10 = 10.8 N m (95 % CI 10.13 to 11.51)
