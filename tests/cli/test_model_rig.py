@@ -127,7 +127,8 @@ def test_diagnose_on_the_model_finds_the_hidden_friction(rig, campaigns, capsys,
     _, path = rig
     out = tmp_path / "d.json"
     assert main(["diagnose", str(campaigns["A"]), "--model", str(path), "--candidates",
-                 "coulomb_friction,viscous_friction", "--no-stack", "--no-propose", "--quiet", "--json", str(out)]) == 0
+                 "coulomb_friction,viscous_friction", "--no-stack", "--no-propose", "--no-hypotheses", "--quiet",
+                 "--json", str(out)]) == 0
     assert "baseline: model rig B (rigB.json)" in capsys.readouterr().out
     doc = json.loads(out.read_text())
     top = doc["ranking"][0]

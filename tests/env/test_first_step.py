@@ -85,10 +85,10 @@ def test_interpreted_vector_env_steps_bit_for_bit_like_the_fast_build(parallel):
     from ehas_env.env.vector_env import TrackingVectorEnv
 
     rng = np.random.default_rng(4)
-    actions = rng.uniform(-1.0, 1.0, (700, 3))
+    actions = rng.uniform(-1.0, 1.0, (300, 3))
     runs = []
     for model in (current_model(), current_model(interpreted=True)):
-        env = TrackingVectorEnv(3, parallel=parallel, cycles=1.0, freq_hz=2.0,  # episodes of 500 steps: autoresets
+        env = TrackingVectorEnv(3, parallel=parallel, cycles=0.5, freq_hz=2.0,  # episodes of 250 steps: autoresets
                                 randomise={"amplitude_deg": (5.0, 40.0)})
         env._builds = _Ready(model)
         env._model = model

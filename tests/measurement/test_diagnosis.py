@@ -73,9 +73,10 @@ def check_found(name: str, truth: dict, d) -> tuple[str, float, float]:
     return top.effect, fitted, expected
 
 
-#: the library effects the default run hides, one of each part of the plant; the others are slow
-DEFAULT_RUN = {"coulomb_friction", "backlash", "bulk_modulus", "internal_leakage", "valve_deadband",
-               "transport_delay", "none"}
+#: the library effects the default run hides, one of each part of the plant (the mechanics, the oil, the actuator,
+#: the valve); the others are slow (backlash and valve_deadband moved there for the default suite's 10 minutes:
+#: 19 s and 17 s of it on 2 cores)
+DEFAULT_RUN = {"coulomb_friction", "bulk_modulus", "internal_leakage", "transport_delay", "none"}
 
 
 # the whole library, every effect hidden in turn (and none)
@@ -150,8 +151,8 @@ def test_diagnose_cli_writes_the_json_of_the_spec(viscous_dir, tmp_path, capsys)
 def test_diagnose_with_an_effect_named_without_values_starts_from_its_defaults(viscous_dir, capsys):
     """--with NAME gives no values: the fit starts from the effect's defaults (it was a KeyError)."""
     folder, _ = viscous_dir
-    assert main(["diagnose", str(folder), "--no-propose", "--no-stack", "--quiet", "--with", "coulomb_friction",
-                 "--candidates", "viscous_friction"]) == 0
+    assert main(["diagnose", str(folder), "--no-propose", "--no-stack", "--no-hypotheses", "--quiet", "--with",
+                 "coulomb_friction", "--candidates", "viscous_friction"]) == 0
     assert "baseline + coulomb_friction" in capsys.readouterr().out
 
 

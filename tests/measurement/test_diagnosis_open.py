@@ -134,7 +134,9 @@ def test_clean_campaigns_over_20_seeds_rarely_unexplained(position_only):
 def test_position_only_coulomb_gives_coulomb_first():
     camp, truth = memory_campaign({"coulomb_friction": {"Fc": 700.0}}, SEED + 700, duration=2.0, position_only=True,
                                   plan=SHORT_PLAN)
-    res = diagnose_open(camp, propose=False)
+    # the library's ranking and first kept effect are what is asserted: the rival hypotheses, the alternatives and
+    # the per-run fits (half the time of it) are tested elsewhere
+    res = diagnose_open(camp, propose=False, hypotheses=False, alternatives=False, per_run=False)
     top = res.first.ranking[0]
     assert top.effect == "coulomb_friction", [(e.effect, round(e.score, 2)) for e in res.first.ranking[:3]]
     assert top.params["Fc"] == pytest.approx(700.0, rel=0.3)
@@ -143,17 +145,18 @@ def test_position_only_coulomb_gives_coulomb_first():
 
 
 @pytest.mark.parametrize("scale, hidden, position_only", [
-    # 45 s on 2 cores: slow (the default suite's budget); beta below its range stays in the default run through
-    # beta-25%+viscous
+    # 45 s on 2 cores: slow (the default suite's budget)
     pytest.param({"beta": 0.75}, {}, False, id="beta-25%", marks=pytest.mark.slow),
     pytest.param({"K": 0.9}, {}, False, id="K-10%"),
     pytest.param({"beta": 1.25, "K": 1.1}, {}, False, id="beta+25%,K+10%", marks=pytest.mark.slow),
     pytest.param({"K": 0.88}, {}, True, id="K-12%,position-only", marks=pytest.mark.slow),
     pytest.param({"K": 0.9}, {"coulomb_friction": {"Fc": 400.0}}, False, id="K-10%+coulomb", marks=pytest.mark.slow),
-    pytest.param({"beta": 0.75}, {"viscous_friction": {"b": 3000.0}}, False, id="beta-25%+viscous"),
+    # 49 s on 2 cores: slow (the default suite's 10 minutes): the default run keeps K beyond its range (K-10%);
+    # beta beyond its range and a recalibration beside a hidden effect are in the slow run only
+    pytest.param({"beta": 0.75}, {"viscous_friction": {"b": 3000.0}}, False, id="beta-25%+viscous",
+                 marks=pytest.mark.slow),
     # 79 s on 2 loaded cores: slow; position-only logs stay in the default run through
-    # test_position_only_coulomb_gives_coulomb_first, K beyond its range through K-10%, a recalibration beside a
-    # hidden effect through beta-25%+viscous
+    # test_position_only_coulomb_gives_coulomb_first, K beyond its range through K-10%
     pytest.param({"K": 0.9}, {"coulomb_friction": {"Fc": 400.0}}, True, id="K-10%+coulomb,position-only",
                  marks=pytest.mark.slow),
 ])
@@ -164,7 +167,7 @@ def test_beta_and_K_beyond_the_recalibration_ranges_are_named(scale, hidden, pos
 
     camp, _ = memory_campaign(hidden, SEED + 40 + len(scale) + int(position_only), duration=2.0,
                               position_only=position_only, plan=SHORT_PLAN, rig_scale=scale)
-    res = diagnose_open(camp, propose=False)
+    res = diagnose_open(camp, propose=False, alternatives=False, per_run=False)  # what is kept is asserted
     want = {"beta": "bulk_modulus", "K": "valve_dynamics"}
     assert res.verdict == "explained", (res.kept, res.to_json()["unexplained"])
     assert sorted(res.kept) == sorted([want[k] for k in scale] + list(hidden)), res.kept

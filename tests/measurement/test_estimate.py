@@ -26,10 +26,15 @@ def test_the_estimate_counts_replays_by_the_book_figure_and_the_library_and_leav
     assert (b["replays"], b["library_effect"]) == (E.LIBRARY_REPLAYS, "coulomb_friction")
     assert b["library_share_left"] <= E.LIBRARY_SHARE < c["library_share_left"]
     assert c["replays"] == E.REPLAYS[-1][1]
+    first = E.REPLAYS[0][1]  # replays as timed; those beyond cost SEARCH_REPLAY_COST times as much
     for est in (a, b, c):
         assert est["replay_s"] > 0.0
-        assert est["estimate_s"] == pytest.approx(E.FIXED_S + est["replays"] * est["replay_s"],
-                                                  abs=0.1 + est["replays"] * 5e-5)
+        n = est["replays"]
+        assert est["estimate_s"] == pytest.approx(
+            E.FIXED_S + est["replay_s"] * (min(n, first) + E.SEARCH_REPLAY_COST * max(n - first, 0)),
+            abs=0.1 + n * E.SEARCH_REPLAY_COST * 5e-5)
+    # the search beyond the library's rounds is the dearer part: the long estimate more than its count's share
+    assert c["estimate_s"] / c["replay_s"] > 1.5 * c["replays"]
     loaded = E.estimate(clean, load_scale=2.0)  # its replays timed anew: compare with its own replay time
     assert loaded["estimate_s"] == pytest.approx(2.0 * E.FIXED_S + loaded["replays"] * loaded["replay_s"],
                                                  abs=0.1 + loaded["replays"] * 5e-5)
