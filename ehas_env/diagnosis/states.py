@@ -85,10 +85,18 @@ def _quiet_reading(full: Replayer, sims, cls, trigger: float) -> str | None:
 RATE_HALF_SPAN = 5
 
 
+#: the values a block's main parameter is scanned at where the campaign does not log what leaves its place (the
+#: coil's current): shares of the largest magnitude of what enters it, as the model simulates it
+#: (a range or a threshold the runs reach, where a grid over the place's span may step over the valley: a current
+#: path clipped at 8 mA with the runs asking 12 lies between the grid's 5.6 and 12.6 mA)
+ENTERING_SHARES = (0.5, 0.75)
+
+
 def _logged_at_place(full: Replayer, cls) -> list:
     """The closed-loop runs' logged signal at a block's place, in the place's SI unit, as (samples, period) pairs:
     a sensor's reading from its column, the position sensor's from the logged angle (x = r sin theta on the
-    model's crank); [] where nothing logged is the place's signal (the coil's current)."""
+    model's crank); [] where nothing logged is the place's signal (the coil's current: see
+    :func:`_entering_place`)."""
     place = getattr(getattr(cls, "signal_place", None), "place", "")
     column = _reading_column(cls)
     out = []
@@ -128,6 +136,18 @@ def _balance_quantity(full: Replayer, sims, cls) -> list:
     return out
 
 
+def _entering_place(full: Replayer, cls, sims) -> list:
+    """The signal that enters a block's place where what leaves it is not logged, as the final model simulates it
+    (``sims``: every run's signals), over the closed-loop runs: the controller's current, which the coil's path
+    passes on (the logged one is no guide: a loop whose current path clips winds its current up to the amplifier's
+    limit); [] elsewhere."""
+    place = getattr(getattr(cls, "signal_place", None), "place", "")
+    if place != "coil_current" or sims is None:
+        return []
+    return [(sim["current_mA"], c.run.dt) for c, sim in zip(full.cases, sims)
+            if c.run.kind == "closed_loop" and sim is not None and "current_mA" in sim]
+
+
 def _scan_hint(full: Replayer, cls, sims=None) -> tuple:
     """What a block's logged signal points at: the values of its main parameter scanned with the grid and the
     starts of its others (:meth:`Augmentation.scan_hint`, :meth:`Augmentation.start_hint` of the signal's largest
@@ -140,12 +160,18 @@ def _scan_hint(full: Replayer, cls, sims=None) -> tuple:
         peak = max(float(np.max(np.abs(y))) for y in quantity)
         return tuple(float(v) for v in cls.scan_hint(peak, 0.0)), dict(cls.start_hint(peak, 0.0))
     logged = _logged_at_place(full, cls)
-    if not logged or not hasattr(cls, "scan_hint"):
+    entering = [] if logged else _entering_place(full, cls, sims)
+    if not (logged or entering) or not hasattr(cls, "scan_hint"):
         return (), {}
     k = RATE_HALF_SPAN
-    peak = max(float(np.max(np.abs(y))) for y, _ in logged)
-    rate = max((float(np.max(np.abs(y[2 * k:] - y[:-2 * k]))) / (2 * k * dt) for y, dt in logged if y.size > 2 * k),
+    signal = logged or entering
+    peak = max(float(np.max(np.abs(y))) for y, _ in signal)
+    rate = max((float(np.max(np.abs(y[2 * k:] - y[:-2 * k]))) / (2 * k * dt) for y, dt in signal if y.size > 2 * k),
                default=0.0)
+    if entering:  # what the block gets, not what it passes on: shares of its peak and its rate
+        hints = sorted({float(v) for f in ENTERING_SHARES for v in cls.scan_hint(f * peak, f * rate)})
+        f = ENTERING_SHARES[-1]
+        return tuple(hints), dict(cls.start_hint(f * peak, f * rate))
     return tuple(float(v) for v in cls.scan_hint(peak, rate)), dict(cls.start_hint(peak, rate))
 
 

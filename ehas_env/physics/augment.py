@@ -82,6 +82,8 @@ class SignalPlace:
         The factor from ``unit`` to the unit words show, and that unit.
     where : str
         The place in words ("chamber B's pressure reading").
+    held : tuple of (str, str)
+        Static kinds (their ``stem``) the model or the library holds here, each with what holds it.
     in_loop : bool
         Whether a follower there is a rival of what makes the loop late (the position the controller feeds back: a
         lag of it makes the loop late as a delay of its command does); a logged reading's follower is not.
@@ -97,6 +99,9 @@ class SignalPlace:
     where: str
     in_loop: bool = False
     signed: bool = True
+    #: the static kinds the model or the library already holds at this place, as (kind stem, what holds it): the
+    #: product (:data:`STATICS`) leaves them out, not to try one law twice under two names
+    held: tuple = ()
 
 
 def _reading_places() -> tuple:
@@ -119,9 +124,14 @@ READING_PLACES = _reading_places()
 SIGNAL_PLACES = (
     # the coil is in the loop too, but its lag as a rival of a command delay is the structural hypothesis
     # hyp_coil_lag (tried by the hypotheses stage): not twice
-    SignalPlace("coil_current", "coil", "i", None, "mA", 10.0, (1.0, "mA"), "the valve's current path (command to coil)"),
+    # the current's offset is the library's null bias, its dead zone the valve's deadband, its scale the valve's
+    # gain K (recalibrated in every fit)
+    SignalPlace("coil_current", "coil", "i", None, "mA", 10.0, (1.0, "mA"), "the valve's current path (command to coil)",
+                held=(("offset", "valve_null_bias"), ("dz", "valve_deadband"), ("gain", "the valve's gain K"))),
+    # the reading's zero and scale are the library's structural hypotheses of the sensor
     SignalPlace("position_reading", "position_sensor", "x", "v", "m", 0.05, (1.0e3, "mm"),
-                "the position sensor's reading", in_loop=True),
+                "the position sensor's reading", in_loop=True,
+                held=(("offset", "hyp_position_offset"), ("gain", "hyp_position_shape"))),
 ) + READING_PLACES  # a reading's follower keeps its error where the reading has a rate, itself where not
 
 
@@ -360,10 +370,11 @@ FOLLOWERS = tuple(kind.at(place) for kind in FOLLOWER_KINDS for place in SIGNAL_
 # -- a static block at a sensor's reading: a kind defined once, applied at every reading -----------------------------
 
 class Static(Augmentation):
-    """A kind of static block at a sensor's reading: what the sensor reports is ``expr`` of the model's output
-    ``u`` and the kind's parameters (no state).  :meth:`at` puts it at a reading place (:data:`READING_PLACES`);
-    the position sensor's and the coil's static errors are the library's (``hyp_position_offset``,
-    ``hyp_position_shape``, ``valve_null_bias``)."""
+    """A kind of static block in a signal path: what is passed on (what a sensor reports, the current the coil
+    gets) is ``expr`` of the signal ``u`` and the kind's parameters (no state).  :meth:`at` puts it at a signal
+    place (:data:`SIGNAL_PLACES`: every sensed output's reading, the position sensor's reading, the coil's current);
+    the kinds a place says the model or the library holds there (``SignalPlace.held``: the coil's null bias and
+    deadband, the position sensor's zero and scale) are left out of the product."""
 
     #: what the sensor reports, a Python expression of the output ``u`` and the kind's parameters
     expr: ClassVar[str] = ""
@@ -554,9 +565,10 @@ class Knee(Static):
                 f"{ku} in {cls.where}")
 
 
-#: the static kinds, each applied at every sensed output's reading it fits
+#: the static kinds, each applied at every signal place it fits and the place does not hold already
 STATIC_KINDS = (Offset, Gain, Saturation, DeadZone, Knee)
-STATICS = tuple(kind.at(place) for kind in STATIC_KINDS for place in READING_PLACES if kind.fits(place))
+STATICS = tuple(kind.at(place) for kind in STATIC_KINDS for place in SIGNAL_PLACES
+                if kind.fits(place) and kind.stem not in dict(place.held))
 
 
 def followers() -> list[str]:
@@ -586,8 +598,9 @@ def followers() -> list[str]:
 
 
 def reading_blocks() -> list[str]:
-    """The names of every static kind at every sensor's reading (:data:`STATIC_KINDS` x :data:`READING_PLACES`),
-    and those a user's file made with :meth:`Static.at`.
+    """The names of every static kind at every signal place it fits (:data:`STATIC_KINDS` x :data:`SIGNAL_PLACES`:
+    every sensor's reading, the position sensor's, the coil's current path; less the kinds a place holds already,
+    ``SignalPlace.held``), and those a user's file made with :meth:`Static.at`.
 
     Returns
     -------

@@ -235,6 +235,32 @@ def test_a_knee_in_a_reading_is_found_with_its_slope_change_and_its_knee():
     assert rec["params"]["g"] == pytest.approx(0.5, rel=0.2) and rec["params"]["k"] == pytest.approx(300.0, rel=0.2)
 
 
+@pytest.mark.parametrize("effect,param,value,seed,rivals", [
+    # the valve's current path clipped at 8 mA (the 1-set 35 deg 3 Hz run asks 12), among the static blocks of the
+    # coil and its followers (a lag and a rate limit of the current: the loop late, the current slowed)
+    ("aug_sat_coil", "L", 8.0, 3341, ["aug_sat_coil", "aug_knee_coil", "aug_lag_coil", "aug_slew_coil"]),
+    # the position sensor dead within +-0.5 mm about its zero, among the static blocks of that reading and its play
+    ("aug_dz_position_sensor", "d", 5.0e-4, 3342,
+     ["aug_dz_position_sensor", "aug_sat_position_sensor", "aug_knee_position_sensor", "aug_play_position_sensor"]),
+])
+def test_a_static_block_in_the_loop_is_found_with_its_size(effect, param, value, seed, rivals):
+    """The static kinds are put at every signal place, the coil's current and the position sensor's reading
+    included (but for the kinds the library holds there: the coil's null bias and deadband, the sensor's zero and
+    scale): a block there is kept among its rivals at its place, with its size."""
+    from ehas_env.physics import augment
+
+    held = {place.place: dict(place.held) for place in augment.SIGNAL_PLACES}
+    assert set(held["coil_current"]) == {"offset", "dz", "gain"} and set(held["position_reading"]) == {"offset",
+                                                                                                      "gain"}
+    made = set(reading_blocks())
+    assert {"aug_offset_coil", "aug_dz_coil", "aug_gain_coil", "aug_offset_position_sensor",
+            "aug_gain_position_sensor"}.isdisjoint(made) and set(rivals) <= made | set(augment.followers())
+    s, null = _search({effect: {param: value}}, seed)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=rivals)
+    assert rec["kept"] == effect, rec
+    assert rec["params"][param] == pytest.approx(value, rel=0.2)
+
+
 def _at_balance(effect: str) -> list:
     """Every static term at the balance place ``effect`` is put at (its rivals there: the other kinds)."""
     place = "_" + effect.split("_", 2)[2]

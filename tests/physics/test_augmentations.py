@@ -298,8 +298,12 @@ def test_static_blocks_at_readings_move_their_reading_exactly():
     nothing else moves (the loop feeds back states, not readings).  Every sensed output is a place of each."""
     from ehas_env.physics.layout import SENSED
 
-    assert {f"aug_{k.stem}_{p.short}" for k in augment.STATIC_KINDS for p in augment.READING_PLACES
-            if k.fits(p)} == set(augment.reading_blocks())
+    assert {f"aug_{k.stem}_{p.short}" for k in augment.STATIC_KINDS for p in augment.SIGNAL_PLACES
+            if k.fits(p) and k.stem not in dict(p.held)} == set(augment.reading_blocks())
+    # every reading has every kind that fits it; in the loop, the kinds the library does not hold there
+    assert all(not p.held for p in augment.READING_PLACES)
+    assert {"aug_sat_coil", "aug_knee_coil", "aug_sat_position_sensor", "aug_dz_position_sensor",
+            "aug_knee_position_sensor"} <= set(augment.reading_blocks())
     assert {p.place for p in augment.READING_PLACES} == {f"{out}_reading" for out in SENSED}
     plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=1)
     off = Plant(disc_sets=2, effects={"aug_offset_pa_reading": {"c": 2.5e5},
@@ -309,6 +313,23 @@ def test_static_blocks_at_readings_move_their_reading_exactly():
     np.testing.assert_array_equal(off.p_b_bar, plain.p_b_bar)
     np.testing.assert_allclose(off.p_a_bar - plain.p_a_bar, 2.5, rtol=1e-9)
     np.testing.assert_allclose(off.flow_lpm, 0.96 * plain.flow_lpm, rtol=1e-9, atol=1e-12)
+
+
+def test_static_blocks_in_the_loop_do_nothing_at_their_defaults_and_clip_what_the_valve_gets():
+    """At their defaults (a clip at 5 spans, a knee with no slope change) the blocks in the valve's current path and
+    at the position sensor's reading leave the run bit-identical; a clip of the current below what the loop asks
+    slows the piston: the angle's swing falls, the controller's current rises to make up for it."""
+    plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=30.0, freq_hz=3.0, cycles=2)
+    idle = Plant(disc_sets=2, effects={"aug_sat_coil": {}, "aug_knee_coil": {}, "aug_sat_position_sensor": {},
+                                       "aug_knee_position_sensor": {}}).simulate_closed_loop(
+        amplitude_deg=30.0, freq_hz=3.0, cycles=2)
+    for sig in ("theta_deg", "current_mA", "p_a_bar", "flow_lpm"):
+        np.testing.assert_array_equal(getattr(idle, sig), getattr(plain, sig))
+    peak = float(np.abs(plain.current_mA).max())
+    clipped = Plant(disc_sets=2, effects={"aug_sat_coil": {"L": 0.5 * peak}}).simulate_closed_loop(
+        amplitude_deg=30.0, freq_hz=3.0, cycles=2)
+    assert np.ptp(clipped.theta_deg) < 0.95 * np.ptp(plain.theta_deg)
+    assert np.abs(clipped.current_mA).max() > peak
 
 
 def test_a_saturated_and_a_dead_zone_reading_are_the_clipped_and_the_dead_zoned_quantity():
