@@ -131,7 +131,7 @@ SIGNAL_PLACES = (
     # the reading's zero and scale are the library's structural hypotheses of the sensor
     SignalPlace("position_reading", "position_sensor", "x", "v", "m", 0.05, (1.0e3, "mm"),
                 "the position sensor's reading", in_loop=True,
-                held=(("offset", "hyp_position_offset"), ("gain", "hyp_position_shape"))),
+                held=(("offset", "hyp_position_offset"), ("gain", "hyp_position_shape"), ("bend", "hyp_position_shape"))),
 ) + READING_PLACES  # a reading's follower keeps its error where the reading has a rate, itself where not
 
 
@@ -402,8 +402,14 @@ class Static(Augmentation):
         """The effect ``aug_<stem>_<place.short>`` that puts this kind at the reading ``place``."""
         name = f"aug_{cls.stem}_{place.short}"
         args = ", ".join(p.name for p in cls.kind_params(place))
-        text = (f"def {place.place}({place.value}, {args}):\n    u = {place.value}\n    return {cls.expr}\n")
+        text = (f"def {place.place}({place.value}, {args}):\n    u = {place.value}\n    return {cls.expr_at(place)}\n")
         return _block_class(cls, place, name, (text,), {})
+
+    @classmethod
+    def expr_at(cls, place: SignalPlace) -> str:
+        """What is passed on at ``place``, a Python expression of ``u`` and the kind's parameters (``expr``, unless
+        the kind writes the place's numbers into it)."""
+        return cls.expr
 
 
 class Offset(Static):
@@ -441,6 +447,41 @@ class Gain(Static):
                     typical=(0.005, 0.05)),)
     explanation = "The sensor reports the quantity times (1 + g): its calibration is off."
     signature = "a residual on that reading alone, proportional to the reading itself."
+
+
+class Bend(Static):
+    """A reading (or a signal) that bends smoothly away from a straight line: an odd cubic term, ``b`` of the
+    place's span at one span either way (a transducer's nonlinearity, given as a share of its span; the polynomial
+    output block of a Hammerstein-Wiener model, its lowest odd term beyond the linear one)."""
+
+    form = "a cubic bend"
+    stem = "bend"
+    kind_title = "cubic bend"
+    expr = "u + b * s * (u / s) ** 3"
+    main_param = "b"
+    shown = {"b": (100.0, "% of the span")}
+    params = (Param("b", "-", 0.0, (-0.3, 0.3),
+                    "the departure from a straight line at one span either way, a share of the span (assumed range: "
+                    "+-30 %; 0, the default, is no bend)", typical=(0.005, 0.05)),)
+    explanation = ("What is passed on is u + b s (u / s)^3 (s: the signal's span on this rig): straight near zero, "
+                   "bending by b of the span at one span either way.")
+    signature = ("a residual on that reading alone (or, in the loop, on everything the loop moves) that grows with "
+                 "the cube of the signal: none on the small runs, largest at the large runs' peaks, the same sign "
+                 "as the signal.")
+
+    @classmethod
+    def expr_at(cls, place: SignalPlace) -> str:
+        span = repr(float(place.span))
+        return f"u + b * {span} * (u / {span}) ** 3"
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a cubic bend of 2.5 [2.4, 2.6] % of the span at +-25 L/min in the flow meter's reading (line A)"."""
+        ci = ci or {}
+        place = cls.signal_place
+        f, unit = place.shown
+        return (f"{cls.form} of {_fmt(params['b'], ci.get('b'), 100.0)} % of the span at +-{place.span * f:.3g} "
+                f"{unit} in {cls.where}")
 
 
 class Saturation(Static):
@@ -566,7 +607,7 @@ class Knee(Static):
 
 
 #: the static kinds, each applied at every signal place it fits and the place does not hold already
-STATIC_KINDS = (Offset, Gain, Saturation, DeadZone, Knee)
+STATIC_KINDS = (Offset, Gain, Saturation, DeadZone, Knee, Bend)
 STATICS = tuple(kind.at(place) for kind in STATIC_KINDS for place in SIGNAL_PLACES
                 if kind.fits(place) and kind.stem not in dict(place.held))
 

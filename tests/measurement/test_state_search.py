@@ -225,6 +225,17 @@ def test_a_reading_block_is_told_from_its_rivals_at_its_place_with_its_size(effe
     assert rec["params"][param] == pytest.approx(value, rel=rel)
 
 
+def test_a_smooth_bend_in_a_reading_is_told_from_a_knee_and_a_scale_error_with_its_size():
+    """The flow meter's reading bent by 4 % of its span (25 L/min) at one span (a cubic nonlinearity): among the
+    blocks of that reading (a knee and a scale error are its nearest rivals) the stage keeps the bend, with its
+    size."""
+    s, null = _search({"aug_bend_flow_a_reading": {"b": 0.04}}, 3343)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=_at_place("aug_bend_flow_a_reading"))
+    assert rec["kept"] == "aug_bend_flow_a_reading", rec
+    assert rec["params"]["b"] == pytest.approx(0.04, rel=0.2)
+    assert "cubic bend" in rec["words"] and "flow meter" in rec["words"]
+
+
 def test_a_knee_in_a_reading_is_found_with_its_slope_change_and_its_knee():
     """The load reading's slope 50 % steeper beyond +-0.3 kN (a piecewise-linear characteristic): among the blocks
     of the load reading the stage keeps the knee, with both numbers (the drawn set's d28, a slope change of

@@ -332,6 +332,28 @@ def test_static_blocks_in_the_loop_do_nothing_at_their_defaults_and_clip_what_th
     assert np.abs(clipped.current_mA).max() > peak
 
 
+def test_a_bent_reading_is_the_quantity_plus_its_cubic_share_of_the_span():
+    """A cubic bend of 3 % of the span in the flow meter's reading is q + 0.03 s (q / s)^3 (s: 25 L/min), exactly;
+    nothing else moves; at b = 0 nothing does; at the position sensor the library's shape holds it (not twice)."""
+    b, s = 0.03, 25.0  # -, L/min
+    plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    bent = Plant(disc_sets=2, effects={"aug_bend_flow_a_reading": {"b": b}}).simulate_closed_loop(
+        amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    np.testing.assert_array_equal(bent.theta_deg, plain.theta_deg)
+    np.testing.assert_array_equal(bent.p_a_bar, plain.p_a_bar)
+    np.testing.assert_allclose(bent.flow_lpm, plain.flow_lpm + b * s * (plain.flow_lpm / s) ** 3, rtol=1e-9,
+                               atol=1e-12)
+    assert np.abs(bent.flow_lpm - plain.flow_lpm).max() > 1e-3  # it acts
+    none = Plant(disc_sets=2, effects={"aug_bend_flow_a_reading": {}}).simulate_closed_loop(
+        amplitude_deg=15.0, freq_hz=2.0, cycles=1)
+    np.testing.assert_array_equal(none.flow_lpm, plain.flow_lpm)
+    assert "aug_bend_position_sensor" not in augment.reading_blocks() and "aug_bend_coil" in augment.reading_blocks()
+    from ehas_env.physics.effects import get_effect
+
+    assert get_effect("aug_bend_flow_a_reading").in_words({"b": b}) == (
+        "a cubic bend of 3 % of the span at +-25 L/min in the flow meter's reading (line A)")
+
+
 def test_a_saturated_and_a_dead_zone_reading_are_the_clipped_and_the_dead_zoned_quantity():
     """A saturation at +-L of the flow meter's reading is the plain flow clipped at +-L; a dead zone of +-d in the
     load reading is the plain load less its clip at +-d (zero inside); the other signals do not move.  No dead zone
