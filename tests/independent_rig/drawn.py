@@ -11,7 +11,11 @@ thresholds.
 Checkpoints: each finished case is ``OUT/cases/ID.json``; a rerun skips those (Ctrl-C and rerun resumes).
 
     python -m tests.independent_rig.drawn --out results/diagnosis_drawn [--only ID[,ID]] [--limit N]
-        [--work DIR] [--list] [--readme-only] [--redo]
+        [--work DIR] [--list] [--readme-only] [--redo] [--seed N --singles N --pairs N]
+
+``--seed`` draws another set (held out: drawn after everything the published set tuned, judged the same way); its
+cases are drawn with ``--singles`` and ``--pairs`` (default the published set's counts) and go to their own
+``--out``.
 """
 from __future__ import annotations
 
@@ -24,7 +28,8 @@ from pathlib import Path
 
 from . import acceptance as acc
 from . import unlisted
-from .grammar import DB_HIGH, DB_LOW, KINDS, PLACES, SEED, counts, describe, drawn_cases
+from .grammar import (DB_HIGH, DB_LOW, KINDS, N_PAIRS, N_SINGLES, PLACES, SEED, Screen, counts, describe,
+                      drawn_cases)
 from .judge import block_items, honesty, judge_blocks
 from .unlisted import _atomic, _f, _pct, baseline_residual
 
@@ -86,7 +91,7 @@ def _by(recs: list[dict], key: str) -> dict:
     return out
 
 
-def readme(recs: list[dict], summ: dict, command: str) -> str:
+def readme(recs: list[dict], summ: dict, command: str, seed: int = SEED) -> str:
     """The README of ``OUT``: what was run, the summary against the thresholds, every case, the draw."""
     full = drawn_cases()
     have = {r["id"] for r in recs}
@@ -98,8 +103,10 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
          "grammar (`tests/independent_rig/grammar.py`): a place of the generator's model (a signal or a balance), a "
          "kind that fits it (static: offset, gain, dead zone, saturation, piecewise-linear, cubic; dynamic: lag, "
          "rate limit, delay, play, a compliance with a mass, a line volume behind a resistance) and a magnitude "
-         f"(log-uniform in the kind's range, scaled by the place's size on the rig), with the seed {SEED} published "
-         f"before anything was tuned; a block whose own effect is below {DB_LOW:g} dB or above {DB_HIGH:g} dB over "
+         f"(log-uniform in the kind's range, scaled by the place's size on the rig), "
+         + (f"with the seed {SEED} published before anything was tuned" if seed == SEED else
+            f"with the seed {seed}: a held-out draw, made after what the published set (seed {SEED}) tuned")
+         + f"; a block whose own effect is below {DB_LOW:g} dB or above {DB_HIGH:g} dB over "
          "the sensor noise on its best key signal was redrawn at another magnitude.  Each campaign is diagnosed "
          "(`ehas diagnose CAMP --json --write-effect`), the written effect file compared as the diagnosis prints "
          "it, and the recalibrated baseline measured (the model with no effect, beta and K fitted).", "",
@@ -157,10 +164,10 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
     return "\n".join(L) + "\n"
 
 
-def list_cases(cases: list[dict]) -> str:
+def list_cases(cases: list[dict], seed: int = SEED) -> str:
     """The drawn list as ``--list`` prints it: one line per case, then the counts per kind and per place."""
     c = counts(cases)
-    return "\n".join([f"# drawn set: seed {SEED}, {len(cases)} cases "
+    return "\n".join([f"# drawn set: seed {seed}, {len(cases)} cases "
                       f"({sum(len(x['blocks']) == 1 for x in cases)} single, "
                       f"{sum(len(x['blocks']) == 2 for x in cases)} pairs)"]
                      + [describe(x) for x in cases]
@@ -179,10 +186,21 @@ def main(argv=None) -> int:
     ap.add_argument("--readme-only", action="store_true",
                     help="rewrite README.md and results.json from cases/ (each case judged again from diag/)")
     ap.add_argument("--redo", action="store_true", help="rerun cases already checkpointed")
+    ap.add_argument("--seed", type=int, default=SEED,
+                    help=f"the draw's seed (default {SEED}, the published set; another seed draws a held-out set)")
+    ap.add_argument("--singles", type=int, default=N_SINGLES, help="single campaigns drawn")
+    ap.add_argument("--pairs", type=int, default=N_PAIRS, help="campaigns of two blocks drawn")
     a = ap.parse_args(argv)
-    cases = drawn_cases()
+    if a.singles < 0 or a.pairs < 0 or a.singles + a.pairs == 0:
+        raise SystemExit("--singles, --pairs: counts >= 0, at least one case in all")
+    held_out = (a.seed, a.singles, a.pairs) != (SEED, N_SINGLES, N_PAIRS)
+    if held_out and str(a.out) == DEFAULT_OUT:
+        raise SystemExit(f"--out: a draw other than the published one (seed {SEED}, {N_SINGLES} singles, {N_PAIRS} "
+                         f"pairs) goes to a folder of its own, not {DEFAULT_OUT}")
+    # a held-out draw measures its blocks in memory: the published set's cache file stays as it is
+    cases = drawn_cases(a.seed, Screen(None) if held_out else None, a.singles, a.pairs)
     if a.list:
-        print(list_cases(cases), end="")
+        print(list_cases(cases, a.seed), end="")
         return 0
     out, work = Path(a.out), Path(a.work)
     (out / "cases").mkdir(parents=True, exist_ok=True)
@@ -220,9 +238,11 @@ def main(argv=None) -> int:
                   key=lambda r: order.get(r["id"], 1e9))
     summ = summarise(recs)
     command = COMMAND if str(a.out) == DEFAULT_OUT else f"python -m tests.independent_rig.drawn --out {a.out}"
-    _atomic(out / "results.json", json.dumps({"command": command, "seed": SEED, "thresholds": THRESHOLDS,
+    if held_out:
+        command += f" --seed {a.seed} --singles {a.singles} --pairs {a.pairs}"
+    _atomic(out / "results.json", json.dumps({"command": command, "seed": a.seed, "thresholds": THRESHOLDS,
                                               "summary": summ, "cases": recs}, indent=1) + "\n")
-    _atomic(out / "README.md", readme(recs, summ, command))
+    _atomic(out / "README.md", readme(recs, summ, command, a.seed))
     print(f"[drawn] wrote {out / 'README.md'} and results.json ({len(recs)} cases)", flush=True)
     return 0
 

@@ -1098,13 +1098,13 @@ class Screen:
 
 
 # -- the draw --------------------------------------------------------------------------------------------------------
-def kind_deck(seed: int = SEED) -> list:
+def kind_deck(seed: int = SEED, singles: int = N_SINGLES, pairs: int = N_PAIRS) -> list:
     """The kinds of the drawn blocks in order: shuffled rounds of every kind, so that each is drawn about equally
     often (the singles first, then the pairs' blocks two by two)."""
     rng = np.random.default_rng([seed, 0])
     names = list(KINDS)
     deck = []
-    while len(deck) < N_SINGLES + 2 * N_PAIRS:
+    while len(deck) < singles + 2 * pairs:
         deck += [names[i] for i in rng.permutation(len(names))]
     return deck
 
@@ -1160,7 +1160,7 @@ def _case(cid: str, blocks: list, screens: list, rig: str, seed: int) -> dict:
             "blocks": [b.to_dict() for b in blocks], "screen": screens}
 
 
-def drawn_cases(seed: int = SEED, measure=None) -> list:
+def drawn_cases(seed: int = SEED, measure=None, singles: int = N_SINGLES, pairs: int = N_PAIRS) -> list:
     """The drawn set: :data:`N_SINGLES` single campaigns and :data:`N_PAIRS` pairs, deterministic for ``seed``.
 
     Each case has its own random stream (``numpy.random.default_rng([seed, group, index])``), so that a redraw in
@@ -1173,6 +1173,9 @@ def drawn_cases(seed: int = SEED, measure=None) -> list:
         The draw's seed (:data:`SEED` for the published set).
     measure : callable, optional
         ``measure(block, rig, seed) -> {"best_db", "best"}`` (default: :class:`Screen` with its cache).
+    singles, pairs : int
+        How many of each (a held-out draw with another seed may be smaller; the published set is
+        :data:`N_SINGLES` and :data:`N_PAIRS`).
 
     Returns
     -------
@@ -1181,17 +1184,17 @@ def drawn_cases(seed: int = SEED, measure=None) -> list:
         ``duration``, ``blocks`` (the truth: place, kind, params, words), ``screen`` (each block's measure).
     """
     measure = measure or Screen()
-    deck = kind_deck(seed)
+    deck = kind_deck(seed, singles, pairs)
     cases = []
-    for i in range(N_SINGLES):
+    for i in range(singles):
         rng = np.random.default_rng([seed, 1, i])
         rig, noise = _rig_and_seed(rng)
         b, s = draw_block(rng, deck[i], rig, noise, measure)
         cases.append(_case(f"d{i:02d}_{b.kind.name}@{b.place.name}", [b], [s], rig, noise))
-    for j in range(N_PAIRS):
+    for j in range(pairs):
         rng = np.random.default_rng([seed, 2, j])
         rig, noise = _rig_and_seed(rng)
-        k1, k2 = deck[N_SINGLES + 2 * j], deck[N_SINGLES + 2 * j + 1]
+        k1, k2 = deck[singles + 2 * j], deck[singles + 2 * j + 1]
         b1, s1 = draw_block(rng, k1, rig, noise, measure)
         b2, s2 = draw_block(rng, k2, rig, noise, measure, taken=(b1.place.name,))
         cases.append(_case(f"p{j}_{b1.kind.name}@{b1.place.name}+{b2.kind.name}@{b2.place.name}", [b1, b2],
