@@ -46,6 +46,10 @@ from ehas_env.ranges import check_field
 
 DEFAULT_DOC_PLAN = ((2, 15.0, 2.0),)  # a tiny plan for doctests
 
+#: replays of a model's rest kept for the static blocks at logged readings applied to it (the last few models
+#: screened on: a screen's base, the model kept and the library's)
+REST_KEPT = 4
+
 #: closed-loop signals in the order tables show them
 CL_SIGNALS = ("theta_deg", "current_mA", "flow_lpm", "p_a_bar", "p_b_bar", "p_s_bar", "load_kN")
 VALVE_SIGNALS = ("flow_lpm",)
@@ -267,6 +271,7 @@ class Replayer:
         self.cases = [self._case(r) for r in campaign.runs]
         self.n_evals = 0
         self._executor = None  # (pid, ThreadPoolExecutor) of :meth:`_pool`
+        self._rests = {}  # replays of models' rests that static blocks at logged readings apply to (simulate_many)
 
     @property
     def runs(self) -> list[Run]:
@@ -393,8 +398,38 @@ class Replayer:
         """:meth:`simulate` for several models at once: every (model, run) replay side by side on the cores.
 
         The compiled drivers release the GIL, so Python threads run them in parallel (a ``prange`` driver
-        did this before and cost a compile of its own, 4 s of a first diagnosis).
+        did this before and cost a compile of its own, 4 s of a first diagnosis).  A model whose static blocks at
+        logged readings may be applied to the replay of the rest (:mod:`ehas_env.measurement.logged_readings`) is
+        that: the rest replayed once (and kept for the next call: a screen of such a block tries many values on
+        one model), the blocks applied; only the replays of the rest count in ``n_evals``.
         """
+        parted = [self._parted(m) for m in models]
+        if any(p is not None for p in parted):
+            from ehas_env.measurement import logged_readings
+
+            kinds = [c.run.kind for c in self.cases]
+            # the rests this call needs: kept ones (moved to the end: the most recently used stay), the others
+            # replayed together (a rest kept from a call on other runs is replayed for these)
+            got, todo = {}, {}
+            for p in parted:
+                if p is None or p[0] in got or p[0] in todo:
+                    continue
+                kept = self._rests.pop(p[0], None)
+                if kept is not None and all(kept[i] is not None or (runs is not None and i not in runs)
+                                            for i in range(len(self.cases))):
+                    got[p[0]] = kept
+                else:
+                    todo[p[0]] = p[1]
+            if todo:
+                got.update(zip(todo, self.simulate_many(list(todo.values()), runs)))
+            self._rests.update(got)
+            while len(self._rests) > REST_KEPT:
+                self._rests.pop(next(iter(self._rests)))
+            whole = [m for m, p in zip(models, parted) if p is None]
+            done = iter(self.simulate_many(whole, runs) if whole else [])
+            return [next(done) if p is None else logged_readings.apply(
+                [x if runs is None or i in runs else None for i, x in enumerate(got[p[0]])], kinds, p[2])
+                for p in parted]
         self.n_evals += len(models)
         jobs = [(m, i) for m in range(len(models)) for i in range(len(self.cases)) if runs is None or i in runs]
         # the plants (and a first compiled model) are made here, one after the other; only the compiled runs go
@@ -416,6 +451,24 @@ class Replayer:
             results[m][i] = sims[k]
         return results
 
+    def _parted(self, model: ModelSpec):
+        """(key of the rest, the rest, the blocks) when ``model``'s static blocks at logged readings may be applied
+        to a replay of the rest (:func:`ehas_env.measurement.logged_readings.split`); None to replay it whole (a
+        model with proposed terms, a block at a reading where another effect acts too -- the model file's own
+        included --, a resampled run)."""
+        if model.terms or not model.effects or any(c.resample for c in self.cases):
+            return None
+        from ehas_env.measurement.logged_readings import split
+
+        parted = split(model.effects, getattr(self.model, "effects", None) or ())
+        if parted is None:
+            return None
+        rest, blocks = parted
+        spec = ModelSpec(effects=rest, beta=model.beta, K=model.K)
+        key = (repr(sorted((n, sorted(dict(v).items())) for n, v in rest.items())), float(model.beta),
+               float(model.K))
+        return key, spec, blocks
+
     def _pool(self):
         """The threads replays run on (``threads``, or one per core this process may use), made on first use
         (and again in a forked child: the parent's threads are not there)."""
@@ -430,8 +483,9 @@ class Replayer:
         return self._executor[1]
 
     def __getstate__(self):
-        """A replayer sent to another process leaves its threads behind (it makes its own there)."""
-        return {**self.__dict__, "_executor": None}
+        """A replayer sent to another process leaves its threads behind (it makes its own there), and its kept
+        replays."""
+        return {**self.__dict__, "_executor": None, "_rests": {}}
 
     def _prepare(self, model: ModelSpec, case: _Case) -> _Job:
         """What one replay of ``case`` with ``model`` needs: its compiled model, parameters, initial state and
