@@ -1,9 +1,9 @@
-"""proposed_d23_volume_chamber_b: dead volume of each chamber (hoses, ports, manifolds), found by ehas diagnose on /tmp/dr2_work/d23_volume@chamber_b/campaign.
+"""proposed_d23_volume_chamber_b: dead volume of each chamber (hoses, ports, manifolds), found by ehas diagnose on /tmp/drX_work/d23_volume@chamber_b/campaign.
 
 The dead volumes are 22.3 cm^3 on chamber A's side and 38 cm^3 on chamber B's (the baseline: 20 each).
-dV_a = 2.321 cm^3 (95 % CI -6.723 to 11.37)
-dV_b = 18 cm^3 (95 % CI -5.089 to 41.09)
-Residual against what does not repeat: 3.68x -> 1.62x.
+dV_a = 2.317 cm^3 (95 % CI -4.926 to 9.559)
+dV_b = 18 cm^3 (95 % CI 5.434 to 30.57)
+Residual against what does not repeat: 3.68x -> 1.5x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param
@@ -13,9 +13,9 @@ class ProposedD23VolumeChamberB(Effect):
     name = "proposed_d23_volume_chamber_b"
     title = "dead volume of each chamber (hoses, ports, manifolds)"
     params = (
-        Param("dV_a", "cm^3", 2.32101, (-18.0, 500.0),
+        Param("dV_a", "cm^3", 2.3166, (-18.0, 500.0),
               "oil volume added to chamber A's side beyond the baseline's 20 cm^3 (a longer hose, a manifold, an "
-              "accumulator; assumed range: down to 2 cm^3 left, up to half a litre)", typical=(1.16051, 4.64202),
+              "accumulator; assumed range: down to 2 cm^3 left, up to half a litre)", typical=(1.1583, 4.63319),
               si=1.0e-6),
         Param("dV_b", "cm^3", 18, (-18.0, 500.0),
               "oil volume added to chamber B's side beyond the baseline's 20 cm^3", typical=(9, 36),
