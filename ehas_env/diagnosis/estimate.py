@@ -103,7 +103,7 @@ def estimate(rep: Replayer, load_scale: float = 1.0, candidates=None) -> dict:
     -------
     dict
         ``estimate_s`` (s), ``replay_s`` (one replay of the fit data, wall s), ``book_x_noise`` (the book model's
-        figure on the fit data) and ``replays`` (the count expected).
+        figure on the fit data), ``replays`` (the count expected) and ``load_scale`` (as given).
     """
     book = ModelSpec()
     n0 = rep.n_evals
@@ -124,7 +124,7 @@ def estimate(rep: Replayer, load_scale: float = 1.0, candidates=None) -> dict:
             replays = LIBRARY_REPLAYS
     rep.n_evals = n0  # the timing and probing replays are not the search's
     return {"estimate_s": round(seconds(replays, replay_s, load_scale), 1), "replay_s": round(replay_s, 4),
-            "book_x_noise": round(figure, 3), "replays": replays,
+            "book_x_noise": round(figure, 3), "replays": replays, "load_scale": round(load_scale, 3),
             "library_share_left": round(share, 3), "library_effect": effect}
 
 

@@ -91,9 +91,9 @@ def _by(recs: list[dict], key: str) -> dict:
     return out
 
 
-def readme(recs: list[dict], summ: dict, command: str, seed: int = SEED) -> str:
+def readme(recs: list[dict], summ: dict, command: str, seed: int = SEED, full: list | None = None) -> str:
     """The README of ``OUT``: what was run, the summary against the thresholds, every case, the draw."""
-    full = drawn_cases()
+    full = drawn_cases() if full is None else full  # the whole draw (a held-out one: its own cases)
     have = {r["id"] for r in recs}
     n_ok = summ["campaigns"] - summ["errors"]
     L = ["# Diagnosis of hidden physics drawn from a grammar (issue 43, point 5)", "",
@@ -199,6 +199,7 @@ def main(argv=None) -> int:
                          f"pairs) goes to a folder of its own, not {DEFAULT_OUT}")
     # a held-out draw measures its blocks in memory: the published set's cache file stays as it is
     cases = drawn_cases(a.seed, Screen(None) if held_out else None, a.singles, a.pairs)
+    drawn = list(cases)
     if a.list:
         print(list_cases(cases, a.seed), end="")
         return 0
@@ -242,7 +243,7 @@ def main(argv=None) -> int:
         command += f" --seed {a.seed} --singles {a.singles} --pairs {a.pairs}"
     _atomic(out / "results.json", json.dumps({"command": command, "seed": a.seed, "thresholds": THRESHOLDS,
                                               "summary": summ, "cases": recs}, indent=1) + "\n")
-    _atomic(out / "README.md", readme(recs, summ, command, a.seed))
+    _atomic(out / "README.md", readme(recs, summ, command, a.seed, drawn))
     print(f"[drawn] wrote {out / 'README.md'} and results.json ({len(recs)} cases)", flush=True)
     return 0
 

@@ -1,0 +1,47 @@
+"""proposed_d01_compliance_piston_force: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/drH_work/d01_compliance@piston_force/campaign.
+
+The load path is a spring of 78.6 N/um between piston and crank (12.7 um per kN of load).
+k_load = 7.858e+07 N/m (95 % CI 7.404e+07 to 8.339e+07)
+Residual against what does not repeat: 1.56x -> 1.02x.
+Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+"""
+import math
+
+from ehas_env.physics.effects import Effect, Param
+
+
+class ProposedD01CompliancePistonForce(Effect):
+    name = "proposed_d01_compliance_piston_force"
+    title = "compliance in the load path (rod, pin, crank, shaft)"
+    params = (
+        Param("k_load", "N/m", 7.85751e+07, (1.0e5, 5.0e8),
+              "stiffness between the piston and the crank pin (rod, eye and pin, crank arm, a flexible mount; "
+              "assumed range: a soft mount of 0.1 N/um to a stiff steel linkage)",
+              typical=(3.92875e+07, 1.5715e+08), log_scale=True),
+    )
+    constants = (
+        Param("m_min", "kg", 5.0, (0.0, 1e3), "piston and rod mass on the stiff side of the spring (assumed)"),
+        Param("zeta_joint", "-", 0.1, (0.0, 10.0), "damping ratio of the spring with the piston's mass (assumed)"),
+    )
+    main_param = "k_load"
+    explanation = (
+        "The baseline's rod, crank and shaft are rigid. A flexible mount, a long crank arm or a twisting shaft "
+        "make a spring k_load between the piston (which the LVDT measures) and the inertia: the piston leads "
+        "the crank by F / k_load and a load-path resonance appears. The piston is given a mass (5 kg, assumed) "
+        "and the spring light damping (0.1, assumed)."
+    )
+    signature = (
+        "the measured piston leads the model by a fraction of the load force (position residual in phase with "
+        "the load); ringing in the load pressure at the load-path resonance after reversals; more on the heavy "
+        "disc sets."
+    )
+
+    @classmethod
+    def in_words(cls, params: dict) -> str:
+        """The fitted hypothesis in words."""
+        return (f"the load path is a spring of {params['k_load'] * 1e-6:.3g} N/um between piston and crank "
+                f"({1e9 / params['k_load']:.3g} um per kN of load)")
+
+    @staticmethod
+    def joint_force(gap, gap_rate, k_load, m_min, zeta_joint):
+        return k_load * gap + 2.0 * zeta_joint * math.sqrt(k_load * m_min) * gap_rate
