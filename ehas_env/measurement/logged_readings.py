@@ -97,7 +97,7 @@ def split(effects: dict, others=()) -> tuple[dict, list] | None:
             rest[name] = values
             continue
         place, g, pnames = term
-        slots = effect_slots(name, {**{p.name: p.default for p in get_effect(name).params}, **values})
+        slots = effect_slots(name, get_effect(name).resolve(values))
         blocks.append((name, place, g, tuple(slots[f"{name}.{p}"] for p in pnames)))
     if not blocks:
         return None

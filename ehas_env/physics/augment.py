@@ -35,6 +35,7 @@ of the book's rig, and relaxes to its chamber's within a fraction of a milliseco
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -471,8 +472,7 @@ class Bend(Static):
 
     @classmethod
     def expr_at(cls, place: SignalPlace) -> str:
-        span = repr(float(place.span))
-        return f"u + b * {span} * (u / {span}) ** 3"
+        return re.sub(r"\bs\b", repr(float(place.span)), cls.expr)  # the span written in: one formula
 
     @classmethod
     def in_words(cls, params: dict, ci: dict | None = None) -> str:
