@@ -191,6 +191,8 @@ def main(argv=None) -> int:
     ap.add_argument("--singles", type=int, default=N_SINGLES, help="single campaigns drawn")
     ap.add_argument("--pairs", type=int, default=N_PAIRS, help="campaigns of two blocks drawn")
     a = ap.parse_args(argv)
+    if a.seed < 0:
+        raise SystemExit(f"--seed: a whole number >= 0, got {a.seed}")
     if a.singles < 0 or a.pairs < 0 or a.singles + a.pairs == 0:
         raise SystemExit("--singles, --pairs: counts >= 0, at least one case in all")
     held_out = (a.seed, a.singles, a.pairs) != (SEED, N_SINGLES, N_PAIRS)
