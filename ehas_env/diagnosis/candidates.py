@@ -53,7 +53,7 @@ from ehas_env.diagnosis.honesty import at_bounds
 from ehas_env.diagnosis.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _value_of,
     beats_noise, confidence, fit, own_params, recal_params, reopens_baseline, score_db, start_value)
-from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
+from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.residuals import evidence_text
 from ehas_env.measurement.verdict import blocks_of, grade
 from ehas_env.physics.effects import REGISTRY, get_effect
@@ -960,7 +960,4 @@ def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
     """Geometric-mean residual (noise variances) over the samples ``parts`` = {case index: first sample}."""
     blocks = [(case.measured[s][k0:] - sim) / case.noise[s]
               for case, s, k0, (sim,) in _validation_samples(rep, parts, sims)]
-    if not blocks:
-        return None
-    n = sum(b.size for b in blocks)
-    return float(np.exp(sum(b.size * np.log(max(float(np.dot(b, b)) / b.size, 1e-300)) for b in blocks) / n))
+    return log_mean(blocks) if blocks else None

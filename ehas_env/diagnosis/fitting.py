@@ -8,6 +8,11 @@ the noise-normalised mean squared residual (:meth:`Replayer.log_cost`),
 minimised by iteratively reweighted least squares (:func:`fit`); the
 forward-difference Jacobian of both the fit and the confidence intervals is
 :meth:`Objective.jacobian`.
+
+The cost is the verdict's noise figure (:mod:`ehas_env.measurement.verdict`) before its clip at the floor: the same
+samples and signals, each run and signal's mean square divided by the sensor noise's instead of by its floor.  A
+geometric mean is blind to a constant scale of one of its blocks, so with the floors held the two differ by a
+constant factor: what lowers the cost lowers the figure by the same share.
 """
 from __future__ import annotations
 
@@ -17,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from ehas_env.measurement.replay import FitTable, ModelSpec, Replayer
+from ehas_env.measurement.replay import FitTable, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.proposal_terms import term_param
 from ehas_env.physics.effects import get_effect
 from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
@@ -219,9 +224,7 @@ class Objective:
 
     def cost(self, u) -> float:
         """Geometric mean over (run, signal) blocks (see :meth:`Replayer.log_cost`)."""
-        b = self.blocks([u])[0]
-        n = sum(x.size for x in b)
-        return float(np.exp(sum(x.size * np.log(max(float(np.dot(x, x)) / x.size, 1e-300)) for x in b) / n))
+        return log_mean(self.blocks([u])[0])
 
     def weights(self, u) -> list[float]:
         """Each block's weight at ``u``: 1 / its RMS (the log cost's gradient there)."""

@@ -228,6 +228,28 @@ class FitTable:
     rms: dict[str, dict[str, float]]
 
 
+def log_mean(blocks) -> float:
+    """The fit's cost of residual blocks: the geometric mean over blocks of each one's mean square, weighted by its
+    samples (:meth:`Replayer.log_cost`; the blocks already in noise units).
+
+    Parameters
+    ----------
+    blocks : sequence of ndarray
+        Noise-normalised residuals, one per run and signal.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> round(log_mean([np.full(10, 2.0), np.full(10, 0.5)]), 6)   # mean squares 4 and 0.25
+    1.0
+    """
+    n = sum(b.size for b in blocks)
+    return float(np.exp(sum(b.size * np.log(max(float(np.dot(b, b)) / b.size, 1e-300)) for b in blocks) / n))
+
+
 class Replayer:
     """Replays a campaign with any :class:`ModelSpec`; computes residuals and fits.
 
@@ -578,9 +600,7 @@ class Replayer:
         then weighs by how much it improves relatively, not by its size.  1.0 is
         the noise floor.
         """
-        blocks = self.cost_blocks(sims, runs)
-        n = sum(b.size for b in blocks)
-        return float(np.exp(sum(b.size * np.log(max(float(np.dot(b, b)) / b.size, 1e-300)) for b in blocks) / n))
+        return log_mean(self.cost_blocks(sims, runs))
 
     def not_compared(self) -> dict[str, list[str]]:
         """The logged columns left out of every comparison, per run: {run: [column, ...]} (only runs with some).

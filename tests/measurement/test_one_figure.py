@@ -61,3 +61,33 @@ def test_the_model_diagnose_out_writes_is_the_one_save_model_writes(diagnosed):
     out, saved = (json.loads((tmp / f).read_text()) for f in ("out/model.json", "m.json"))
     assert out["effects"] == saved["effects"] and "coulomb_friction" in out["effects"]
     assert out["calibration"]["residual_x_noise"] == saved["calibration"]["residual_x_noise"] == doc["residual_x_noise"]
+
+
+def test_the_fit_minimises_the_figure_on_the_samples_the_verdict_judges(diagnosed):
+    """The fit's cost (the log cost every fit minimises and every keep gate compares) is the noise figure before its
+    clip at the floor, floors held: per run and signal it judges the very samples the verdict judges, and divided by
+    the floors' geometric mean it is the figure -- so the fit's minimiser (per-block scale-free: the log cost) is
+    the figure's, and the gates' shares of it are the figure's shares.  Fails when one of the two skips samples the
+    other judges, or judges another signal."""
+    import math
+
+    import numpy as np
+
+    from ehas_env.measurement.campaign import read_campaign
+    from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
+    from ehas_env.measurement.verdict import blocks_of
+
+    _, camp, doc = diagnosed
+    rep = Replayer(read_campaign(camp))
+    for model in (ModelSpec(), ModelSpec(effects=doc["model"]["effects"], beta=doc["model"]["beta"],
+                                         K=doc["model"]["K"])):
+        sims = rep.simulate(model)
+        fit_blocks = rep.cost_blocks(sims)
+        judged = blocks_of(rep, sims, COST_SIGNALS)
+        assert [b.size for b in fit_blocks] == [b.n for b in judged]
+        for r, b in zip(fit_blocks, judged):
+            assert float(np.mean(r**2)) == pytest.approx(b.residual, rel=1e-12)
+        n = sum(b.n for b in judged)
+        unclipped = math.exp(sum(b.n * math.log(b.x) for b in judged) / n)
+        floors = math.exp(sum(b.n * math.log(b.floor) for b in judged) / n)
+        assert rep.log_cost(sims) / floors == pytest.approx(unclipped, rel=1e-9)
