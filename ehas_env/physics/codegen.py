@@ -243,6 +243,14 @@ class ModelSource:
         add("ehas_model", "one compiled model (quick build: linked to the modules it imports)", body)
         return mods
 
+    def _chain_lines(self, place: str, var: str) -> list[str]:
+        """The lines that pass ``var`` through every effect with a term at the chain place ``place``, in their
+        ``chain_order`` (then by name), each behind its ``on`` slot: ``var = <effect's term>(var, ...)``."""
+        out = []
+        for cls in sorted(self._with(place), key=lambda c: (c.chain_order, c.name)):
+            out += [f"    if {self._on(cls)}:", f"        {var} = {self._call(cls, place)}"]
+        return out
+
     def _assembled(self) -> str:
         L = []
         a = L.append
@@ -253,9 +261,7 @@ class ModelSource:
         a("    i = amplifier(i_cmd, P[I_IMAX])")
         a("    if P[I_EFFECTS_ON] == 0.0:")
         a("        return i")
-        for cls in sorted(self._with("valve_current"), key=lambda c: (c.chain_order, c.name)):
-            a(f"    if {self._on(cls)}:")
-            a(f"        i = {self._call(cls, 'valve_current')}")
+        L.extend(self._chain_lines("valve_current", "i"))
         a("    return i")
         a("")
         coils = sorted(self._with("coil_current"), key=lambda c: (c.chain_order, c.name))
@@ -279,22 +285,18 @@ class ModelSource:
         a('    sensor effect\'s term may read its own states from the state s: a lag of the reading)."""')
         a("    if P[I_EFFECTS_ON] == 0.0:")
         a("        return x")
-        for cls in sorted(self._with("position_reading"), key=lambda c: (c.chain_order, c.name)):
-            a(f"    if {self._on(cls)}:")
-            a(f"        x = {self._call(cls, 'position_reading')}")
+        L.extend(self._chain_lines("position_reading", "x"))
         a("    return x")
         a("")
         for out, (arg, unit, _, words, _) in layout.SENSED.items():
             a('@njit(cache=True, inline="always")')
             a(f"def {out}_reading({arg}, P, s):")
             a(f'    """What {words} reports for the model\'s {arg}, {unit}: the effects at this reading place."""')
-            chain = sorted(self._with(f"{out}_reading"), key=lambda c: (c.chain_order, c.name))
+            chain = self._chain_lines(f"{out}_reading", arg)
             if chain:
                 a("    if P[I_EFFECTS_ON] == 0.0:")
                 a(f"        return {arg}")
-            for cls in chain:
-                a(f"    if {self._on(cls)}:")
-                a(f"        {arg} = {self._call(cls, f'{out}_reading')}")
+            L.extend(chain)
             a(f"    return {arg}")
             a("")
         a('@njit(cache=True, inline="always")')
