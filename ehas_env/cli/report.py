@@ -343,7 +343,7 @@ def _validation(page, doc: dict, held: list[str]) -> None:
                        "data too.")
     cols = [("holdout_fit_percent_baseline", "fit of the held-out runs, baseline [%]"),
             ("holdout_fit_percent_model", "fit of the held-out runs, final model [%]"),
-            ("residual_x_noise_validation", "final model's residual on the validation data [x noise]")]
+            ("residual_x_noise_validation", "final model's residual on the validation data [x sensor-noise variance]")]
     cols = [(k, h) for k, h in cols if isinstance(v.get(k), (int, float))]
     if cols:
         page.table([h for _, h in cols], [[_num(v[k]) for k, _ in cols]])
@@ -416,7 +416,8 @@ def _search(page, doc: dict) -> None:
                      _num(e.get("score"), 3), _num(e.get("fit_percent")), e.get("evidence")] for e in ranking])
     if isinstance(doc.get("stack"), list) and doc["stack"]:
         page.heading("Stacking: which effects were kept, and why")
-        page.table(["effect", "kept", "reason", "residual, fit data [x noise]", "residual, validation data [x noise]",
+        page.table(["effect", "kept", "reason", "residual, fit data [x sensor-noise variance]",
+                    "residual, validation data [x sensor-noise variance]",
                     "fit of the held-out runs [%]"],
                    [[s.get("effect"), "yes" if s.get("kept") else "no", s.get("reason"),
                      _num(s.get("residual_x_noise_fit")), _num(s.get("residual_x_noise_validation")),

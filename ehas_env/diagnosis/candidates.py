@@ -700,7 +700,7 @@ def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cu
         if val is not None and cur_val is not None and not lowers_validation(val, cur_val):
             step.kept = False
             step.reason = (f"stands in for {hyp} ({get_effect(hyp).title}): without it the validation residual is "
-                           f"{val:.3g} noise variances, with it {cur_val:.3g}")
+                           f"{val:.3g} sensor-noise variances, with it {cur_val:.3g}")
             say(f"  {step.effect}: dropped ({step.reason})")
             current, sims, cur_val = g, gs, val
     return current, sims, cur_val
@@ -744,14 +744,14 @@ def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list
         need = rival_needs(own)  # a tenth of what the effect leaves above the noise
         if why is None and not score < need:  # sane, and lost on the data alone
             why = (f"does not do better than {effect} on the {'validation' if on_val else 'fitted'} data "
-                   f"({score:.4g} vs {own:.4g} noise variances; {need:.4g} needed)")
+                   f"({score:.4g} vs {own:.4g} sensor-noise variances; {need:.4g} needed)")
             if lost is not None:
                 lost.append((effect, h))
         if why is None:
             why = stands_in(rep, g, h)
         words = get_effect(h).in_words(g.model.effects[h]) + "; "
         s = Step(h, False, words + (why or f"does better than {effect} on the validation data ({score:.4g} vs "
-                                           f"{own:.4g} noise variances), sane, fits the same on separate groups "
+                                           f"{own:.4g} sensor-noise variances), sane, fits the same on separate groups "
                                            "of runs"), g, g.cost, gval, _held_fit(full, gs, held_idx))
         steps.append(s)
         say(f"  {h}: {'better' if why is None else 'not kept'} ({s.reason})")
@@ -762,7 +762,7 @@ def _rival_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list
     score, h, g, gs, gval, s = best
     s.kept = True
     step.kept = False
-    step.reason = (f"stands in for {h} ({get_effect(h).title}): in its place {h} gives {score:.4g} noise variances "
+    step.reason = (f"stands in for {h} ({get_effect(h).title}): in its place {h} gives {score:.4g} sensor-noise variances "
                    f"on the validation data, {effect} {own:.4g}")
     say(f"  {effect}: dropped ({step.reason})")
     return h, g, gs, gval
@@ -817,7 +817,7 @@ def _pair_hypotheses(rep: Replayer, full: Replayer, parts: dict, held_idx: list,
     val = _parts_cost(full, sims, parts)
     if why is None and val is not None and prev_val is not None and not lowers_validation(prev_val, val):
         why = (f"together they do not lower the residual of the validation data enough ({prev_val:.3g} -> "
-               f"{val:.3g} noise variances)")
+               f"{val:.3g} sensor-noise variances)")
     x = _quiet_measure(full, sims, units)
     if why is None:
         need = _share_needed(before)

@@ -262,7 +262,7 @@ def _keep_state(s: Search, f, rec: dict, bare) -> None:
     val_after = rec["residual_x_noise_validation_after"]  # None: the campaign has no validation samples
     why = (f"stands in for {name} ({get_effect(name).title}): with {name} in its place the residual on all "
            f"data is {rec['residual_x_noise_all_after']:.3g}x noise"
-           + ("" if val_after is None else f" and the validation residual {val_after:.3g} noise variances"))
+           + ("" if val_after is None else f" and the validation residual {val_after:.3g} sensor-noise variances"))
     if bare is not None and replaced and set(replaced) == set(s.current.model.effects) - set(bare.model.effects):
         steps_back_to(s.steps, s.bare[4], why)  # the library's model back, the hypotheses said not kept
         s.base = s.bare[3]

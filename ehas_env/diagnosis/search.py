@@ -207,7 +207,7 @@ def judge_round(s: Search, d: Diagnosis) -> tuple | None:
         fval = _held_fit(full, sims, s.held_idx)
         if why is None and val is not None and s.cur_val is not None and not lowers_validation(s.cur_val, val):
             why = (f"does not lower the residual of the validation data enough ({s.cur_val:.3g} -> {val:.3g} "
-                   "noise variances)")
+                   "sensor-noise variances)")
         if why is None and s.quiet and get_effect(effect).kind == "hypothesis":
             # the campaign was explained without it: it must remove a good share of the structured rest, in the
             # measure that made the search start
@@ -383,14 +383,14 @@ def _settle_swap(s: Search) -> None:
             if st.effect == e_lib and st.kept:
                 st.kept = False
                 st.reason = (f"stands in for {h} ({get_effect(h).title}): with {h} in its place the search "
-                             f"found more, and the residual fell to {now:.4g} noise variances "
+                             f"found more, and the residual fell to {now:.4g} sensor-noise variances "
                              f"(with {e_lib}: {was:.4g})")
         s.say(f"  {e_lib}: dropped (stands in for {h}: the search on top of {h} ends better on the validation data)")
         return
     tried = s.steps[n_steps:]  # back to the model before the branch, the branch's steps said as tried
     s.steps[n_steps:] = [Step(h, False, f"tried in place of {e_lib} with the hypotheses searched again on top "
                               f"of it ({', '.join(st.effect for st in tried[1:] if st.kept) or 'nothing kept'}"
-                              f"): the residual {now:.4g} noise variances, not better than "
+                              f"): the residual {now:.4g} sensor-noise variances, not better than "
                               f"{was:.4g} with {e_lib}", tried[0].fit, tried[0].cost_train,
                               tried[0].cost_val, None)]
     s.say(f"  {h} in place of {e_lib}: not better on the validation data; {e_lib} stays")

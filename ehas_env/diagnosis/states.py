@@ -247,7 +247,7 @@ def judge(all_before: float, all_after: float, val_before: float | None, val_aft
     >>> judge(3.0, 2.9, 4.0, 3.0)[:40]
     'the best term of the dictionary, refitte'
     >>> judge(3.0, 2.0, 4.0, 3.99)
-    'the validation residual goes from 4 to 3.99 noise variances: not lower by the share every kept effect must remove'
+    'the validation residual goes from 4 to 3.99 sensor-noise variances: not lower by the share every kept effect must remove'
     >>> judge(3.0, 2.0, 4.0, 4.0, val_moved=0.001) is None   # the held-out run never reaches it
     True
     """
@@ -256,7 +256,7 @@ def judge(all_before: float, all_after: float, val_before: float | None, val_aft
         return refused
     if val_before is not None and val_after is not None and not lowers_validation(val_before, val_after) \
             and not (val_moved is not None and val_moved < UNEXERCISED):
-        return (f"the validation residual goes from {val_before:.3g} to {val_after:.3g} noise variances: not lower "
+        return (f"the validation residual goes from {val_before:.3g} to {val_after:.3g} sensor-noise variances: not lower "
                 "by the share every kept effect must remove")
     return None
 
