@@ -198,6 +198,12 @@ SETTLING_X = 2.0
 PERSISTENT_CAP = 4.0
 
 
+#: the cycles left after the start settling still settle (their change falls by this factor cycle after cycle,
+#: over at least TREND_CYCLES cycles): the run has no stationary stretch, and the sensor noise is its floor
+TREND_X = 1.25
+TREND_CYCLES = 3
+TREND_CORR = 0.5
+
 #: share of the rig's cycle-to-cycle change in one spectral line (7 bins of a Hann-windowed spectrum) above which
 #: what persists in it is an oscillation (a limit cycle), not a random disturbance spread over a band
 LINE_SHARE = 0.5
@@ -223,6 +229,23 @@ def _one_line(d: np.ndarray) -> bool:
     return float(p[max(k - 3, 0):k + 4].sum()) > LINE_SHARE * float(p.sum())
 
 
+def _still_settling(g: np.ndarray, cycles: list) -> bool:
+    """Whether the residual still settles to the end of the run (a response the model misses), not what does not
+    repeat: over at least :data:`TREND_CYCLES` cycles their change's mean square ``g`` falls cycle after cycle,
+    each by :data:`TREND_X` or more, and each cycle's change has the shape of the next (correlation above
+    :data:`TREND_CORR`: the same response, smaller).  What does not repeat has neither: white noise's changes of
+    consecutive cycles correlate -0.5 (they share a cycle, with opposite signs) and its cycles of a few hundred
+    samples scatter by about 8 %; a disturbance's scatter more, but do not keep their shape while falling."""
+    if g.size < TREND_CYCLES or not np.all(g[:-1] >= TREND_X * g[1:]):
+        return False
+    corr = []
+    for x, y in zip(cycles[:-1], cycles[1:]):
+        k = min(x.size, y.size)
+        sx, sy = float(np.std(x[:k])), float(np.std(y[:k]))
+        corr.append(0.0 if sx == 0.0 or sy == 0.0 else float(np.corrcoef(x[:k], y[:k])[0, 1]))
+    return float(np.mean(corr)) > TREND_CORR
+
+
 def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, measured: np.ndarray | None = None,
                    simulated: np.ndarray | None = None) -> tuple[float, float, float] | None:
     """What does not repeat in a residual: its change from one cycle to the next, cycle by cycle, halved.
@@ -236,7 +259,9 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     * where the model's own cycles do not repeat but the rig's do (the model rings in a limit cycle of its own),
       the change of the measured signal is the smaller: per cycle the smaller of the two (``measured`` given);
     * the start settling: leading cycles whose change is above :data:`SETTLING_X` times the median of the cycles
-      after them are left out (judged, not floor); a knock later in the run stays in (it does not repeat);
+      after them are left out (judged, not floor); a knock later in the run stays in (it does not repeat); and
+      when the cycles left still settle to the run's end (:func:`_still_settling`) there is no floor (None: the
+      sensor noise is the floor);
     * what persists in the rig's change and not in the model's when it is an oscillation (the rig in a limit cycle
       the model lacks: most of the change in one spectral line, :data:`LINE_SHARE`): the persistent level (the
       median over the cycles kept) is then at most the model's own (``simulated`` given) plus
@@ -284,7 +309,8 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     if n <= 0 or (e.size - k0) * dt < MIN_CYCLES * period - 1e-9:
         return None
     n_seg = max(1, int(round(n * dt * freq_hz)))
-    g = _cycle_changes(_change(e, k0, m, a, n), a, n_seg)
+    d_e = _change(e, k0, m, a, n)
+    g = _cycle_changes(d_e, a, n_seg)
     d_meas = None
     if measured is not None:
         d_meas = _change(measured, k0, m, a, n)
@@ -293,9 +319,11 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     while first < n_seg - 1 and g[first] > SETTLING_X * float(np.median(g[first + 1:])):
         first += 1
     kept = g[first:]
+    i0 = first * (n // n_seg) + min(first, n % n_seg)  # where np.array_split's cycle `first` starts
+    if _still_settling(kept, np.array_split(d_e, n_seg)[first:]):
+        return None  # no stationary stretch: the run's change is a response the model misses, not a floor
     level = float(np.median(kept))
     extra = max(float(np.mean(kept)) - level, 0.0)  # a few cycles above the level: a knock, a disturbance
-    i0 = first * (n // n_seg) + min(first, n % n_seg)  # where np.array_split's cycle `first` starts
     if simulated is not None and d_meas is not None:
         own = float(np.median(_cycle_changes(_change(simulated, k0, m, a, n), a, n_seg)[first:]))
         cap = max(own + 1.0, PERSISTENT_CAP)
