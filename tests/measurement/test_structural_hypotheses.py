@@ -53,6 +53,18 @@ def test_a_coil_lag_is_named_not_a_transport_delay_or_a_slower_spool():
 
 
 @pytest.mark.slow
+def test_a_lugre_friction_is_named_not_the_coulomb_friction_kept_first():
+    """LuGre seal friction (450 N sliding, a presliding state) is taken by the library for a Coulomb friction of
+    about 300 N; screened on top of it, the LuGre law has no level left to show its presliding state with (the
+    independent generator's campaign of it, faded in: unexplained 4.82 with Coulomb friction kept, the law screened
+    at -0.8 dB).  Fitted in the Coulomb friction's place (``Effect.mistaken_for``) it replaces it with its level."""
+    res = diagnose_open(_campaign({"hyp_lugre_friction": {"Fc": 450.0, "r_s": 1.5, "sigma2": 300.0}}, seed=46))
+    assert res.hypothesis == "hyp_lugre_friction", (res.kept, res.verdict)
+    assert res.model.effects["hyp_lugre_friction"]["Fc"] == pytest.approx(450.0, rel=0.15)
+    assert "coulomb_friction" not in res.model.effects
+
+
+@pytest.mark.slow
 def test_a_transport_delay_stays_a_transport_delay():
     """The converse: a delay (the library's effect) is not replaced by the coil lag it could be mistaken for."""
     res = diagnose_open(_campaign({"transport_delay": {"tau": 0.004}}, seed=44))

@@ -36,6 +36,9 @@ class HypLugreFriction(Effect):
               "half the sub-step's rate; only a presliding distance shorter than |v| / k_max is stretched)"),
     )
     main_param = "Fc"
+    # its sliding level is a dry friction: a Coulomb (or Stribeck) friction kept first holds that level, and the
+    # law screened on top of it has none left to show its presliding state with; fitted in its place instead
+    mistaken_for = ("coulomb_friction", "stribeck_friction")
     #: |v| in the bristles' rate and the switch to the resolved relaxation: no small-signal meaning at rest
     smooth = False
     states = (("z", "m", 0.0),)
