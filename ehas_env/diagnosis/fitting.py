@@ -189,7 +189,8 @@ class Objective:
 
     One place for the models a fit simulates: a set of u is replayed together
     (:meth:`Replayer.simulate_many`), and the forward-difference Jacobian used by
-    :func:`fit` and :func:`confidence` is :meth:`jacobian`.
+    :func:`confidence` (and every few steps of :func:`fit`) is :meth:`jacobian`; :meth:`secant` updates it
+    between them.
 
     Parameters
     ----------
@@ -249,7 +250,6 @@ class Objective:
             H.append(h)
         self.blocks(U)
         return np.column_stack([(self.weighted(du, w) - f0) / h for du, h in zip(U, H)])
-
 
     def _unweighted(self, u) -> np.ndarray:
         return np.concatenate(self.blocks([u])[0])

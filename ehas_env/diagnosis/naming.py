@@ -619,12 +619,39 @@ def _flexible_fit(rep, base, free: list, terms: dict, fixed) -> tuple:
         # one rising toward the stroke's ends); then start where the term is zero, the model as it stands
         zero = D.fit(rep, free, {key: 0.0 for key in start}, fixed, max_nfev=FLEX_NFEV)
         flex = zero if zero.cost < flex.cost else flex
-    obj = D.Objective(rep, free, fixed)
     u_flex = np.array([fp.u(flex.model.terms[fp.name]) for fp in free])
     u_zero = np.array([fp.u(0.0) for fp in free])
-    w = obj.weights(u_flex)
-    sizes = [b.size for b in obj.blocks([u_flex])[0]]
-    return flex, linear_predictor(obj.jacobian(u_flex, w), obj.weighted(u_flex, w), u_flex, u_zero, keys, sizes, w)
+    return flex, linearised(rep, free, fixed, u_flex, u_zero, keys)
+
+
+def linearised(rep, free: list, fixed, u: np.ndarray, u_zero: np.ndarray, keys: list):
+    """:func:`linear_predictor` of the fit of ``free`` (``fixed`` the rest of the model) linearised at ``u``: one
+    forward-difference Jacobian of its weighted residual, weighted as the log cost's gradient there.
+
+    Parameters
+    ----------
+    rep : Replayer
+        The fit data.
+    free : list of FreeParam
+        The fitted numbers, in the order of ``u``, ``u_zero`` and ``keys``.
+    fixed : ModelSpec
+        Everything else of the model.
+    u, u_zero : ndarray
+        The point linearised at, and each number's "left out" value (in the fit's u).
+    keys : list of str
+        A name per number (what the predictor's subsets list).
+
+    Returns
+    -------
+    callable
+        predict(list of keys) -> (cost, u), as :func:`linear_predictor`'s.
+    """
+    from ehas_env.diagnosis import fitting as D
+
+    obj = D.Objective(rep, free, fixed)
+    w = obj.weights(u)
+    sizes = [b.size for b in obj.blocks([u])[0]]
+    return linear_predictor(obj.jacobian(u, w), obj.weighted(u, w), u, u_zero, keys, sizes, w)
 
 
 def honest_forms(combo, base_cost: float, named_cost: float, predict) -> list:

@@ -179,16 +179,13 @@ DROP_REFITS = 2
 def _drop_order(rep: Replayer, f, fixed: ModelSpec) -> list[str]:
     """The proposed terms of the fit ``f``, the one whose leaving out is predicted to raise its cost least first:
     on the fit's linearisation at ``f`` (one forward-difference Jacobian), each term set to zero and every other
-    fitted number refitted linearly (:func:`ehas_env.diagnosis.naming.linear_predictor`)."""
-    from ehas_env.diagnosis.naming import linear_predictor
+    fitted number refitted linearly (:func:`ehas_env.diagnosis.naming.linearised`)."""
+    from ehas_env.diagnosis.naming import linearised
 
-    obj = D.Objective(rep, f.free, fixed)
     u = np.array([fp.u(D._value_of(f.model, fp)) for fp in f.free])
     u_zero = np.array([fp.u(0.0) if fp.effect == D.TERM else x for fp, x in zip(f.free, u)])
-    w = obj.weights(u)
-    sizes = [b.size for b in obj.blocks([u])[0]]
     keys = [f"{fp.effect}.{fp.name}" for fp in f.free]
-    predict = linear_predictor(obj.jacobian(u, w), obj.weighted(u, w), u, u_zero, keys, sizes, w)
+    predict = linearised(rep, f.free, fixed, u, u_zero, keys)
     terms = [fp.name for fp in f.free if fp.effect == D.TERM]
     cost = {t: predict([k for k in keys if k != f"{D.TERM}.{t}"])[0] for t in terms}
     return sorted(terms, key=lambda t: cost[t])
@@ -506,7 +503,6 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
         return None
     # drop forms that no longer carry anything (a sparse start can keep one): backward elimination by the rule
     # that adds them, a form stays only when leaving it out raises the residual by at least ADD_TERM_DB
-    # (each subset refitted from the larger model's values: a single form's own fit may have stopped short)
     # (each subset refitted from the larger model's values: a single form's own fit may have stopped short).  The
     # fit's linearisation at the model ranks the forms to leave out (one Jacobian); the DROP_REFITS best ranked are
     # refitted: a sparse regression can start with ten forms, and refitting every subset of every step made
