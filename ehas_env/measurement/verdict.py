@@ -265,8 +265,8 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     * what persists in the rig's change and not in the model's when it is an oscillation (the rig in a limit cycle
       the model lacks: most of the change in one spectral line, :data:`LINE_SHARE`): the persistent level (the
       median over the cycles kept) is then at most the model's own (``simulated`` given) plus
-      :data:`PERSISTENT_CAP` noise variances; a random disturbance spread over a band stays in, and so does what a
-      few cycles add above the level (a knock).
+      :data:`PERSISTENT_CAP` noise variances, whether it persists, fades or grows (the floor is then that cap); a
+      random disturbance spread over a band stays in, and so does what a few cycles add above the level (a knock).
 
     Parameters
     ----------
@@ -327,8 +327,11 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     if simulated is not None and d_meas is not None:
         own = float(np.median(_cycle_changes(_change(simulated, k0, m, a, n), a, n_seg)[first:]))
         cap = max(own + 1.0, PERSISTENT_CAP)
-        if level > cap and _one_line(d_meas[i0:]):  # the rig rings where the model repeats: judged, not floor
-            level = cap
+        if level + extra > cap and _one_line(d_meas[i0:]):
+            # the rig rings where the model repeats: judged, not floor -- the ringing's level and what rises above
+            # it alike (a mode the start excites fades, an instability grows: cycles far above the median that are
+            # the same line, not a knock)
+            level, extra = cap, 0.0
     return level + extra, (k0 + i0) * dt, (k0 + m + n) * dt
 
 
