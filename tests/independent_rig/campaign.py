@@ -40,6 +40,10 @@ from .rig import Rig, book_rig, read_rig
 from .sensors import Chain
 from .simulate import DT, Bump, chirp, closed_loop, valve_bench
 
+#: the generator's version in truth.json (``generator_version``): 2 meets a stroke end at its instant with
+#: ``exact_bounds`` (an event of its integrator); 1 (and a truth.json without the field) stopped the piston at the
+#: next piece's boundary, up to 1 ms late -- the same campaigns otherwise, bit for bit
+VERSION = 2
 PLAN = ((3, 20.0, 1.0), (5, 30.0, 2.0), (1, 35.0, 3.0), (7, 10.0, 3.0))  # (disc sets, amplitude deg, Hz)
 DURATION = 3.0  # s per run
 CHIRP = (0.5, 30.0, 8.0)  # Hz, Hz, mA
@@ -188,7 +192,7 @@ def simulate(effects: dict | None = None, *, seed: int = 0, rig: str = "book", d
             meta["recorded"] = _recorded(len(plan))
         runs.append(("valve_chirp", cols, meta))
         actual = nominal
-    truth = {"generator": "tests/independent_rig", "effects": effects or {},
+    truth = {"generator": "tests/independent_rig", "generator_version": VERSION, "effects": effects or {},
              "kinds": {n: ALL[n].kind for n in (effects or {})},
              "rig": rig, "model_file": str(path.name) if path else None,
              "beta_Pa": actual.beta, "K_lpm_per_mA": actual.K / (1e-3 / 60), "seed": seed, "perturb": perturb,

@@ -467,7 +467,33 @@ class RigModel:
             for j in self._pressure_states():
                 if (y[j] <= 0.0 and dy[j] < 0.0) or (y[j] >= top and dy[j] > 0.0):
                     dy[j] = 0.0
+            self._held_at_stroke_end(y, dy)
         return dy
+
+    def _held_at_stroke_end(self, y, dy) -> None:
+        """At a stroke end, not moving inward and pushed outward: the stop's reaction holds the piston there (its
+        velocity and acceleration outward are zero), in place.  With :meth:`stroke_end` as the driver's event the
+        impact is resolved at its instant, not at the next piece's boundary (``exact_bounds``)."""
+        x, v = self.piston(y)
+        h = self.rig.half_stroke
+        if abs(x) < h * (1.0 - 1e-12):
+            return
+        out = math.copysign(1.0, x)
+        if self.two_body:
+            if v * out <= 0.0 and dy[8] * out > 0.0:
+                dy[7] = min(dy[7] * out, 0.0) * out
+                dy[8] = 0.0
+            return
+        lever = self.rig.radius * math.cos(y[0] + self.phi0)  # dx/dtheta
+        if v * out <= 0.0 and dy[1] * lever * out > 0.0:
+            dy[0] = dy[0] if dy[0] * lever * out < 0.0 else 0.0
+            dy[1] = 0.0
+
+    def stroke_end(self, y) -> float:
+        """How far the piston is inside its stroke, m, less a hair (negative only past an end: the driver's event
+        with ``exact_bounds``; a piston held at the end is not an impact)."""
+        h = self.rig.half_stroke
+        return h * (1.0 + 1e-12) - abs(self.piston(y)[0])
 
     def _pressure_states(self) -> tuple:
         """Indices of every pressure state: the chambers, hose_line's ports, the blocks' line volumes."""
@@ -586,17 +612,21 @@ class RigModel:
         for j in self._pressure_states():
             y[j] = min(max(y[j], 0.0), top)
         x, _ = self.piston(y)
-        hit = False
         if abs(x) > rig.half_stroke:
-            hit = True
-            lim = math.copysign(rig.half_stroke, x)
-            if self.two_body:
-                y[7] = lim
-                y[8] = 0.0 if y[8] * lim > 0 else y[8]
-            else:
-                y[0] = math.asin(lim / rig.radius + math.sin(self.phi0)) - self.phi0
-                y[1] = 0.0 if y[1] * lim > 0 else y[1]
-        return hit
+            self.impact(y)
+            return True
+        return False
+
+    def impact(self, y) -> None:
+        """The piston at the stroke end nearest it, its outward velocity gone (an inelastic stop); in place."""
+        rig = self.rig
+        lim = math.copysign(rig.half_stroke, self.piston(y)[0])
+        if self.two_body:
+            y[7] = lim
+            y[8] = 0.0 if y[8] * lim > 0 else y[8]
+        else:
+            y[0] = math.asin(lim / rig.radius + math.sin(self.phi0)) - self.phi0
+            y[1] = 0.0 if y[1] * lim > 0 else y[1]
 
     def outputs(self, y, t: float = 0.0) -> dict:
         """What the rig's transducers see (before noise): flow into A at the valve's port (LPM), chamber

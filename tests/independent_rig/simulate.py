@@ -34,6 +34,9 @@ from .rig import BAR, LPM, Rig
 from .sensors import Chain
 
 DT = 1.0e-3  # s: the RMC70's control period
+#: stroke-end impacts resolved in one piece before the driver gives up (a bouncing piston would need many; the
+#: stops are inelastic: one, then held)
+MAX_IMPACTS = 8
 RTOL = 1.0e-7
 #: absolute tolerances per state (theta, omega, qc, qcd, pa, pb, iv, xp, vp, z)
 ATOL = np.array([1e-10, 1e-8, 1e-12, 1e-10, 1e-2, 1e-2, 1e-8, 1e-11, 1e-9, 1e-12])
@@ -187,13 +190,25 @@ def _advance(model: RigModel, y: np.ndarray, t0: float, t1: float, i_cmd: float)
     if t1 - t0 <= 1e-12:
         return y
     atol = ATOL if len(y) == N else np.concatenate([ATOL, model.extra_atol()])
-    sol = solve_ivp(lambda t, s: model.rates(s, i_cmd, t), (t0, t1), y, method="RK45", rtol=RTOL, atol=atol,
-                    first_step=min(t1 - t0, 2.5e-4))
-    if not sol.success:
-        raise RuntimeError(f"integration failed at t = {t0:g} s: {sol.message}")
-    y = sol.y[:, -1].copy()
-    model.apply_stops(y)
-    return y
+    events = None
+    if getattr(model, "exact_bounds", False):
+        # a stroke end is met where it is (the impact at its instant), not at the next piece's boundary
+        def events(t, s):
+            return model.stroke_end(s)
+        events.terminal, events.direction = True, -1.0
+    for _ in range(MAX_IMPACTS + 1):
+        sol = solve_ivp(lambda t, s: model.rates(s, i_cmd, t), (t0, t1), y, method="RK45", rtol=RTOL, atol=atol,
+                        first_step=min(t1 - t0, 2.5e-4), events=events)
+        if not sol.success:
+            raise RuntimeError(f"integration failed at t = {t0:g} s: {sol.message}")
+        y = sol.y[:, -1].copy()
+        if sol.status == 1:
+            model.impact(y)  # at the end's instant: the outward velocity gone, then on to the piece's end
+        model.apply_stops(y)
+        if sol.status != 1 or sol.t[-1] >= t1 - 1e-12:
+            return y
+        t0 = float(sol.t[-1])
+    raise RuntimeError(f"more than {MAX_IMPACTS} stroke-end impacts in one piece at t = {t0:g} s")
 
 
 def _period(model: RigModel, y, k: int, cmds: list) -> np.ndarray:
