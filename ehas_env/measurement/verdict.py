@@ -332,7 +332,11 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
             # it alike (a mode the start excites fades, an instability grows: cycles far above the median that are
             # the same line, not a knock)
             level, extra = cap, 0.0
-    return level + extra, (k0 + i0) * dt, (k0 + m + n) * dt
+    # what does not repeat is a part of the residual: over the stretch that sets it, never above the residual's own
+    # mean square (the halved change overstates a narrow-band process that swings against itself one period
+    # later -- a loop's mode rung by noise at (k + 1/2) times the sine's frequency -- by up to 2x)
+    ceiling = float(np.mean(e[k0 + i0:k0 + m + n + 1] ** 2))
+    return min(level + extra, ceiling), (k0 + i0) * dt, (k0 + m + n) * dt
 
 
 def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",

@@ -202,7 +202,7 @@ def test_a_ringing_of_the_rig_that_fades_or_grows_is_judged_whole(envelope):
     """The rig rings at 8.8 Hz (a lightly damped mode the start from rest excites, or an instability), not locked
     to the reference, its amplitude changing over the run; the model repeats.  All of that ringing is a behaviour
     the model lacks: the floor is capped at PERSISTENT_CAP noise variances whatever the envelope, the cycles far
-    above the median included (before 2026-11-30 the cap held the median and the cycles above it counted as a
+    above the median included (before 2026-11-29 the cap held the median and the cycles above it counted as a
     knock: floors of 900 noise variances on a start-from-rest campaign of a 6 ms coil lag, ringing at 8.8 Hz)."""
     from ehas_env.measurement.verdict import PERSISTENT_CAP
 
@@ -217,3 +217,24 @@ def test_a_ringing_of_the_rig_that_fades_or_grows_is_judged_whole(envelope):
     # the same ringing in the model too (the model has the mode): the residual's change is the noise
     both = _block(y, TRUE + ring)
     assert both.floor == pytest.approx(1.0, rel=0.15) and grade([both])["verdict"] == "explained"
+
+
+def test_the_floor_is_never_above_the_residual_over_its_stretch():
+    """A mode of the loop rung by noise at 3.5 times the sine's frequency (a narrow band about 10.5 Hz on a 3 Hz
+    run) swings against itself one period later: the change from cycle to cycle, halved, is about 1.8 times its
+    variance.  What does not repeat is a part of the residual, so the floor is capped at the residual's own mean
+    square over the stretch that sets it (before 2026-11-29 it was not: such a run counted 0.64 floors)."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(20)
+    f0, r = 3.5 * F, 0.995  # a resonance at 10.5 Hz, its poles at radius r
+    w = 2 * np.pi * f0 * DT
+    ring = lfilter([1.0], [1.0, -2 * r * np.cos(w), r * r], rng.standard_normal(T.size + 2000))[2000:]
+    e = 5.0 * ring / np.std(ring) + rng.standard_normal(T.size)
+    fl, a, b = residual_floor(e, DT, F, START)
+    k0, k1 = int(round(a / DT)), int(round(b / DT)) + 1
+    # the cap is what sets it here (the change's estimate was 1.56x the mean square: 37.4 against 23.9)
+    assert fl == pytest.approx(float(np.mean(e[k0:k1] ** 2)), rel=1e-9)
+    # white noise alone stays below its cap: its floor is its own estimate, unbiased (1 +- its scatter)
+    wn = rng.standard_normal(T.size)
+    assert 0.9 < residual_floor(wn, DT, F, START)[0] < 1.1
