@@ -46,6 +46,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import inspect
+import json
 import os
 import re
 import sys
@@ -633,7 +634,8 @@ def _load(name: str, text: str, fresh: list):
 #: the environment's step alone: results/first_step.md; a benchmark grid's driver alone: the "inline" figure)
 COMPILE_CPU_S = {"inline": 90.0, "quick": 16.0, "quick, library cached": 9.0,
                  "inline, environment step": 36.0, "inline, benchmark grid": 90.0}
-_WATCH = {"depth": 0, "start": 0.0, "name": "", "thread": None, "est": 0.0}
+_WATCH = {"depth": 0, "start": 0.0, "name": "", "thread": None, "est": 0.0, "build": None, "scale": 1.0,
+          "mods": set(), "spent": 0.0, "going": False, "first": False}
 HEARTBEAT_S = 10.0
 _FRESH: dict[str, tuple] = {}  # modules written by this process, not yet compiled: (build, their model's module)
 
@@ -654,7 +656,64 @@ def compile_estimate_s(build: str) -> float:
     float
         ``COMPILE_CPU_S[build]`` times the square root of the run queue per core when above one.
     """
-    return COMPILE_CPU_S[build] * load_scale()
+    return quiet_compile_s(build) * load_scale()
+
+
+#: the file in :func:`cache_dir` holding this machine's measured compile times: ``{build: [s, ...]}`` (the last
+#: :data:`COMPILE_KEPT` of each build, each its wall time over :func:`load_scale` at its start)
+COMPILE_RECORD = "compile_times.json"
+COMPILE_KEPT = 5
+
+
+def quiet_compile_s(build: str) -> float:
+    """A quiet machine's seconds for a first compile of ``build``: the median of this machine's last compiles of
+    it (:data:`COMPILE_RECORD`), else :data:`COMPILE_CPU_S`'s figure.
+
+    The figures of :data:`COMPILE_CPU_S` were measured once for one kind of model (results/compile.md); a model
+    whose effects add states compiles more (a coil lag's: 37 CPU s where the table says 9), so the machine's own
+    record of what its compiles took is the better guess.
+
+    Parameters
+    ----------
+    build : str
+        A key of :data:`COMPILE_CPU_S`.
+
+    Returns
+    -------
+    float
+    """
+    try:
+        seen = json.loads((cache_dir() / COMPILE_RECORD).read_text()).get(build) or []
+        seen = [float(x) for x in seen if isinstance(x, (int, float)) and 0.0 < x < 1e5]
+    except (OSError, ValueError, AttributeError):
+        seen = []
+    if not seen:
+        return COMPILE_CPU_S[build]
+    seen.sort()
+    mid = len(seen) // 2
+    return seen[mid] if len(seen) % 2 else 0.5 * (seen[mid - 1] + seen[mid])
+
+
+def record_compile_s(build: str, seconds: float, new: bool = True) -> None:
+    """Add one measured compile of ``build`` (seconds at a quiet machine's pace) to this machine's record, keeping
+    the last :data:`COMPILE_KEPT` (``new=False``: the figure replaces the last one, a model's compile that went on
+    in another of its functions); a record that cannot be written is left as it was (the estimate is a guess)."""
+    path = cache_dir() / COMPILE_RECORD
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError):
+        doc = {}  # none yet, or not readable: started again
+    try:
+        if not isinstance(doc, dict):
+            doc = {}
+        kept = [float(x) for x in doc.get(build) or [] if isinstance(x, (int, float))]
+        doc[build] = ((kept if new or not kept else kept[:-1]) + [round(float(seconds), 2)])[-COMPILE_KEPT:]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+        os.replace(tmp, path)
+    except (OSError, ValueError, TypeError):
+        pass
 
 
 def load_scale() -> float:
@@ -695,11 +754,16 @@ def _watch_compiles(modules: list, build: str) -> None:
                 _WATCH["start"] = time.monotonic()
                 _WATCH["name"] = getattr(fn, "__name__", "?")
                 mod = getattr(fn, "__module__", "")
+                if mod in _WATCH["mods"]:  # the announced model compiles another of its functions: still its time
+                    _WATCH["going"] = True
                 if mod in _FRESH:
                     build, model = _FRESH[mod]
-                    for m in [m for m, (_, of) in _FRESH.items() if of == model]:  # one line for one model
+                    mods = [m for m, (_, of) in _FRESH.items() if of == model]
+                    for m in mods:  # one line for one model
                         del _FRESH[m]
                     _WATCH["est"] = compile_estimate_s(build)
+                    _WATCH.update(build=build, scale=load_scale(), mods=set(mods), spent=0.0, going=True,
+                                  first=True)
                     what = "fast-step build" if build == "inline" else f"{build} build"
                     print(f"ehas: compiling the simulator for this set of effects and controllers ({what}, "
                           f"{_WATCH['name']}; first run only; about {_WATCH['est']:.0f} s at this machine's load)",
@@ -708,6 +772,12 @@ def _watch_compiles(modules: list, build: str) -> None:
 
         def on_end(self, ev):
             _WATCH["depth"] = max(0, _WATCH["depth"] - 1)
+            if _WATCH["depth"] == 0 and _WATCH["going"]:
+                # an announced model's compile (all its functions compiled so far: one figure) ended: what it
+                # took, kept for the next estimate of its build
+                _WATCH["spent"] += (time.monotonic() - _WATCH["start"]) / _WATCH["scale"]
+                record_compile_s(_WATCH["build"], _WATCH["spent"], new=_WATCH["first"])
+                _WATCH["going"] = _WATCH["first"] = False
 
     def beat():
         said = 0  # heartbeats printed for the compile under way

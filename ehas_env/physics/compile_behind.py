@@ -166,7 +166,7 @@ def _estimate(build: str) -> str:
     project's compile estimate) up to the run queue per core itself (a process that gets its share of the cores
     and no more: measured 272 s for 36.2 s of CPU at 11 runnable processes per core, results/first_step.md)."""
     low = codegen.compile_estimate_s(build)
-    high = codegen.COMPILE_CPU_S[build] * codegen.load_scale() ** 2
+    high = codegen.quiet_compile_s(build) * codegen.load_scale() ** 2
     return f"about {low:.0f} s" if high < 1.2 * low else f"about {low:.0f}-{high:.0f} s"
 
 

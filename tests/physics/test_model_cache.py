@@ -90,3 +90,31 @@ def test_both_builds_give_the_same_numbers():
     assert plant.model is not Plant(disc_sets=5).model
     np.testing.assert_array_equal(quick.theta_deg, fast.theta_deg)
     np.testing.assert_array_equal(quick.current_mA, fast.current_mA)
+
+
+def test_the_compile_estimate_learns_this_machines_compile_times(tmp_path, monkeypatch):
+    """The message a first compile prints estimates its time from the machine's own record of its last compiles of
+    that build (their median), else from the table measured once (COMPILE_CPU_S); the record keeps the last 5, a
+    model's compile that goes on in another function replaces its figure, and a record that cannot be read is the
+    table again (a state effect's model took 37 CPU s where the table says 9)."""
+    from ehas_env.physics import codegen
+
+    monkeypatch.setenv("EHAS_CACHE_DIR", str(tmp_path))
+    build = "quick, library cached"
+    assert codegen.quiet_compile_s(build) == codegen.COMPILE_CPU_S[build]
+    for s in (30.0, 10.0, 20.0):
+        codegen.record_compile_s(build, s)
+    assert codegen.quiet_compile_s(build) == 20.0
+    codegen.record_compile_s(build, 40.0, new=False)  # the last compile went on: 20 -> 40
+    assert codegen.quiet_compile_s(build) == 30.0  # 30, 10, 40
+    for s in (50.0, 60.0, 70.0):
+        codegen.record_compile_s(build, s)
+    doc = json.loads((tmp_path / codegen.COMPILE_RECORD).read_text())
+    assert doc[build] == [10.0, 40.0, 50.0, 60.0, 70.0]  # the last COMPILE_KEPT = 5
+    assert codegen.quiet_compile_s(build) == 50.0
+    assert codegen.compile_estimate_s(build) == pytest.approx(codegen.quiet_compile_s(build) * codegen.load_scale())
+    assert codegen.quiet_compile_s("quick") == codegen.COMPILE_CPU_S["quick"]  # another build: its own record
+    (tmp_path / codegen.COMPILE_RECORD).write_text("not json")
+    assert codegen.quiet_compile_s(build) == codegen.COMPILE_CPU_S[build]
+    codegen.record_compile_s(build, 12.0)  # a broken record is started again
+    assert codegen.quiet_compile_s(build) == 12.0
