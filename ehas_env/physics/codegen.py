@@ -49,6 +49,7 @@ import inspect
 import json
 import os
 import re
+import statistics
 import sys
 import textwrap
 import threading
@@ -687,11 +688,7 @@ def quiet_compile_s(build: str) -> float:
         seen = [float(x) for x in seen if isinstance(x, (int, float)) and 0.0 < x < 1e5]
     except (OSError, ValueError, AttributeError):
         seen = []
-    if not seen:
-        return COMPILE_CPU_S[build]
-    seen.sort()
-    mid = len(seen) // 2
-    return seen[mid] if len(seen) % 2 else 0.5 * (seen[mid - 1] + seen[mid])
+    return statistics.median(seen) if seen else COMPILE_CPU_S[build]
 
 
 def record_compile_s(build: str, seconds: float, new: bool = True) -> None:
