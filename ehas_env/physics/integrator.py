@@ -157,19 +157,36 @@ def rates(s, i_valve, P, ds, bench_supply):
 
 
 @njit(cache=True, inline="always")
-def rk4_substep(s, i_valve, P, h, k1, k2, k3, k4, tmp, bench_supply):
-    """One classical RK4 step of length h (s updated in place)."""
+def rk4_substep(s, i_valve, P, h, k1, k2, k3, k4, tmp, bench_supply, have_k1):
+    """One classical RK4 step of length h (s updated in place); with ``have_k1`` true, k1 already holds the rates
+    at s (the period's first, evaluated to decide its refinement) and is not evaluated again.
+
+    The four stages share one call of :func:`rates`: numba inlines a function once per call site, and the model's
+    right-hand side inlined four times over was most of the inlined build's compile.  Each stage's rates land in
+    k4 and are kept in k1..k3; the stage states are the same sums as the textbook's, so the numbers are too.
+    """
     n = N_STATES  # a compile-time constant, so the loops unroll
-    rates(s, i_valve, P, k1, bench_supply)
     for j in range(n):
-        tmp[j] = s[j] + 0.5 * h * k1[j]
-    rates(tmp, i_valve, P, k2, bench_supply)
-    for j in range(n):
-        tmp[j] = s[j] + 0.5 * h * k2[j]
-    rates(tmp, i_valve, P, k3, bench_supply)
-    for j in range(n):
-        tmp[j] = s[j] + h * k3[j]
-    rates(tmp, i_valve, P, k4, bench_supply)
+        tmp[j] = s[j]
+    for st in range(4):
+        if st == 0 and have_k1:
+            for j in range(n):
+                k4[j] = k1[j]
+        else:
+            rates(tmp, i_valve, P, k4, bench_supply)
+        if st < 3:
+            c = h if st == 2 else 0.5 * h
+            for j in range(n):
+                tmp[j] = s[j] + c * k4[j]
+            if st == 0:
+                for j in range(n):
+                    k1[j] = k4[j]
+            elif st == 1:
+                for j in range(n):
+                    k2[j] = k4[j]
+            else:
+                for j in range(n):
+                    k3[j] = k4[j]
     for j in range(n):
         s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 
@@ -222,8 +239,9 @@ def advance(s, P, hist, k, dt, nsub, i_initial, k1, k2, k3, k4, tmp):
         if j == 0:
             rates(s, i_v, P, k1, -1.0)
         m = REFINE if near_bound(s, k1, h) or near_stroke_end(s, P) else 1
-        for _ in range(m):
-            rk4_substep(s, i_v, P, h / m, k1, k2, k3, k4, tmp, -1.0)
+        for q in range(m):
+            # the period's first rates are those of its first step: kept, not evaluated twice
+            rk4_substep(s, i_v, P, h / m, k1, k2, k3, k4, tmp, -1.0, j == 0 and q == 0)
             if project(s, P):
                 hit = True
     return hit
@@ -296,5 +314,5 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out, supply_log=None):
             i_v = valve_current(delayed_command(hist, k, j, nsub, dt, tau, 0.0), P)
             if j == 0:
                 out[k, 2] = i_v
-            rk4_substep(s, i_v, P, h, k1, k2, k3, k4, tmp, supply)
+            rk4_substep(s, i_v, P, h, k1, k2, k3, k4, tmp, supply, False)
             spool_stops(s, P)
