@@ -43,6 +43,28 @@ def delayed_command(hist, k, j, nsub, dt, tau, i_initial):
 
 # >>> compiled
 @njit(cache=True, inline="always")
+def crank_end(theta, P):
+    """The stroke end the one-body crank's angle ``theta`` (rad) is at or past: ``(1.0, its angle)`` for the upper,
+    ``(-1.0, its angle)`` for the lower, ``(0.0, 0.0)`` for neither (the piston r sin(theta) - piston_offset at
+    +-half stroke).  One test for :func:`project` (which stops the crank there) and :func:`held_at_bounds` (which
+    holds it there inside a step)."""
+    r = P[I_RADIUS]
+    x_off = P[I_XOFF]
+    hi = min((P[I_HALF_STROKE] + x_off) / r, 1.0)
+    lo = max((x_off - P[I_HALF_STROKE]) / r, -1.0)
+    # asin(y) >= y for y >= 0 (<= y for y <= 0): only past y can the crank reach that end (saves the asin)
+    if theta >= (hi if hi >= 0.0 else -2.0):
+        th_end = math.asin(hi)
+        if theta >= th_end:
+            return 1.0, th_end
+    elif theta <= (lo if lo <= 0.0 else 2.0):
+        th_end = math.asin(lo)
+        if theta <= th_end:
+            return -1.0, th_end
+    return 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
 def project(s, P):
     """Hard limits after a step: spool end stops, pressure range, stroke ends.
 
@@ -69,26 +91,13 @@ def project(s, P):
             if s[8] * s[7] > 0.0:
                 s[8] = 0.0
     else:
-        # the stroke ends: the piston r sin(theta) - piston_offset at +-half stroke
-        x_off = P[I_XOFF]
-        hi = min((P[I_HALF_STROKE] + x_off) / r, 1.0)
-        lo = max((x_off - P[I_HALF_STROKE]) / r, -1.0)
-        # asin(y) >= y for y >= 0 (<= y for y <= 0): only past y can the crank reach that end (saves the asin)
-        if s[0] >= (hi if hi >= 0.0 else -2.0):
-            th_end = math.asin(hi)
-            if s[0] >= th_end:
-                hit = True
-                s[0] = th_end
-                if s[1] > 0.0:
-                    s[1] = 0.0
-        elif s[0] <= (lo if lo <= 0.0 else 2.0):
-            th_end = math.asin(lo)
-            if s[0] <= th_end:
-                hit = True
-                s[0] = th_end
-                if s[1] < 0.0:
-                    s[1] = 0.0
-        s[7] = r * math.sin(s[0]) - x_off
+        side, th_end = crank_end(s[0], P)
+        if side != 0.0:
+            hit = True
+            s[0] = th_end
+            if s[1] * side > 0.0:
+                s[1] = 0.0
+        s[7] = r * math.sin(s[0]) - P[I_XOFF]
         s[8] = r * math.cos(s[0]) * s[1]
     return hit
 
@@ -112,19 +121,10 @@ def held_at_bounds(s, P, ds):
                 ds[7] = 0.0
                 ds[8] = 0.0
         return
-    r = P[I_RADIUS]
-    x_off = P[I_XOFF]
-    hi = min((lim + x_off) / r, 1.0)
-    lo = max((x_off - lim) / r, -1.0)
-    # asin(y) >= y for y >= 0 (<= y for y <= 0): only past y can the crank be at that end (saves the asin)
-    if s[0] >= (hi if hi >= 0.0 else -2.0) and s[0] >= math.asin(hi):
-        if s[1] >= 0.0 and ds[1] > 0.0:
-            ds[0] = 0.0
-            ds[1] = 0.0
-    elif s[0] <= (lo if lo <= 0.0 else 2.0) and s[0] <= math.asin(lo):
-        if s[1] <= 0.0 and ds[1] < 0.0:
-            ds[0] = 0.0
-            ds[1] = 0.0
+    side, th_end = crank_end(s[0], P)
+    if side != 0.0 and s[1] * side >= 0.0 and ds[1] * side > 0.0:
+        ds[0] = 0.0
+        ds[1] = 0.0
 
 
 @njit(cache=True, inline="always")
