@@ -64,8 +64,13 @@ def _registered_effects_and_laws_stay_in_their_module():
     law left registered by one module gave every later environment, benchmark or plant in that worker a model of
     its own, compiled again: seven inlined builds (each 3-5 min on 2 loaded cores) in one default run instead of
     one.  The registries and the loaders' "already loaded" records are restored together, so a later module that
-    loads the same file imports and registers it again.
+    loads the same file imports and registers it again.  So is ``EHAS_EFFECTS_PATH``, which loading a folder sets
+    for worker processes: left set, every later subprocess of the worker (a command run as a user runs it, a
+    README block, a Ray or compile-behind worker) loaded the earlier modules' user effects and compiled a model
+    of its own with them (in one default run, a hypothesis model with three modules' effects, about 3 min of CPU).
     """
+    import os
+
     from ehas_controllers import base as cbase
     from ehas_env.physics.effects import REGISTRY
     from ehas_env.physics.effects import loading
@@ -74,7 +79,12 @@ def _registered_effects_and_laws_stay_in_their_module():
     saved = (dict(REGISTRY), dict(control_laws._LAWS), dict(loading._LOADED), dict(loading.SOURCES),
              dict(cbase.LOADED_FILES))
     user_modules = {n for n in sys.modules if n.startswith(("ehas_user_effects.", "ehas_user_controllers."))}
+    effects_path = os.environ.get(loading.ENV_VAR)
     yield
+    if effects_path is None:
+        os.environ.pop(loading.ENV_VAR, None)
+    else:
+        os.environ[loading.ENV_VAR] = effects_path
     for live, old in zip((REGISTRY, control_laws._LAWS, loading._LOADED, loading.SOURCES, cbase.LOADED_FILES), saved):
         live.clear()
         live.update(old)
