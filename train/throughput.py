@@ -54,12 +54,14 @@ def _model(cfg, venv):
     from stable_baselines3.common.vec_env import VecNormalize
 
     from .config import algo_class
-    from .trainer import _algo_kwargs
+    from .trainer import _algo_kwargs, silent_logger
 
     env = VecNormalize(venv, norm_obs=True, norm_reward=cfg.norm_reward, clip_obs=cfg.clip_obs,
                        gamma=cfg.hyper.get("gamma", 0.99)) if cfg.vecnormalize else venv
-    return algo_class(cfg.algo)("MlpPolicy", env, seed=cfg.seed, device="cpu", verbose=0,
-                                **_algo_kwargs(cfg, venv.action_space.shape[0]))
+    model = algo_class(cfg.algo)("MlpPolicy", env, seed=cfg.seed, device="cpu", verbose=0,
+                                 **_algo_kwargs(cfg, venv.action_space.shape[0]))
+    silent_logger(model)
+    return model
 
 
 def measure_once(cfg, vec_env: str, steps: int, warmup: int, controller_desc=None) -> dict:

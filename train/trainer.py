@@ -62,6 +62,22 @@ def _activation(name: str):
     return {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}[name]
 
 
+def silent_logger(model) -> None:
+    """Give ``model`` a logger that records values (the callbacks read them) and writes nowhere.
+
+    Without TensorBoard, stable-baselines3's own logger of a quiet model writes no file, yet makes an empty
+    ``SB3-<date>`` folder in the system's temporary folder at every ``learn()``: hundreds left behind by a test run.
+
+    Parameters
+    ----------
+    model : stable_baselines3.common.base_class.BaseAlgorithm
+        The model (its logger replaced).
+    """
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
+
+
 def _algo_kwargs(cfg: TrainConfig, action_dim: int) -> dict:
     hyper = dict(cfg.hyper)
     pk = dict(hyper.pop("policy_kwargs", {}))
@@ -536,6 +552,7 @@ def train(cfg: TrainConfig, out, *, resume: bool = False, progress: bool = True,
         model.tensorboard_log = str(out / "tb")
     if not tensorboard:
         model.tensorboard_log = None
+        silent_logger(model)
 
     keeper = BestKeeper(cfg, out, controller_desc) if cfg.validate_every and E.is_tracking_env(cfg.env_id) else None
     if keeper is not None and resume and keeper.state() is None and int(model.num_timesteps) > 0:

@@ -256,9 +256,17 @@ def test_bench_registry_loads_agent_folders(trained):
     assert ctrl.kind == "learned"
 
 
-def test_interrupted_training_resumes_from_its_last_checkpoint(tmp_path, smoke_cfg):
-    """A crash between checkpoints loses only the steps since the last one; resume continues the count."""
+def test_interrupted_training_resumes_from_its_last_checkpoint(tmp_path, smoke_cfg, monkeypatch):
+    """A crash between checkpoints loses only the steps since the last one; resume continues the count.  Neither
+    training leaves a folder of its logger in the system's temporary folder (stable-baselines3's own logger made an
+    empty one there at every ``learn()``)."""
+    import tempfile
+
     from stable_baselines3.common.callbacks import BaseCallback
+
+    system_tmp = tmp_path.parent / f"{tmp_path.name}_system_tmp"
+    system_tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
 
     cfg = smoke_cfg.replace(total_steps=4800, checkpoint_every=1600)
 
@@ -290,6 +298,7 @@ def test_interrupted_training_resumes_from_its_last_checkpoint(tmp_path, smoke_c
     steps = [r["timesteps"] for r in read_curve(tmp_path / "learning_curve.csv")]
     assert steps == sorted(steps) and steps[-1] <= 4800 and len(steps) > 10
     assert metrics["train_time_s"] > state["train_time_s"]
+    assert [p.name for p in system_tmp.iterdir() if p.name.startswith("SB3-")] == []
 
 
 @pytest.mark.parametrize("file, content, message", [
