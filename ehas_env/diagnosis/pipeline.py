@@ -634,6 +634,8 @@ def alternatives_stage(s: Search) -> dict:
         s.steps.append(Step(a.name, True, f"put in place of {a.in_place_of}: {why}", f, f.cost, val,
                             _held_fit(s.full, sims, s.held_idx)))
         s.say(f"  {a.name}: reported in place of {a.in_place_of} ({why})")
+        if get_effect(a.name).kind == "hypothesis":
+            f, sims, val = _drop_swapped_stand_ins(s, a.name, (f, sims, val), x_new)
         s.keep(f, sims, val)
         # the final model measured again (a second measure record: the reported figure is the last measure's), and
         # the explanation it replaced compared in its place
@@ -641,6 +643,32 @@ def alternatives_stage(s: Search) -> dict:
         s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say)
         swapped = {"name": a.name, "in_place_of": a.in_place_of, "score_difference_db": round(a.score_difference_db, 2)}
     return {"within": [a.name for a in s.result.alternatives if a.within], "preferred": swapped}
+
+
+def _drop_swapped_stand_ins(s: Search, hyp: str, now: tuple, x_now: float) -> tuple:
+    """The structural hypothesis ``hyp`` was put in place of an explanation the logs liked less (``now``: its
+    Fit, simulation of every run, validation cost; ``x_now`` its figure on all data).  The effects kept before it
+    were found without it and may stand in for part of it, as they may when it is kept in a round: each is refitted
+    away (:func:`~ehas_env.diagnosis.candidates._drop_stand_ins`).  The model without them is kept only when its
+    figure on all data is not worse than ``x_now``: the one figure decides.
+
+    Returns
+    -------
+    tuple
+        (Fit, sims, validation cost) of the model kept.
+    """
+    f, sims, val = now
+    flags = [(st.kept, st.reason) for st in s.steps]
+    g, gs, gval = _drop_stand_ins(s.rep, s.full, s.parts, f, val, hyp, s.steps, s.say)
+    if g is f:
+        return now
+    x_g = grade(blocks_of(s.full, gs, COST_SIGNALS))["residual_x_noise"]
+    if x_g <= x_now:
+        return g, gs, gval
+    for st, (kept, reason) in zip(s.steps, flags):  # worse on the one figure: every step as it was
+        st.kept, st.reason = kept, reason
+    s.say(f"  without the effects {hyp} may stand in for: {x_g:.3g}x on all data against {x_now:.3g}x; they stay")
+    return now
 
 
 #: the diagnosis, in order: (name, stage); each takes the Search and returns its record (docs/diagnosis-pipeline.md)

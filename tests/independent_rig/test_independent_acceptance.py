@@ -106,3 +106,24 @@ def test_an_oracle_resolves_an_effect_only_with_the_share_and_the_score_the_diag
     # each on top of the other alone: 1.3 -> 1.1 scores 0.53 dB, 1.25 -> 1.1 0.36 dB ...
     assert acceptance.oracle_resolves(pair, ref, [a, b])
     assert not acceptance.oracle_resolves(pair, ref, [a, rec(1.05, 1.12, 1)])  # ... 1.12 -> 1.1: -0.12 dB
+
+
+@pytest.mark.slow
+def test_a_load_path_spring_put_in_place_at_the_end_takes_the_effects_it_covered_with_it(tmp_path):
+    """The other engine's spring in the load path (25 N/um), its runs started from rest without a fade-in: the
+    library keeps a piston leakage and a softer oil first; the alternatives find the spring better than the softer
+    oil and put it in its place.  The leakage was kept only because the spring was missing: it goes too, as it goes
+    when a hypothesis is kept in a round.  (Before, the diagnosis ended with leakage + spring damped at 0.04 of
+    critical, small structured residual 1.64x, where the twin started with a fade-in is explained at 1.11x.)"""
+    from ehas_env.diagnosis.pipeline import diagnose_open
+    from ehas_env.measurement.campaign import read_campaign
+    from independent_rig import start_conditions as sc
+
+    case = next(c for c in sc.cases() if c["id"] == "load_compliance")
+    sc._generate(case, "rest", tmp_path / "rest")
+    res = diagnose_open(read_campaign(tmp_path / "rest"))
+    assert set(res.model.effects) == {"hyp_load_compliance"}, res.kept
+    assert res.verdict == "explained", res.verdict
+    k_true = case["effects"]["load_compliance"]["k"] * 1e3  # N/mm -> N/m
+    assert res.model.effects["hyp_load_compliance"]["k_load"] == pytest.approx(k_true, rel=0.1)
+    assert any(s.effect == "internal_leakage" and "stands in for hyp_load_compliance" in s.reason for s in res.steps)
