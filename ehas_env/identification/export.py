@@ -12,11 +12,13 @@ In Python :func:`read_model` returns a ``control.TransferFunction``.
 Examples
 --------
 >>> import tempfile, control
->>> path = Path(tempfile.mkdtemp()) / "g.json"
+>>> work = tempfile.TemporaryDirectory()
+>>> path = Path(work.name) / "g.json"
 >>> _ = write_model(path, [14567.29], [1.0, 147.83, 11449.86])
 >>> G = read_model(path)
 >>> G.dt, float(control.dcgain(G)) == 14567.29 / 11449.86
 (0, True)
+>>> work.cleanup()
 """
 from __future__ import annotations
 

@@ -33,11 +33,13 @@ Examples
 >>> cols = {"t": t, "current_mA": np.sin(40 * t), "flow_lpm": 1.27 * np.sin(40 * t)}
 >>> cols["flow_lpm"][50:53] = np.nan          # three lost samples
 >>> meta = {"kind": "valve_open_loop", "supply_bar": 70}
->>> folder = Path(tempfile.mkdtemp()) / "camp"
+>>> work = tempfile.TemporaryDirectory()
+>>> folder = Path(work.name) / "camp"
 >>> _ = write_campaign(folder, [("valve", cols, meta)])
 >>> camp = read_campaign(folder)
 >>> [r.name for r in camp.runs], camp.runs[0].interpolated
 (['valve'], {'flow_lpm': 3})
+>>> work.cleanup()
 """
 from __future__ import annotations
 
@@ -314,13 +316,15 @@ def read_campaign(path, columns: dict[str, str] | None = None) -> Campaign:
     >>> import tempfile
     >>> from ehas_env.measurement.synthetic import simulate_campaign
     >>> runs, _ = simulate_campaign(seed=1, duration=0.2, plan=((3, 20.0, 1.0),))
-    >>> folder = Path(tempfile.mkdtemp()) / "camp"
+    >>> work = tempfile.TemporaryDirectory()
+    >>> folder = Path(work.name) / "camp"
     >>> _ = write_campaign(folder, runs[:1], fmt="tdms")
     >>> _ = write_campaign(folder, runs[1:], fmt="mat", overwrite=True, keep=True)
     >>> sorted(p.name for p in folder.iterdir())
     ['cl_3sets_20deg_1hz.json', 'cl_3sets_20deg_1hz.tdms', 'valve_chirp.json', 'valve_chirp.mat']
     >>> [(r.name, r.path.suffix, r.n) for r in read_campaign(folder).runs]
     [('cl_3sets_20deg_1hz', '.tdms', 200), ('valve_chirp', '.mat', 200)]
+    >>> work.cleanup()
     """
     if not isinstance(path, (str, os.PathLike)):
         raise CampaignError(f"the campaign must be a folder's path (a str or Path), got {type(path).__name__}")

@@ -71,9 +71,11 @@ def write_result(result, stem, notes: str = "", fmt: str = "csv") -> tuple[Path,
     >>> import tempfile
     >>> from ehas_env.simulation.plant import Plant
     >>> run = Plant().simulate_valve_test([0.5] * 100)
-    >>> data, side = write_result(run, tempfile.mkdtemp() + "/step", notes="a step")
+    >>> work = tempfile.TemporaryDirectory()
+    >>> data, side = write_result(run, work.name + "/step", notes="a step")
     >>> data.suffix, side.suffix
     ('.csv', '.json')
+    >>> work.cleanup()
     """
     meta = dict(result.meta)
     if notes:

@@ -38,12 +38,14 @@ temporary file and an atomic rename, so a reader never sees a half-written file.
 Examples
 --------
 >>> import tempfile, pathlib
->>> p = pathlib.Path(tempfile.mkdtemp()) / "x.json"
+>>> work = tempfile.TemporaryDirectory()
+>>> p = pathlib.Path(work.name) / "x.json"
 >>> _ = p.write_bytes(b'{"a": 1}\\x80')
 >>> read_json(p, "a test JSON file")  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
 ValueError: ...x.json: not a UTF-8 text file (byte 0x80 at offset 8); expected a test JSON file
+>>> work.cleanup()
 """
 from __future__ import annotations
 

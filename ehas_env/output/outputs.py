@@ -33,7 +33,8 @@ Two shapes of output set:
 Examples
 --------
 >>> import tempfile, pathlib
->>> root = pathlib.Path(tempfile.mkdtemp())
+>>> work = tempfile.TemporaryDirectory()
+>>> root = pathlib.Path(work.name)
 >>> with OutputSet(root / "report", option="--out") as tmp:
 ...     _ = (tmp / "report.md").write_text("# new\\n")
 >>> sorted(p.name for p in root.iterdir())
@@ -42,6 +43,7 @@ Examples
 Traceback (most recent call last):
 ...
 ehas_env.output.outputs.OutputError: --out ... already exists and is not empty; pass --overwrite to replace it
+>>> work.cleanup()
 """
 from __future__ import annotations
 
@@ -154,7 +156,8 @@ def foreign_files(folder) -> list[Path]:
     and empty folders do not count.
 
     >>> import tempfile, pathlib
-    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> work = tempfile.TemporaryDirectory()
+    >>> root = pathlib.Path(work.name)
     >>> with OutputSet(root / "report", option="--out") as tmp:
     ...     _ = (tmp / "report.md").write_text("# new\\n")
     >>> foreign_files(root / "report")
@@ -162,6 +165,7 @@ def foreign_files(folder) -> list[Path]:
     >>> _ = (root / "report" / "my_notes.txt").write_text("mine")
     >>> foreign_files(root / "report")
     [PosixPath('my_notes.txt')]
+    >>> work.cleanup()
     """
     folder = Path(folder)
     known: set[str] = set()

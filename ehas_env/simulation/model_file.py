@@ -41,7 +41,8 @@ command that builds a plant accept it (or the file's path).
 Examples
 --------
 >>> import tempfile, os
->>> path = os.path.join(tempfile.mkdtemp(), "rig.json")
+>>> work = tempfile.TemporaryDirectory()
+>>> path = os.path.join(work.name, "rig.json")
 >>> _ = save_model(path, {"coulomb_friction": {"Fc": 412.0}}, beta=9.6e8, K=1.281)
 >>> m = load_model(path)
 >>> m.effects, m.rig.beta, m.rig.K
@@ -52,6 +53,7 @@ Plant(disc_sets=5, inertia=1.915 kg m^2, effects=[coulomb_friction(Fc=412)])
 >>> other = PlantModel.from_values(name="rig B", crank_radius_mm=60, inertia_per_set_kgm2=0.5)
 >>> [d.split(":")[0] for d in diff_models(PlantModel(), other)]
 ['name', 'rig.crank_radius_mm', 'rig.inertia_per_set_kgm2']
+>>> work.cleanup()
 """
 from __future__ import annotations
 
