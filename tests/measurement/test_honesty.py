@@ -155,3 +155,34 @@ def test_a_fit_on_the_end_of_its_range_says_so():
     assert H.at_bounds(mid) == []
     (b,) = H.at_bounds(low)
     assert (b["effect"], b["param"], b["end"]) == ("coulomb_friction", "Fc", "lower")
+
+
+@pytest.mark.parametrize("x_without, dropped", [(1.2, True), (1.9, False)])
+def test_effects_dropped_beside_a_hypothesis_put_in_place_at_the_end_go_only_when_the_figure_is_not_worse(
+        monkeypatch, x_without, dropped):
+    """The alternatives stage put a structural hypothesis in place of an explanation at 1.5x on all data; the
+    effects kept before it are refitted away as stand-ins.  The model without them is kept when its figure is not
+    worse (1.2x), and every step is left as it was when it is (1.9x): the one figure decides, not the validation
+    cost alone."""
+    from types import SimpleNamespace
+
+    lib = D.Step("internal_leakage", True, "sane", None, 1.0, None, None)
+    hyp = D.Step("hyp_load_compliance", True, "put in place of bulk_modulus", None, 1.0, None, None)
+    now, without = ("fit with", "sims with", 6.66), ("fit without", "sims without", 2.66)
+
+    def drop(rep, full, parts, current, cur_val, name, steps, say, **kw):
+        assert (current, name) == ("fit with", "hyp_load_compliance")
+        lib.kept, lib.reason = False, "stands in for hyp_load_compliance"
+        return without
+
+    monkeypatch.setattr(O, "_drop_stand_ins", drop)
+    monkeypatch.setattr(O, "blocks_of", lambda full, sims, signals: sims)
+    monkeypatch.setattr(O, "grade", lambda sims: {"residual_x_noise": {"sims without": x_without}[sims]})
+    said = []
+    s = SimpleNamespace(rep=None, full=None, parts={}, steps=[lib, hyp], say=said.append)
+    out = O._drop_swapped_stand_ins(s, "hyp_load_compliance", now, 1.5)
+    if dropped:
+        assert out == without and not lib.kept and "stands in for" in lib.reason
+    else:
+        assert out == now and lib.kept and lib.reason == "sane" and hyp.kept
+        assert "they stay" in said[-1]
