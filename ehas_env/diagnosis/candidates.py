@@ -684,12 +684,13 @@ def refit_without(rep: Replayer, f: Fit, other: str) -> Fit:
 
 
 def _drop_stand_ins(rep: Replayer, full: Replayer, parts: dict, current: Fit, cur_val, hyp: str, steps: list,
-                    say, kinds: tuple = ("physical", "recalibration")) -> tuple:
+                    say, kinds: tuple = ("physical", "recalibration"), sims: list | None = None) -> tuple:
     """A structural hypothesis ``hyp`` was kept: each effect of ``kinds`` kept before it (physical or
     recalibration; a missing state kept asks the structural hypotheses too) is refitted away; when the
     model without it does as well on the validation data (within :data:`VAL_GAIN`), it stood in for ``hyp``
-    and goes (its step says so).  Returns the model kept (Fit, its simulation of every run, validation cost)."""
-    sims = full.simulate(current.model)
+    and goes (its step says so).  ``sims``: ``current``'s simulation of every run when the caller has it (else
+    simulated here).  Returns the model kept (Fit, its simulation of every run, validation cost)."""
+    sims = full.simulate(current.model) if sims is None else sims
     # a recalibration (valve dynamics, bulk modulus) kept before the hypothesis may have stood in for it as well
     for step in [s for s in steps if s.kept and s.effect != hyp and get_effect(s.effect).kind in kinds]:
         if step.effect not in current.model.effects:

@@ -276,7 +276,7 @@ def _keep_state(s: Search, f, rec: dict, bare) -> None:
     s.say(f"  {name}: kept ({rec['words']})")
     # an effect or a structural hypothesis kept before it may have stood in for the missing state
     current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, name, s.steps, s.say,
-                                         kinds=("physical", "recalibration", "hypothesis"))
+                                         kinds=("physical", "recalibration", "hypothesis"), sims=sims)
     s.keep(current, sims, val)
 
 
@@ -659,14 +659,13 @@ def _drop_swapped_stand_ins(s: Search, hyp: str, now: tuple, x_now: float) -> tu
     """
     f, sims, val = now
     flags = [(st.kept, st.reason) for st in s.steps]
-    g, gs, gval = _drop_stand_ins(s.rep, s.full, s.parts, f, val, hyp, s.steps, s.say)
+    g, gs, gval = _drop_stand_ins(s.rep, s.full, s.parts, f, val, hyp, s.steps, s.say, sims=sims)
     if g is f:
         return now
     x_g = grade(blocks_of(s.full, gs, COST_SIGNALS))["residual_x_noise"]
     if x_g <= x_now:
         return g, gs, gval
-    for st, (kept, reason) in zip(s.steps, flags):  # worse on the one figure: every step as it was
-        st.kept, st.reason = kept, reason
+    steps_back_to(s.steps, flags, "")  # worse on the one figure: every step as it was (no step was added)
     s.say(f"  without the effects {hyp} may stand in for: {x_g:.3g}x on all data against {x_now:.3g}x; they stay")
     return now
 

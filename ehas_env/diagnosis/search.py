@@ -271,7 +271,7 @@ def search_round(s: Search) -> tuple | None:
         effect, f, sims, val = kept
         s.keep(f, sims, val)
         if s.structural:
-            current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, effect, s.steps, s.say)
+            current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, effect, s.steps, s.say, sims=sims)
             s.keep(current, sims, val)
             # on top of a structural change, the library's effects may now be seen: try them again too
             s.pool = list(s.candidates or library_effects()) + s.hyps
