@@ -190,13 +190,16 @@ def verdict_text(rep, sims: dict, label_after: str | None) -> str:
         Lines.
     """
     from ehas_env.measurement.replay import COST_SIGNALS
-    from ehas_env.measurement.verdict import blocks_of, figure_text, grade
+    from ehas_env.measurement.verdict import blocks_of, envelope_text, figure_text, grade
 
     grades = {label: grade(blocks_of(rep, s, COST_SIGNALS)) for label, s in sims.items()}
     w = max(len(k) for k in grades)
     lines = ["verdict (the noise figure ehas diagnose grades: the residual over every sample against what does not "
              "repeat):"]
     lines += [f"  {label:<{w}}  {g['verdict']}, {figure_text(g['residual_x_noise'])}" for label, g in grades.items()]
+    shown = grades[label_after] if label_after is not None else grades["baseline"]
+    if envelope_text(shown):
+        lines.append("  " + envelope_text(shown))
     if label_after is not None and label_after != "baseline":
         x_after, x_book = grades[label_after]["residual_x_noise"], grades["baseline"]["residual_x_noise"]
         if x_after > x_book:

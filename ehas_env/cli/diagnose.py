@@ -263,7 +263,7 @@ def run_one(args) -> int:
     from ehas_env.physics.effects import get_effect, parse_spec
     from ehas_env.measurement.replay import format_fit_tables
     from ehas_env.measurement.residuals import follows_text, where_it_fails
-    from ehas_env.measurement.verdict import figure_text
+    from ehas_env.measurement.verdict import envelope_text, figure_text
     from ehas_env.output.outputs import OutputSet, check_file, check_not_input
 
     t0 = time.perf_counter()
@@ -355,6 +355,8 @@ def run_one(args) -> int:
     print(follows_text(res.follows, "final model"))
     print()
     print(f"verdict: {res.verdict}, residual {figure_text(res.residual_x_noise)}")
+    if envelope_text(res.grade):
+        print(envelope_text(res.grade))
     if res.unexplained is not None:
         print(res.unexplained["text"])
     else:

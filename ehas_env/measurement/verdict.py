@@ -170,7 +170,9 @@ class Block:
     """One run and signal: residual and floor energies (in squared noise levels), samples, and where.
 
     ``judged_from_s``: the first sample judged (every sample from it on is); ``floor_from_s`` / ``floor_to_s``:
-    the stretch whose cycle-to-cycle change of the residual set the floor (None: the sensor noise set it).
+    the stretch whose cycle-to-cycle change of the residual set the floor (None: the sensor noise set it);
+    ``judged_on``: ``"samples"``, or ``"envelope"`` for a run whose loop repeats neither in the rig nor in the model
+    (:func:`envelope_block`).
     """
 
     run: str
@@ -182,6 +184,7 @@ class Block:
     judged_from_s: float = 0.0
     floor_from_s: float | None = None
     floor_to_s: float | None = None
+    judged_on: str = "samples"  # or "envelope": a run the rig and the model do not repeat (:func:`envelope_block`)
 
     @property
     def x(self) -> float:
@@ -247,7 +250,7 @@ def _still_settling(g: np.ndarray, cycles: list) -> bool:
 
 
 def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, measured: np.ndarray | None = None,
-                   simulated: np.ndarray | None = None) -> tuple[float, float, float] | None:
+                   simulated: np.ndarray | None = None, rig_repeats: bool = True) -> tuple[float, float, float] | None:
     """What does not repeat in a residual: its change from one cycle to the next, cycle by cycle, halved.
 
     A deterministic response the model reproduces has left the residual, and a part of the residual that repeats
@@ -266,7 +269,9 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
       the model lacks: most of the change in one spectral line, :data:`LINE_SHARE`): the persistent level (the
       median over the cycles kept) is then at most the model's own (``simulated`` given) plus
       :data:`PERSISTENT_CAP` noise variances, whether it persists, fades or grows (the floor is then that cap); a
-      random disturbance spread over a band stays in, and so does what a few cycles add above the level (a knock).
+      random disturbance spread over a band stays in, and so does what a few cycles add above the level (a knock);
+      the same cap, whatever the change's spectrum, when the rig's loop does not repeat at all while the model's
+      does (``rig_repeats`` False: :func:`loop_repeats`): an instability the model lacks is judged, not floor.
 
     Parameters
     ----------
@@ -280,6 +285,8 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
         Where the stretch that can set the floor starts (after the fade-in), s.
     measured, simulated : ndarray, optional
         The signal as logged and as the model gives it, in the same noise units.
+    rig_repeats : bool
+        False: the rig's loop does not repeat on this run and the model's does (:func:`loop_repeats`).
 
     Returns
     -------
@@ -327,7 +334,7 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     if simulated is not None and d_meas is not None:
         own = float(np.median(_cycle_changes(_change(simulated, k0, m, a, n), a, n_seg)[first:]))
         cap = max(own + 1.0, PERSISTENT_CAP)
-        if level + extra > cap and _one_line(d_meas[i0:]):
+        if level + extra > cap and (not rig_repeats or _one_line(d_meas[i0:])):
             # the rig rings where the model repeats: judged, not floor -- the ringing's level and what rises above
             # it alike (a mode the start excites fades, an instability grows: cycles far above the median that are
             # the same line, not a knock)
@@ -340,7 +347,8 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
 
 
 def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
-                signal: str = "", freq_hz: float | None = None, start_s: float = 0.0, skip: int = 0) -> Block:
+                signal: str = "", freq_hz: float | None = None, start_s: float = 0.0, skip: int = 0,
+                rig_repeats: bool = True) -> Block:
     """The residual of one run and signal against its floor.
 
     Every sample from ``skip`` on is judged, the start of the run included: a transient is data (what the model
@@ -362,6 +370,9 @@ def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: f
         For a periodic run: where the stretch that sets the floor starts (after the fade-in and the settling).
     skip : int
         Samples left out at the start (a warm-up the fit leaves out too: a window cut from a longer run).
+    rig_repeats : bool
+        False when the rig's loop does not repeat on this run while the model's does (:func:`loop_repeats`): its
+        change from cycle to cycle is then a behaviour the model lacks, capped like a limit cycle's.
 
     Returns
     -------
@@ -371,10 +382,154 @@ def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: f
     judged = e[skip:]
     res = float(np.mean(judged**2))
     if freq_hz is not None:
-        fl = residual_floor(e, dt, freq_hz, max(start_s, skip * dt), measured / noise, simulated / noise)
+        fl = residual_floor(e, dt, freq_hz, max(start_s, skip * dt), measured / noise, simulated / noise,
+                            rig_repeats=rig_repeats)
         if fl is not None:
             return Block(run, signal, res, max(fl[0], 1.0), judged.size, True, skip * dt, fl[1], fl[2])
     return Block(run, signal, res, 1.0, judged.size, False, skip * dt)
+
+
+#: a closed-loop run whose position reading changes from one cycle to the next by more than this share of its swing
+#: (RMS of the change one period apart over RMS about its mean, after the start's first cycle) does not repeat at
+#: the sine's period: its loop is unstable, or in an oscillation of its own.  Measured on the independent
+#: generator's campaigns: clean runs 0.1-1 %, faded in or from rest, a knock included; a 6 ms delay or 10 % of air
+#: in the oil that destabilises the 5- and 7-set runs 7-79 % (results/verdict_start_conditions)
+REPEAT_SHARE = 0.05
+#: the reading that decides it: the loop's controlled output (its sensor noise is far below its swing)
+REPEAT_SIGNAL = "theta_deg"
+#: two loops that do not repeat are compared on their cycle envelopes (per cycle: the mean and the RMS about it);
+#: they agree within their own cycle-to-cycle scatter and this share of the signal's RMS swing (assumed: the
+#: envelope of an unstable loop depends on where its oscillation starts, by a few per cent of its size)
+ENVELOPE_SHARE = 0.05
+
+
+def repeat_share(y: np.ndarray, dt: float, freq_hz: float, start_s: float) -> float | None:
+    """How much ``y`` fails to repeat at the sine's period: RMS of its change over one period, over its RMS about
+    its mean, from one period after ``start_s`` (the start's first cycle settles).
+
+    Parameters
+    ----------
+    y : ndarray
+        Samples at times k * dt.
+    dt : float
+        Sample period, s.
+    freq_hz : float
+        The run's sine frequency, Hz.
+    start_s : float
+        Where the reference's full amplitude starts (after the fade-in), s.
+
+    Returns
+    -------
+    float or None
+        The share (0: repeats exactly); None when less than one period of change is left.
+
+    Examples
+    --------
+    >>> t = np.arange(0, 3, 1e-3)
+    >>> round(repeat_share(np.sin(2 * np.pi * 2 * t), 1e-3, 2.0, 0.0), 6)
+    0.0
+    >>> repeat_share(np.sin(2 * np.pi * 2 * t) * np.exp(t), 1e-3, 2.0, 0.0) > REPEAT_SHARE  # it grows
+    True
+    """
+    m = int(round(1.0 / (freq_hz * dt)))
+    k0 = int(math.ceil((start_s + 1.0 / freq_hz) / dt - 1e-9))
+    x = np.asarray(y, float)[k0:]
+    if x.size < 2 * m or m < 1:
+        return None
+    swing = float(np.std(x))
+    change = float(np.sqrt(np.mean((x[m:] - x[:-m]) ** 2)))
+    return change / swing if swing > 0.0 else 0.0
+
+
+def loop_repeats(y: np.ndarray, dt: float, freq_hz: float, start_s: float) -> bool:
+    """Whether a closed loop's position reading repeats at the sine's period (:data:`REPEAT_SHARE`); a run too
+    short to tell repeats."""
+    share = repeat_share(y, dt, freq_hz, start_s)
+    return share is None or share <= REPEAT_SHARE
+
+
+def _cycle_envelope(y: np.ndarray, m: int, k0: int) -> np.ndarray:
+    """Per whole cycle of ``m`` samples from ``k0``: the mean, the RMS about it and the RMS of the change from the
+    cycle before (how much does not repeat; NaN for the first), shape (cycles, 3)."""
+    n = (y.size - k0) // m
+    c = y[k0:k0 + n * m].reshape(n, m)
+    mu = c.mean(axis=1)
+    chg = np.full(n, np.nan)
+    chg[1:] = np.sqrt(np.mean(np.diff(c, axis=0) ** 2, axis=1))
+    return np.stack([mu, np.sqrt(np.mean((c - mu[:, None]) ** 2, axis=1)), chg], axis=1)
+
+
+def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
+                   signal: str = "", freq_hz: float, skip: int = 0) -> Block:
+    """A run whose loop repeats neither in the rig nor in the model, judged on its cycle envelope.
+
+    An unstable loop (or one in an oscillation of its own) amplifies what does not repeat -- the sensor noise through
+    the controller -- until its samples cannot be predicted one by one: a model that has the instability drifts out
+    of phase with the rig, and a floor taken from the run's change from cycle to cycle is then the oscillation
+    itself (thousands of sensor-noise variances), under which any miss hides.  What a model can be asked to
+    reproduce is the envelope: per cycle, every cycle from the first judged sample (the start included), the
+    signal's mean and its RMS about it.  The residual is the mean square of their difference, rig against model,
+    cycle by cycle; the floor is what does not repeat in the envelopes (the scatter of each about its own trend,
+    from their second differences, the two added: the difference of two independent envelopes carries both) plus :data:`ENVELOPE_SHARE` of the signal's RMS swing, squared,
+    and never below the sensor noise.
+
+    Parameters
+    ----------
+    measured, simulated : ndarray
+        The signal as logged and as the model gives it.
+    noise : float
+        The signal's sensor-noise level (same unit).
+    dt : float
+        Sample period, s.
+    freq_hz : float
+        The sine's frequency, Hz.
+    skip : int
+        Samples left out at the start (as :func:`split_block`).
+
+    Returns
+    -------
+    Block
+        ``judged_on`` ``"envelope"``; the floor's stretch is the judged one.
+
+    Examples
+    --------
+    >>> t = np.arange(0, 3, 1e-3)
+    >>> rig = np.exp(t) * np.sin(2 * np.pi * 2 * t + 0.2 * np.sin(7 * t))  # grows, and wanders in phase
+    >>> model = np.exp(t) * np.sin(2 * np.pi * 2 * t)  # the same growth, another phase
+    >>> envelope_block(rig, model, 0.01, 1e-3, freq_hz=2.0).x < 2  # the envelope agrees
+    True
+    >>> envelope_block(rig, 0.5 * model, 0.01, 1e-3, freq_hz=2.0).x > 8  # half its size: a miss
+    True
+    """
+    m = max(int(round(1.0 / (freq_hz * dt))), 1)
+    a = _cycle_envelope(np.asarray(measured, float) / noise, m, skip)
+    b = _cycle_envelope(np.asarray(simulated, float) / noise, m, skip)
+    k = min(a.shape[0], b.shape[0])
+    n = int(np.asarray(measured).size - skip)
+    if k < MIN_CYCLES:
+        e = (np.asarray(measured, float)[skip:] - np.asarray(simulated, float)[skip:]) / noise
+        return Block(run, signal, float(np.mean(e**2)), 1.0, n, False, skip * dt, judged_on="envelope")
+    a, b = a[:k], b[:k]
+    # each of the three (the cycle's mean, its RMS, its change from the cycle before) against its own floor, the
+    # worst decides: the mean of an oscillation not locked to the sine scatters from cycle to cycle far more than
+    # its RMS does and must not hide a miss in it, and the RMS is dominated by the tracked sine where the change
+    # shows the oscillation's own size (an instability of half the rig's size)
+    swing = float(np.mean(a[:, 1]))
+    worst = (0.0, 1.0)
+    for c in range(3):
+        ac, bc = (a[:, c], b[:, c]) if c < 2 else (a[1:, c], b[1:, c])
+        if ac.size == 0:
+            continue
+        residual = float(np.mean((ac - bc) ** 2))
+        # second differences: a growing or settling envelope (a trend, the same in rig and model) is not scatter;
+        # white scatter of variance v gives 6 v in a second difference, and the two envelopes' scatters add
+        scatter = 0.0 if ac.size < 3 else (float(np.mean(np.diff(ac, 2) ** 2))
+                                           + float(np.mean(np.diff(bc, 2) ** 2))) / 6.0
+        floor = max(scatter + (ENVELOPE_SHARE * swing) ** 2, 1.0)
+        if residual / floor > worst[0] / worst[1]:
+            worst = (residual, floor)
+    return Block(run, signal, worst[0], worst[1], n, True, skip * dt, skip * dt, (skip + k * m) * dt,
+                 judged_on="envelope")
 
 
 def overall_x(blocks: list[Block]) -> float:
@@ -402,7 +557,7 @@ def grade(blocks: list[Block]) -> dict:
     -------
     dict
         ``verdict`` (one of :data:`VERDICTS`), ``residual_x_noise`` (residual in floors overall),
-        ``structured_db`` (the structured residual against the floor, dB; -inf when none), ``worst``
+        ``envelope_runs`` (the runs judged on their cycle envelope: :func:`envelope_block`), ``structured_db`` (the structured residual against the floor, dB; -inf when none), ``worst``
         (the run and signal of the largest residual in floors, with it).
 
     Examples
@@ -423,6 +578,7 @@ def grade(blocks: list[Block]) -> dict:
     else:
         verdict = VERDICTS[1]
     return {"verdict": verdict, FIGURE_KEY: round(x, 3),
+            "envelope_runs": sorted({b.run for b in blocks if b.judged_on == "envelope"}),
             "structured_db": round(10.0 * math.log10(s), 2) if s > 0 else None,
             "worst": None if worst is None else {"run": worst.run, "signal": worst.signal,
                                                   "residual_x_noise": round(wx, 3), "periodic": worst.periodic},
@@ -454,8 +610,35 @@ def blocks_json(blocks: list[Block]) -> list[dict]:
     return [{"run": b.run, "signal": b.signal, FIGURE_KEY: round(b.x, 3), "floor_x_sensor_noise": round(b.floor, 3),
              "samples": b.n, "judged_from_s": round(b.judged_from_s, 4),
              "floor_from_s": None if b.floor_from_s is None else round(b.floor_from_s, 4),
-             "floor_to_s": None if b.floor_to_s is None else round(b.floor_to_s, 4), "periodic": b.periodic}
+             "floor_to_s": None if b.floor_to_s is None else round(b.floor_to_s, 4), "periodic": b.periodic,
+             "judged_on": b.judged_on}
             for b in blocks]
+
+
+def envelope_text(grading: dict) -> str | None:
+    """The sentence that says which runs were judged on their envelope (None: none were).
+
+    Parameters
+    ----------
+    grading : dict
+        :func:`grade`'s.
+
+    Returns
+    -------
+    str or None
+
+    Examples
+    --------
+    >>> envelope_text({"envelope_runs": ["cl_5sets_30deg_2hz"]})[:60]
+    'cl_5sets_30deg_2hz: the loop does not repeat from cycle to c'
+    """
+    runs = grading.get("envelope_runs") or []
+    if not runs:
+        return None
+    return (f"{', '.join(runs)}: the loop does not repeat from cycle to cycle in the rig nor in the model "
+            f"(its position changes by more than {REPEAT_SHARE:.0%} of its swing from one cycle to the next: "
+            "unstable, or in an oscillation of its own); its samples cannot be predicted one by one, so "
+            f"{'it is' if len(runs) == 1 else 'they are'} judged on the envelope (each cycle's mean and RMS)")
 
 
 #: a run and signal whose residual is above this many floors is named in an unexplained verdict's words
@@ -508,12 +691,20 @@ def blocks_of(rep, sims, cost_signals) -> list[Block]:
         ref = run.meta.get("reference") if run.kind == "closed_loop" else None
         win = run.meta.get("window", {})
         freq = start = None
+        rig_repeats = model_repeats = True
         if ref and ref.get("freq_hz") and not win.get("start_s"):
             freq = float(ref["freq_hz"])
             start = float(ref.get("ramp_cycles", 1.0)) / freq
+            if REPEAT_SIGNAL in case.measured and REPEAT_SIGNAL in sim:
+                rig_repeats = loop_repeats(case.measured[REPEAT_SIGNAL], run.dt, freq, start)
+                model_repeats = loop_repeats(sim[REPEAT_SIGNAL], run.dt, freq, start)
         for s in case.signals:
             if s not in cost_signals:
                 continue
+            if not rig_repeats and not model_repeats:
+                out.append(envelope_block(case.measured[s], sim[s], case.noise[s], run.dt, run=run.name, signal=s,
+                                          freq_hz=freq, skip=case.skip))
+                continue
             out.append(split_block(case.measured[s], sim[s], case.noise[s], run.dt, run=run.name, signal=s,
-                                   freq_hz=freq, start_s=start or 0.0, skip=case.skip))
+                                   freq_hz=freq, start_s=start or 0.0, skip=case.skip, rig_repeats=rig_repeats))
     return out

@@ -1,0 +1,102 @@
+"""Runs whose loop does not repeat: an instability is never floor, and two unstable loops are judged on their envelope.
+
+Issue 42's "a visible miss called explained": on the independent generator's transport-delay campaign the true
+model's 5-set run oscillates from stroke end to stroke end, out of phase with the rig's; the floor taken from that
+run's change from cycle to cycle was thousands of sensor-noise variances and every block sat at 1.0x. Synthetic
+signals whose truth is known by construction (no model is compiled); the runs are replayed through
+:func:`ehas_env.measurement.verdict.blocks_of`, the function ``compare`` and ``diagnose`` both grade with.
+
+Mutations this file catches (each checked by hand when it was written):
+
+* the cap on a rig that does not repeat while the model does taken out (``not rig_repeats or`` in
+  ``residual_floor``): the broad-band instability below is then floor, and the stable model "explained";
+* the envelope judgement taken out (``blocks_of`` judging every run on its samples): the two unstable loops of one
+  size and of half the size are then both near 1.
+"""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from ehas_env.measurement.verdict import (
+    REPEAT_SHARE, blocks_of, envelope_text, grade, loop_repeats, repeat_share)
+
+DT = 1e-3
+F = 2.0
+T = np.arange(0.0, 3.0, DT)
+REF = 30.0 * np.sin(2 * np.pi * F * T)
+NOISE = {"theta_deg": 0.01, "p_a_bar": 0.25}
+
+
+def _unstable(rng, size=1.0):
+    """A loop that takes off: an oscillation about 13 Hz (no harmonic of 2 Hz) grown from noise, its phase
+    wandering (a band, not one spectral line), saturating at ``size`` times 15 deg."""
+    w = np.convolve(rng.standard_normal(T.size), np.ones(25) / 25, mode="same")
+    phase = 2 * np.pi * 13.1 * T + np.cumsum(w) * 0.6
+    grow = np.tanh(np.exp(3.0 * (T - 1.2)))
+    return size * 15.0 * grow * np.sin(phase)
+
+
+def _rep(measured: dict, name="cl_5sets_30deg_2hz"):
+    run = SimpleNamespace(name=name, kind="closed_loop", dt=DT, meta={"reference": {"freq_hz": F, "ramp_cycles": 0}})
+    case = SimpleNamespace(run=run, signals=tuple(measured), measured=measured, noise=NOISE, skip=0)
+    return SimpleNamespace(cases=[case])
+
+
+def _signals(theta, rng):
+    return {"theta_deg": theta + NOISE["theta_deg"] * rng.standard_normal(T.size),
+            "p_a_bar": 100.0 + 2.0 * (theta - REF) + NOISE["p_a_bar"] * rng.standard_normal(T.size)}
+
+
+def _model(theta):
+    return {"theta_deg": theta, "p_a_bar": 100.0 + 2.0 * (theta - REF)}
+
+
+def test_a_clean_loop_repeats_and_is_judged_sample_by_sample():
+    rng = np.random.default_rng(1)
+    rig = _signals(REF, rng)
+    assert repeat_share(rig["theta_deg"], DT, F, 0.0) < 0.01
+    g = grade(blocks_of(_rep(rig), [_model(REF)], ["theta_deg", "p_a_bar"]))
+    assert g["verdict"] == "explained" and g["envelope_runs"] == [] and envelope_text(g) is None
+
+
+def test_a_rig_that_does_not_repeat_against_a_model_that_does_is_a_miss_not_a_floor():
+    """The rig's loop takes off in a broad-band oscillation; the model's tracks the sine: the oscillation is the
+    model's miss (thousands of noise variances), not what does not repeat."""
+    rng = np.random.default_rng(2)
+    rig = _signals(REF + _unstable(rng), rng)
+    assert not loop_repeats(rig["theta_deg"], DT, F, 0.0)
+    assert loop_repeats(REF, DT, F, 0.0)
+    blocks = blocks_of(_rep(rig), [_model(REF)], ["theta_deg", "p_a_bar"])
+    g = grade(blocks)
+    assert g["verdict"] == "unexplained", g
+    assert min(b.x for b in blocks) > 100.0
+    assert all(b.judged_on == "samples" for b in blocks)
+
+
+def test_two_unstable_loops_of_one_size_agree_on_their_envelope_and_half_the_size_does_not():
+    """Rig and model both take off (their oscillations from different noise, out of phase): judged on the envelope,
+    a model with the rig's instability is not called unexplained (explained on most noise draws: six cycles give
+    the envelope's scatter few degrees of freedom), one whose oscillation is half the size is unexplained on every
+    draw."""
+    same_x, half_x = [], []
+    for s in range(8):
+        rng = np.random.default_rng(100 + s)
+        rig = _signals(REF + _unstable(rng), rng)
+        same = _model(REF + _unstable(np.random.default_rng(200 + s)))
+        half = _model(REF + _unstable(np.random.default_rng(300 + s), size=0.5))
+        for m in (same, half):
+            assert repeat_share(m["theta_deg"], DT, F, 0.0) > REPEAT_SHARE
+        g_same = grade(blocks_of(_rep(rig), [same], ["theta_deg", "p_a_bar"]))
+        g_half = grade(blocks_of(_rep(rig), [half], ["theta_deg", "p_a_bar"]))
+        assert g_same["envelope_runs"] == ["cl_5sets_30deg_2hz"] and "judged on the envelope" in envelope_text(g_same)
+        assert g_same["verdict"] != "unexplained", g_same
+        assert g_half["verdict"] == "unexplained", g_half
+        same_x.append(g_same["residual_x_noise"])
+        half_x.append(g_half["residual_x_noise"])
+        # sample by sample the same pair is hopeless: the oscillations are out of phase
+        e = (rig["theta_deg"] - same["theta_deg"]) / NOISE["theta_deg"]
+        assert float(np.mean(e ** 2)) > 1e5
+    assert sum(x <= 2.0 for x in same_x) >= 6, same_x
+    assert min(half_x) > 3.0 * max(same_x), (same_x, half_x)
