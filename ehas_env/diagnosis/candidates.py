@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.measurement.campaign import Campaign
-from ehas_env.diagnosis.keeping import agree, run_groups
+from ehas_env.diagnosis.keeping import agree, least_half_width, run_groups
 from ehas_env.diagnosis.honesty import at_bounds
 from ehas_env.diagnosis.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _value_of,
@@ -868,7 +868,7 @@ def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
                 # an estimate at the end of its fitted range has a one-sided interval (keeping.agree)
                 v = _value_of(gf.model, fp)
                 ests.setdefault(fp.name, []).append((v, ci[(fp.effect, fp.name)], fp.end(v) is not None))
-    ok, why = agree(ests)
+    ok, why = agree(ests, {name: least_half_width(get_effect(effect).param(name)) for name in ests})
     return None if ok else why
 
 

@@ -16,6 +16,9 @@ True
 (False, 'Fc')
 >>> agree({"r_s": [(4.0, (1.25, 4.0), True), (1.34, (1.05, 1.64))]})[0]   # one ran to its range's end
 True
+>>> gain = {"gain": [(-0.004, (-0.019, 0.012)), (-0.082, (-0.154, -0.010))]}  # %, typical +-3 %
+>>> agree(gain)[0], agree(gain, {"gain": 0.3})[0]
+(False, True)
 """
 from __future__ import annotations
 
@@ -30,12 +33,45 @@ AGREE_WITHIN = 1.0
 MODEL_ERROR_FLOOR = 0.1
 
 
-def agree(estimates: dict[str, list[tuple]]) -> tuple[bool, str]:
+def least_half_width(param) -> float:
+    """The least half-width of a parameter's estimate that is not relative to the estimate itself: for a parameter
+    whose typical values straddle zero (an offset, a gain error, a bend), :data:`MODEL_ERROR_FLOOR` of the largest
+    typical magnitude; 0 for the others.
+
+    A floor relative to the estimate vanishes where the estimate does: a real LVDT's bend of 3 % fitted with a
+    gain error that is truly 0 gave -0.004 % [-0.019, 0.012] and -0.082 % [-0.154, -0.010] on two groups of runs,
+    apart by 0.08 % of the scale in a parameter whose typical values span +-3 %, and the true hypothesis was called
+    a stand-in.  Near zero a parameter's model error is a share of its own scale, not of its estimate.
+
+    Parameters
+    ----------
+    param : Param
+        The effect's parameter (its ``typical`` range, or its ``bounds`` when it has none).
+
+    Returns
+    -------
+    float
+        In the parameter's unit.
+
+    Examples
+    --------
+    >>> from ehas_env.physics.effects import get_effect
+    >>> least_half_width(get_effect("hyp_position_shape").param("gain"))
+    0.30000000000000004
+    >>> least_half_width(get_effect("coulomb_friction").param("Fc"))
+    0.0
+    """
+    lo, hi = param.typical or param.bounds
+    return MODEL_ERROR_FLOOR * max(abs(lo), abs(hi)) if lo < 0.0 < hi else 0.0
+
+
+def agree(estimates: dict[str, list[tuple]], least: dict[str, float] | None = None) -> tuple[bool, str]:
     """Whether each parameter's estimates from separate groups of runs agree within their 95 % intervals.
 
     Two estimates a, b with half-widths ha, hb agree when |a - b| <= AGREE_WITHIN * sqrt(ha^2 + hb^2)
     (the 95 % interval of the difference of independent estimates); a half-width is at least
-    :data:`MODEL_ERROR_FLOOR` of its estimate.  An estimate that ran to the end of its fitted range
+    :data:`MODEL_ERROR_FLOOR` of its estimate, and at least ``least[name]`` (:func:`least_half_width`: a parameter
+    whose typical values straddle zero).  An estimate that ran to the end of its fitted range
     (flagged by a third element True) is no point estimate: its interval is cut at that end and one-sided,
     so it agrees with another estimate when their intervals (each at least the floor wide) overlap.
 
@@ -44,6 +80,8 @@ def agree(estimates: dict[str, list[tuple]]) -> tuple[bool, str]:
     estimates : dict
         {parameter: [(value, (low, high)) or (value, (low, high), at_range_end), ...]}, one entry per group
         of runs.
+    least : dict, optional
+        {parameter: least half-width in its unit}.
 
     Returns
     -------
@@ -51,12 +89,13 @@ def agree(estimates: dict[str, list[tuple]]) -> tuple[bool, str]:
         True and "" when every pair agrees; otherwise False and the first disagreement in words.
     """
     for name, ests in estimates.items():
+        h0 = (least or {}).get(name, 0.0)
         for i in range(len(ests)):
             for j in range(i + 1, len(ests)):
                 (a, (alo, ahi)), (b, (blo, bhi)) = ests[i][:2], ests[j][:2]
                 pinned = any(len(e) > 2 and e[2] for e in (ests[i], ests[j]))
-                ha = max(0.5 * (ahi - alo), MODEL_ERROR_FLOOR * abs(a))
-                hb = max(0.5 * (bhi - blo), MODEL_ERROR_FLOOR * abs(b))
+                ha = max(0.5 * (ahi - alo), MODEL_ERROR_FLOOR * abs(a), h0)
+                hb = max(0.5 * (bhi - blo), MODEL_ERROR_FLOOR * abs(b), h0)
                 if not all(map(math.isfinite, (a, b, ha, hb, alo, ahi, blo, bhi))):
                     return False, f"{name}: an estimate or its interval is not finite"
                 if pinned:

@@ -359,6 +359,7 @@ def verdict_bars(path, blocks, grading: dict, label: str = "final model", holdou
         What the model is called.
     holdout : iterable of str
         The runs held out for validation: their bars hatched, their names marked "held out for validation".
+        Runs judged on their cycle envelope (a loop that does not repeat) are marked "(envelope)".
 
     Returns
     -------
@@ -371,7 +372,8 @@ def verdict_bars(path, blocks, grading: dict, label: str = "final model", holdou
     text = f"{label}: {grading['verdict']}, residual {figure_text(grading[FIGURE_KEY])}"
     t = grading["thresholds"]
     held = set(holdout or ())
-    names = [f"{b.run} {b.signal}" + (f" ({HELD_OUT})" if b.run in held else "") for b in blocks]
+    names = [f"{b.run} {b.signal}" + (" (envelope)" if b.judged_on == "envelope" else "")
+             + (f" ({HELD_OUT})" if b.run in held else "") for b in blocks]
     xs = np.array([b.x for b in blocks], dtype=float)
     plt, fig, axes = _figure(1, size=(9.0, 1.2 + 0.22 * max(len(blocks), 4)))
     ax = axes[0, 0]

@@ -122,6 +122,22 @@ def test_model_error_floor_of_the_agreement():
     assert not agree({"Fc": [(100.0, (99.0, 101.0)), (125.0, (124.0, 126.0))]})[0]  # 25 % apart: a stand-in
 
 
+def test_a_parameter_near_zero_has_a_floor_of_its_own_scale():
+    """A relative floor vanishes at zero: a gain error that is truly 0 (typical +-3 %) fitted -0.004 % and -0.082 %
+    on two groups beside a true LVDT bend (the independent generator's lvdt_nonlinearity campaign) must agree --
+    0.08 % of the scale apart; the least half-width is a tenth of the typical magnitude, 0.3 %.  An offset of
+    1 mm against 3 mm (typical +-2 mm: 0.2 mm least) still disagrees.  Fails when least_half_width returns 0
+    (the first disagrees) or a whole typical magnitude (the second agrees: 2 < hypot(2, 2))."""
+    from ehas_env.diagnosis.keeping import least_half_width
+    from ehas_env.physics.effects import get_effect
+
+    gain = least_half_width(get_effect("hyp_position_shape").param("gain"))
+    x0 = least_half_width(get_effect("hyp_position_offset").param("x0"))
+    assert agree({"gain": [(-0.004, (-0.019, 0.012)), (-0.082, (-0.154, -0.010))]}, {"gain": gain})[0]
+    assert not agree({"x0": [(1.0, (0.95, 1.05)), (3.0, (2.95, 3.05))]}, {"x0": x0})[0]
+    assert least_half_width(get_effect("coulomb_friction").param("Fc")) == 0.0  # positive: relative floor only
+
+
 # --- stacking: VAL_GAIN, RIVAL_SHARE --------------------------------------------------------------------------------
 
 def test_a_stacked_effect_must_lower_the_validation_residual():
