@@ -285,7 +285,7 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
     -------
     dict
         ``before`` and ``after`` (each: ``residual_x_noise`` and ``verdict`` as the diagnosis defines them,
-        ``residual_x_sensor_noise``, ``fit_percent`` overall, ``per_signal``, ``per_run``), ``residual_x_noise``
+        ``envelope_runs`` (runs judged on their cycle envelope), ``residual_x_sensor_noise``, ``fit_percent`` overall, ``per_signal``, ``per_run``), ``residual_x_noise``
         (after), ``recalibrated`` (with ``--fit``: the baseline with beta and K refitted alone, the same keys as
         ``before``), ``fitted`` (value, ci95 [low, high], unit per parameter), ``not_compared`` ({run: [column]}:
         logged columns judged nowhere, :meth:`~ehas_env.measurement.replay.Replayer.not_compared`), ``command``,
@@ -299,7 +299,7 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
         blocks = blocks_of(rep, sims[label], COST_SIGNALS)
         g = grade(blocks)
         return {"model": label, "residual_x_noise": g["residual_x_noise"], "verdict": g["verdict"],
-                "worst": g["worst"], "blocks": blocks_json(blocks),
+                "worst": g["worst"], "envelope_runs": g["envelope_runs"], "blocks": blocks_json(blocks),
                 "residual_x_sensor_noise": round(rep.log_cost(sims[label]), 3),
                 "fit_percent": round(t.overall, 2),
                 "per_signal": {k: round(v, 2) for k, v in t.per_signal.items()},

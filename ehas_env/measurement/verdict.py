@@ -468,10 +468,13 @@ def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt
     of phase with the rig, and a floor taken from the run's change from cycle to cycle is then the oscillation
     itself (thousands of sensor-noise variances), under which any miss hides.  What a model can be asked to
     reproduce is the envelope: per cycle, every cycle from the first judged sample (the start included), the
-    signal's mean and its RMS about it.  The residual is the mean square of their difference, rig against model,
-    cycle by cycle; the floor is what does not repeat in the envelopes (the scatter of each about its own trend,
-    from their second differences, the two added: the difference of two independent envelopes carries both) plus :data:`ENVELOPE_SHARE` of the signal's RMS swing, squared,
-    and never below the sensor noise.
+    signal's mean, its RMS about it and the RMS of its change from the cycle before (the size of what does not
+    repeat).  For each of the three, the residual is the mean square of its difference, rig against model, cycle
+    by cycle, and the floor what does not repeat in it (the scatter of each envelope about its own trend, from
+    their second differences, the two added: the difference of two independent envelopes carries both) plus
+    :data:`ENVELOPE_SHARE` of the signal's RMS swing, squared, never below the sensor noise; the model's RMS and
+    change are taken as its sensor would read them (the noise's variance added); the one of the three furthest
+    above its floor is the block's.
 
     Parameters
     ----------
@@ -504,6 +507,11 @@ def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt
     m = max(int(round(1.0 / (freq_hz * dt))), 1)
     a = _cycle_envelope(np.asarray(measured, float) / noise, m, skip)
     b = _cycle_envelope(np.asarray(simulated, float) / noise, m, skip)
+    # the model's envelope as the sensor reads it: its noise (unit variance here) adds 1 to a cycle's mean square
+    # about its mean and 2 to the mean square of its change from the cycle before (a quiet reading is noise alone,
+    # and a noise-free model must not miss it by the noise)
+    b[:, 1] = np.sqrt(b[:, 1] ** 2 + 1.0)
+    b[:, 2] = np.sqrt(b[:, 2] ** 2 + 2.0)
     k = min(a.shape[0], b.shape[0])
     n = int(np.asarray(measured).size - skip)
     if k < MIN_CYCLES:
