@@ -458,6 +458,7 @@ def run_one(args) -> int:
                      _model_text(res), "", _validation_text(res), "```", "",
                      "## 7. Verdict and what is left", "",
                      f"**{res.verdict}**: residual {figure_text(res.residual_x_noise)} from cycle to cycle.", "",
+                     *([envelope_text(res.grade) + ".", ""] if envelope_text(res.grade) else []),
                      "![verdict](verdict.png)", "",
                      res.unexplained["text"] if res.unexplained else "", "",
                      "```", follows_text(res.follows, "final model"), "```", ""]

@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ehas_env.measurement import verdict
+
 from . import acceptance as acc
 from . import campaign as gen
 from .effects import ALL
@@ -655,7 +657,13 @@ def findings(recs: list[dict]) -> list[str]:
                  "falls cycle after cycle to the run's end has had no floor since 2026-11-29 (the sensor noise "
                  "is its floor: `verdict._still_settling`); of the book-model figures of part (a) it moved only "
                  "load_compliance's without a fade-in (`rest` 46.7 -> 81.7); the two kinds above change their "
-                 "shape from cycle to cycle and are still counted.")
+                 "shape from cycle to cycle and are still counted. Since 2026-11-30 a closed-loop run whose loop "
+                 "does not repeat at all (its position reading changes by more than "
+                 f"{verdict.REPEAT_SHARE:.0%} of its swing from one cycle to the next: an instability, an "
+                 "oscillation of its own) is never floor: capped where the model's loop repeats, judged on its "
+                 "cycle envelope where the model's does not either (`verdict.loop_repeats`, "
+                 "`verdict.envelope_block`; docs/measurement-format.md, \"The verdict\"). Part (a) cases that "
+                 "ran before that rule (their commits above) keep the floor they had.")
     knocked = []
     for r in a:
         x0 = _block(r, "true_bk", "rest", BUMP_RUN, "theta_deg")
@@ -774,12 +782,15 @@ def main(argv=None) -> int:
     def one(item):
         c, need = item
         for part in need:
+            commit = acc._commit()  # the code the part starts with (a commit made while it runs is not its)
             if part == "a":
-                new = {"a": part_a(c, work), "ehas_commit": acc._commit()}
+                new = {"a": part_a(c, work), "ehas_commit": commit}
             elif part == "c":
-                new = {"c": {**part_c(c, work, out), "ehas_commit": acc._commit()}}
+                new = {"c": {**part_c(c, work, out), "ehas_commit": commit}}
+                # part (c)'s `rest` diagnosis is part (b)'s (the same campaign and command; it wrote diag/ID.json)
+                new["b"] = {**new["c"]["rest"], "ehas_commit": commit}
             else:
-                new = {"b": {**part_b(c, work, out), "ehas_commit": acc._commit()}}
+                new = {"b": {**part_b(c, work, out), "ehas_commit": commit}}
             # the record as stored now (another process may have written its other part meanwhile), with this part
             rec = {**(stored(c["id"]) or dict(c)), **new}
             tmp = out / "cases" / f".{c['id']}.{os.getpid()}.json.tmp"
