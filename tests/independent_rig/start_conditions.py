@@ -42,8 +42,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ehas_env.measurement import verdict
-
 from . import acceptance as acc
 from . import campaign as gen
 from .effects import ALL
@@ -658,8 +656,8 @@ def findings(recs: list[dict]) -> list[str]:
                  "is its floor: `verdict._still_settling`); of the book-model figures of part (a) it moved only "
                  "load_compliance's without a fade-in (`rest` 46.7 -> 81.7); the two kinds above change their "
                  "shape from cycle to cycle and are still counted. Since 2026-11-30 a closed-loop run whose loop "
-                 "does not repeat at all (its position reading changes by more than "
-                 f"{verdict.REPEAT_SHARE:.0%} of its swing from one cycle to the next: an instability, an "
+                 "does not repeat at all (its position reading changes by more than 5 % of its swing from one "
+                 "cycle to the next, `verdict.REPEAT_SHARE`: an instability, an "
                  "oscillation of its own) is never floor: capped where the model's loop repeats, judged on its "
                  "cycle envelope where the model's does not either (`verdict.loop_repeats`, "
                  "`verdict.envelope_block`; docs/measurement-format.md, \"The verdict\"). Part (a) cases that "
@@ -718,7 +716,7 @@ def _commits(recs: list[dict]) -> str:
 
 #: the code that makes the figures and the diagnosis (the README says whether it changed between the cases' commits)
 FIGURE_CODE = ("ehas_env/measurement/verdict.py", "ehas_env/measurement/replay.py",
-               "ehas_env/diagnosis/candidates.py", "ehas_env/diagnosis/fitting.py", "ehas_env/physics",
+               "ehas_env/diagnosis/candidates.py", "ehas_env/diagnosis/fitting.py", "ehas_env/diagnosis/keeping.py", "ehas_env/physics",
                ":(exclude)ehas_env/physics/c_source.py")
 
 
