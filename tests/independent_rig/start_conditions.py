@@ -716,7 +716,8 @@ def _commits(recs: list[dict]) -> str:
 
 #: the code that makes the figures and the diagnosis (the README says whether it changed between the cases' commits)
 FIGURE_CODE = ("ehas_env/measurement/verdict.py", "ehas_env/measurement/replay.py",
-               "ehas_env/diagnosis/candidates.py", "ehas_env/diagnosis/fitting.py", "ehas_env/diagnosis/keeping.py", "ehas_env/physics",
+               "ehas_env/diagnosis/candidates.py", "ehas_env/diagnosis/fitting.py", "ehas_env/diagnosis/keeping.py",
+               "ehas_env/physics",
                ":(exclude)ehas_env/physics/c_source.py")
 
 
