@@ -197,9 +197,9 @@ def verdict_text(rep, sims: dict, label_after: str | None) -> str:
     lines = ["verdict (the noise figure ehas diagnose grades: the residual over every sample against what does not "
              "repeat):"]
     lines += [f"  {label:<{w}}  {g['verdict']}, {figure_text(g['residual_x_noise'])}" for label, g in grades.items()]
-    shown = grades[label_after] if label_after is not None else grades["baseline"]
-    if envelope_text(shown):
-        lines.append("  " + envelope_text(shown))
+    envelope = envelope_text(grades[label_after] if label_after is not None else grades["baseline"])
+    if envelope:
+        lines.append("  " + envelope)
     if label_after is not None and label_after != "baseline":
         x_after, x_book = grades[label_after]["residual_x_noise"], grades["baseline"]["residual_x_noise"]
         if x_after > x_book:
@@ -285,8 +285,8 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
     -------
     dict
         ``before`` and ``after`` (each: ``residual_x_noise`` and ``verdict`` as the diagnosis defines them,
-        ``envelope_runs`` (runs judged on their cycle envelope), ``residual_x_sensor_noise``, ``fit_percent`` overall, ``per_signal``, ``per_run``), ``residual_x_noise``
-        (after), ``recalibrated`` (with ``--fit``: the baseline with beta and K refitted alone, the same keys as
+        ``envelope_runs`` (runs judged on their cycle envelope), ``residual_x_sensor_noise``, ``fit_percent``
+        overall, ``per_signal``, ``per_run``), ``residual_x_noise`` (after), ``recalibrated`` (with ``--fit``: the baseline with beta and K refitted alone, the same keys as
         ``before``), ``fitted`` (value, ci95 [low, high], unit per parameter), ``not_compared`` ({run: [column]}:
         logged columns judged nowhere, :meth:`~ehas_env.measurement.replay.Replayer.not_compared`), ``command``,
         ``elapsed_s``.

@@ -355,8 +355,9 @@ def run_one(args) -> int:
     print(follows_text(res.follows, "final model"))
     print()
     print(f"verdict: {res.verdict}, residual {figure_text(res.residual_x_noise)}")
-    if envelope_text(res.grade):
-        print(envelope_text(res.grade))
+    envelope = envelope_text(res.grade)  # the runs judged on their cycle envelope (None: none)
+    if envelope:
+        print(envelope)
     if res.unexplained is not None:
         print(res.unexplained["text"])
     else:
@@ -458,7 +459,7 @@ def run_one(args) -> int:
                      _model_text(res), "", _validation_text(res), "```", "",
                      "## 7. Verdict and what is left", "",
                      f"**{res.verdict}**: residual {figure_text(res.residual_x_noise)} from cycle to cycle.", "",
-                     *([envelope_text(res.grade) + ".", ""] if envelope_text(res.grade) else []),
+                     *([envelope + ".", ""] if envelope else []),
                      "![verdict](verdict.png)", "",
                      res.unexplained["text"] if res.unexplained else "", "",
                      "```", follows_text(res.follows, "final model"), "```", ""]

@@ -512,12 +512,11 @@ def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt
     # and a noise-free model must not miss it by the noise)
     b[:, 1] = np.sqrt(b[:, 1] ** 2 + 1.0)
     b[:, 2] = np.sqrt(b[:, 2] ** 2 + 2.0)
-    k = min(a.shape[0], b.shape[0])
+    k = a.shape[0]  # the rig's and the model's runs are one length: as many cycles each
     n = int(np.asarray(measured).size - skip)
     if k < MIN_CYCLES:
         e = (np.asarray(measured, float)[skip:] - np.asarray(simulated, float)[skip:]) / noise
         return Block(run, signal, float(np.mean(e**2)), 1.0, n, False, skip * dt, judged_on="envelope")
-    a, b = a[:k], b[:k]
     # each of the three (the cycle's mean, its RMS, its change from the cycle before) against its own floor, the
     # worst decides: the mean of an oscillation not locked to the sine scatters from cycle to cycle far more than
     # its RMS does and must not hide a miss in it, and the RMS is dominated by the tracked sine where the change
@@ -525,9 +524,7 @@ def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt
     swing = float(np.mean(a[:, 1]))
     worst = (0.0, 1.0)
     for c in range(3):
-        ac, bc = (a[:, c], b[:, c]) if c < 2 else (a[1:, c], b[1:, c])
-        if ac.size == 0:
-            continue
+        ac, bc = (a[:, c], b[:, c]) if c < 2 else (a[1:, c], b[1:, c])  # no change before the first cycle
         residual = float(np.mean((ac - bc) ** 2))
         # second differences: a growing or settling envelope (a trend, the same in rig and model) is not scatter;
         # white scatter of variance v gives 6 v in a second difference, and the two envelopes' scatters add
@@ -705,7 +702,8 @@ def blocks_of(rep, sims, cost_signals) -> list[Block]:
             start = float(ref.get("ramp_cycles", 1.0)) / freq
             if REPEAT_SIGNAL in case.measured and REPEAT_SIGNAL in sim:
                 rig_repeats = loop_repeats(case.measured[REPEAT_SIGNAL], run.dt, freq, start)
-                model_repeats = loop_repeats(sim[REPEAT_SIGNAL], run.dt, freq, start)
+                # the model's loop matters only where the rig's does not repeat (envelope or cap)
+                model_repeats = rig_repeats or loop_repeats(sim[REPEAT_SIGNAL], run.dt, freq, start)
         for s in case.signals:
             if s not in cost_signals:
                 continue
