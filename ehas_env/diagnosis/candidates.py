@@ -55,7 +55,7 @@ from ehas_env.diagnosis.fitting import (
     beats_noise, confidence, fit, own_params, recal_params, reopens_baseline, score_db, start_value)
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.residuals import evidence_text
-from ehas_env.measurement.verdict import blocks_of, grade
+from ehas_env.measurement.verdict import blocks_of, envelope_residual, grade, rig_loop_repeats, sine_timing
 from ehas_env.physics.effects import REGISTRY, get_effect
 from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
 
@@ -930,18 +930,34 @@ class Step:
 UNEXERCISED = 0.01
 
 
-def _validation_samples(rep: Replayer, parts: dict, *sims_lists):
-    """The validation samples ``parts`` = {case index: first sample}, per run and judged signal: (case, signal, first
-    sample, [each of ``sims_lists``' simulated samples there]); a run any of them did not simulate, or whose
-    validation stretch is shorter than 10 samples, is left out.  One definition of what validates, for
-    :func:`_parts_cost` and :func:`validation_moved`."""
+def _validation_residuals(rep: Replayer, parts: dict, pairs) -> list:
+    """The residual blocks (noise units) of the validation samples ``parts`` = {case index: first sample}, per run
+    and judged signal, between the two series ``pairs(case, index, signal)`` gives, each with whether it is a
+    simulation to be read as its sensor would (None: a run not simulated); a run whose validation stretch is
+    shorter than 10 samples is left out.  One definition of what validates, for :func:`_parts_cost` and
+    :func:`validation_moved`.
+
+    A run whose logged loop does not repeat (:func:`~ehas_env.measurement.verdict.rig_loop_repeats`: an unstable
+    loop, or one in an oscillation of its own) is compared on its cycle envelope, as the verdict judges it
+    (:func:`~ehas_env.measurement.verdict.envelope_residual`): its samples cannot be predicted one by one, and a
+    model with the rig's instability, out of phase with it, must not lose there to a model without it."""
+    out = []
     for i, k0 in parts.items():
-        case, sims = rep.cases[i], [sl[i] for sl in sims_lists]
-        if any(sim is None for sim in sims) or k0 >= case.run.n - 10:
+        case = rep.cases[i]
+        if k0 >= case.run.n - 10:
             continue
+        freq = None if rig_loop_repeats(case) else sine_timing(case.run)[0]
         for s in case.signals:
-            if s in COST_SIGNALS:
-                yield case, s, k0, [sim[s][k0:] for sim in sims]
+            if s not in COST_SIGNALS:
+                continue
+            pair = pairs(case, i, s)
+            if pair is None:
+                break
+            (x, read_x), (y, read_y) = pair
+            e = None if freq is None else envelope_residual(x, y, case.noise[s], case.run.dt, freq, k0,
+                                                            (read_x, read_y))
+            out.append(((x[k0:] - y[k0:]) / case.noise[s]) if e is None else e)
+    return out
 
 
 def validation_moved(rep: Replayer, sims_a, sims_b, parts: dict) -> float | None:
@@ -950,15 +966,17 @@ def validation_moved(rep: Replayer, sims_a, sims_b, parts: dict) -> float | None
 
     A block that only the fitted runs reach (a reading's clip at a level the held-out run never attains) leaves
     the held-out simulation as it was; :data:`UNEXERCISED` tells that apart from a change the data refuse."""
-    tot, n = 0.0, 0
-    for case, s, _, (a, b) in _validation_samples(rep, parts, sims_a, sims_b):
-        d = (a - b) / case.noise[s]
-        tot, n = tot + float(np.dot(d, d)), n + d.size
-    return tot / n if n else None
+    def pairs(case, i, s):
+        a, b = sims_a[i], sims_b[i]
+        return None if a is None or b is None else ((a[s], True), (b[s], True))
+    blocks = _validation_residuals(rep, parts, pairs)
+    n = sum(e.size for e in blocks)
+    return sum(float(np.dot(e, e)) for e in blocks) / n if n else None
 
 
 def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
     """Geometric-mean residual (noise variances) over the samples ``parts`` = {case index: first sample}."""
-    blocks = [(case.measured[s][k0:] - sim) / case.noise[s]
-              for case, s, k0, (sim,) in _validation_samples(rep, parts, sims)]
+    def pairs(case, i, s):
+        return None if sims[i] is None else ((case.measured[s], False), (sims[i][s], True))
+    blocks = _validation_residuals(rep, parts, pairs)
     return log_mean(blocks) if blocks else None

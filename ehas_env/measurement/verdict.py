@@ -448,15 +448,70 @@ def loop_repeats(y: np.ndarray, dt: float, freq_hz: float, start_s: float) -> bo
     return share is None or share <= REPEAT_SHARE
 
 
-def _cycle_envelope(y: np.ndarray, m: int, k0: int) -> np.ndarray:
+def _cycle_envelope(y: np.ndarray, m: int, k0: int, read: bool = False) -> np.ndarray:
     """Per whole cycle of ``m`` samples from ``k0``: the mean, the RMS about it and the RMS of the change from the
-    cycle before (how much does not repeat; NaN for the first), shape (cycles, 3)."""
+    cycle before (how much does not repeat; NaN for the first), shape (cycles, 3).  ``y`` in noise units;
+    ``read``: as its sensor would read it (a model's simulation: the noise's unit variance adds 1 to a cycle's mean
+    square about its mean and 2 to the mean square of its change, so a quiet reading is the noise alone and a
+    noise-free model does not miss it by the noise)."""
     n = (y.size - k0) // m
     c = y[k0:k0 + n * m].reshape(n, m)
     mu = c.mean(axis=1)
     chg = np.full(n, np.nan)
-    chg[1:] = np.sqrt(np.mean(np.diff(c, axis=0) ** 2, axis=1))
-    return np.stack([mu, np.sqrt(np.mean((c - mu[:, None]) ** 2, axis=1)), chg], axis=1)
+    chg[1:] = np.mean(np.diff(c, axis=0) ** 2, axis=1)
+    rms2 = np.mean((c - mu[:, None]) ** 2, axis=1)
+    if read:
+        rms2, chg = rms2 + 1.0, chg + 2.0
+    return np.stack([mu, np.sqrt(rms2), np.sqrt(chg)], axis=1)
+
+
+def envelope_residual(x: np.ndarray, y: np.ndarray, noise: float, dt: float, freq_hz: float, k0: int = 0,
+                      read: tuple[bool, bool] = (False, True)) -> np.ndarray | None:
+    """The difference of two runs' cycle envelopes (:func:`envelope_block`'s three, from sample ``k0``) in noise
+    units, as a residual the fit's cost can take: per cycle the root of the three squared differences summed
+    (the change's from the second cycle), repeated over the cycle's samples so that a run weighs by its samples
+    as a sample-by-sample residual does.
+
+    Parameters
+    ----------
+    x, y : ndarray
+        The two runs of one signal (the rig's and a model's, or two models').
+    noise : float
+        The signal's sensor-noise level (same unit).
+    dt : float
+        Sample period, s.
+    freq_hz : float
+        The sine's frequency, Hz.
+    k0 : int
+        First sample compared.
+    read : (bool, bool)
+        Which of ``x``, ``y`` is a simulation to be read as its sensor would (the rig's log already is).
+
+    Returns
+    -------
+    ndarray or None
+        None when fewer than :data:`MIN_CYCLES` whole cycles follow ``k0``.
+
+    Examples
+    --------
+    >>> t = np.arange(0, 3, 1e-3)
+    >>> rig = np.exp(t) * np.sin(2 * np.pi * 2 * t + 0.3)  # an oscillation that grows
+    >>> def ms(model):  # mean square in noise variances (noise 0.01), two noise-free signals
+    ...     return float(np.mean(envelope_residual(rig, model, 0.01, 1e-3, 2.0, read=(False, False)) ** 2))
+    >>> same, half = ms(np.exp(t) * np.sin(2 * np.pi * 2 * t)), ms(0.5 * np.exp(t) * np.sin(2 * np.pi * 2 * t))
+    >>> bool(same < half / 100)  # another phase, the same growth: far closer than half its size
+    True
+    >>> envelope_residual(rig, rig, 1.0, 1e-3, 2.0, k0=2500) is None  # half a cycle left
+    True
+    """
+    m = max(int(round(1.0 / (freq_hz * dt))), 1)
+    a = _cycle_envelope(np.asarray(x, float) / noise, m, k0, read[0])
+    b = _cycle_envelope(np.asarray(y, float) / noise, m, k0, read[1])
+    if a.shape[0] < MIN_CYCLES:
+        return None
+    d = (a - b) ** 2
+    d[0, 2] = 0.0  # no change before the first cycle
+    return np.repeat(np.sqrt(d.sum(axis=1)), m)
 
 
 def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
@@ -506,12 +561,7 @@ def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt
     """
     m = max(int(round(1.0 / (freq_hz * dt))), 1)
     a = _cycle_envelope(np.asarray(measured, float) / noise, m, skip)
-    b = _cycle_envelope(np.asarray(simulated, float) / noise, m, skip)
-    # the model's envelope as the sensor reads it: its noise (unit variance here) adds 1 to a cycle's mean square
-    # about its mean and 2 to the mean square of its change from the cycle before (a quiet reading is noise alone,
-    # and a noise-free model must not miss it by the noise)
-    b[:, 1] = np.sqrt(b[:, 1] ** 2 + 1.0)
-    b[:, 2] = np.sqrt(b[:, 2] ** 2 + 2.0)
+    b = _cycle_envelope(np.asarray(simulated, float) / noise, m, skip, read=True)  # as the sensor reads it
     k = a.shape[0]  # the rig's and the model's runs are one length: as many cycles each
     n = int(np.asarray(measured).size - skip)
     if k < MIN_CYCLES:
@@ -673,6 +723,25 @@ def blocks_above(blocks: list[Block], x: float = BLOCK_NAMED_X) -> list[dict]:
             for b in sorted(blocks, key=lambda b: b.x, reverse=True) if b.x > x]
 
 
+def sine_timing(run) -> tuple[float | None, float | None]:
+    """A closed-loop sine run's frequency (Hz) and where its full amplitude starts (s, after the fade-in of its
+    sidecar's ``ramp_cycles``, one cycle by default); (None, None) for any other run or a windowed one."""
+    ref = run.meta.get("reference") if run.kind == "closed_loop" else None
+    if not ref or not ref.get("freq_hz") or run.meta.get("window", {}).get("start_s"):
+        return None, None
+    freq = float(ref["freq_hz"])
+    return freq, float(ref.get("ramp_cycles", 1.0)) / freq
+
+
+def rig_loop_repeats(case) -> bool:
+    """Whether a replayed run's logged loop repeats at its sine's period (:func:`loop_repeats` on
+    :data:`REPEAT_SIGNAL`); a run that is no sine, or lacks the reading, counts as repeating."""
+    freq, start = sine_timing(case.run)
+    if freq is None or REPEAT_SIGNAL not in case.measured:
+        return True
+    return loop_repeats(case.measured[REPEAT_SIGNAL], case.run.dt, freq, start)
+
+
 def blocks_of(rep, sims, cost_signals) -> list[Block]:
     """The :class:`Block` of every run and logged signal of a replay (``rep``: a Replayer, ``sims`` its runs).
 
@@ -693,17 +762,12 @@ def blocks_of(rep, sims, cost_signals) -> list[Block]:
         if sim is None:
             continue
         run = case.run
-        ref = run.meta.get("reference") if run.kind == "closed_loop" else None
-        win = run.meta.get("window", {})
-        freq = start = None
+        freq, start = sine_timing(run)
         rig_repeats = model_repeats = True
-        if ref and ref.get("freq_hz") and not win.get("start_s"):
-            freq = float(ref["freq_hz"])
-            start = float(ref.get("ramp_cycles", 1.0)) / freq
-            if REPEAT_SIGNAL in case.measured and REPEAT_SIGNAL in sim:
-                rig_repeats = loop_repeats(case.measured[REPEAT_SIGNAL], run.dt, freq, start)
-                # the model's loop matters only where the rig's does not repeat (envelope or cap)
-                model_repeats = rig_repeats or loop_repeats(sim[REPEAT_SIGNAL], run.dt, freq, start)
+        if freq is not None and REPEAT_SIGNAL in sim:
+            rig_repeats = rig_loop_repeats(case)
+            # the model's loop matters only where the rig's does not repeat (envelope or cap)
+            model_repeats = rig_repeats or loop_repeats(sim[REPEAT_SIGNAL], run.dt, freq, start)
         for s in case.signals:
             if s not in cost_signals:
                 continue

@@ -11,7 +11,9 @@ Mutations this file catches (each checked by hand when it was written):
 * the cap on a rig that does not repeat while the model does taken out (``not rig_repeats or`` in
   ``residual_floor``): the broad-band instability below is then floor, and the stable model "explained";
 * the envelope judgement taken out (``blocks_of`` judging every run on its samples): the two unstable loops of one
-  size and of half the size are then both near 1.
+  size and of half the size are then both near 1;
+* the validation gate judging a held-out run that does not repeat sample by sample again (``freq = None`` in
+  ``candidates._validation_residuals``): the model without the instability then beats the one with it.
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ehas_env.diagnosis.candidates import _parts_cost, lowers_validation, validation_moved
 from ehas_env.measurement.verdict import (
     REPEAT_SHARE, blocks_of, envelope_text, grade, loop_repeats, repeat_share)
 
@@ -39,7 +42,8 @@ def _unstable(rng, size=1.0):
 
 
 def _rep(measured: dict, name="cl_5sets_30deg_2hz"):
-    run = SimpleNamespace(name=name, kind="closed_loop", dt=DT, meta={"reference": {"freq_hz": F, "ramp_cycles": 0}})
+    run = SimpleNamespace(name=name, kind="closed_loop", dt=DT, n=T.size,
+                          meta={"reference": {"freq_hz": F, "ramp_cycles": 0}})
     case = SimpleNamespace(run=run, signals=tuple(measured), measured=measured, noise=NOISE, skip=0)
     return SimpleNamespace(cases=[case])
 
@@ -100,3 +104,27 @@ def test_two_unstable_loops_of_one_size_agree_on_their_envelope_and_half_the_siz
         assert float(np.mean(e ** 2)) > 1e5
     assert sum(x <= 2.0 for x in same_x) >= 6, same_x
     assert min(half_x) > 3.0 * max(same_x), (same_x, half_x)
+
+
+def test_the_validation_gate_judges_a_held_out_run_that_does_not_repeat_on_its_envelope_as_the_verdict_does():
+    """Issue 42's "one figure": on the generator's transport-delay campaign started from rest, the held-out 5-set
+    run takes off; the validation gate, judging it sample by sample, refused the true delay (whose model takes off
+    as the rig does, out of phase with it) for a model that does not. Held out (``parts`` {0: 0}), a model with the
+    rig's instability must lower the validation residual against one without it and one with half of it, on every
+    noise draw, as the verdict ranks them."""
+    for s in range(6):
+        rng = np.random.default_rng(400 + s)
+        rig = _signals(REF + _unstable(rng), rng)
+        same = _model(REF + _unstable(np.random.default_rng(500 + s)))
+        half = _model(REF + _unstable(np.random.default_rng(600 + s), size=0.5))
+        stable = _model(REF)
+        rep = _rep(rig)
+        cost = {k: _parts_cost(rep, [m], {0: 0}) for k, m in (("same", same), ("half", half), ("stable", stable))}
+        assert lowers_validation(cost["stable"], cost["same"]), cost
+        assert lowers_validation(cost["half"], cost["same"]), cost
+        x = {k: grade(blocks_of(rep, [m], ["theta_deg", "p_a_bar"]))["residual_x_noise"]
+             for k, m in (("same", same), ("half", half), ("stable", stable))}
+        assert x["same"] < min(x["half"], x["stable"]), x  # the verdict's order is the gate's
+        # two models that both take off differ on the held-out run by their envelopes, not their phases
+        moved = validation_moved(rep, [same], [_model(REF + _unstable(np.random.default_rng(700 + s)))], {0: 0})
+        assert moved < validation_moved(rep, [same], [half], {0: 0}) / 2
