@@ -73,7 +73,8 @@ def agree(estimates: dict[str, list[tuple]], least: dict[str, float] | None = No
     :data:`MODEL_ERROR_FLOOR` of its estimate, and at least ``least[name]`` (:func:`least_half_width`: a parameter
     whose typical values straddle zero).  An estimate that ran to the end of its fitted range
     (flagged by a third element True) is no point estimate: its interval is cut at that end and one-sided,
-    so it agrees with another estimate when their intervals (each at least the floor wide) overlap.
+    so it agrees with another estimate when their intervals (each at least the floor and ``least`` wide on either
+    side of its estimate) overlap.
 
     Parameters
     ----------
@@ -99,7 +100,7 @@ def agree(estimates: dict[str, list[tuple]], least: dict[str, float] | None = No
                 if not all(map(math.isfinite, (a, b, ha, hb, alo, ahi, blo, bhi))):
                     return False, f"{name}: an estimate or its interval is not finite"
                 if pinned:
-                    fa, fb = MODEL_ERROR_FLOOR * abs(a), MODEL_ERROR_FLOOR * abs(b)
+                    fa, fb = max(MODEL_ERROR_FLOOR * abs(a), h0), max(MODEL_ERROR_FLOOR * abs(b), h0)
                     if max(min(alo, a - fa), min(blo, b - fb)) <= min(max(ahi, a + fa), max(bhi, b + fb)):
                         continue
                     return False, (f"{name}: {a:.4g} [{alo:.4g}, {ahi:.4g}] on one group of runs and {b:.4g} "

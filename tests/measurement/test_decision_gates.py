@@ -127,7 +127,8 @@ def test_a_parameter_near_zero_has_a_floor_of_its_own_scale():
     on two groups beside a true LVDT bend (the independent generator's lvdt_nonlinearity campaign) must agree --
     0.08 % of the scale apart; the least half-width is a tenth of the typical magnitude, 0.3 %.  An offset of
     1 mm against 3 mm (typical +-2 mm: 0.2 mm least) still disagrees.  Fails when least_half_width returns 0
-    (the first disagrees) or a whole typical magnitude (the second agrees: 2 < hypot(2, 2))."""
+    (the first disagrees) or a whole typical magnitude (the second agrees: 2 < hypot(2, 2)), and when the branch
+    for an estimate at the end of its range leaves it out (the pinned pair disagrees)."""
     from ehas_env.diagnosis.keeping import least_half_width
     from ehas_env.physics.effects import get_effect
 
@@ -136,6 +137,10 @@ def test_a_parameter_near_zero_has_a_floor_of_its_own_scale():
     assert agree({"gain": [(-0.004, (-0.019, 0.012)), (-0.082, (-0.154, -0.010))]}, {"gain": gain})[0]
     assert not agree({"x0": [(1.0, (0.95, 1.05)), (3.0, (2.95, 3.05))]}, {"x0": x0})[0]
     assert least_half_width(get_effect("coulomb_friction").param("Fc")) == 0.0  # positive: relative floor only
+    # an estimate at the end of its range (third element True) is widened by the same least half-width: a gain
+    # pinned at 0 % beside one of 0.2 % (its interval 0.19-0.21 %) agrees; 2 % still does not
+    assert agree({"gain": [(0.0, (0.0, 0.0), True), (0.2, (0.19, 0.21))]}, {"gain": gain})[0]
+    assert not agree({"gain": [(0.0, (0.0, 0.0), True), (2.0, (1.9, 2.1))]}, {"gain": gain})[0]
 
 
 # --- stacking: VAL_GAIN, RIVAL_SHARE --------------------------------------------------------------------------------
