@@ -55,7 +55,7 @@ from ehas_env.diagnosis.fitting import (
     beats_noise, confidence, fit, own_params, recal_params, reopens_baseline, score_db, start_value)
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.residuals import evidence_text
-from ehas_env.measurement.verdict import blocks_of, envelope_residual, grade, rig_loop_repeats, sine_timing
+from ehas_env.measurement.verdict import blocks_of, grade, run_residual
 from ehas_env.physics.effects import REGISTRY, get_effect
 from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
 
@@ -937,16 +937,15 @@ def _validation_residuals(rep: Replayer, parts: dict, pairs) -> list:
     shorter than 10 samples is left out.  One definition of what validates, for :func:`_parts_cost` and
     :func:`validation_moved`.
 
-    A run whose logged loop does not repeat (:func:`~ehas_env.measurement.verdict.rig_loop_repeats`: an unstable
-    loop, or one in an oscillation of its own) is compared on its cycle envelope, as the verdict judges it
-    (:func:`~ehas_env.measurement.verdict.envelope_residual`): its samples cannot be predicted one by one, and a
-    model with the rig's instability, out of phase with it, must not lose there to a model without it."""
+    A run whose logged loop does not repeat (an unstable loop, or one in an oscillation of its own) is compared on
+    its cycle envelope, as the verdict and the fit's cost judge it
+    (:func:`~ehas_env.measurement.verdict.run_residual`): its samples cannot be predicted one by one, and a model
+    with the rig's instability, out of phase with it, must not lose there to a model without it."""
     out = []
     for i, k0 in parts.items():
         case = rep.cases[i]
         if k0 >= case.run.n - 10:
             continue
-        freq = None if rig_loop_repeats(case) else sine_timing(case.run)[0]
         for s in case.signals:
             if s not in COST_SIGNALS:
                 continue
@@ -954,9 +953,7 @@ def _validation_residuals(rep: Replayer, parts: dict, pairs) -> list:
             if pair is None:
                 break
             (x, read_x), (y, read_y) = pair
-            e = None if freq is None else envelope_residual(x, y, case.noise[s], case.run.dt, freq, k0,
-                                                            (read_x, read_y))
-            out.append(((x[k0:] - y[k0:]) / case.noise[s]) if e is None else e)
+            out.append(run_residual(case, x, y, s, k0, (read_x, read_y)))
     return out
 
 

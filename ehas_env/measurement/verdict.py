@@ -468,9 +468,10 @@ def _cycle_envelope(y: np.ndarray, m: int, k0: int, read: bool = False) -> np.nd
 def envelope_residual(x: np.ndarray, y: np.ndarray, noise: float, dt: float, freq_hz: float, k0: int = 0,
                       read: tuple[bool, bool] = (False, True)) -> np.ndarray | None:
     """The difference of two runs' cycle envelopes (:func:`envelope_block`'s three, from sample ``k0``) in noise
-    units, as a residual the fit's cost can take: per cycle the root of the three squared differences summed
-    (the change's from the second cycle), repeated over the cycle's samples so that a run weighs by its samples
-    as a sample-by-sample residual does.
+    units, as a residual the fit's cost can take: per cycle the three signed differences (the change's from the
+    second cycle), each repeated over a third of the cycle's samples and scaled by sqrt(3), so that the block's
+    mean square is the three's mean squares summed and a run weighs by its samples as a sample-by-sample
+    residual does.
 
     Parameters
     ----------
@@ -509,9 +510,9 @@ def envelope_residual(x: np.ndarray, y: np.ndarray, noise: float, dt: float, fre
     b = _cycle_envelope(np.asarray(y, float) / noise, m, k0, read[1])
     if a.shape[0] < MIN_CYCLES:
         return None
-    d = (a - b) ** 2
+    d = a - b
     d[0, 2] = 0.0  # no change before the first cycle
-    return np.repeat(np.sqrt(d.sum(axis=1)), m)
+    return math.sqrt(3.0) * np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
 
 
 def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
@@ -740,6 +741,38 @@ def rig_loop_repeats(case) -> bool:
     if freq is None or REPEAT_SIGNAL not in case.measured:
         return True
     return loop_repeats(case.measured[REPEAT_SIGNAL], case.run.dt, freq, start)
+
+
+def run_residual(case, x: np.ndarray, y: np.ndarray, signal: str, k0: int = 0,
+                 read: tuple[bool, bool] = (False, True)) -> np.ndarray:
+    """The residual block (noise units) of one replayed run and signal between two series from sample ``k0``:
+    sample by sample, or, for a run whose logged loop does not repeat (:func:`rig_loop_repeats`), on its cycle
+    envelope (:func:`envelope_residual`; ``read`` as there).  One definition for the fit's cost
+    (:meth:`ehas_env.measurement.replay.Replayer.cost_blocks`) and the keep gates' validation residual: a
+    model with the rig's instability, out of phase with it, is not refused for one without it.
+
+    Parameters
+    ----------
+    case : replayed run
+        With ``run`` (``kind``, ``dt``, ``meta``), ``measured`` and ``noise``.
+    x, y : ndarray
+        The two series (the rig's and a model's, or two models').
+    signal : str
+        Their signal (its noise level divides).
+    k0 : int
+        First sample compared.
+    read : (bool, bool)
+        Which of ``x``, ``y`` is a simulation (:func:`envelope_residual`).
+
+    Returns
+    -------
+    ndarray
+    """
+    if not rig_loop_repeats(case):
+        e = envelope_residual(x, y, case.noise[signal], case.run.dt, sine_timing(case.run)[0], k0, read)
+        if e is not None:
+            return e
+    return (np.asarray(x[k0:], float) - np.asarray(y[k0:], float)) / case.noise[signal]
 
 
 def blocks_of(rep, sims, cost_signals) -> list[Block]:

@@ -12,8 +12,9 @@ Mutations this file catches (each checked by hand when it was written):
   ``residual_floor``): the broad-band instability below is then floor, and the stable model "explained";
 * the envelope judgement taken out (``blocks_of`` judging every run on its samples): the two unstable loops of one
   size and of half the size are then both near 1;
-* the validation gate judging a held-out run that does not repeat sample by sample again (``freq = None`` in
-  ``candidates._validation_residuals``): the model without the instability then beats the one with it.
+* the validation gate or the fit's cost judging a run that does not repeat sample by sample again
+  (``verdict.run_residual`` without its envelope branch): the model without the instability then beats the one
+  with it, in the gate and in the cost the fits minimise.
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ehas_env.diagnosis.candidates import _parts_cost, lowers_validation, validation_moved
+from ehas_env.measurement.replay import Replayer, log_mean
 from ehas_env.measurement.verdict import (
     REPEAT_SHARE, blocks_of, envelope_text, grade, loop_repeats, repeat_share)
 
@@ -45,6 +47,7 @@ def _rep(measured: dict, name="cl_5sets_30deg_2hz"):
     run = SimpleNamespace(name=name, kind="closed_loop", dt=DT, n=T.size,
                           meta={"reference": {"freq_hz": F, "ramp_cycles": 0}})
     case = SimpleNamespace(run=run, signals=tuple(measured), measured=measured, noise=NOISE, skip=0)
+    # Replayer.cost_blocks reads nothing of the replayer but its cases
     return SimpleNamespace(cases=[case])
 
 
@@ -128,3 +131,6 @@ def test_the_validation_gate_judges_a_held_out_run_that_does_not_repeat_on_its_e
         # two models that both take off differ on the held-out run by their envelopes, not their phases
         moved = validation_moved(rep, [same], [_model(REF + _unstable(np.random.default_rng(700 + s)))], {0: 0})
         assert moved < validation_moved(rep, [same], [half], {0: 0}) / 2
+        # the fit's cost is the same measure: the model with the instability is the cheaper one to the fits too
+        fit_cost = {k: log_mean(Replayer.cost_blocks(rep, [m])) for k, m in (("same", same), ("stable", stable))}
+        assert fit_cost["same"] < fit_cost["stable"] / 3, fit_cost
