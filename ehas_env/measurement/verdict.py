@@ -271,7 +271,10 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
       :data:`PERSISTENT_CAP` noise variances, whether it persists, fades or grows (the floor is then that cap); a
       random disturbance spread over a band stays in, and so does what a few cycles add above the level (a knock);
       the same cap, whatever the change's spectrum, when the rig's loop does not repeat at all while the model's
-      does (``rig_repeats`` False: :func:`loop_repeats`): an instability the model lacks is judged, not floor.
+      does (``rig_repeats`` False: :func:`loop_repeats`): an instability the model lacks is judged, not floor;
+    * a subharmonic (a response at half the sine's frequency, each cycle the mirror of the one before: a period
+      doubling the model lacks) does not repeat over one period but does over two: the floor is the smaller of
+      the two, each found as above (a random disturbance changes as much over two periods as over one).
 
     Parameters
     ----------
@@ -306,16 +309,35 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     >>> f, a, b = residual_floor(e + settle, 1e-3, 3.0, 0.0)
     >>> 0.9 < f < 1.2 and a > 0.3
     True
+    >>> sub = 30 * np.sin(2 * np.pi * 1.5 * t)  # a subharmonic the model lacks: judged, not floor
+    >>> 0.9 < residual_floor(e + sub, 1e-3, 3.0, 1 / 3)[0] < 1.2
+    True
     """
     period = 1.0 / freq_hz
     k0 = int(math.ceil(start_s / dt - 1e-9))
-    lag = period / dt
+    if (e.size - k0) * dt < MIN_CYCLES * period - 1e-9:
+        return None
+    one = _floor_at_lag(e, k0, period / dt, freq_hz * dt, measured, simulated, rig_repeats)
+    if one is None:
+        return None  # no stationary stretch: the run's change is a response the model misses, not a floor
+    # a response at half the sine's frequency (a subharmonic: each cycle the mirror of the one before) does not
+    # repeat over one period but does over two; what does not repeat over either is the smaller
+    two = (_floor_at_lag(e, k0, 2.0 * period / dt, freq_hz * dt, measured, simulated, rig_repeats)
+           if (e.size - k0) * dt >= (MIN_CYCLES + 1) * period - 1e-9 else None)
+    f, i, j = two if two is not None and two[0] < one[0] else one
+    return f, i * dt, j * dt
+
+
+def _floor_at_lag(e, k0, lag, cycle_share, measured, simulated, rig_repeats):
+    """:func:`residual_floor` from the change over ``lag`` samples (a whole number of periods), per cycle
+    (``cycle_share``: cycles per sample), from sample ``k0``: (floor, first sample, last sample of the stretch
+    that sets it), or None when the cycles kept still settle."""
     m = int(math.floor(lag))
     a = lag - m
     n = e.size - k0 - m - 1
-    if n <= 0 or (e.size - k0) * dt < MIN_CYCLES * period - 1e-9:
+    if n <= 0:
         return None
-    n_seg = max(1, int(round(n * dt * freq_hz)))
+    n_seg = max(1, int(round(n * cycle_share)))
     d_e = _change(e, k0, m, a, n)
     g = _cycle_changes(d_e, a, n_seg)
     d_meas = None
@@ -328,7 +350,7 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     kept = g[first:]
     i0 = first * (n // n_seg) + min(first, n % n_seg)  # where np.array_split's cycle `first` starts
     if _still_settling(kept, np.array_split(d_e, n_seg)[first:]):
-        return None  # no stationary stretch: the run's change is a response the model misses, not a floor
+        return None
     level = float(np.median(kept))
     extra = max(float(np.mean(kept)) - level, 0.0)  # a few cycles above the level: a knock, a disturbance
     if simulated is not None and d_meas is not None:
@@ -343,7 +365,7 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     # mean square (the halved change overstates a narrow-band process that swings against itself one period
     # later -- a loop's mode rung by noise at (k + 1/2) times the sine's frequency -- by up to 2x)
     ceiling = float(np.mean(e[k0 + i0:k0 + m + n + 1] ** 2))
-    return min(level + extra, ceiling), (k0 + i0) * dt, (k0 + m + n) * dt
+    return min(level + extra, ceiling), k0 + i0, k0 + m + n
 
 
 def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
