@@ -207,6 +207,12 @@ TREND_X = 1.25
 TREND_CYCLES = 3
 TREND_CORR = 0.5
 
+#: a subharmonic: the change over two periods this many times below the change over one (before the caps) -- a
+#: period doubling, each cycle the mirror of the one before.  A line at f not locked to the sine (F) changes over
+#: two periods by 4 cos^2(pi f / F) times its change over one: below 1/4 only within 0.08 F of some (k + 1/2) F,
+#: where a run of a few cycles cannot tell it from a subharmonic
+SUBHARMONIC_X = 4.0
+
 #: share of the rig's cycle-to-cycle change in one spectral line (7 bins of a Hann-windowed spectrum) above which
 #: what persists in it is an oscillation (a limit cycle), not a random disturbance spread over a band
 LINE_SHARE = 0.5
@@ -273,8 +279,9 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
       the same cap, whatever the change's spectrum, when the rig's loop does not repeat at all while the model's
       does (``rig_repeats`` False: :func:`loop_repeats`): an instability the model lacks is judged, not floor;
     * a subharmonic (a response at half the sine's frequency, each cycle the mirror of the one before: a period
-      doubling the model lacks) does not repeat over one period but does over two: the floor is the smaller of
-      the two, each found as above (a random disturbance changes as much over two periods as over one).
+      doubling the model lacks) does not repeat over one period but does over two: where the change over two
+      periods is :data:`SUBHARMONIC_X` times below the change over one, the floor is found as above from the
+      change over two (a random disturbance changes as much over two periods as over one).
 
     Parameters
     ----------
@@ -321,17 +328,17 @@ def residual_floor(e: np.ndarray, dt: float, freq_hz: float, start_s: float, mea
     if one is None:
         return None  # no stationary stretch: the run's change is a response the model misses, not a floor
     # a response at half the sine's frequency (a subharmonic: each cycle the mirror of the one before) does not
-    # repeat over one period but does over two; what does not repeat over either is the smaller
+    # repeat over one period but does over two: there the change over two periods sets the floor
     two = (_floor_at_lag(e, k0, 2.0 * period / dt, freq_hz * dt, measured, simulated, rig_repeats)
            if (e.size - k0) * dt >= (MIN_CYCLES + 1) * period - 1e-9 else None)
-    f, i, j = two if two is not None and two[0] < one[0] else one
+    f, i, j, _ = two if two is not None and two[3] * SUBHARMONIC_X <= one[3] else one
     return f, i * dt, j * dt
 
 
 def _floor_at_lag(e, k0, lag, cycle_share, measured, simulated, rig_repeats):
     """:func:`residual_floor` from the change over ``lag`` samples (a whole number of periods), per cycle
     (``cycle_share``: cycles per sample), from sample ``k0``: (floor, first sample, last sample of the stretch
-    that sets it), or None when the cycles kept still settle."""
+    that sets it, the change's level before the caps), or None when the cycles kept still settle."""
     m = int(math.floor(lag))
     a = lag - m
     n = e.size - k0 - m - 1
@@ -351,7 +358,7 @@ def _floor_at_lag(e, k0, lag, cycle_share, measured, simulated, rig_repeats):
     i0 = first * (n // n_seg) + min(first, n % n_seg)  # where np.array_split's cycle `first` starts
     if _still_settling(kept, np.array_split(d_e, n_seg)[first:]):
         return None
-    level = float(np.median(kept))
+    level = raw = float(np.median(kept))
     extra = max(float(np.mean(kept)) - level, 0.0)  # a few cycles above the level: a knock, a disturbance
     if simulated is not None and d_meas is not None:
         own = float(np.median(_cycle_changes(_change(simulated, k0, m, a, n), a, n_seg)[first:]))
@@ -365,7 +372,7 @@ def _floor_at_lag(e, k0, lag, cycle_share, measured, simulated, rig_repeats):
     # mean square (the halved change overstates a narrow-band process that swings against itself one period
     # later -- a loop's mode rung by noise at (k + 1/2) times the sine's frequency -- by up to 2x)
     ceiling = float(np.mean(e[k0 + i0:k0 + m + n + 1] ** 2))
-    return min(level + extra, ceiling), k0 + i0, k0 + m + n
+    return min(level + extra, ceiling), k0 + i0, k0 + m + n, raw
 
 
 def split_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
