@@ -38,7 +38,7 @@ import numpy as np
 from ehas_env.physics import layout as KN
 from ehas_env.simulation.control_laws import N_GAINS
 from ehas_env.measurement.campaign import Campaign, Run, reference_of
-from ehas_env.measurement.verdict import run_residual
+from ehas_env.measurement.verdict import unpredictable_runs
 from ehas_env.physics.effects import resolve_effects
 from ehas_env.simulation.metrics import fit_percent
 from ehas_env.simulation.plant import TAU_MAX, Plant, RigController
@@ -569,14 +569,16 @@ class Replayer:
 
     def cost_blocks(self, sims, runs=None) -> list[np.ndarray]:
         """Residuals divided by each signal's noise level, one block per (run, signal) of the cost; a run whose
-        logged loop does not repeat on its cycle envelope (:func:`ehas_env.measurement.verdict.run_residual`)."""
+        logged loop does not repeat is left out (:func:`ehas_env.measurement.verdict.unpredictable_runs`)."""
         parts = []
+        unpredictable = unpredictable_runs(self.cases)
         for i, (case, sim) in enumerate(zip(self.cases, sims)):
-            if sim is None or (runs is not None and i not in runs):
+            if sim is None or (runs is not None and i not in runs) or i in unpredictable:
                 continue
+            k = case.skip
             for s in case.signals:
                 if s in COST_SIGNALS:
-                    parts.append(run_residual(case, case.measured[s], sim[s], s, case.skip))
+                    parts.append((case.measured[s][k:] - sim[s][k:]) / case.noise[s])
         return parts
 
     def cost_vector(self, sims, runs=None) -> np.ndarray:

@@ -541,7 +541,13 @@ def envelope_residual(x: np.ndarray, y: np.ndarray, noise: float, dt: float, fre
         return None
     d = a - b
     d[0, 2] = 0.0  # no change before the first cycle
-    return math.sqrt(3.0) * np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
+    return math.sqrt(3.0) * np.repeat(d.ravel(), _envelope_repeat(m))
+
+
+def _envelope_repeat(m: int) -> int:
+    """How often :func:`envelope_residual` repeats each of a cycle's three differences (a third of its ``m``
+    samples)."""
+    return max(int(round(m / 3.0)), 1)
 
 
 def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
@@ -776,9 +782,9 @@ def run_residual(case, x: np.ndarray, y: np.ndarray, signal: str, k0: int = 0,
                  read: tuple[bool, bool] = (False, True)) -> np.ndarray:
     """The residual block (noise units) of one replayed run and signal between two series from sample ``k0``:
     sample by sample, or, for a run whose logged loop does not repeat (:func:`rig_loop_repeats`), on its cycle
-    envelope (:func:`envelope_residual`; ``read`` as there).  One definition for the fit's cost
-    (:meth:`ehas_env.measurement.replay.Replayer.cost_blocks`) and the keep gates' validation residual: a
-    model with the rig's instability, out of phase with it, is not refused for one without it.
+    envelope (:func:`envelope_residual`; ``read`` as there), as the verdict judges it: the keep gates'
+    validation residual, where a model with the rig's instability, out of phase with it, must not be refused for
+    one without it.  (The fit's cost leaves such runs out: :func:`unpredictable_runs`.)
 
     Parameters
     ----------
@@ -802,6 +808,27 @@ def run_residual(case, x: np.ndarray, y: np.ndarray, signal: str, k0: int = 0,
         if e is not None:
             return e
     return (np.asarray(x[k0:], float) - np.asarray(y[k0:], float)) / case.noise[signal]
+
+
+def unpredictable_runs(cases) -> set[int]:
+    """The replayed runs (indices) whose logged loop does not repeat (:func:`rig_loop_repeats`): an unstable loop,
+    or one in an oscillation of its own, grows from the sensor noise the controller feeds back, and no model
+    predicts its samples one by one.  A least-squares fit sample by sample there pulls the numbers to whatever
+    makes a model's oscillation least out of phase with the rig's, so the fit's cost leaves them out; the verdict
+    judges them on their envelope and the keep gates validate on it (:func:`run_residual`).  None are left out
+    when no run would be left.
+
+    Parameters
+    ----------
+    cases : list
+        Replayed runs (``run``, ``measured``).
+
+    Returns
+    -------
+    set of int
+    """
+    out = {i for i, case in enumerate(cases) if not rig_loop_repeats(case)}
+    return set() if len(out) == len(cases) else out
 
 
 def blocks_of(rep, sims, cost_signals) -> list[Block]:
