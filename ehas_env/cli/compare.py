@@ -286,8 +286,8 @@ def comparison_doc(rep, sims: dict, tables: dict, label_after, ci, campaign_path
     dict
         ``before`` and ``after`` (each: ``residual_x_noise`` and ``verdict`` as the diagnosis defines them,
         ``envelope_runs`` (runs judged on their cycle envelope), ``residual_x_sensor_noise``, ``fit_percent``
-        overall, ``per_signal``, ``per_run``), ``residual_x_noise`` (after), ``recalibrated`` (with ``--fit``: the baseline with beta and K refitted alone, the same keys as
-        ``before``), ``fitted`` (value, ci95 [low, high], unit per parameter), ``not_compared`` ({run: [column]}:
+        overall, ``per_signal``, ``per_run``), ``residual_x_noise`` (after), ``recalibrated`` (with ``--fit``:
+        the baseline with beta and K refitted alone, the same keys as ``before``), ``fitted`` (value, ci95 [low, high], unit per parameter), ``not_compared`` ({run: [column]}:
         logged columns judged nowhere, :meth:`~ehas_env.measurement.replay.Replayer.not_compared`), ``command``,
         ``elapsed_s``.
     """

@@ -930,30 +930,25 @@ class Step:
 UNEXERCISED = 0.01
 
 
-def _validation_residuals(rep: Replayer, parts: dict, pairs) -> list:
+def _validation_residuals(rep: Replayer, parts: dict, sims, against=None) -> list:
     """The residual blocks (noise units) of the validation samples ``parts`` = {case index: first sample}, per run
-    and judged signal, between the two series ``pairs(case, index, signal)`` gives, each with whether it is a
-    simulation to be read as its sensor would (None: a run not simulated); a run whose validation stretch is
-    shorter than 10 samples is left out.  One definition of what validates, for :func:`_parts_cost` and
-    :func:`validation_moved`.
+    and judged signal, of the simulated runs ``sims`` against the logs (or against the simulated runs
+    ``against``); a run one of them did not simulate, or whose validation stretch is shorter than 10 samples, is
+    left out.  One definition of what validates, for :func:`_parts_cost` and :func:`validation_moved`.
 
     A run whose logged loop does not repeat (an unstable loop, or one in an oscillation of its own) is compared on
-    its cycle envelope, as the verdict and the fit's cost judge it
-    (:func:`~ehas_env.measurement.verdict.run_residual`): its samples cannot be predicted one by one, and a model
-    with the rig's instability, out of phase with it, must not lose there to a model without it."""
+    its cycle envelope, as the verdict judges it (:func:`~ehas_env.measurement.verdict.run_residual`): its samples
+    cannot be predicted one by one, and a model with the rig's instability, out of phase with it, must not lose
+    there to a model without it."""
     out = []
     for i, k0 in parts.items():
-        case = rep.cases[i]
-        if k0 >= case.run.n - 10:
+        case, sim, other = rep.cases[i], sims[i], None if against is None else against[i]
+        if sim is None or (against is not None and other is None) or k0 >= case.run.n - 10:
             continue
         for s in case.signals:
-            if s not in COST_SIGNALS:
-                continue
-            pair = pairs(case, i, s)
-            if pair is None:
-                break
-            (x, read_x), (y, read_y) = pair
-            out.append(run_residual(case, x, y, s, k0, (read_x, read_y)))
+            if s in COST_SIGNALS:
+                x = case.measured[s] if against is None else other[s]
+                out.append(run_residual(case, x, sim[s], s, k0, (against is not None, True)))
     return out
 
 
@@ -963,17 +958,12 @@ def validation_moved(rep: Replayer, sims_a, sims_b, parts: dict) -> float | None
 
     A block that only the fitted runs reach (a reading's clip at a level the held-out run never attains) leaves
     the held-out simulation as it was; :data:`UNEXERCISED` tells that apart from a change the data refuse."""
-    def pairs(case, i, s):
-        a, b = sims_a[i], sims_b[i]
-        return None if a is None or b is None else ((a[s], True), (b[s], True))
-    blocks = _validation_residuals(rep, parts, pairs)
+    blocks = _validation_residuals(rep, parts, sims_b, against=sims_a)
     n = sum(e.size for e in blocks)
     return sum(float(np.dot(e, e)) for e in blocks) / n if n else None
 
 
 def _parts_cost(rep: Replayer, sims, parts: dict) -> float | None:
     """Geometric-mean residual (noise variances) over the samples ``parts`` = {case index: first sample}."""
-    def pairs(case, i, s):
-        return None if sims[i] is None else ((case.measured[s], False), (sims[i][s], True))
-    blocks = _validation_residuals(rep, parts, pairs)
+    blocks = _validation_residuals(rep, parts, sims)
     return log_mean(blocks) if blocks else None

@@ -25,7 +25,6 @@ from scipy.optimize import least_squares
 
 from ehas_env.measurement.replay import FitTable, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.proposal_terms import term_param
-from ehas_env.measurement.verdict import unpredictable_runs
 from ehas_env.physics.effects import get_effect
 from ehas_env.physics.rig import BULK_MODULUS, VALVE_K
 
@@ -483,10 +482,7 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float | None
     sims0 = obj.sims(u)
     clusters = []
     offset = 0
-    unpredictable = unpredictable_runs(rep.cases)  # the runs the cost leaves out (Replayer.cost_blocks)
-    for i, (case, sim) in enumerate(zip(rep.cases, sims0)):
-        if sim is None or i in unpredictable:
-            continue
+    for case, _ in rep.cost_cases(sims0):  # the runs of the cost's blocks, in their order
         nblk = int(math.ceil(case.run.n * case.run.dt / block_s)) + 1 + lags  # empty slots: no cross-run lags
         idx = np.arange(case.skip, case.run.n)
         cid = offset + (idx * case.run.dt / block_s).astype(int)

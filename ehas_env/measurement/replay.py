@@ -571,15 +571,21 @@ class Replayer:
         """Residuals divided by each signal's noise level, one block per (run, signal) of the cost; a run whose
         logged loop does not repeat is left out (:func:`ehas_env.measurement.verdict.unpredictable_runs`)."""
         parts = []
-        unpredictable = unpredictable_runs(self.cases)
-        for i, (case, sim) in enumerate(zip(self.cases, sims)):
-            if sim is None or (runs is not None and i not in runs) or i in unpredictable:
-                continue
+        for case, sim in self.cost_cases(sims, runs):
             k = case.skip
             for s in case.signals:
                 if s in COST_SIGNALS:
                     parts.append((case.measured[s][k:] - sim[s][k:]) / case.noise[s])
         return parts
+
+    def cost_cases(self, sims, runs=None):
+        """The runs the cost holds, in its order: (case, simulated run) of each run simulated (of ``runs``, indices,
+        when given) but those whose logged loop does not repeat
+        (:func:`ehas_env.measurement.verdict.unpredictable_runs`)."""
+        unpredictable = unpredictable_runs(self.cases)
+        for i, (case, sim) in enumerate(zip(self.cases, sims)):
+            if sim is not None and (runs is None or i in runs) and i not in unpredictable:
+                yield case, sim
 
     def cost_vector(self, sims, runs=None) -> np.ndarray:
         """The blocks of :meth:`cost_blocks` concatenated.

@@ -534,20 +534,21 @@ def envelope_residual(x: np.ndarray, y: np.ndarray, noise: float, dt: float, fre
     >>> envelope_residual(rig, rig, 1.0, 1e-3, 2.0, k0=2500) is None  # half a cycle left
     True
     """
-    m = max(int(round(1.0 / (freq_hz * dt))), 1)
-    a = _cycle_envelope(np.asarray(x, float) / noise, m, k0, read[0])
-    b = _cycle_envelope(np.asarray(y, float) / noise, m, k0, read[1])
+    m, a, b = _envelopes(x, y, noise, dt, freq_hz, k0, read)
     if a.shape[0] < MIN_CYCLES:
         return None
     d = a - b
     d[0, 2] = 0.0  # no change before the first cycle
-    return math.sqrt(3.0) * np.repeat(d.ravel(), _envelope_repeat(m))
+    return math.sqrt(3.0) * np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
 
 
-def _envelope_repeat(m: int) -> int:
-    """How often :func:`envelope_residual` repeats each of a cycle's three differences (a third of its ``m``
-    samples)."""
-    return max(int(round(m / 3.0)), 1)
+def _envelopes(x, y, noise: float, dt: float, freq_hz: float, k0: int, read: tuple[bool, bool]):
+    """The cycle length in samples and the two series' cycle envelopes (:func:`_cycle_envelope`, in noise units,
+    from ``k0``; ``read`` for each): (m, envelope of x, envelope of y).  One cutting into cycles for
+    :func:`envelope_residual` and :func:`envelope_block`."""
+    m = max(int(round(1.0 / (freq_hz * dt))), 1)
+    return (m, _cycle_envelope(np.asarray(x, float) / noise, m, k0, read[0]),
+            _cycle_envelope(np.asarray(y, float) / noise, m, k0, read[1]))
 
 
 def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt: float, *, run: str = "",
@@ -595,9 +596,8 @@ def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt
     >>> envelope_block(rig, 0.5 * model, 0.01, 1e-3, freq_hz=2.0).x > 8  # half its size: a miss
     True
     """
-    m = max(int(round(1.0 / (freq_hz * dt))), 1)
-    a = _cycle_envelope(np.asarray(measured, float) / noise, m, skip)
-    b = _cycle_envelope(np.asarray(simulated, float) / noise, m, skip, read=True)  # as the sensor reads it
+    # the model as its sensor reads it
+    m, a, b = _envelopes(measured, simulated, noise, dt, freq_hz, skip, (False, True))
     k = a.shape[0]  # the rig's and the model's runs are one length: as many cycles each
     n = int(np.asarray(measured).size - skip)
     if k < MIN_CYCLES:

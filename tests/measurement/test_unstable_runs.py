@@ -47,8 +47,14 @@ def _rep(measured: dict, name="cl_5sets_30deg_2hz"):
     run = SimpleNamespace(name=name, kind="closed_loop", dt=DT, n=T.size,
                           meta={"reference": {"freq_hz": F, "ramp_cycles": 0}})
     case = SimpleNamespace(run=run, signals=tuple(measured), measured=measured, noise=NOISE, skip=0)
-    # Replayer.cost_blocks reads nothing of the replayer but its cases
     return SimpleNamespace(cases=[case])
+
+
+def _replayer(cases):
+    """A Replayer holding ``cases`` alone (its cost reads nothing else; no model is compiled)."""
+    rep = object.__new__(Replayer)
+    rep.cases = list(cases)
+    return rep
 
 
 def _signals(theta, rng):
@@ -135,7 +141,7 @@ def test_the_validation_gate_judges_a_held_out_run_that_does_not_repeat_on_its_e
     # the fit's cost leaves the run that does not repeat out (its samples, fitted one by one, would pull the numbers
     # to whatever puts a model's oscillation least out of phase with the rig's), the repeating run beside it in
     stable_rig = _rep(_signals(REF, np.random.default_rng(800)), name="cl_3sets_20deg_1hz").cases[0]
-    both = SimpleNamespace(cases=[rep.cases[0], stable_rig])
-    blocks = Replayer.cost_blocks(both, [same, _model(REF)])
+    both = _replayer([rep.cases[0], stable_rig])
+    blocks = both.cost_blocks([same, _model(REF)])
     assert len(blocks) == 2 and log_mean(blocks) < 2.0  # the repeating run's two signals alone, at the noise
-    assert len(Replayer.cost_blocks(rep, [same])) == 2  # every run unstable: none left out
+    assert len(_replayer(rep.cases).cost_blocks([same])) == 2  # every run unstable: none left out
