@@ -491,6 +491,10 @@ def confidence(rep: Replayer, f: Fit, level: float = 0.95, block_s: float | None
                 clusters.append(cid)
         offset += nblk
     cl = np.concatenate(clusters)
+    # the rows of the runs judged sample by sample alone: a run whose loop does not repeat enters the cost on its
+    # cycle envelope (rows after these), whose values are no samples' errors to cluster -- the intervals are what
+    # the predictable runs say
+    r0, Jm = r0[:cl.size], Jm[:cl.size]
     G = len(np.unique(cl))
     p = len(free)
     H = Jm.T @ Jm

@@ -38,7 +38,7 @@ import numpy as np
 from ehas_env.physics import layout as KN
 from ehas_env.simulation.control_laws import N_GAINS
 from ehas_env.measurement.campaign import Campaign, Run, reference_of
-from ehas_env.measurement.verdict import unpredictable_runs
+from ehas_env.measurement.verdict import envelope_cost_block, sine_timing, unpredictable_runs
 from ehas_env.physics.effects import resolve_effects
 from ehas_env.simulation.metrics import fit_percent
 from ehas_env.simulation.plant import TAU_MAX, Plant, RigController
@@ -568,23 +568,33 @@ class Replayer:
                 for c, sim in zip(self.cases, sims)]
 
     def cost_blocks(self, sims, runs=None) -> list[np.ndarray]:
-        """Residuals divided by each signal's noise level, one block per (run, signal) of the cost; a run whose
-        logged loop does not repeat is left out (:func:`ehas_env.measurement.verdict.unpredictable_runs`)."""
+        """The fit's residual blocks, one per (run, signal) of the cost: first every run judged sample by sample
+        (:meth:`cost_cases`), its residual divided by the signal's noise level; then each run whose logged loop
+        does not repeat (:func:`ehas_env.measurement.verdict.unpredictable_runs`) on its cycle envelope, in its
+        floors and at least 1 (:func:`ehas_env.measurement.verdict.envelope_cost_block`)."""
         parts = []
         for case, sim in self.cost_cases(sims, runs):
             k = case.skip
             for s in case.signals:
                 if s in COST_SIGNALS:
                     parts.append((case.measured[s][k:] - sim[s][k:]) / case.noise[s])
+        for case, sim in self.cost_cases(sims, runs, unpredictable=True):
+            for s in case.signals:
+                if s in COST_SIGNALS:
+                    e = envelope_cost_block(case.measured[s], sim[s], case.noise[s], case.run.dt,
+                                            sine_timing(case.run)[0], case.skip)
+                    if e is not None:
+                        parts.append(e)
         return parts
 
-    def cost_cases(self, sims, runs=None):
-        """The runs the cost holds, in its order: (case, simulated run) of each run simulated (of ``runs``, indices,
-        when given) but those whose logged loop does not repeat
-        (:func:`ehas_env.measurement.verdict.unpredictable_runs`)."""
-        unpredictable = unpredictable_runs(self.cases)
+    def cost_cases(self, sims, runs=None, unpredictable: bool = False):
+        """The runs the cost judges sample by sample, in its order: (case, simulated run) of each run simulated (of
+        ``runs``, indices, when given) but those whose logged loop does not repeat
+        (:func:`ehas_env.measurement.verdict.unpredictable_runs`); with ``unpredictable``, those alone (the cost
+        judges them on their envelope)."""
+        left_out = unpredictable_runs(self.cases)
         for i, (case, sim) in enumerate(zip(self.cases, sims)):
-            if sim is not None and (runs is None or i in runs) and i not in unpredictable:
+            if sim is not None and (runs is None or i in runs) and (i in left_out) == unpredictable:
                 yield case, sim
 
     def cost_vector(self, sims, runs=None) -> np.ndarray:

@@ -542,6 +542,68 @@ def envelope_residual(x: np.ndarray, y: np.ndarray, noise: float, dt: float, fre
     return math.sqrt(3.0) * np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
 
 
+def envelope_cost_block(x: np.ndarray, y: np.ndarray, noise: float, dt: float, freq_hz: float,
+                        k0: int = 0) -> np.ndarray | None:
+    """The fit's residual block of a run whose logged loop does not repeat: its cycle envelope's difference, model
+    against rig, in the envelope's floors, counted at least 1 as the verdict counts a block
+    (:func:`overall_x`).
+
+    The three envelope differences (:func:`envelope_residual`, the model read as its sensor would) are each divided
+    by the square root of the floor :func:`envelope_block` gives them, but taken from the rig's envelope alone
+    (its scatter about its own trend, doubled for the model's, plus :data:`ENVELOPE_SHARE` of its swing): fixed
+    for the fit, so that its cost is one function of the model.  Below that floor the block is scaled to a mean
+    square of exactly 1 -- no pull: a model whose oscillation is the rig's within what the envelope can tell must
+    not be bent to the rig's noise-made envelope (the delay biased to 5.62 ms of a true 6 when every envelope
+    difference pulled, commit 37d1a52) -- above it the block pulls as any other: a model without the rig's
+    instability, or with half of it, is a miss the fit must see.
+
+    Parameters
+    ----------
+    x, y : ndarray
+        The rig's log and the model's simulation of one signal.
+    noise : float
+        The signal's sensor-noise level (same unit).
+    dt : float
+        Sample period, s.
+    freq_hz : float
+        The sine's frequency, Hz.
+    k0 : int
+        First sample compared.
+
+    Returns
+    -------
+    ndarray or None
+        About one value per sample compared (the three differences of a cycle each over a third of its samples),
+        mean square >= 1; None when fewer than :data:`MIN_CYCLES` whole cycles follow ``k0``.
+
+    Examples
+    --------
+    >>> t = np.arange(0, 3, 1e-3)
+    >>> rig = np.exp(t) * np.sin(2 * np.pi * 2 * t + 0.3)  # an oscillation that grows
+    >>> def ms(model):
+    ...     return float(np.mean(envelope_cost_block(rig, model, 0.01, 1e-3, 2.0) ** 2))
+    >>> round(ms(np.exp(t) * np.sin(2 * np.pi * 2 * t)), 6)  # the same growth, another phase: at the floor
+    1.0
+    >>> ms(np.sin(2 * np.pi * 2 * t)) > 10  # a model that does not grow: a miss
+    True
+    """
+    m, a, b = _envelopes(x, y, noise, dt, freq_hz, k0, (False, True))
+    if a.shape[0] < MIN_CYCLES:
+        return None
+    d = a - b
+    d[0, 2] = 0.0  # no change before the first cycle
+    swing = float(np.mean(a[:, 1]))
+    for c in range(3):
+        ac = a[:, c] if c < 2 else a[1:, c]
+        scatter = 0.0 if ac.size < 3 else 2.0 * float(np.mean(np.diff(ac, 2) ** 2)) / 6.0
+        d[:, c] /= math.sqrt(max(scatter + (ENVELOPE_SHARE * swing) ** 2, 1.0))
+    e = np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
+    ms = float(np.mean(e ** 2))
+    if ms < 1.0:
+        e = e / math.sqrt(ms) if ms > 0.0 else np.ones_like(e)
+    return e
+
+
 def _envelopes(x, y, noise: float, dt: float, freq_hz: float, k0: int, read: tuple[bool, bool]):
     """The cycle length in samples and the two series' cycle envelopes (:func:`_cycle_envelope`, in noise units,
     from ``k0``; ``read`` for each): (m, envelope of x, envelope of y).  One cutting into cycles for

@@ -14,7 +14,8 @@ Mutations this file catches (each checked by hand when it was written):
   size and of half the size are then both near 1;
 * the validation gate judging a run that does not repeat sample by sample again (``verdict.run_residual``
   without its envelope branch): the model without the instability then beats the one with it;
-* the fit's cost taking such a run in again (``verdict.unpredictable_runs`` returning none).
+* the fit's cost taking such a run in sample by sample again (``verdict.unpredictable_runs`` returning none);
+* its envelope left out of the fit's cost again, or not floored at 1 (``verdict.envelope_cost_block``).
 """
 from __future__ import annotations
 
@@ -138,10 +139,37 @@ def test_the_validation_gate_judges_a_held_out_run_that_does_not_repeat_on_its_e
         moved = validation_moved(rep, [same], [_model(REF + _unstable(np.random.default_rng(700 + s)))], {0: 0})
         assert moved < validation_moved(rep, [same], [half], {0: 0}) / 2
 
-    # the fit's cost leaves the run that does not repeat out (its samples, fitted one by one, would pull the numbers
-    # to whatever puts a model's oscillation least out of phase with the rig's), the repeating run beside it in
+    # the fit's cost judges the run that does not repeat on its envelope, not its samples (fitted one by one they
+    # would pull the numbers to whatever puts a model's oscillation least out of phase with the rig's): the
+    # repeating run's two signals first, at the noise, then the unstable run's two envelope blocks
     stable_rig = _rep(_signals(REF, np.random.default_rng(800)), name="cl_3sets_20deg_1hz").cases[0]
     both = _replayer([rep.cases[0], stable_rig])
     blocks = both.cost_blocks([same, _model(REF)])
-    assert len(blocks) == 2 and log_mean(blocks) < 2.0  # the repeating run's two signals alone, at the noise
-    assert len(_replayer(rep.cases).cost_blocks([same])) == 2  # every run unstable: none left out
+    assert len(blocks) == 4 and log_mean(blocks[:2]) < 1.2
+    assert [b.size for b in blocks[:2]] == [T.size, T.size]  # the samples of the repeating run
+    assert len(_replayer(rep.cases).cost_blocks([same])) == 2  # every run unstable: none judged on its envelope
+
+
+def test_the_fit_is_pulled_toward_the_rigs_instability_and_not_along_it():
+    """The fit's cost of a run whose loop does not repeat (``Replayer.cost_blocks``, its envelope blocks in floors,
+    at least 1, as the verdict counts a block): a model without the rig's instability, or with half of it, costs far
+    more than one with it; one with it sits at exactly 1 on most noise draws (no pull along the noise-made
+    envelope), so the fit is not bent by it once the instability is there.  Mutations: the envelope blocks left
+    out of the cost again (a stable model then costs as little as one with the instability), or not floored at 1
+    (the same-size model then costs below 1 on every draw)."""
+    at_one = 0
+    for s in range(6):
+        rng = np.random.default_rng(900 + s)
+        rig = _signals(REF + _unstable(rng), rng)
+        stable_rig = _rep(_signals(REF, np.random.default_rng(950 + s)), name="cl_3sets_20deg_1hz").cases[0]
+        both = _replayer([_rep(rig).cases[0], stable_rig])
+        same = _model(REF + _unstable(np.random.default_rng(1000 + s)))
+        half = _model(REF + _unstable(np.random.default_rng(1100 + s), size=0.5))
+        # the envelope blocks' mean squares summed (the repeating run's blocks are the same in all three)
+        cost = {k: sum(float(np.mean(b ** 2)) for b in both.cost_blocks([m, _model(REF)])[2:]) for k, m in
+                (("same", same), ("half", half), ("stable", _model(REF)))}
+        assert cost["stable"] > 5.0 * cost["same"] and cost["half"] > 2.0 * cost["same"], cost
+        env = both.cost_blocks([same, _model(REF)])[2:]
+        assert all(float(np.mean(b ** 2)) >= 1.0 - 1e-12 for b in env)
+        at_one += all(abs(float(np.mean(b ** 2)) - 1.0) < 1e-9 for b in env)
+    assert at_one >= 4, at_one
