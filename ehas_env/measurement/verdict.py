@@ -846,7 +846,7 @@ def run_residual(case, x: np.ndarray, y: np.ndarray, signal: str, k0: int = 0,
     sample by sample, or, for a run whose logged loop does not repeat (:func:`rig_loop_repeats`), on its cycle
     envelope (:func:`envelope_residual`; ``read`` as there), as the verdict judges it: the keep gates'
     validation residual, where a model with the rig's instability, out of phase with it, must not be refused for
-    one without it.  (The fit's cost leaves such runs out: :func:`unpredictable_runs`.)
+    one without it.  (The fit's cost judges such runs on their envelope in its floors: :func:`envelope_cost_block`.)
 
     Parameters
     ----------
@@ -876,9 +876,9 @@ def unpredictable_runs(cases) -> set[int]:
     """The replayed runs (indices) whose logged loop does not repeat (:func:`rig_loop_repeats`): an unstable loop,
     or one in an oscillation of its own, grows from the sensor noise the controller feeds back, and no model
     predicts its samples one by one.  A least-squares fit sample by sample there pulls the numbers to whatever
-    makes a model's oscillation least out of phase with the rig's, so the fit's cost leaves them out; the verdict
-    judges them on their envelope and the keep gates validate on it (:func:`run_residual`).  None are left out
-    when no run would be left.
+    makes a model's oscillation least out of phase with the rig's, so the fit's cost judges them on their envelope
+    (:func:`envelope_cost_block`), as the verdict does, and the keep gates validate on it (:func:`run_residual`).
+    None are set apart when every run would be.
 
     Parameters
     ----------
