@@ -595,13 +595,22 @@ def envelope_cost_block(x: np.ndarray, y: np.ndarray, noise: float, dt: float, f
     swing = float(np.mean(a[:, 1]))
     for c in range(3):
         ac = a[:, c] if c < 2 else a[1:, c]
-        scatter = 0.0 if ac.size < 3 else 2.0 * float(np.mean(np.diff(ac, 2) ** 2)) / 6.0
-        d[:, c] /= math.sqrt(max(scatter + (ENVELOPE_SHARE * swing) ** 2, 1.0))
+        d[:, c] /= math.sqrt(_envelope_floor(ac, ac, swing))  # the rig's scatter stands for the model's
     e = np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
     ms = float(np.mean(e ** 2))
     if ms < 1.0:
         e = e / math.sqrt(ms) if ms > 0.0 else np.ones_like(e)
     return e
+
+
+def _envelope_floor(a: np.ndarray, b: np.ndarray, swing: float) -> float:
+    """The floor of one envelope component's difference (noise variances): the scatter of the two envelopes ``a``
+    and ``b`` about their own trends plus :data:`ENVELOPE_SHARE` of the signal's RMS ``swing``, squared, never
+    below the sensor noise.  Second differences: a growing or settling envelope (a trend, the same in rig and
+    model) is not scatter; white scatter of variance v gives 6 v in a second difference, and the two envelopes'
+    scatters add."""
+    scatter = 0.0 if a.size < 3 else (float(np.mean(np.diff(a, 2) ** 2)) + float(np.mean(np.diff(b, 2) ** 2))) / 6.0
+    return max(scatter + (ENVELOPE_SHARE * swing) ** 2, 1.0)
 
 
 def _envelopes(x, y, noise: float, dt: float, freq_hz: float, k0: int, read: tuple[bool, bool]):
@@ -674,11 +683,7 @@ def envelope_block(measured: np.ndarray, simulated: np.ndarray, noise: float, dt
     for c in range(3):
         ac, bc = (a[:, c], b[:, c]) if c < 2 else (a[1:, c], b[1:, c])  # no change before the first cycle
         residual = float(np.mean((ac - bc) ** 2))
-        # second differences: a growing or settling envelope (a trend, the same in rig and model) is not scatter;
-        # white scatter of variance v gives 6 v in a second difference, and the two envelopes' scatters add
-        scatter = 0.0 if ac.size < 3 else (float(np.mean(np.diff(ac, 2) ** 2))
-                                           + float(np.mean(np.diff(bc, 2) ** 2))) / 6.0
-        floor = max(scatter + (ENVELOPE_SHARE * swing) ** 2, 1.0)
+        floor = _envelope_floor(ac, bc, swing)
         if residual / floor > worst[0] / worst[1]:
             worst = (residual, floor)
     return Block(run, signal, worst[0], worst[1], n, True, skip * dt, skip * dt, (skip + k * m) * dt,
