@@ -45,7 +45,7 @@ import numpy as np
 from . import acceptance as acc
 from . import campaign as gen
 from .effects import ALL
-from .judge import kept_effects, worded_items
+from .judge import LIBRARY_KIND, judge_place_kind, kept_effects, worded_items
 from .rig import BAR
 from .sensors import Chain
 
@@ -396,8 +396,41 @@ def changed_blocks(fade: list[dict], other: list[dict], k: int = 3) -> list[tupl
     return pairs[:k]
 
 
-def summarise(recs: list[dict]) -> dict:
-    """The figures against the issue's acceptance over the cases here."""
+def stand_in(rec: dict, variant: str, diag: dict | None) -> dict | None:
+    """A campaign called explained by something other than its hidden effect's kind: does the diagnosis list the
+    truth's kind among the alternatives the logs cannot part from what it kept (the issue's "a stand-in that
+    explains one lists the truth's kind among its alternatives")?  None when the diagnosis is not explained, the
+    campaign is clean, or what it named is of the truth's kind (:func:`.judge.judge_place_kind`).
+
+    Returns
+    -------
+    dict or None
+        ``named`` (the labels), ``missed`` (the hidden effects no named item is of the kind of), ``listed`` (bool:
+        every missed one's kind among the alternatives' kinds), ``alternatives``.
+    """
+    if not diag or not rec["effects"] or diag.get("verdict") != "explained":
+        return None
+    j = judge_place_kind(rec["effects"], worded_items(diag))
+    missed = [n for n, v in j["per_effect"].items() if not v["right_kind"]]
+    if not missed:
+        return None
+    alts = (rec.get("c") or {}).get(variant, {}).get("alternatives") or (rec.get("b") or {}).get("alternatives") or []
+    kinds = set().union(*(LIBRARY_KIND.get(a, set()) for a in alts if a)) if alts else set()
+    return {"named": [it["label"] for it in j["items"]], "missed": missed, "alternatives": alts,
+            "listed": all(set(ALL[n].accepted_kinds) & kinds for n in missed)}
+
+
+def _diag(out: Path | None, cid: str, variant: str) -> dict | None:
+    """A case's stored diagnosis of one variant (``OUT/diag``), None when absent."""
+    if out is None:
+        return None
+    p = out / "diag" / (f"{cid}.json" if variant == "rest" else f"{cid}.{variant}.json")
+    return json.loads(p.read_text()) if p.exists() else None
+
+
+def summarise(recs: list[dict], out: Path | None = None) -> dict:
+    """The figures against the issue's acceptance over the cases here (``out``: the folder whose ``diag/`` holds
+    the stored diagnoses the stand-in judgement reads, :func:`stand_in`)."""
     b = [r for r in recs if "b" in r and "error" not in r["b"]]
     visible = [r for r in b if r["effects"] and (((r.get("a") or {}).get("effect") or {}).get("best_db") or -1e9)
                >= VISIBLE_DB]
@@ -420,6 +453,8 @@ def summarise(recs: list[dict]) -> dict:
                    "clean_unexplained": sorted(f"{r['id']} ({v})" for r in c for v in DIAGNOSED
                                                if not r["effects"] and r["c"][v].get("verdict") == "unexplained"),
                    "commits": sorted({r["c"].get("ehas_commit") for r in c if r["c"].get("ehas_commit")}),
+                   "stand_ins": {f"{r['id']} ({v})": si for r in c for v in DIAGNOSED
+                                 if (si := stand_in(r, v, _diag(out, r["id"], v))) is not None},
                    # campaigns of the generator's current version (stroke ends met at their instant) in all three
                    "current_generator": [r["id"] for r in c if all(r["c"][v].get("generator_version", 1)
                                                                    == gen.VERSION for v in DIAGNOSED)]}
@@ -527,7 +562,15 @@ def readme(recs: list[dict], summ: dict, command: str) -> str:
               f"{len(pc.get('current_generator') or [])}/{pc['cases']}; the others (marked v1) by version 1, whose "
               "piston stopped at the next piece's boundary, up to 1 ms after the impact: the starts from rest that "
               "overshoot into a stroke end carry that error in their `rest` figures "
-              "(docs/independent-generator.md, \"Start conditions\").", "",
+              "(docs/independent-generator.md, \"Start conditions\").", ""]
+        si = pc.get("stand_ins") or {}
+        L += [f"Called explained by a stand-in (what was named is not of the hidden effect's kind, "
+              f"`start_conditions.stand_in`): {len(si)} diagnoses; the truth's kind listed among the alternatives the "
+              f"logs cannot part from it: {sum(1 for x in si.values() if x['listed'])}/{len(si)}"
+              + ("" if not si else " (" + "; ".join(
+                  f"{k}: {', '.join(x['named'])} for {', '.join(x['missed'])}, "
+                  + ("listed" if x["listed"] else "not listed: " + (", ".join(x["alternatives"]) or "no alternatives"))
+                  for k, x in si.items()) + ")") + ".", "",
               "| case | fade: verdict, figure | rest | rest_bump | within 10 % | added (fade / rest / rest_bump) |",
               "|---|---|---|---|---|---|"]
         for r in recs:
@@ -824,7 +867,7 @@ def main(argv=None) -> int:
     order = {c["id"]: i for i, c in enumerate(cases())}
     recs = sorted((json.loads(p.read_text()) for p in (out / "cases").glob("*.json")),
                   key=lambda r: order.get(r["id"], 1e9))
-    summ = summarise(recs)
+    summ = summarise(recs, out)
     command = COMMAND if str(a.out) == "results/verdict_start_conditions" else \
         f"python -m tests.independent_rig.start_conditions --out {a.out}"
     slim = [{k: v for k, v in r.items() if k != "a"} | {"a": {

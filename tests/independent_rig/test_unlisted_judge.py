@@ -231,3 +231,25 @@ def test_a_stored_case_is_judged_again_from_its_stored_diagnosis(tmp_path):
     new = rejudge(rec, tmp_path)
     assert new["place_kind"]["right"] and new["honesty"]["final"] == 1.5 and new["honesty"]["closed"]
     assert rejudge(_rec("b", False, True), tmp_path)["place_kind"]["right"] is False  # no stored diagnosis: as it was
+
+
+def test_a_stand_in_is_judged_by_whether_the_truths_kind_is_among_its_alternatives():
+    """Issue 42's "a stand-in that explains one lists the truth's kind among its alternatives where the logs cannot
+    part them" (the start-conditions set's summary, ``start_conditions.stand_in``): viscous friction hidden, the
+    campaign called explained with a softer oil kept is a stand-in; listed when a friction is among its alternatives,
+    not when none is; no stand-in when a friction was kept, or when the verdict is not explained."""
+    from independent_rig.start_conditions import stand_in
+
+    def rec(alts):
+        return {"effects": {"viscous_friction": {"b": 8000.0}}, "c": {"rest": {"alternatives": alts}}}
+
+    def diag(kept, verdict="explained"):
+        return {"verdict": verdict, "model": {"effects": {k: {} for k in kept}}}
+
+    listed = stand_in(rec(["coulomb_friction", "internal_leakage"]), "rest", diag(["bulk_modulus"]))
+    assert listed["missed"] == ["viscous_friction"] and listed["listed"] and listed["named"] == ["bulk_modulus"]
+    assert stand_in(rec(["internal_leakage"]), "rest", diag(["bulk_modulus"]))["listed"] is False
+    assert stand_in(rec([]), "rest", diag(["bulk_modulus"]))["listed"] is False
+    assert stand_in(rec([]), "rest", diag(["viscous_friction"])) is None
+    assert stand_in(rec([]), "rest", diag(["bulk_modulus"], "unexplained")) is None
+    assert stand_in({"effects": {}}, "rest", diag(["bulk_modulus"])) is None  # a clean campaign
