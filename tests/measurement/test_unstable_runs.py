@@ -15,13 +15,16 @@ Mutations this file catches (each checked by hand when it was written):
 * the validation gate judging a run that does not repeat sample by sample again (``verdict.run_residual``
   without its envelope branch): the model without the instability then beats the one with it;
 * the fit's cost taking such a run in sample by sample again (``verdict.unpredictable_runs`` returning none);
-* its envelope left out of the fit's cost again, or not floored at 1 (``verdict.envelope_cost_block``).
+* its envelope left out of the fit's cost again, or not floored at 1 (``verdict.envelope_cost_block``);
+* the confidence intervals taking the envelope rows into their clusters (``fitting.confidence`` without its cut to
+  the sample-by-sample rows: a shape error).
 """
 from __future__ import annotations
 
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from ehas_env.diagnosis.candidates import _parts_cost, lowers_validation, validation_moved
 from ehas_env.measurement.replay import Replayer, log_mean
@@ -173,3 +176,56 @@ def test_the_fit_is_pulled_toward_the_rigs_instability_and_not_along_it():
         assert all(float(np.mean(b ** 2)) >= 1.0 - 1e-12 for b in env)
         at_one += all(abs(float(np.mean(b ** 2)) - 1.0) < 1e-9 for b in env)
     assert at_one >= 4, at_one
+
+
+class _SyntheticReplayer(Replayer):
+    """A Replayer whose "simulation" is a closed form of one fitted number (``viscous_friction.b`` scales the
+    pressure's tracking term), over a repeating run and a run whose loop takes off: the fit's machinery (the
+    Objective, the confidence intervals) runs on it without compiling a model."""
+
+    def __init__(self, cases, osc):
+        self.cases, self.osc, self.substeps, self.n_evals = list(cases), osc, 10, 0
+
+    def simulate_many(self, models, runs=None):
+        out = []
+        for m in models:
+            g = m.effects["viscous_friction"]["b"] / 1000.0
+            sims = []
+            for case, osc in zip(self.cases, self.osc):
+                theta = REF + osc
+                sims.append({"theta_deg": theta, "p_a_bar": 100.0 + g * (theta - REF) + 0.5 * g * REF})
+            out.append(sims)
+            self.n_evals += 1
+        return out
+
+
+def test_the_confidence_intervals_hold_with_a_run_judged_on_its_envelope_in_the_cost():
+    """The fit's cost holds a run that does not repeat on its envelope (rows after the sample-by-sample runs'); the
+    confidence intervals' clusters are the sample-by-sample runs': an interval is still computed (37d1a52, which
+    put the envelope in the cost without this, stopped the confidence intervals with a shape error) and it is the
+    one the repeating run alone gives."""
+    from ehas_env.diagnosis.fitting import Fit, FreeParam, confidence
+    from ehas_env.measurement.replay import ModelSpec
+
+    rng = np.random.default_rng(1200)
+    rig_osc = _unstable(rng)
+    b_true = 2000.0
+    rig = {"theta_deg": REF + rig_osc + NOISE["theta_deg"] * rng.standard_normal(T.size),
+           "p_a_bar": 100.0 + 2.0 * rig_osc + 1.0 * REF + NOISE["p_a_bar"] * rng.standard_normal(T.size)}
+    steady = {"theta_deg": REF + NOISE["theta_deg"] * rng.standard_normal(T.size),
+              "p_a_bar": 100.0 + 1.0 * REF + NOISE["p_a_bar"] * rng.standard_normal(T.size)}
+    unstable_case = _rep(rig).cases[0]
+    steady_case = _rep(steady, name="cl_3sets_20deg_1hz").cases[0]
+    fp = FreeParam("viscous_friction", "b", 0.0, 10000.0, log=False)
+    model = ModelSpec(effects={"viscous_friction": {"b": b_true}})
+
+    def ci(cases, osc):
+        rep = _SyntheticReplayer(cases, osc)
+        sims = rep.simulate_many([model])[0]
+        return rep, confidence(rep, Fit(model, rep.log_cost(sims), [fp], sims, None))[("viscous_friction", "b")]
+
+    rep, both = ci([unstable_case, steady_case], [_unstable(np.random.default_rng(1201)), 0.0 * T])
+    assert len(rep.cost_blocks(rep.simulate_many([model])[0])) == 4  # two sample blocks, two envelope blocks
+    _, alone = ci([steady_case], [0.0 * T])
+    assert both[0] < b_true < both[1]
+    assert both == pytest.approx(alone, rel=1e-6)
