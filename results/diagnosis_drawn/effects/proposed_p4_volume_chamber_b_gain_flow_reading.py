@@ -1,8 +1,8 @@
-"""proposed_p4_volume_chamber_b_gain_flow_reading: a term proposed by ehas diagnose for /tmp/drA_work/p4_volume@chamber_b+gain@flow_reading/campaign.
+"""proposed_p4_volume_chamber_b_gain_flow_reading: a term proposed by ehas diagnose for /tmp/drB_work/p4_volume@chamber_b+gain@flow_reading/campaign.
 
-i_valve [mA] += c_i3·i^3   with c_i3 = -0.0001387 1/mA^2 (95 % CI -0.0001464 to -0.000131)
+F_piston [N] += c_vv·v |v|   with c_vv = -880.7 N s^2/m^2 (95 % CI -915 to -846.4)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 11.9 -> 9.52; fit 89.6 % -> 89.7 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 4.29 -> 3.59; fit 86.4 % -> 86.1 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
@@ -11,15 +11,15 @@ from ehas_env.physics.effects import Effect, Param
 
 class ProposedP4VolumeChamberBGainFlowReading(Effect):
     name = "proposed_p4_volume_chamber_b_gain_flow_reading"
-    title = "proposed term (valve current)"
+    title = "proposed term (piston force)"
     params = (
-        Param("i_i3", "1/mA^2", 0.00013871, (0.0, 0.00277421),
-              "cubic current: a gain that falls (c < 0, saturation) or rises with |i| (fitted: -0.0001387, 95 % CI -0.0001464 to -0.000131)", typical=(6.93552e-05, 0.000277421)),
+        Param("f_vv", "N s^2/m^2", 880.691, (0.0, 17613.8),
+              "quadratic damping: force per (m/s)^2, signed (fitted: -880.7, 95 % CI -915 to -846.4)", typical=(440.346, 1761.38)),
     )
-    main_param = "i_i3"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: i_valve [mA] += c_i3·i^3 with c_i3 = -0.0001387 1/mA^2 (95 % CI -0.0001464 to -0.000131)'
-    signature = 'the residual it was fitted to: i^3'
+    main_param = "f_vv"
+    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_vv·v |v| with c_vv = -880.7 N s^2/m^2 (95 % CI -915 to -846.4)'
+    signature = 'the residual it was fitted to: v |v|'
 
     @staticmethod
-    def valve_current(i, i_i3):
-        return i + -(i_i3 * i ** 3)
+    def piston_force(v, f_vv):
+        return -(f_vv * v * abs(v))
