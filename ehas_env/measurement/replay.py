@@ -29,6 +29,7 @@ True
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -587,12 +588,19 @@ class Replayer:
                         parts.append(e)
         return parts
 
+    @functools.cached_property
+    def unpredictable(self) -> set[int]:
+        """The runs (indices) whose logged loop does not repeat
+        (:func:`ehas_env.measurement.verdict.unpredictable_runs`): a property of the logs alone, found once, not at
+        every replay's cost (:meth:`cost_cases` is asked twice a cost)."""
+        return unpredictable_runs(self.cases)
+
     def cost_cases(self, sims, runs=None, unpredictable: bool = False):
         """The runs the cost judges sample by sample, in its order: (case, simulated run) of each run simulated (of
         ``runs``, indices, when given) but those whose logged loop does not repeat
         (:func:`ehas_env.measurement.verdict.unpredictable_runs`); with ``unpredictable``, those alone (the cost
         judges them on their envelope)."""
-        left_out = unpredictable_runs(self.cases)
+        left_out = self.unpredictable
         for i, (case, sim) in enumerate(zip(self.cases, sims)):
             if sim is not None and (runs is None or i in runs) and (i in left_out) == unpredictable:
                 yield case, sim

@@ -534,12 +534,11 @@ def envelope_residual(x: np.ndarray, y: np.ndarray, noise: float, dt: float, fre
     >>> envelope_residual(rig, rig, 1.0, 1e-3, 2.0, k0=2500) is None  # half a cycle left
     True
     """
-    m, a, b = _envelopes(x, y, noise, dt, freq_hz, k0, read)
-    if a.shape[0] < MIN_CYCLES:
+    diff = _envelope_difference(x, y, noise, dt, freq_hz, k0, read)
+    if diff is None:
         return None
-    d = a - b
-    d[0, 2] = 0.0  # no change before the first cycle
-    return math.sqrt(3.0) * np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
+    m, _, d = diff
+    return math.sqrt(3.0) * _over_samples(d, m)
 
 
 def envelope_cost_block(x: np.ndarray, y: np.ndarray, noise: float, dt: float, freq_hz: float,
@@ -587,20 +586,38 @@ def envelope_cost_block(x: np.ndarray, y: np.ndarray, noise: float, dt: float, f
     >>> ms(np.sin(2 * np.pi * 2 * t)) > 10  # a model that does not grow: a miss
     True
     """
-    m, a, b = _envelopes(x, y, noise, dt, freq_hz, k0, (False, True))
-    if a.shape[0] < MIN_CYCLES:
+    diff = _envelope_difference(x, y, noise, dt, freq_hz, k0, (False, True))
+    if diff is None:
         return None
-    d = a - b
-    d[0, 2] = 0.0  # no change before the first cycle
+    m, a, d = diff
     swing = float(np.mean(a[:, 1]))
     for c in range(3):
         ac = a[:, c] if c < 2 else a[1:, c]
         d[:, c] /= math.sqrt(_envelope_floor(ac, ac, swing))  # the rig's scatter stands for the model's
-    e = np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
+    e = _over_samples(d, m)
     ms = float(np.mean(e ** 2))
     if ms < 1.0:
         e = e / math.sqrt(ms) if ms > 0.0 else np.ones_like(e)
     return e
+
+
+def _envelope_difference(x, y, noise: float, dt: float, freq_hz: float, k0: int, read: tuple[bool, bool]):
+    """(m, the envelope of ``x``, the envelopes' difference x - y), shape (cycles, 3) each (:func:`_envelopes`),
+    the change's difference 0 in the first cycle (no change before it); None when fewer than :data:`MIN_CYCLES`
+    whole cycles follow ``k0``.  The one difference :func:`envelope_residual` and :func:`envelope_cost_block`
+    spread over the samples."""
+    m, a, b = _envelopes(x, y, noise, dt, freq_hz, k0, read)
+    if a.shape[0] < MIN_CYCLES:
+        return None
+    d = a - b
+    d[0, 2] = 0.0  # no change before the first cycle
+    return m, a, d
+
+
+def _over_samples(d: np.ndarray, m: int) -> np.ndarray:
+    """Per cycle the three differences of ``d``, each repeated over a third of the cycle's ``m`` samples: a block
+    that weighs by its samples as a sample-by-sample residual does."""
+    return np.repeat(d.ravel(), max(int(round(m / 3.0)), 1))
 
 
 def _envelope_floor(a: np.ndarray, b: np.ndarray, swing: float) -> float:
