@@ -3,9 +3,11 @@
 Each generic augmentation of :mod:`ehas_env.physics.augment` (a lag in a signal path, a compliance with a mass
 in a link, a volume with a resistance in a line, play in a joint) is screened on top of the final model: its own
 parameters fitted with everything else held (:func:`ehas_env.diagnosis.candidates.screen_candidate`, the scan's
-models replayed together).  The best is refitted with the model's own numbers free
-(:func:`ehas_env.diagnosis.candidates.refine_candidate`, again from where it stopped while that still pays,
-:data:`REFINE_ROUNDS`) and judged on all data and on the validation samples:
+models replayed together).  The best screened block of each of the first few places is refitted with the model's
+own numbers free (:func:`ehas_env.diagnosis.candidates.refine_candidate`), the place is chosen on the refitted
+cost, and at that place the simplest kind the refitted costs cannot part from the best (:func:`_refined_choice`);
+it is refitted again from where it stopped while that still pays (:data:`REFINE_ROUNDS`) and judged on all data and
+on the validation samples:
 it is kept only when it passes :func:`judge` --
 
 * honesty rule 1 (:func:`ehas_env.diagnosis.honesty.term_refused`): it removes at least a tenth of the
@@ -397,13 +399,19 @@ WITHIN_DB = MIN_SCORE
 WITHIN_LISTED = 4
 
 
-def _within(screened: dict, key) -> list:
+def _within(screened: dict, key, refined: dict | None = None) -> list:
     """The other blocks of ``screened`` ({(name, set aside): (fit, base)}) whose screened cost is within
     :data:`WITHIN_DB` of ``key``'s (closest first, at most :data:`WITHIN_LISTED`): {effect, where, cost_ratio
-    (theirs over the kept one's)}."""
-    best = screened[key][0].cost
-    out = sorted(((fb[0].cost / best, k[0]) for k, fb in screened.items()
-                  if k[0] != key[0] and fb[0].cost <= best * 10.0 ** (WITHIN_DB / 10.0)))
+    (theirs over the kept one's)}; a block refitted with ``key`` (``refined``: {key: Fit}) is compared on the
+    refitted costs."""
+    refined = refined or {}
+
+    def ratio(k) -> float:  # refitted against refitted where both were (:func:`_refined_choice`), else screens
+        if k in refined and key in refined:
+            return refined[k].cost / refined[key].cost
+        return screened[k][0].cost / screened[key][0].cost
+
+    out = sorted((ratio(k), k[0]) for k in screened if k[0] != key[0] and ratio(k) <= 10.0 ** (WITHIN_DB / 10.0))
     seen, listed = set(), []
     for ratio, name in out:
         if name not in seen and len(listed) < WITHIN_LISTED:
@@ -411,6 +419,67 @@ def _within(screened: dict, key) -> list:
             cls = get_effect(name)
             listed.append({"effect": name, "where": getattr(cls, "where", cls.title), "cost_ratio": _r(ratio, 4)})
     return listed
+
+
+#: the screen fits a block's own numbers with the model's held: where the recalibrated beta and K took over part of
+#: the missing physics (a back pressure at the return, which the loop's pressures follow), a block's screen can rank
+#: it below a stand-in at a reading that needs nothing refitted (drawn case d00: the return's saturating term
+#: screened 0.34 dB behind an offset of chamber A's reading, and refitted 2.6 dB ahead of it).  So the best screened
+#: block of each of the first PLACES_REFINED places whose best screen is within PLACE_DB of the best one's is refitted
+#: with the model's numbers (:func:`refine_candidate`), and the place chosen on the refitted cost ...
+PLACES_REFINED = 3
+PLACE_DB = MIN_SCORE
+#: ... and at the place chosen, the other kinds whose screen is within KIND_DB of its best are refitted too; the kind
+#: kept is the one with the fewest parameters whose refitted cost is within WITHIN_DB of the least (a saturating
+#: term whose knee lies beyond what the logs reach is a proportional term: the data show no more)
+KIND_DB = 1.0
+
+
+def _place_of(key) -> tuple:
+    """A screened block's place (its ``where``) and the effects set aside for it: blocks of one place are kinds."""
+    cls = get_effect(key[0])
+    return getattr(cls, "where", cls.title), key[1]
+
+
+def _refined_choice(rep: Replayer, better: dict, lower: dict) -> tuple:
+    """The block kept among the screened ``better`` ({(name, set aside): (screened fit, base)}, the sane screens of
+    ``lower``): its place chosen on refitted costs among the first places (:data:`PLACES_REFINED`,
+    :data:`PLACE_DB`), its kind at that place the simplest within :data:`WITHIN_DB` of the best refitted
+    (:data:`KIND_DB`) -- a kind whose screen ran to an end of its range (``lower`` only: a break the held numbers
+    pushed out of place) counts when its refit is sane.
+
+    Returns
+    -------
+    (key, dict, list)
+        The key chosen, the refitted fits ({key: Fit}, the chosen one's among them), and each refit made: {effect,
+        place, screened_ratio, refined_ratio} (the costs over the best screen's).
+    """
+    order = sorted(better, key=lambda kk: better[kk][0].cost)
+    top = better[order[0]][0].cost
+    firsts = {}
+    for kk in order:
+        if better[kk][0].cost > top * 10.0 ** (PLACE_DB / 10.0) or len(firsts) == PLACES_REFINED:
+            break
+        firsts.setdefault(_place_of(kk), kk)
+    refined, made = {}, []
+
+    def refine(kk):
+        if kk not in refined:
+            f, base = lower[kk]
+            refined[kk] = refine_candidate(rep, kk[0], f, base, dict(base.model.effects))
+            made.append({"effect": kk[0], "place": _place_of(kk)[0], "screened_ratio": _r(f.cost / top, 4),
+                         "refined_ratio": _r(refined[kk].cost / top, 4)})
+        return refined[kk]
+
+    place = _place_of(min(firsts.values(), key=lambda kk: refine(kk).cost))
+    here = [kk for kk in sorted(lower, key=lambda kk: lower[kk][0].cost) if _place_of(kk) == place]
+    bar = min(better[kk][0].cost for kk in here if kk in better) * 10.0 ** (KIND_DB / 10.0)
+    kinds = [kk for kk in here if lower[kk][0].cost <= bar
+             and (kk in better or sanity(refine(kk), kk[0]) is None)]
+    least = min(refine(kk).cost for kk in kinds)
+    fair = [kk for kk in kinds if refine(kk).cost <= least * 10.0 ** (WITHIN_DB / 10.0)]
+    key = min(fair, key=lambda kk: (len(own_params(kk[0])), refined[kk].cost))
+    return key, refined, made
 
 
 def _listed(items: list[str]) -> str:
@@ -453,7 +522,8 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         (the effects kept before that the augmentation replaces -- the structural hypotheses, when it did best on
         the library's model ``bare``; or one effect refitted away because on top of it the augmentation fails
         :func:`judge` and in its place passes -- or None), ``within`` (the other blocks whose screened cost is
-        within :data:`WITHIN_DB` of the kept one's: {effect, where, cost_ratio}; the words name them).
+        within :data:`WITHIN_DB` of the kept one's: {effect, where, cost_ratio}; the words name them),
+        ``refined`` (the blocks refitted to choose the place and the kind: :func:`_refined_choice`).
     """
     held = set(final.model.effects)
     names = [n for n in (augmentations() if names is None else names) if n not in held]
@@ -464,7 +534,8 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     record = {"tried": [], "kept": None, "params": None, "ci95": None,
               "residual_x_noise_all_before": _r(all0), "residual_x_noise_all_after": None,
               "residual_x_noise_validation_before": _r(val0), "residual_x_noise_validation_after": None,
-              "words": None, "skipped": None, "in_place_of": None, "held_out_reached": None, "within": []}
+              "words": None, "skipped": None, "in_place_of": None, "held_out_reached": None, "within": [],
+              "refined": []}
     if _quiet(g0, trigger):
         record["skipped"] = (f"the final model's residual, {all0:.3g}x noise on all data, is at or below "
                              f"{trigger:g}x and in no run and signal above {1.0 + BLOCK_EXPLAINED_X:g}x: no state "
@@ -485,10 +556,9 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
                            "; ".join(f"{k[0]}: {sanity(fb[0], k[0])}" for k, fb in list(lower.items())[:3]) + ")")
         say(f"  states: {record['words']}")
         return None, record
-    key = min(better, key=lambda kk: better[kk][0].cost)
-    (best, dropped), (f, base) = key, better[key]
-    near = _within(better, key)
-    f = refine_candidate(rep, best, f, base, dict(base.model.effects))
+    key, refined, record["refined"] = _refined_choice(rep, better, lower)
+    (best, dropped), base, f = key, lower[key][1], refined[key]
+    near = _within({**better, key: lower[key]}, key, refined)
     for _ in range(REFINE_ROUNDS):
         g = refine_candidate(rep, best, f, base, dict(base.model.effects))
         gain = 1.0 - g.cost / f.cost

@@ -501,11 +501,13 @@ class Saturation(Static):
 
     @classmethod
     def kind_params(cls, place: SignalPlace) -> tuple:
-        # from a twentieth of the span (a range far too small) to five spans (never reached: no effect)
-        return (Param("L", place.unit, 5.0 * place.span, (0.05 * place.span, 5.0 * place.span),
-                      f"the largest value the reading reports either way, {place.unit} (assumed range: 0.05 to 5 "
+        # from a thousandth of the span to five spans (never reached: no effect); the span is the place's on the book's
+        # rig, and a rig that uses a small part of it (rig C's loads peak near 1 kN of a 50 kN span) saturates where
+        # its amplifier or converter is set for less: the fit's range (the typical one widened 4x) reaches down there
+        return (Param("L", place.unit, 5.0 * place.span, (0.001 * place.span, 5.0 * place.span),
+                      f"the largest value the reading reports either way, {place.unit} (assumed range: 0.001 to 5 "
                       f"times the signal's span of {place.span:g} {place.unit}; the default, 5 spans, is never "
-                      "reached: no effect)", typical=(0.3 * place.span, 2.0 * place.span), log_scale=True),)
+                      "reached: no effect)", typical=(0.005 * place.span, 2.0 * place.span), log_scale=True),)
 
     @classmethod
     def kind_shown(cls, place: SignalPlace) -> dict:

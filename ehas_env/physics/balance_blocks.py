@@ -18,7 +18,8 @@ knows (dead zone, saturation, polynomial), put inside the physical model where t
 * **Kinds** (:data:`BALANCE_KINDS`): :class:`Constant` (the offset block), :class:`Proportional` (the linear
   block), :class:`Beyond` (a dead zone: zero
   within +-k, rising with a slope beyond), :class:`Saturating` (proportional within +-k, a constant level beyond:
-  friction-like), :class:`Cubic` (a hardening or softening term).  A kind is one class with its law (an expression
+  friction-like), :class:`Cubic` (a hardening or softening term), :class:`Knee` (piecewise-linear: two slopes
+  meeting at +-k).  A kind is one class with its law (an expression
   of the quantity ``u``, its parameters and the place's scale ``S``), its parameters (sized by the place), words
   and residual signature.
 
@@ -338,8 +339,48 @@ class Cubic(BalanceStatic):
                 f"{p.where}")
 
 
+class Knee(BalanceStatic):
+    """A term proportional to the quantity whose slope changes beyond +-k (piecewise-linear: the simplest of the
+    nonlinearity estimators of a Hammerstein-Wiener model, put at a balance; a damping that steepens once a seal's
+    lip or a relief's poppet is passed, a line's drop that turns from laminar to steeper).  It holds the
+    proportional term (``d`` = 0), the term beyond a threshold (``c`` = 0) and a saturation (``d`` = -``c``): the
+    state stage keeps the simplest of them its refits cannot part from it (:func:`ehas_env.diagnosis.states
+    ._refined_choice`)."""
+
+    form = "a piecewise-linear term"
+    stem = "knee"
+    kind_title = "piecewise-linear term"
+    expr = "(c * u + d * (u - min(max(u, -k), k))) / S"
+    break_share = 0.5
+    explanation = ("The balance gets a term in proportion to the quantity within +-k, whose slope changes by d / S "
+                   "beyond it: two slopes meeting at a break.")
+    signature = ("a residual that follows the quantity on every run and grows faster (or slower) beyond +-k: on "
+                 "the large, fast runs' peaks more than in proportion.")
+
+    @classmethod
+    def kind_params(cls, place: BalancePlace) -> tuple:
+        """The slope within (``c``, the term at one span ``S``), the change of slope beyond the break (``d``, the
+        same unit: the term added at one span beyond it) and the break ``k``."""
+        c, k = super().kind_params(place)
+        d = Param("d", place.out_unit, 0.0, c.bounds,
+                  f"the change of the term's slope beyond the break, {place.out_unit} per span S beyond it (signed; "
+                  f"assumed range as the size's: +-{place.out_span:g} {place.out_unit})", typical=c.typical)
+        return c, d, k
+
+    @classmethod
+    def in_words(cls, params: dict, ci: dict | None = None) -> str:
+        """E.g. "a piecewise-linear term of the piston velocity, -538 N per 0.5 m/s within +-0.345 m/s and -1.08e+03 N
+        per 0.5 m/s more beyond, added to the piston force balance"."""
+        ci, p = ci or {}, cls.balance_place
+        per = f"per {cls._q(p.q_span)}"
+        within, beyond = ("within +-", "beyond") if p.centred else ("below ", "above")  # an absolute pressure
+        return (f"a piecewise-linear term of {p.words}, {cls._c(params['c'], ci.get('c'))} {per} {within}"
+                f"{cls._q(params['k'], ci.get('k'))} and {cls._c(params['d'], ci.get('d'))} {per} more {beyond}, "
+                f"added to {p.where}")
+
+
 #: the kinds of static term at a balance, each applied at every balance place it fits
-BALANCE_KINDS = (Constant, Proportional, Beyond, Saturating, Cubic)
+BALANCE_KINDS = (Constant, Proportional, Beyond, Saturating, Cubic, Knee)
 BALANCE_BLOCKS = tuple(kind.at(place) for kind in BALANCE_KINDS for place in BALANCE_PLACES if kind.fits(place))
 
 

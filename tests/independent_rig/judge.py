@@ -191,7 +191,7 @@ for _stem in STEM_BLOCK:
 #: ehas's static terms at a balance (ehas_env/physics/balance_blocks.py, aug_<kind>_<place>): the stem -> the grammar's
 #: kind, the place -> ehas's place (the side narrowed by the words: "chamber A's flow balance")
 BALANCE_STEM_BLOCK = {"const": "offset", "prop": "gain", "beyond": "dead_zone", "saturating": "saturation",
-                      "cubic": "smooth"}
+                      "cubic": "smooth", "knee": "piecewise_linear"}
 BALANCE_PLACE = {"piston_velocity": ("piston_force", "friction"), "crank_rate": ("crank_torque", "friction"),
                  "chamber_a": ("chamber_flows", "leakage/flow"), "chamber_b": ("chamber_flows", "leakage/flow"),
                  "supply": ("supply", "supply/return"), "return": ("return", "supply/return"),

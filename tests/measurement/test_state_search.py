@@ -50,6 +50,70 @@ def test_the_blocks_the_fitted_runs_cannot_part_from_the_kept_one_are_listed_clo
     assert "return pressure" in near[1]["where"]
 
 
+def _refine_table(monkeypatch, refit: dict, insane=()):
+    """``states.refine_candidate`` and ``states.sanity`` replaced by tables: a block's refit costs ``refit[name]``;
+    a block in ``insane`` ran to an end of its range (screen and refit alike); the refits made are counted."""
+    from types import SimpleNamespace as NS
+
+    made = []
+
+    def refine(rep, name, f, base, effects):
+        made.append(name)
+        return NS(cost=refit[name], name=name)
+
+    monkeypatch.setattr(states, "refine_candidate", refine)
+    monkeypatch.setattr(states, "sanity", lambda f, name: "at an end" if getattr(f, "name", name) in insane
+                        and not hasattr(f, "refit_sane") else None)
+    return made
+
+
+def _screens(costs: dict) -> dict:
+    from types import SimpleNamespace as NS
+
+    return {(n, None): (NS(cost=c), NS(model=NS(effects={}))) for n, c in costs.items()}
+
+
+def test_the_place_is_chosen_on_the_refitted_cost_among_the_first_places(monkeypatch):
+    """Screens (own numbers alone) rank an offset of chamber A's reading first and the return's constant term 0.19
+    dB behind; refitted with the model's numbers the return's term is far ahead (drawn case d00: the recalibrated
+    beta and K had taken over part of a back pressure at the return): the return is the place.  A place more than
+    PLACE_DB (0.3 dB) behind the best screen is not refitted; one refit per place refitted."""
+    made = _refine_table(monkeypatch, {"aug_offset_pa_reading": 0.75, "aug_offset_pb_reading": 0.755,
+                                       "aug_const_return": 0.46, "aug_lag_pb_reading": 0.1})
+    lower = _screens({"aug_offset_pa_reading": 0.7519, "aug_offset_pb_reading": 0.7553, "aug_const_return": 0.7855,
+                      "aug_lag_pb_reading": 0.7519 * 10 ** 0.035})
+    key, refined, rec = states._refined_choice(None, dict(lower), lower)
+    assert key == ("aug_const_return", None) and refined[key].cost == 0.46
+    assert sorted(made) == ["aug_const_return", "aug_offset_pa_reading", "aug_offset_pb_reading"]
+    assert [r["effect"] for r in rec] == made and rec[-1]["refined_ratio"] == pytest.approx(0.46 / 0.7519, abs=1e-4)
+    # the kept block's rivals are compared on the refitted costs where they were refitted (the readings' offsets:
+    # parted from it), on the screens where not (the lag: 1.038x its screen, within 0.3 dB, listed)
+    assert [n["effect"] for n in states._within(lower, key, refined)] == ["aug_lag_pb_reading"]
+
+
+def test_at_the_place_the_simplest_kind_the_refits_cannot_part_is_kept(monkeypatch):
+    """At the return: a saturating term (two numbers) refits 0.1 dB below a proportional one (one number): the logs
+    cannot part them (WITHIN_DB, 0.3 dB), the proportional term is kept (drawn case d21: a saturating term whose
+    knee lies beyond the logged openings).  Refitted 0.5 dB below it, the saturating term is kept -- also when its
+    screen ran to an end of its range (the held numbers pushed its break out of place) and its refit is sane; a
+    kind whose screen is more than KIND_DB (1 dB) behind the place's best is not refitted."""
+    screens = {"aug_prop_return": 0.80, "aug_saturating_return": 0.82, "aug_cubic_return": 0.80 * 10 ** 0.11}
+    lower = _screens(screens)
+    _refine_table(monkeypatch, {"aug_prop_return": 0.50, "aug_saturating_return": 0.50 * 10 ** -0.01,
+                                "aug_cubic_return": 0.1})
+    key, refined, _ = states._refined_choice(None, dict(lower), lower)
+    assert key == ("aug_prop_return", None)
+    made = _refine_table(monkeypatch, {"aug_prop_return": 0.50, "aug_saturating_return": 0.50 * 10 ** -0.05,
+                                       "aug_cubic_return": 0.1})
+    better = {k: v for k, v in lower.items() if k[0] != "aug_saturating_return"}
+    key, refined, _ = states._refined_choice(None, better, lower)
+    assert key == ("aug_saturating_return", None) and "aug_cubic_return" not in made
+    made = _refine_table(monkeypatch, {"aug_prop_return": 0.50, "aug_saturating_return": 0.40,
+                                       "aug_cubic_return": 0.1}, insane={"aug_saturating_return"})
+    key, refined, _ = states._refined_choice(None, better, lower)
+    assert key == ("aug_prop_return", None) and "aug_saturating_return" in made  # refitted, and still at its end
+
+
 def _search(effects, seed):
     runs, truth = simulate_campaign(effects, seed=seed, duration=3.5)
     camp = Campaign(None, [validate_run(n, c, m) for n, c, m in runs])
@@ -282,6 +346,9 @@ def _at_balance(effect: str) -> list:
     # a relief from chamber A that cracks above 45 bar (the drawn set's d15 had only a leak to drain to say it)
     ("aug_beyond_chamber_a", {"c": -1.5e-6, "k": 4.5e6}, 3331),
     pytest.param("aug_saturating_crank_rate", {"c": -6.0, "k": 1.0}, 3332, marks=pytest.mark.slow),
+    # a damping of the piston that triples beyond +-0.25 m/s (drawn cases d11, d22, p3: a piecewise-linear term at a
+    # body's balance, named a term beyond a break plus a saturating one, when no kind had two slopes)
+    ("aug_knee_piston_velocity", {"c": -500.0, "d": -1000.0, "k": 0.25}, 3334),
 ])
 def test_a_term_at_a_balance_is_told_from_the_other_kinds_there_with_its_size(effect, params, seed):
     """A term of a balance's local quantity: among the kinds at that balance the state stage keeps the truth's,
@@ -338,6 +405,16 @@ def test_a_reading_saturated_in_one_run_only_is_found_from_its_peak():
     fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=["aug_sat_flow_a_reading"])
     assert rec["kept"] == "aug_sat_flow_a_reading", rec
     assert rec["params"]["L"] * 60000.0 == pytest.approx(24.0, rel=0.02)
+
+
+def test_a_load_reading_saturated_far_below_its_sensors_span_is_found():
+    """The load reading saturated at 1 kN, 2 % of its place's 50 kN span (a rig that uses a small part of its load
+    cell's range: drawn case d26, a saturation at 0.906 kN on rig C, whose loads peak near 1 kN; the saturation's
+    range then ended at 2.5 kN, and a knee at the end of its own range stood in): kept, with its level."""
+    s, null = _search({"aug_sat_force_reading": {"L": 1000.0}}, 3319)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=_at_place("aug_sat_force_reading"))
+    assert rec["kept"] == "aug_sat_force_reading", rec
+    assert rec["params"]["L"] == pytest.approx(1000.0, rel=0.02)
 
 
 def test_a_position_reading_rate_limited_at_the_fastest_runs_peak_is_found_from_its_logged_rate():

@@ -67,6 +67,24 @@ def test_beyond_what_the_run_reaches_is_nothing_and_below_it_acts():
     assert np.max(np.abs(near.theta_deg - base.theta_deg)) > 0.05
 
 
+@pytest.mark.parametrize("c,d,twin", [
+    (0.0, -250.0, ("aug_beyond_crank_rate", {"c": -250.0})),  # no slope within: a term beyond the break
+    (-250.0, 0.0, ("aug_prop_crank_rate", {"c": -250.0})),  # no change of slope: a proportional term
+    (-250.0, 250.0, ("aug_saturating_crank_rate", {"c": -250.0 * 2.0 / 10.0})),  # flat beyond: a saturation
+])
+def test_a_piecewise_linear_term_holds_the_proportional_the_beyond_and_the_saturating_ones(c, d, twin):
+    """``Knee`` at the crank's torque balance, its break at 2 rad/s (the run reaches 8): with no slope within it is
+    the term beyond the break, with no change of slope the proportional term, with the slope cancelled beyond the
+    saturating term of level c k / S (S = 10 rad/s) -- the same crank angle to the last bits the integrator
+    keeps (the three laws are written apart, each as its class says)."""
+    base = _run({})
+    knee = _run({"aug_knee_crank_rate": {"c": c, "d": d, "k": 2.0}})
+    name, params = twin
+    other = _run({name: {**params, **({} if name == "aug_prop_crank_rate" else {"k": 2.0})}})
+    assert np.max(np.abs(knee.theta_deg - base.theta_deg)) > 0.03  # it acts
+    np.testing.assert_allclose(knee.theta_deg, other.theta_deg, rtol=0.0, atol=1e-9)
+
+
 def test_a_chamber_term_acts_on_its_own_chamber():
     base = _run({})
     never = _run({"aug_beyond_chamber_a": {"c": -4.0e-5, "k": 1.9e7}})  # above 190 bar: never reached
