@@ -441,18 +441,22 @@ def _place_of(key) -> tuple:
     return getattr(cls, "where", cls.title), key[1]
 
 
-def _refined_choice(rep: Replayer, better: dict, lower: dict) -> tuple:
+def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | None = None,
+                    parts: dict | None = None) -> tuple:
     """The block kept among the screened ``better`` ({(name, set aside): (screened fit, base)}, the sane screens of
     ``lower``): its place chosen on refitted costs among the first places (:data:`PLACES_REFINED`,
     :data:`PLACE_DB`), its kind at that place the simplest within :data:`WITHIN_DB` of the best refitted
     (:data:`KIND_DB`) -- a kind whose screen ran to an end of its range (``lower`` only: a break the held numbers
-    pushed out of place) counts when its refit is sane.
+    pushed out of place) counts when its refit is sane.  With ``full`` and the validation samples ``parts``, a kind
+    with more numbers is kept over the best simpler one only when its refit also lowers that one's validation
+    residual (:func:`~ehas_env.diagnosis.candidates.lowers_validation`).
 
     Returns
     -------
     (key, dict, list)
         The key chosen, the refitted fits ({key: Fit}, the chosen one's among them), and each refit made: {effect,
-        place, screened_ratio, refined_ratio} (the costs over the best screen's).
+        place, screened_ratio, refined_ratio} (the costs over the best screen's; ``validation``, its validation
+        residual, where it was asked).
     """
     order = sorted(better, key=lambda kk: better[kk][0].cost)
     top = better[order[0]][0].cost
@@ -461,12 +465,13 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict) -> tuple:
         if better[kk][0].cost > top * 10.0 ** (PLACE_DB / 10.0) or len(firsts) == PLACES_REFINED:
             break
         firsts.setdefault(_place_of(kk), kk)
-    refined, made = {}, []
+    refined, made, at = {}, [], {}
 
     def refine(kk):
         if kk not in refined:
             f, base = lower[kk]
             refined[kk] = refine_candidate(rep, kk[0], f, base, dict(base.model.effects))
+            at[kk] = len(made)
             made.append({"effect": kk[0], "place": _place_of(kk)[0], "screened_ratio": _r(f.cost / top, 4),
                          "refined_ratio": _r(refined[kk].cost / top, 4)})
         return refined[kk]
@@ -479,7 +484,28 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict) -> tuple:
     least = min(refine(kk).cost for kk in kinds)
     fair = [kk for kk in kinds if refine(kk).cost <= least * 10.0 ** (WITHIN_DB / 10.0)]
     key = min(fair, key=lambda kk: (len(own_params(kk[0])), refined[kk].cost))
-    return key, refined, made
+    if full is None:
+        return key, refined, made
+    val = {}
+
+    def validation(kk):  # the refit's validation residual (None: the campaign has no validation samples)
+        if kk not in val:
+            val[kk] = _parts_cost(full, full.simulate(refined[kk].model), parts)
+            made[at[kk]]["validation"] = _r(val[kk])
+        return val[kk]
+
+    # a kind with more numbers that fits better must also lower the validation residual of the best simpler kind
+    # there by the share every stacked effect must (the keep gate's): else its extra numbers fit the fitted
+    # windows alone (drawn case d15: a relief above 45 bar, a piecewise-linear term 0.8 dB below it on the fit)
+    while True:
+        simpler = [kk for kk in kinds if len(own_params(kk[0])) < len(own_params(key[0]))]
+        if not simpler:
+            return key, refined, made
+        alt = min(simpler, key=lambda kk: refined[kk].cost)
+        va, vk = validation(alt), validation(key)
+        if va is None or vk is None or lowers_validation(va, vk):
+            return key, refined, made
+        key = alt
 
 
 def _listed(items: list[str]) -> str:
@@ -556,7 +582,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
                            "; ".join(f"{k[0]}: {sanity(fb[0], k[0])}" for k, fb in list(lower.items())[:3]) + ")")
         say(f"  states: {record['words']}")
         return None, record
-    key, refined, record["refined"] = _refined_choice(rep, better, lower)
+    key, refined, record["refined"] = _refined_choice(rep, better, lower, full, parts)
     (best, dropped), base, f = key, lower[key][1], refined[key]
     near = _within({**better, key: lower[key]}, key, refined)
     for _ in range(REFINE_ROUNDS):

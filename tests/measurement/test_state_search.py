@@ -114,6 +114,32 @@ def test_at_the_place_the_simplest_kind_the_refits_cannot_part_is_kept(monkeypat
     assert key == ("aug_prop_return", None) and "aug_saturating_return" in made  # refitted, and still at its end
 
 
+def test_a_kind_with_more_numbers_must_also_lower_the_validation_residual(monkeypatch):
+    """At chamber A's balance a piecewise-linear term (three numbers) refits 0.8 dB below a term beyond a threshold
+    (two): kept when its refit also lowers the beyond term's validation residual by the keep gate's share (2 %),
+    else the simpler kind is (drawn case d15: a relief above 45 bar named a piecewise-linear term); the validation
+    residuals are in the record."""
+    from types import SimpleNamespace as NS
+
+    costs = {"aug_knee_chamber_a": 0.50, "aug_beyond_chamber_a": 0.50 * 10 ** 0.08}
+    lower = _screens({"aug_knee_chamber_a": 0.80, "aug_beyond_chamber_a": 0.80 * 10 ** 0.08})
+    monkeypatch.setattr(states, "refine_candidate",
+                        lambda rep, name, f, base, eff: NS(cost=costs[name], model=NS(name=name)))
+    monkeypatch.setattr(states, "sanity", lambda f, name: None)
+    full = NS(simulate=lambda model: model.name)  # a "simulation" is the refit's name: _parts_cost looks it up
+    for v_knee, kept in ((1.30 * 0.97, "aug_knee_chamber_a"), (1.30 * 0.99, "aug_beyond_chamber_a"),
+                         (1.40, "aug_beyond_chamber_a")):
+        vals = {"aug_knee_chamber_a": v_knee, "aug_beyond_chamber_a": 1.30}
+        monkeypatch.setattr(states, "_parts_cost", lambda full, sims, parts: vals[sims])
+        key, refined, rec = states._refined_choice(None, dict(lower), lower, full, {0: 0})
+        assert key == (kept, None), (v_knee, rec)
+        assert {r["effect"]: r["validation"] for r in rec} == pytest.approx(vals, rel=1e-3)
+    # without validation samples the fit alone decides
+    monkeypatch.setattr(states, "_parts_cost", lambda full, sims, parts: None)
+    key, _, _ = states._refined_choice(None, dict(lower), lower, full, {})
+    assert key == ("aug_knee_chamber_a", None)
+
+
 def _search(effects, seed):
     runs, truth = simulate_campaign(effects, seed=seed, duration=3.5)
     camp = Campaign(None, [validate_run(n, c, m) for n, c, m in runs])
