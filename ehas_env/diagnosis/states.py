@@ -467,21 +467,30 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
         firsts.setdefault(_place_of(kk), kk)
     refined, made, at = {}, [], {}
 
-    def refine(kk):
+    def refine(kk, rounds: int = 0):  # ``rounds``: refitted again from where it stopped while that still pays
+        f, base = lower[kk]
         if kk not in refined:
-            f, base = lower[kk]
             refined[kk] = refine_candidate(rep, kk[0], f, base, dict(base.model.effects))
             at[kk] = len(made)
-            made.append({"effect": kk[0], "place": _place_of(kk)[0], "screened_ratio": _r(f.cost / top, 4),
-                         "refined_ratio": _r(refined[kk].cost / top, 4)})
+            made.append({"effect": kk[0], "place": _place_of(kk)[0], "screened_ratio": _r(f.cost / top, 4)})
+        for _ in range(rounds - made[at[kk]].get("rounds", 0)):
+            g = refine_candidate(rep, kk[0], refined[kk], base, dict(base.model.effects))
+            made[at[kk]]["rounds"] = made[at[kk]].get("rounds", 0) + 1
+            gain, refined[kk] = 1.0 - g.cost / refined[kk].cost, min(g, refined[kk], key=lambda x: x.cost)
+            if gain <= REFINE_GAIN:
+                made[at[kk]]["rounds"] = rounds
+                break
+        made[at[kk]]["refined_ratio"] = _r(refined[kk].cost / top, 4)
         return refined[kk]
 
     place = _place_of(min(firsts.values(), key=lambda kk: refine(kk).cost))
     here = [kk for kk in sorted(lower, key=lambda kk: lower[kk][0].cost) if _place_of(kk) == place]
     bar = min(better[kk][0].cost for kk in here if kk in better) * 10.0 ** (KIND_DB / 10.0)
+    # the kinds there compared as the one kept is fitted: refitted while that pays (a break a single refit leaves
+    # out of place would lose to a kind with a number more that covers for it)
     kinds = [kk for kk in here if lower[kk][0].cost <= bar
-             and (kk in better or sanity(refine(kk), kk[0]) is None)]
-    least = min(refine(kk).cost for kk in kinds)
+             and (kk in better or sanity(refine(kk, REFINE_ROUNDS), kk[0]) is None)]
+    least = min(refine(kk, REFINE_ROUNDS).cost for kk in kinds)
     fair = [kk for kk in kinds if refine(kk).cost <= least * 10.0 ** (WITHIN_DB / 10.0)]
     key = min(fair, key=lambda kk: (len(own_params(kk[0])), refined[kk].cost))
     if full is None:
@@ -584,13 +593,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         return None, record
     key, refined, record["refined"] = _refined_choice(rep, better, lower, full, parts)
     (best, dropped), base, f = key, lower[key][1], refined[key]
-    near = _within({**better, key: lower[key]}, key, refined)
-    for _ in range(REFINE_ROUNDS):
-        g = refine_candidate(rep, best, f, base, dict(base.model.effects))
-        gain = 1.0 - g.cost / f.cost
-        f = g if g.cost < f.cost else f
-        if gain <= REFINE_GAIN:
-            break
+    near = _within({**better, key: lower[key]}, key, refined)  # f: refitted while that paid (REFINE_ROUNDS)
     if dropped:
         record["in_place_of"] = list(dropped)
     sims1 = full.simulate(f.model)

@@ -84,8 +84,10 @@ def test_the_place_is_chosen_on_the_refitted_cost_among_the_first_places(monkeyp
                       "aug_lag_pb_reading": 0.7519 * 10 ** 0.035})
     key, refined, rec = states._refined_choice(None, dict(lower), lower)
     assert key == ("aug_const_return", None) and refined[key].cost == 0.46
-    assert sorted(made) == ["aug_const_return", "aug_offset_pa_reading", "aug_offset_pb_reading"]
-    assert [r["effect"] for r in rec] == made and rec[-1]["refined_ratio"] == pytest.approx(0.46 / 0.7519, abs=1e-4)
+    # the places' best refitted once each, the kind at the place chosen again from where it stopped (no gain: once)
+    assert sorted(made) == ["aug_const_return", "aug_const_return", "aug_offset_pa_reading", "aug_offset_pb_reading"]
+    assert [r["effect"] for r in rec] == sorted(set(made), key=made.index)
+    assert rec[-1]["refined_ratio"] == pytest.approx(0.46 / 0.7519, abs=1e-4) and rec[-1]["rounds"] == 3
     # the kept block's rivals are compared on the refitted costs where they were refitted (the readings' offsets:
     # parted from it), on the screens where not (the lag: 1.038x its screen, within 0.3 dB, listed)
     assert [n["effect"] for n in states._within(lower, key, refined)] == ["aug_lag_pb_reading"]
@@ -138,6 +140,25 @@ def test_a_kind_with_more_numbers_must_also_lower_the_validation_residual(monkey
     monkeypatch.setattr(states, "_parts_cost", lambda full, sims, parts: None)
     key, _, _ = states._refined_choice(None, dict(lower), lower, full, {})
     assert key == ("aug_knee_chamber_a", None)
+
+
+def test_the_kinds_at_the_place_are_compared_refitted_while_that_pays(monkeypatch):
+    """A term beyond a threshold whose first refit leaves its break out of place (0.60) and whose second finds it
+    (0.45) is compared at its best with a piecewise-linear term that a number more lets cover for the misplaced
+    break at once (0.50): the term beyond the threshold is kept (drawn case d15)."""
+    from types import SimpleNamespace as NS
+
+    lower = _screens({"aug_knee_chamber_a": 0.80, "aug_beyond_chamber_a": 0.81})
+    steps = {"aug_knee_chamber_a": [0.50], "aug_beyond_chamber_a": [0.60, 0.45]}
+
+    def refine(rep, name, f, base, effects):
+        seq = steps[name]
+        return NS(cost=seq.pop(0) if len(seq) > 1 else seq[0], name=name)
+
+    monkeypatch.setattr(states, "refine_candidate", refine)
+    monkeypatch.setattr(states, "sanity", lambda f, name: None)
+    key, refined, rec = states._refined_choice(None, dict(lower), lower)
+    assert key == ("aug_beyond_chamber_a", None) and refined[key].cost == 0.45, rec
 
 
 def _search(effects, seed):
