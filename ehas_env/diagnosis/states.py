@@ -405,13 +405,10 @@ def _within(screened: dict, key, refined: dict | None = None) -> list:
     (theirs over the kept one's)}; a block refitted with ``key`` (``refined``: {key: Fit}) is compared on the
     refitted costs."""
     refined = refined or {}
-
-    def ratio(k) -> float:  # refitted against refitted where both were (:func:`_refined_choice`), else screens
-        if k in refined and key in refined:
-            return refined[k].cost / refined[key].cost
-        return screened[k][0].cost / screened[key][0].cost
-
-    out = sorted((ratio(k), k[0]) for k in screened if k[0] != key[0] and ratio(k) <= 10.0 ** (WITHIN_DB / 10.0))
+    # refitted against refitted where both were (:func:`_refined_choice`), else screen against screen
+    ratios = {k: refined[k].cost / refined[key].cost if k in refined and key in refined
+              else screened[k][0].cost / screened[key][0].cost for k in screened if k[0] != key[0]}
+    out = sorted((r, k[0]) for k, r in ratios.items() if r <= 10.0 ** (WITHIN_DB / 10.0))
     seen, listed = set(), []
     for ratio, name in out:
         if name not in seen and len(listed) < WITHIN_LISTED:
@@ -455,8 +452,8 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
     -------
     (key, dict, list)
         The key chosen, the refitted fits ({key: Fit}, the chosen one's among them), and each refit made: {effect,
-        place, screened_ratio, refined_ratio} (the costs over the best screen's; ``validation``, its validation
-        residual, where it was asked).
+        place, screened_ratio, refined_ratio, rounds} (the costs over the best screen's; ``rounds``, the refits
+        made again from where the first stopped; ``validation``, its validation residual, where it was asked).
     """
     order = sorted(better, key=lambda kk: better[kk][0].cost)
     top = better[order[0]][0].cost
@@ -465,21 +462,23 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
         if better[kk][0].cost > top * 10.0 ** (PLACE_DB / 10.0) or len(firsts) == PLACES_REFINED:
             break
         firsts.setdefault(_place_of(kk), kk)
-    refined, made, at = {}, [], {}
+    refined, made, at, settled = {}, [], {}, set()
 
     def refine(kk, rounds: int = 0):  # ``rounds``: refitted again from where it stopped while that still pays
         f, base = lower[kk]
         if kk not in refined:
             refined[kk] = refine_candidate(rep, kk[0], f, base, dict(base.model.effects))
             at[kk] = len(made)
-            made.append({"effect": kk[0], "place": _place_of(kk)[0], "screened_ratio": _r(f.cost / top, 4)})
-        for _ in range(rounds - made[at[kk]].get("rounds", 0)):
-            g = refine_candidate(rep, kk[0], refined[kk], base, dict(base.model.effects))
-            made[at[kk]]["rounds"] = made[at[kk]].get("rounds", 0) + 1
-            gain, refined[kk] = 1.0 - g.cost / refined[kk].cost, min(g, refined[kk], key=lambda x: x.cost)
-            if gain <= REFINE_GAIN:
-                made[at[kk]]["rounds"] = rounds
-                break
+            made.append({"effect": kk[0], "place": _place_of(kk)[0], "screened_ratio": _r(f.cost / top, 4),
+                         "rounds": 0})
+        if rounds and kk not in settled:
+            settled.add(kk)
+            for _ in range(rounds):  # "rounds" in the record: the refits again made
+                g = refine_candidate(rep, kk[0], refined[kk], base, dict(base.model.effects))
+                made[at[kk]]["rounds"] += 1
+                gain, refined[kk] = 1.0 - g.cost / refined[kk].cost, min(g, refined[kk], key=lambda x: x.cost)
+                if gain <= REFINE_GAIN:
+                    break
         made[at[kk]]["refined_ratio"] = _r(refined[kk].cost / top, 4)
         return refined[kk]
 
