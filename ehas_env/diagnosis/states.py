@@ -23,6 +23,7 @@ intervals, the residuals before and after, and the augmentation in words.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -34,6 +35,7 @@ from ehas_env.diagnosis.honesty import term_refused
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, ModelSpec, Replayer
 from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
 from ehas_env.physics.augment import augmentations
+from ehas_env.physics.balance_blocks import BalanceStatic
 from ehas_env.physics.effects import get_effect
 
 
@@ -438,6 +440,27 @@ def _place_of(key) -> tuple:
     return getattr(cls, "where", cls.title), key[1]
 
 
+def _projected_start(rep: Replayer, name: str, lead: str, fit: Fit) -> Fit | None:
+    """A start for the static kind ``name`` from the refitted model ``fit`` of another kind ``lead`` at the same
+    balance: ``lead``'s fitted term over the quantity's values in the fitted runs, imitated by ``name``'s numbers
+    (:meth:`~ehas_env.physics.balance_blocks.BalanceStatic.nearest`), the rest of ``fit``'s numbers kept; None for
+    blocks that are not two static kinds at one balance place.  Where the fit of a kind from its own screen stops in a
+    valley (a term beyond 45 bar of chamber A's pressure whose break the screen's start put at 1 bar, drawn case d15)
+    a kind that holds it (a piecewise-linear term) has found the term: its projection is the simpler kind's start."""
+    cls, lead_cls = get_effect(name), get_effect(lead)
+    if not (issubclass(cls, BalanceStatic) and issubclass(lead_cls, BalanceStatic)
+            and cls.balance_place == lead_cls.balance_place):
+        return None
+    q = _balance_quantity(rep, fit.sims, cls)
+    if not q:
+        return None
+    q = np.concatenate(q)
+    effects = {n: v for n, v in fit.model.effects.items() if n != lead}
+    start = cls.nearest(q, lead_cls.term(q, fit.model.effects[lead]))
+    return Fit(model=replace(fit.model, effects={**effects, name: start}), cost=math.inf, free=[], sims=[],
+               table=None)
+
+
 def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | None = None,
                     parts: dict | None = None) -> tuple:
     """The block kept among the screened ``better`` ({(name, set aside): (screened fit, base)}, the sane screens of
@@ -464,7 +487,16 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
         firsts.setdefault(_place_of(kk), kk)
     refined, made, at, settled = {}, [], {}, set()
 
-    def refine(kk, rounds: int = 0):  # ``rounds``: refitted again from where it stopped while that still pays
+    def again(kk, rounds: int) -> None:  # refitted again from where it stopped while that still pays
+        base = lower[kk][1]
+        for _ in range(rounds):  # "rounds" in the record: the refits again made
+            g = refine_candidate(rep, kk[0], refined[kk], base, dict(base.model.effects))
+            made[at[kk]]["rounds"] += 1
+            gain, refined[kk] = 1.0 - g.cost / refined[kk].cost, min(g, refined[kk], key=lambda x: x.cost)
+            if gain <= REFINE_GAIN:
+                break
+
+    def refine(kk, rounds: int = 0):
         f, base = lower[kk]
         if kk not in refined:
             refined[kk] = refine_candidate(rep, kk[0], f, base, dict(base.model.effects))
@@ -473,12 +505,7 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
                          "rounds": 0})
         if rounds and kk not in settled:
             settled.add(kk)
-            for _ in range(rounds):  # "rounds" in the record: the refits again made
-                g = refine_candidate(rep, kk[0], refined[kk], base, dict(base.model.effects))
-                made[at[kk]]["rounds"] += 1
-                gain, refined[kk] = 1.0 - g.cost / refined[kk].cost, min(g, refined[kk], key=lambda x: x.cost)
-                if gain <= REFINE_GAIN:
-                    break
+            again(kk, rounds)
         made[at[kk]]["refined_ratio"] = _r(refined[kk].cost / top, 4)
         return refined[kk]
 
@@ -490,6 +517,17 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
     kinds = [kk for kk in here if lower[kk][0].cost <= bar
              and (kk in better or sanity(refine(kk, REFINE_ROUNDS), kk[0]) is None)]
     least = min(refine(kk, REFINE_ROUNDS).cost for kk in kinds)
+    lead = min(kinds, key=lambda kk: refined[kk].cost)
+    for kk in kinds:  # a kind its own start left behind the best: again from the best's term, as this kind's
+        start = None if refined[kk].cost <= least * 10.0 ** (WITHIN_DB / 10.0) else \
+            _projected_start(rep, kk[0], lead[0], refined[lead])
+        if start is not None:
+            g = refine_candidate(rep, kk[0], start, lower[kk][1], dict(lower[kk][1].model.effects))
+            made[at[kk]]["projected_ratio"] = _r(g.cost / top, 4)
+            if g.cost < refined[kk].cost:
+                refined[kk] = g
+                again(kk, REFINE_ROUNDS)
+                made[at[kk]]["refined_ratio"] = _r(refined[kk].cost / top, 4)
     fair = [kk for kk in kinds if refine(kk).cost <= least * 10.0 ** (WITHIN_DB / 10.0)]
     key = min(fair, key=lambda kk: (len(own_params(kk[0])), refined[kk].cost))
     if full is None:

@@ -39,6 +39,9 @@ import sys
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numpy as np
+from scipy.optimize import minimize_scalar
+
 from ehas_env.physics.effects.augmentation import Augmentation, fmt_interval, kind_at
 from ehas_env.physics.effects.base import PLACE_QUANTITIES, Param
 
@@ -210,6 +213,96 @@ class BalanceStatic(Augmentation):
                        {"params": params, "constants": (scale,), "balance_place": place,
                         "shown": {"c": place.out_shown, "k": place.q_shown}},
                        module=sys._getframe(1).f_globals.get("__name__", cls.__module__))
+
+    @classmethod
+    def term(cls, q, params: dict) -> np.ndarray:
+        """The term at the place's quantity's values ``q`` (SI, an array), the kind's law as the model computes it.
+
+        Parameters
+        ----------
+        q : array_like
+            The place's local quantity (:attr:`BalancePlace.quantity`), SI.
+        params : dict
+            The kind's numbers ({name: value}, SI).
+
+        Returns
+        -------
+        numpy.ndarray
+            The term, in the balance's unit.
+
+        Examples
+        --------
+        >>> from ehas_env.physics.effects import get_effect
+        >>> get_effect("aug_beyond_crank_rate").term([0.0, 6.0, -12.0], {"c": -20.0, "k": 5.0}).tolist()
+        [0.0, -2.0, 14.0]
+        """
+        p = cls.balance_place
+        ops = {"min": np.minimum, "max": np.maximum, "abs": np.abs}  # the law's scalar operations, elementwise
+        u = eval(p.value or p.quantity, {"__builtins__": {}}, {**ops, p.quantity: np.asarray(q, dtype=float)})
+        # the law is the class's own text (the compiled model's term), never data read from a file
+        return np.broadcast_to(eval(cls.expr, {"__builtins__": {}}, {**ops, "u": u, "S": p.q_span, **params}),
+                               np.shape(u)).astype(float) + 0.0  # + 0.0: no signed zero
+
+    #: the break values tried by :meth:`nearest`, log-spaced across what the quantity reaches
+    NEAREST_BREAKS = 48
+
+    @classmethod
+    def nearest(cls, q, target) -> dict:
+        """The kind's numbers whose term is closest (least squares) to ``target`` at the quantity's values ``q``:
+        where another kind at this place fitted a term, the start this kind's own fit takes from it (a term beyond
+        a threshold from a piecewise-linear term whose slope within came out nil).  The sizes enter every
+        kind's law linearly and are solved for exactly; a break is chosen on a log grid over what ``q`` reaches,
+        within its range.
+
+        Parameters
+        ----------
+        q : array_like
+            The place's quantity, SI (e.g. as the model simulates the runs).
+        target : array_like
+            The term to imitate at ``q``, in the balance's unit.
+
+        Returns
+        -------
+        dict
+            {name: value} of every number of the kind, inside its range.
+
+        Examples
+        --------
+        >>> from ehas_env.physics.effects import get_effect
+        >>> import numpy as np
+        >>> w = np.linspace(-12.0, 12.0, 241)
+        >>> knee = get_effect("aug_knee_crank_rate").term(w, {"c": 0.0, "d": -25.0, "k": 5.8})
+        >>> {n: round(v, 2) for n, v in get_effect("aug_beyond_crank_rate").nearest(w, knee).items()}
+        {'c': -25.0, 'k': 5.8}
+        """
+        q, target = np.ravel(np.asarray(q, dtype=float)), np.ravel(np.asarray(target, dtype=float))
+        params = cls.kind_params(cls.balance_place)
+        sizes = [p for p in params if p.name != "k"]
+        breaks = [None]
+        brk = next((p for p in params if p.name == "k"), None)
+        if brk is not None:  # a break beyond the largest |q| is no break the values can tell
+            lo, hi = brk.bounds
+            top = min(hi, max(float(np.max(np.abs(q), initial=0.0)), lo))
+            breaks = list(np.geomspace(max(lo, 1.0e-3 * top), top, cls.NEAREST_BREAKS))
+
+        def solved(k) -> tuple:  # (squared error, numbers) with the break at k, the sizes solved for
+            fixed = {} if k is None else {"k": float(k)}
+            # each size's column: the term with that size 1 and the others 0 (the law is linear in them)
+            cols = np.column_stack([cls.term(q, {**{s.name: float(s is one) for s in sizes}, **fixed})
+                                    for one in sizes])
+            sol = [float(np.clip(v, *s.bounds)) for v, s in zip(np.linalg.lstsq(cols, target, rcond=None)[0], sizes)]
+            return float(np.sum((cols @ np.array(sol) - target) ** 2)), {**{s.name: v for s, v in zip(sizes, sol)},
+                                                                          **fixed}
+
+        grid = [solved(k) for k in breaks]
+        i = min(range(len(grid)), key=lambda j: grid[j][0])
+        if len(breaks) < 3:
+            return grid[i][1]
+        # the break between the grid's neighbours of the best, to a part in a thousand of its log
+        a, b = np.log(breaks[max(i - 1, 0)]), np.log(breaks[min(i + 1, len(breaks) - 1)])
+        fine = minimize_scalar(lambda x: solved(np.exp(x))[0], bounds=(a, b), method="bounded",
+                               options={"xatol": 1.0e-3})
+        return min(grid[i], solved(float(np.exp(fine.x))), key=lambda e: e[0])[1]
 
     @classmethod
     def _q(cls, value: float, ci=None) -> str:

@@ -2,6 +2,7 @@
 simulated with one (the package's synthetic campaign writer: a consistency test) and on a clean campaign."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from ehas_env.measurement.campaign import Campaign, validate_run
@@ -64,6 +65,7 @@ def _refine_table(monkeypatch, refit: dict, insane=()):
     monkeypatch.setattr(states, "refine_candidate", refine)
     monkeypatch.setattr(states, "sanity", lambda f, name: "at an end" if getattr(f, "name", name) in insane
                         and not hasattr(f, "refit_sane") else None)
+    monkeypatch.setattr(states, "_projected_start", lambda rep, name, lead, fit: None)  # its own test below
     return made
 
 
@@ -129,6 +131,7 @@ def test_a_kind_with_more_numbers_must_also_lower_the_validation_residual(monkey
     monkeypatch.setattr(states, "refine_candidate",
                         lambda rep, name, f, base, eff: NS(cost=costs[name], model=NS(name=name)))
     monkeypatch.setattr(states, "sanity", lambda f, name: None)
+    monkeypatch.setattr(states, "_projected_start", lambda rep, name, lead, fit: None)
     full = NS(simulate=lambda model: model.name)  # a "simulation" is the refit's name: _parts_cost looks it up
     for v_knee, kept in ((1.30 * 0.97, "aug_knee_chamber_a"), (1.30 * 0.99, "aug_beyond_chamber_a"),
                          (1.40, "aug_beyond_chamber_a")):
@@ -158,8 +161,52 @@ def test_the_kinds_at_the_place_are_compared_refitted_while_that_pays(monkeypatc
 
     monkeypatch.setattr(states, "refine_candidate", refine)
     monkeypatch.setattr(states, "sanity", lambda f, name: None)
+    monkeypatch.setattr(states, "_projected_start", lambda rep, name, lead, fit: None)
     key, refined, rec = states._refined_choice(None, dict(lower), lower)
     assert key == ("aug_beyond_chamber_a", None) and refined[key].cost == 0.45, rec
+
+
+def test_a_kind_left_in_a_valley_is_refitted_from_the_best_kinds_term(monkeypatch):
+    """Chamber A's balance: a relief above 45 bar.  The piecewise-linear term (three numbers) finds it, its slope
+    within nil; the term beyond a threshold, from its own screen's break at 1 bar, stops in a valley 1.2x behind.
+    Refitted from the piecewise-linear term's fitted term (its nearest numbers: the break at 45 bar), it reaches it,
+    and the simpler kind is kept; a projection that does not help leaves the first refit (and the choice) as it was.
+    The fit here is a table of where a start leads: a refit from a break within 10 % of 45 bar reaches the valley's
+    floor."""
+    from types import SimpleNamespace as NS
+
+    pa = np.linspace(1.0e5, 1.1e7, 400)
+    knee = {"c": 0.0, "d": -2.0e-6, "k": 4.5e6}
+    lead = NS(cost=0.50, model=states.ModelSpec(effects={"aug_knee_chamber_a": knee}), sims=["sim"])
+    monkeypatch.setattr(states, "_balance_quantity", lambda rep, sims, cls: [pa[:200], pa[200:]])
+
+    def refine(rep, name, f, base, effects):
+        if name == "aug_knee_chamber_a":
+            return lead
+        k = f.model.effects.get(name, {}).get("k", 1.0e5)  # the screen's start: 1 bar
+        return NS(cost=0.50 * 10 ** 0.01 if abs(k / 4.5e6 - 1.0) < 0.1 else 0.60, name=name,
+                  model=NS(effects={name: {"k": k}}))
+
+    monkeypatch.setattr(states, "refine_candidate", refine)
+    monkeypatch.setattr(states, "sanity", lambda f, name: None)
+    lower = {("aug_knee_chamber_a", None): (NS(cost=0.80), NS(model=NS(effects={}))),
+             ("aug_beyond_chamber_a", None): (NS(cost=0.81, model=NS(effects={})), NS(model=NS(effects={})))}
+    key, refined, rec = states._refined_choice(None, dict(lower), lower)
+    assert key == ("aug_beyond_chamber_a", None) and refined[key].cost == pytest.approx(0.50 * 10 ** 0.01), rec
+    beyond = [r for r in rec if r["effect"] == "aug_beyond_chamber_a"][0]
+    assert beyond["projected_ratio"] == pytest.approx(0.50 * 10 ** 0.01 / 0.80, abs=1e-4)
+    # the start it was given: the knee's term as a term beyond a threshold (the break, the slope beyond)
+    start = states._projected_start(None, "aug_beyond_chamber_a", "aug_knee_chamber_a", lead)
+    assert start.model.effects["aug_beyond_chamber_a"] == pytest.approx({"c": -2.0e-6, "k": 4.5e6}, rel=1e-3)
+    assert "aug_knee_chamber_a" not in start.model.effects
+    # blocks that are not two static kinds at one balance: no projection
+    assert states._projected_start(None, "aug_lag_pb_reading", "aug_knee_chamber_a", lead) is None
+    assert states._projected_start(None, "aug_beyond_chamber_b", "aug_knee_chamber_a", lead) is None
+    # a projection that leads nowhere better: the kind keeps its own refit, the knee is kept
+    monkeypatch.setattr(states, "refine_candidate", lambda rep, name, f, base, effects: lead if name ==
+                        "aug_knee_chamber_a" else NS(cost=0.60, name=name, model=NS(effects={})))
+    key, refined, rec = states._refined_choice(None, dict(lower), lower)
+    assert key == ("aug_knee_chamber_a", None) and refined[("aug_beyond_chamber_a", None)].cost == 0.60
 
 
 def _search(effects, seed):

@@ -180,3 +180,59 @@ def test_the_docs_place_of_ones_own_is_the_crank_angle_with_every_kind():
     assert r.returncode == 0, r.stderr[-1500:]
     # deg: the stop acts beyond 0.3 rad (17 deg): 0.047 deg on this run, the loop holding the angle against it
     assert float(r.stdout.strip().splitlines()[-1]) > 0.02
+
+
+@pytest.mark.parametrize("stem,params,law", [
+    ("const", {"c": 3.0}, lambda w: 3.0 + 0.0 * w),
+    ("prop", {"c": 3.0}, lambda w: 3.0 * w / 10.0),
+    ("beyond", {"c": 3.0, "k": 4.0}, lambda w: 3.0 * np.sign(w) * np.maximum(np.abs(w) - 4.0, 0.0) / 10.0),
+    ("saturating", {"c": 3.0, "k": 4.0}, lambda w: 3.0 * np.where(np.abs(w) < 4.0, w / 4.0, np.sign(w))),
+    ("cubic", {"c": 3.0}, lambda w: 3.0 * (w / 10.0) ** 3),
+    ("knee", {"c": 3.0, "d": -6.0, "k": 4.0},
+     lambda w: (3.0 * w - 6.0 * np.sign(w) * np.maximum(np.abs(w) - 4.0, 0.0)) / 10.0),
+])
+def test_a_kinds_term_is_its_law_written_out(stem, params, law):
+    """term() at the crank rate (S = 10 rad/s), the law written out by cases; the valve's opening as no-load
+    flow meters either way (abs)."""
+    w = np.linspace(-12.0, 12.0, 97)
+    name = "aug_const_piston_velocity" if stem == "const" else f"aug_{stem}_crank_rate"
+    scale = 1.0 if stem == "const" else 10.0 / get_effect(name).balance_place.q_span
+    assert get_effect(name).term(w * scale, params) == pytest.approx(law(w), abs=1e-12)
+    q = np.linspace(-4.0e-4, 4.0e-4, 9)
+    assert get_effect("aug_prop_supply").term(q, {"c": 2.0}) == pytest.approx(2.0 * np.abs(q) / (25.0 / 60000.0))
+
+
+@pytest.mark.parametrize("place", [p.short for p in balance_blocks.BALANCE_PLACES])
+def test_each_kind_finds_its_own_numbers_from_its_own_term(place):
+    """nearest() of a kind's own term over the quantity's values returns its numbers (the sizes exactly, the
+    break to a part in a thousand), at every place, a break well inside what the values reach."""
+    p = [bp for bp in balance_blocks.BALANCE_PLACES if bp.short == place][0]
+    q = np.linspace(-1.2 * p.q_span, 1.2 * p.q_span, 301) if p.centred else np.linspace(0.0, 1.2 * p.q_span, 301)
+    for kind in balance_blocks.BALANCE_KINDS:
+        if not kind.fits(p):
+            continue
+        cls = get_effect(f"aug_{kind.stem}_{place}")
+        truth = {"c": 0.3 * p.out_span, "d": -0.5 * p.out_span, "k": 0.37 * p.q_span}
+        truth = {n.name: truth[n.name] for n in cls.kind_params(p)}
+        got = cls.nearest(q, cls.term(q, truth))
+        assert got == pytest.approx(truth, rel=1e-3), (cls.__name__, got)
+
+
+def test_a_simpler_kind_nested_in_a_piecewise_linear_term_is_found_in_it():
+    """The piecewise-linear term holds three kinds: with its slope within nil, the term beyond the threshold
+    (the same break, the slope beyond); with the slopes cancelling beyond, the saturating term (its level
+    c k / S); with no change of slope, the proportional term.  A kind that cannot hold it gets its least-squares
+    best (a cubic below the knee's largest value)."""
+    w = np.linspace(-12.0, 12.0, 241)
+    knee = get_effect("aug_knee_crank_rate")
+    cases = [("beyond", {"c": 0.0, "d": -25.0, "k": 5.8}, {"c": -25.0, "k": 5.8}),
+             ("saturating", {"c": -20.0, "d": 20.0, "k": 3.0}, {"c": -20.0 * 3.0 / 10.0, "k": 3.0}),
+             ("prop", {"c": -20.0, "d": 0.0, "k": 3.0}, {"c": -20.0})]
+    for stem, numbers, nested in cases:
+        got = get_effect(f"aug_{stem}_crank_rate").nearest(w, knee.term(w, numbers))
+        assert got == pytest.approx(nested, rel=1e-3), (stem, got)
+    t = knee.term(w, {"c": 0.0, "d": -25.0, "k": 5.8})
+    cubic = get_effect("aug_cubic_crank_rate")
+    c = cubic.nearest(w, t)["c"]
+    assert np.sum((cubic.term(w, {"c": c}) - t) ** 2) <= min(
+        np.sum((cubic.term(w, {"c": c * f}) - t) ** 2) for f in (0.9, 1.1))
