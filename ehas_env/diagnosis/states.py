@@ -518,16 +518,28 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
              and (kk in better or sanity(refine(kk, REFINE_ROUNDS), kk[0]) is None)]
     least = min(refine(kk, REFINE_ROUNDS).cost for kk in kinds)
     lead = min(kinds, key=lambda kk: refined[kk].cost)
-    for kk in kinds:  # a kind its own start left behind the best: again from the best's term, as this kind's
-        start = None if refined[kk].cost <= least * 10.0 ** (WITHIN_DB / 10.0) else \
-            _projected_start(rep, kk[0], lead[0], refined[lead])
-        if start is not None:
-            g = refine_candidate(rep, kk[0], start, lower[kk][1], dict(lower[kk][1].model.effects))
-            made[at[kk]]["projected_ratio"] = _r(g.cost / top, 4)
-            if g.cost < refined[kk].cost:
-                refined[kk] = g
-                again(kk, REFINE_ROUNDS)
-                made[at[kk]]["refined_ratio"] = _r(refined[kk].cost / top, 4)
+    # a kind its own start left behind the best, and a simpler kind there whatever its screen (a saturating term
+    # whose break the logs never reach is a proportional one: :class:`~ehas_env.physics.balance_blocks.Knee`):
+    # fitted again from the best's term as this kind's numbers, the better refit kept
+    nested = [kk for kk in here if kk not in kinds and len(own_params(kk[0])) < len(own_params(lead[0]))]
+    for kk in kinds + nested:
+        if kk in refined and refined[kk].cost <= least * 10.0 ** (WITHIN_DB / 10.0):
+            continue
+        start = _projected_start(rep, kk[0], lead[0], refined[lead])
+        if start is None:
+            continue
+        g = refine_candidate(rep, kk[0], start, lower[kk][1], dict(lower[kk][1].model.effects))
+        if kk not in refined:  # a simpler kind fitted from the best's term alone
+            at[kk] = len(made)
+            made.append({"effect": kk[0], "place": _place_of(kk)[0],
+                         "screened_ratio": _r(lower[kk][0].cost / top, 4), "rounds": 0})
+        made[at[kk]]["projected_ratio"] = _r(g.cost / top, 4)
+        if kk not in refined or g.cost < refined[kk].cost:
+            refined[kk] = g
+            again(kk, REFINE_ROUNDS)
+        made[at[kk]]["refined_ratio"] = _r(refined[kk].cost / top, 4)
+        if kk in nested and sanity(refined[kk], kk[0]) is None:
+            kinds.append(kk)
     fair = [kk for kk in kinds if refine(kk).cost <= least * 10.0 ** (WITHIN_DB / 10.0)]
     key = min(fair, key=lambda kk: (len(own_params(kk[0])), refined[kk].cost))
     if full is None:

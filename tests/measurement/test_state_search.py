@@ -575,3 +575,38 @@ def test_the_stage_keeps_a_second_block_on_top_of_the_first(monkeypatch):
     assert set(truth) <= set(s.current.model.effects)
     s1, rec1 = stage(1)
     assert rec1["more"] == [] and len(set(truth) & set(s1.current.model.effects)) == 1
+
+
+def test_a_simpler_kind_is_fitted_from_the_best_kinds_term_whatever_its_screen(monkeypatch):
+    """The crank torque balance: a piecewise-linear term refits best, its break beyond every rate the runs reach
+    (drawn case d22: 15.7 rad/s, the runs to 11.5) -- a proportional term, which screened more than KIND_DB behind
+    (its own screen's start) and was not refitted.  Fitted from the knee's term it reaches its cost: the
+    proportional term is kept, and its start is the knee's slope within; a simpler kind whose refit stays behind
+    is not kept, nor one whose refit ran to an end of its range."""
+    from types import SimpleNamespace as NS
+
+    w = np.linspace(-11.5, 11.5, 400)
+    lead = NS(cost=0.50, model=states.ModelSpec(effects={"aug_knee_crank_rate": {"c": -14.7, "d": 14.3, "k": 15.7}}),
+              sims=["sim"])
+    monkeypatch.setattr(states, "_balance_quantity", lambda rep, sims, cls: [w])
+    starts = []
+
+    def refine(rep, name, f, base, effects):
+        if name == "aug_knee_crank_rate":
+            return lead
+        starts.append(dict(f.model.effects.get(name, {})))
+        return NS(cost=reach if f.model.effects.get(name) else 0.7, name=name, model=NS(effects={}))
+
+    monkeypatch.setattr(states, "refine_candidate", refine)
+    lower = {(n, None): (NS(cost=c, model=NS(effects={})), NS(model=NS(effects={})))
+             for n, c in {"aug_knee_crank_rate": 0.80, "aug_prop_crank_rate": 0.80 * 10 ** 0.15}.items()}
+    for reach, insane, kept in ((0.50 * 10 ** 0.01, False, "aug_prop_crank_rate"),
+                                (0.50 * 10 ** 0.05, False, "aug_knee_crank_rate"),
+                                (0.50, True, "aug_knee_crank_rate")):
+        monkeypatch.setattr(states, "sanity", lambda f, name: "at an end" if insane and name != "aug_knee_crank_rate"
+                            else None)
+        starts.clear()
+        key, refined, rec = states._refined_choice(None, dict(lower), lower)
+        assert key == (kept, None), (reach, rec)
+        assert starts[0] == pytest.approx({"c": -14.7}, rel=1e-3)
+        assert [r["effect"] for r in rec] == ["aug_knee_crank_rate", "aug_prop_crank_rate"]
