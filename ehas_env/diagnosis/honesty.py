@@ -7,7 +7,9 @@
 2. **No hypothesis that makes the all-data residual worse** (:func:`worse_than_bare`): the structural hypotheses
    (and what was stacked on them) are kept only when the final model's all-data residual is not above the bare
    model's, the model the library's effects gave before the hypotheses were tried.
-3. **A fit on a bound says so** (:func:`at_bounds`): every fitted parameter of a library effect that sits at the
+3. **No block its interval cannot tell from nothing** (:func:`size_not_shown`): a block whose size (its main,
+   signed number, nothing at 0) has a 95 % interval that holds 0 is not kept: the data do not show it acts.
+4. **A fit on a bound says so** (:func:`at_bounds`): every fitted parameter of a library effect that sits at the
    end of its fit range (and so is no point estimate) is listed, with the range and whether that end is the
    parameter's physical bound, in the JSON (``model.at_bound``, ``ranking[].at_bound``).
 
@@ -19,6 +21,11 @@ Examples
 (True, True)
 >>> worse_than_bare(3.68, 3.89) is not None, worse_than_bare(3.68, 2.1) is None
 (True, True)
+>>> from ehas_env.physics.effects import get_effect
+>>> size_not_shown(get_effect("aug_offset_pb_reading"), {"c": [-923.6, 555.3]}) is not None
+True
+>>> size_not_shown(get_effect("aug_offset_pb_reading"), {"c": [-5e5, -3e5]}) is None
+True
 """
 from __future__ import annotations
 
@@ -90,6 +97,35 @@ def worse_than_bare(bare: float, final: float) -> str | None:
         return None
     return (f"makes the residual on all data worse than the model without the hypotheses ({bare:.3g}x -> "
             f"{final:.3g}x what does not repeat)")
+
+
+def size_not_shown(cls, ci: dict) -> str | None:
+    """Why a fitted block may not be kept (None when it may): its size -- the main number, signed, with 0 its
+    default and inside its range, where the block does nothing (an offset, a scale error, a balance's term) --
+    has a 95 % interval ``ci[name] = (lo, hi)`` that holds 0.  A block whose main number has no such nothing (a
+    lag's time constant, a saturation's level) passes.
+
+    Parameters
+    ----------
+    cls : type
+        The block (an effect class with ``main_param`` and ``params``).
+    ci : dict
+        {parameter: (lo, hi)}, the fit's 95 % intervals in the parameters' units.
+
+    Returns
+    -------
+    str or None
+        The refusal in words, with the interval.
+    """
+    name = getattr(cls, "main_param", None)
+    p = next((q for q in getattr(cls, "params", ()) if q.name == name), None)
+    if p is None or name not in ci or p.default != 0.0 or not p.bounds[0] < 0.0 < p.bounds[1]:
+        return None
+    lo, hi = ci[name]
+    if not lo <= 0.0 <= hi:
+        return None
+    return (f"the 95 % interval of its size {name}, [{lo:.3g}, {hi:.3g}] {p.unit}, holds 0, where it does nothing: "
+            "the data do not show it")
 
 
 def at_bounds(fit, effects=None) -> list[dict]:

@@ -31,7 +31,7 @@ from ehas_env.diagnosis.candidates import (
     UNEXERCISED, _parts_cost, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate,
     validation_moved)
 from ehas_env.diagnosis.fitting import MIN_SCORE, Fit, confidence, model_from, own_params, start_value
-from ehas_env.diagnosis.honesty import term_refused
+from ehas_env.diagnosis.honesty import size_not_shown, term_refused
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, ModelSpec, Replayer
 from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
 from ehas_env.physics.augment import augmentations
@@ -672,6 +672,11 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         say(f"  states: {record['words']}")
         return None, record
     ci = {name: tuple(v) for (eff, name), v in confidence(rep, f).items() if eff == best}
+    why = size_not_shown(get_effect(best), ci)  # a block the fit cannot tell from nothing is not named
+    if why is not None:
+        record["words"] = f"{get_effect(best).title} is not kept: {why}"
+        say(f"  states: {record['words']}")
+        return None, record
     moved = validation_moved(full, sims0, sims1, parts)  # sims1: the kept model's (on top or in place)
     unproven = moved is not None and moved < UNEXERCISED
     record.update(kept=best, params={k: _sig(v) for k, v in values.items()},

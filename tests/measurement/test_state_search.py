@@ -610,3 +610,32 @@ def test_a_simpler_kind_is_fitted_from_the_best_kinds_term_whatever_its_screen(m
         assert key == (kept, None), (reach, rec)
         assert starts[0] == pytest.approx({"c": -14.7}, rel=1e-3)
         assert [r["effect"] for r in rec] == ["aug_knee_crank_rate", "aug_prop_crank_rate"]
+
+
+def test_a_block_whose_size_the_fit_cannot_tell_from_nothing_is_not_kept(monkeypatch):
+    """The stage's last gate (honesty.size_not_shown): a block that passes every rule on the residuals but whose
+    size's 95 % interval holds 0 is not named (drawn case d22: an offset of chamber B's reading of -0.0018
+    [-0.0092, 0.0056] bar kept in place of a supply line's loss, the residual's fall the loss' removal); the same
+    block with its interval clear of 0 is kept.  The stage's fits and replays here are tables."""
+    from types import SimpleNamespace as NS
+
+    name = "aug_offset_pb_reading"
+    kept_fit = NS(cost=0.5, model=states.ModelSpec(effects={name: {"c": -184.0}}))
+    final = NS(cost=1.0, model=states.ModelSpec(effects={}))
+    full = NS(simulate=lambda model: "after" if model.effects else "before")
+    monkeypatch.setattr(states, "blocks_of", lambda full, sims, signals: sims)
+    monkeypatch.setattr(states, "grade", lambda sims: {"residual_x_noise": 1.28 if sims == "before" else 1.09})
+    monkeypatch.setattr(states, "_quiet", lambda g, trigger: False)
+    monkeypatch.setattr(states, "_parts_cost", lambda full, sims, parts: None)
+    monkeypatch.setattr(states, "_screen_all", lambda *a: {(name, None): (kept_fit, final)})
+    monkeypatch.setattr(states, "_refined_choice", lambda *a: ((name, None), {(name, None): kept_fit}, []))
+    monkeypatch.setattr(states, "sanity", lambda f, n: None)
+    monkeypatch.setattr(states, "term_refused", lambda a, b: None)
+    monkeypatch.setattr(states, "validation_moved", lambda *a: None)
+    monkeypatch.setattr(states, "_reading_not_closed", lambda *a: None)
+    for ci, kept in (((-923.6, 555.3), None), ((-300.0, -80.0), name)):
+        monkeypatch.setattr(states, "confidence", lambda rep, f: {(name, "c"): ci})
+        fit, rec = state_stage(None, full, final, {}, lambda m: None, names=[name], trigger=0.0)
+        assert rec["kept"] == kept, rec
+        if kept is None:
+            assert fit is None and "holds 0" in rec["words"] and "[-924, 555]" in rec["words"], rec
