@@ -636,8 +636,9 @@ def _stack_text(res) -> str:
     lines = ["stacking (an effect is kept when it is physically sane and lowers the residual of the validation data)"]
     if not res.steps:
         lines.append("  no candidate beat noise")
+    width = max([20] + [len(s.effect) + 2 for s in res.steps])  # a generated block's name is longer than 18
     for s in res.steps:
-        lines.append(f"  {s.effect:<20}{'kept' if s.kept else 'not kept':<10}{s.reason}")
+        lines.append(f"  {s.effect:<{width}}{'kept' if s.kept else 'not kept':<10}{s.reason}")
     lines.append("final model: the baseline" + "".join(f" + {n}" for n in res.model.effects)
                  + ("" if res.model.effects else " (no effect kept)"))
     return "\n".join(lines)

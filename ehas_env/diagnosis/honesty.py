@@ -7,8 +7,8 @@
 2. **No hypothesis that makes the all-data residual worse** (:func:`worse_than_bare`): the structural hypotheses
    (and what was stacked on them) are kept only when the final model's all-data residual is not above the bare
    model's, the model the library's effects gave before the hypotheses were tried.
-3. **No block its interval cannot tell from nothing** (:func:`size_not_shown`): a block whose size (its main,
-   signed number, nothing at 0) has a 95 % interval that holds 0 is not kept: the data do not show it acts.
+3. **No block its intervals cannot tell from nothing** (:func:`size_not_shown`): a block whose sizes (its signed
+   numbers, nothing at 0) each have a 95 % interval that holds 0 is not kept: the data do not show it acts.
 4. **A fit on a bound says so** (:func:`at_bounds`): every fitted parameter of a library effect that sits at the
    end of its fit range (and so is no point estimate) is listed, with the range and whether that end is the
    parameter's physical bound, in the JSON (``model.at_bound``, ``ranking[].at_bound``).
@@ -26,6 +26,7 @@ Examples
 True
 >>> size_not_shown(get_effect("aug_offset_pb_reading"), {"c": [-5e5, -3e5]}) is None
 True
+>>> size_not_shown(get_effect("aug_knee_chamber_a"), {"c": [-5e-8, 1e-7], "d": [-1.7e-6, -1.5e-6], "k": [4e6, 5e6]})
 """
 from __future__ import annotations
 
@@ -100,32 +101,30 @@ def worse_than_bare(bare: float, final: float) -> str | None:
 
 
 def size_not_shown(cls, ci: dict) -> str | None:
-    """Why a fitted block may not be kept (None when it may): its size -- the main number, signed, with 0 its
-    default and inside its range, where the block does nothing (an offset, a scale error, a balance's term) --
-    has a 95 % interval ``ci[name] = (lo, hi)`` that holds 0.  A block whose main number has no such nothing (a
-    lag's time constant, a saturation's level) passes.
+    """Why a fitted block may not be kept (None when it may): each of its sizes -- the signed numbers with 0 their
+    default and inside their range, where the block does nothing (an offset, a scale error, a balance's term; a
+    piecewise-linear term's slope within and its change beyond) -- has a 95 % interval ``ci[name] = (lo, hi)``
+    that holds 0.  A block with no such number (a lag's time constant, a saturation's level) passes, and so does
+    one with a size whose interval is clear of 0.
 
     Parameters
     ----------
     cls : type
-        The block (an effect class with ``main_param`` and ``params``).
+        The block (an effect class with ``params``).
     ci : dict
         {parameter: (lo, hi)}, the fit's 95 % intervals in the parameters' units.
 
     Returns
     -------
     str or None
-        The refusal in words, with the interval.
+        The refusal in words, with the intervals.
     """
-    name = getattr(cls, "main_param", None)
-    p = next((q for q in getattr(cls, "params", ()) if q.name == name), None)
-    if p is None or name not in ci or p.default != 0.0 or not p.bounds[0] < 0.0 < p.bounds[1]:
+    sizes = [q for q in getattr(cls, "params", ()) if q.default == 0.0 and q.bounds[0] < 0.0 < q.bounds[1]]
+    if not sizes or any(q.name not in ci or not ci[q.name][0] <= 0.0 <= ci[q.name][1] for q in sizes):
         return None
-    lo, hi = ci[name]
-    if not lo <= 0.0 <= hi:
-        return None
-    return (f"the 95 % interval of its size {name}, [{lo:.3g}, {hi:.3g}] {p.unit}, holds 0, where it does nothing: "
-            "the data do not show it")
+    held = ", ".join(f"{q.name} [{ci[q.name][0]:.3g}, {ci[q.name][1]:.3g}] {q.unit}" for q in sizes)
+    return (f"the 95 % interval of its size{'s' if len(sizes) > 1 else ''} ({held}) hold{'' if len(sizes) > 1 else 's'}"
+            " 0, where it does nothing: the data do not show it")
 
 
 def at_bounds(fit, effects=None) -> list[dict]:

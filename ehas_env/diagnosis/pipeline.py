@@ -35,7 +35,7 @@ from ehas_env.diagnosis.fitting import Fit, _unit, _value_of, on_one_blas_thread
 from ehas_env.diagnosis.honesty import at_bounds, term_refused
 from ehas_env.diagnosis.measured_inputs import measured, measured_input_stage
 from ehas_env.diagnosis.naming import judge_on_all_data
-from ehas_env.diagnosis.states import state_stage
+from ehas_env.diagnosis.states import described, simpler_kind, state_stage
 from ehas_env.physics.augment import Augmentation
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
 from ehas_env.measurement.residuals import follows as follows_of
@@ -277,7 +277,34 @@ def _keep_state(s: Search, f, rec: dict, bare) -> None:
     # an effect or a structural hypothesis kept before it may have stood in for the missing state
     current, sims, val = _drop_stand_ins(s.rep, s.full, s.parts, f, val, name, s.steps, s.say,
                                          kinds=("physical", "recalibration", "hypothesis"), sims=sims)
+    if set(current.model.effects) != set(f.model.effects):  # what it shared its place with is gone
+        current, sims, val = _simpler_state(s, current, sims, val, rec)
     s.keep(current, sims, val)
+
+
+def _simpler_state(s: Search, f, sims, val, rec: dict) -> tuple:
+    """The static kind ``rec`` kept (in the model ``f``, its simulation ``sims``, validation cost ``val``) once an
+    effect it stood in for went: a simpler kind at its place that now holds it replaces it
+    (:func:`ehas_env.diagnosis.states.simpler_kind`), its step and the record (``simpler``: the kinds fitted,
+    ``reduced_from``) say so.  Returns the model kept (Fit, simulation of every run, validation cost)."""
+    name = rec["kept"]
+    found = simpler_kind(s.rep, s.full, f, name, s.parts, val)
+    if found is None:
+        return f, sims, val
+    g, new, made = found
+    gs = s.full.simulate(g.model)
+    gval = _parts_cost(s.full, gs, s.parts)
+    rec.update(described(s.rep, g, new), kept=new, reduced_from=name, simpler=made)
+    ratio = next(m["cost_ratio"] for m in made if m["effect"] == new)
+    why = (f"the simpler {get_effect(new).title} holds it ({ratio:.4g}x its cost) once the effects it shared its "
+           "place with are gone")
+    for step in s.steps:
+        if step.kept and step.effect == name:
+            step.kept, step.reason = False, why
+    s.steps.append(Step(new, True, f"{rec['words']}; a missing state: the simplest kind at its place that holds "
+                        f"what {name} did", g, g.cost, gval, _held_fit(s.full, gs, s.held_idx)))
+    s.say(f"  {name}: replaced by {new} ({rec['words']})")
+    return g, gs, gval
 
 
 def measure_stage(s: Search) -> dict:

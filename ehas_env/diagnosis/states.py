@@ -36,7 +36,7 @@ from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, ModelSpec,
 from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
 from ehas_env.physics.augment import augmentations
 from ehas_env.physics.balance_blocks import BalanceStatic
-from ehas_env.physics.effects import get_effect
+from ehas_env.physics.effects import REGISTRY, get_effect
 
 
 #: the stage runs only on a final model whose all-data residual is above this (x what does not repeat; 1 is
@@ -440,13 +440,20 @@ def _place_of(key) -> tuple:
     return getattr(cls, "where", cls.title), key[1]
 
 
+#: a kind fitted from another kind's term (:func:`_projected_start`) must imitate it over the fitted runs' values to
+#: within this share of its energy (a kind that cannot hold the term would only repeat its own screen's refit)
+PROJECTION_SHARE = 0.1
+
+
 def _projected_start(rep: Replayer, name: str, lead: str, fit: Fit) -> Fit | None:
     """A start for the static kind ``name`` from the refitted model ``fit`` of another kind ``lead`` at the same
     balance: ``lead``'s fitted term over the quantity's values in the fitted runs, imitated by ``name``'s numbers
     (:meth:`~ehas_env.physics.balance_blocks.BalanceStatic.nearest`), the rest of ``fit``'s numbers kept; None for
     blocks that are not two static kinds at one balance place.  Where the fit of a kind from its own screen stops in a
     valley (a term beyond 45 bar of chamber A's pressure whose break the screen's start put at 1 bar, drawn case d15)
-    a kind that holds it (a piecewise-linear term) has found the term: its projection is the simpler kind's start."""
+    a kind that holds it (a piecewise-linear term) has found the term: its projection is the simpler kind's start.
+    None too where that projection leaves more than :data:`PROJECTION_SHARE` of the term's energy: the kind cannot
+    hold it."""
     cls, lead_cls = get_effect(name), get_effect(lead)
     if not (issubclass(cls, BalanceStatic) and issubclass(lead_cls, BalanceStatic)
             and cls.balance_place == lead_cls.balance_place):
@@ -456,7 +463,10 @@ def _projected_start(rep: Replayer, name: str, lead: str, fit: Fit) -> Fit | Non
         return None
     q = np.concatenate(q)
     effects = {n: v for n, v in fit.model.effects.items() if n != lead}
-    start = cls.nearest(q, lead_cls.term(q, fit.model.effects[lead]))
+    target = lead_cls.term(q, fit.model.effects[lead])
+    start = cls.nearest(q, target)
+    if np.sum((cls.term(q, start) - target) ** 2) > PROJECTION_SHARE * np.sum(target ** 2):
+        return None  # this kind cannot hold the lead's term: no refit is spent on it
     return Fit(model=replace(fit.model, effects={**effects, name: start}), cost=math.inf, free=[], sims=[],
                table=None)
 
@@ -517,13 +527,16 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
     kinds = [kk for kk in here if lower[kk][0].cost <= bar
              and (kk in better or sanity(refine(kk, REFINE_ROUNDS), kk[0]) is None)]
     least = min(refine(kk, REFINE_ROUNDS).cost for kk in kinds)
-    lead = min(kinds, key=lambda kk: refined[kk].cost)
-    # a kind its own start left behind the best, and a simpler kind there whatever its screen (a saturating term
-    # whose break the logs never reach is a proportional one: :class:`~ehas_env.physics.balance_blocks.Knee`):
-    # fitted again from the best's term as this kind's numbers, the better refit kept
-    nested = [kk for kk in here if kk not in kinds and len(own_params(kk[0])) < len(own_params(lead[0]))]
-    for kk in kinds + nested:
-        if kk in refined and refined[kk].cost <= least * 10.0 ** (WITHIN_DB / 10.0):
+    # the kind the choice below would keep: only a simpler kind can change it
+    lead = min([kk for kk in kinds if refined[kk].cost <= least * 10.0 ** (WITHIN_DB / 10.0)],
+               key=lambda kk: (len(own_params(kk[0])), refined[kk].cost))
+    # a simpler kind there, whether its own start left it behind the best or its screen did not reach the bar (a
+    # saturating term whose break the logs never reach is a proportional one: :class:`~ehas_env.physics.
+    # balance_blocks.Knee`): fitted again from the best's term as this kind's numbers, the better refit kept
+    simpler = [kk for kk in here if len(own_params(kk[0])) < len(own_params(lead[0]))]
+    nested = [kk for kk in simpler if kk not in kinds]
+    for kk in [kk for kk in kinds if kk in simpler] + nested:  # a kind with more numbers is kept only if it fits
+        if kk in refined and refined[kk].cost <= least * 10.0 ** (WITHIN_DB / 10.0):  # better: not from here
             continue
         start = _projected_start(rep, kk[0], lead[0], refined[lead])
         if start is None:
@@ -536,7 +549,6 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
         made[at[kk]]["projected_ratio"] = _r(g.cost / top, 4)
         if kk not in refined or g.cost < refined[kk].cost:
             refined[kk] = g
-            again(kk, REFINE_ROUNDS)
         made[at[kk]]["refined_ratio"] = _r(refined[kk].cost / top, 4)
         if kk in nested and sanity(refined[kk], kk[0]) is None:
             kinds.append(kk)
@@ -564,6 +576,55 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
         if va is None or vk is None or lowers_validation(va, vk):
             return key, refined, made
         key = alt
+
+
+def simpler_kind(rep: Replayer, full: Replayer, fit: Fit, name: str, parts: dict, val) -> tuple | None:
+    """The static kind ``name`` kept in ``fit`` (validation residual ``val``) against the simpler kinds at its
+    balance place, once the model around it changed (an effect kept before it that stood in for it refitted away:
+    drawn case d15, a piecewise-linear term whose slope within went to nil, [-5e-8, 1e-7] m^3/s, once the external
+    leak it shared the chamber with went -- a term beyond a threshold).  Each is fitted from ``name``'s term as its
+    own numbers (:func:`_projected_start`) with the model's numbers; the simplest sane one whose refit is within
+    :data:`WITHIN_DB` of ``fit``'s cost replaces it, unless ``name`` also lowers that one's validation residual by
+    the keep gate's share (as :func:`_refined_choice` chooses).
+
+    Returns
+    -------
+    (Fit, str, list) or None
+        The model with the simpler kind, its name and the record ({effect, cost_ratio over ``fit``'s,
+        validation}); None when ``name`` is no static kind, or no simpler kind holds it.
+    """
+    cls = get_effect(name)
+    if not issubclass(cls, BalanceStatic):
+        return None
+    base = {k: v for k, v in fit.model.effects.items() if k != name}
+    rivals = [n for n in sorted(REGISTRY) if n not in fit.model.effects and issubclass(REGISTRY[n], BalanceStatic)
+              and REGISTRY[n].balance_place == cls.balance_place and len(own_params(n)) < len(own_params(name))]
+    made, fair = [], []
+    for n in rivals:
+        start = _projected_start(rep, n, name, fit)
+        g = refine_candidate(rep, n, start, None, base) if start is not None else None
+        if g is None:
+            continue
+        made.append({"effect": n, "cost_ratio": _r(g.cost / fit.cost, 4)})
+        if g.cost <= fit.cost * 10.0 ** (WITHIN_DB / 10.0) and sanity(g, n) is None:
+            fair.append((len(own_params(n)), g.cost, n, g, made[-1]))
+    if not fair:
+        return None
+    _, _, n, g, rec = min(fair, key=lambda e: e[:2])
+    va = _parts_cost(full, full.simulate(g.model), parts)
+    rec["validation"] = None if va is None else _r(va)
+    if va is not None and val is not None and lowers_validation(va, val):
+        return None  # the kind with more numbers lowers the simpler one's validation residual: it stays
+    return g, n, made
+
+
+def described(rep: Replayer, fit: Fit, name: str) -> dict:
+    """A kept block's record entries: ``params`` (4 significant digits), ``ci95`` (its 95 % intervals, in its
+    parameters' units) and ``words`` (the block in physical words with them)."""
+    ci = {p: tuple(v) for (eff, p), v in confidence(rep, fit).items() if eff == name}
+    values = dict(fit.model.effects[name])
+    return {"params": {k: _sig(v) for k, v in values.items()},
+            "ci95": {k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()}, "words": _words(name, values, ci)}
 
 
 def _listed(items: list[str]) -> str:

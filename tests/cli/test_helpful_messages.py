@@ -140,3 +140,17 @@ def test_the_errors_page_quotes_the_mistyped_effect_message_as_the_tool_prints_i
     assert main(["effects", "frictoin"]) == 2
     printed = capsys.readouterr().err.strip()
     assert printed == shown
+
+
+def test_the_stacking_table_keeps_a_generated_blocks_name_apart_from_its_verdict():
+    """A block generated from kind and place (aug_beyond_chamber_a, 20 characters) ran into its "kept" column."""
+    from types import SimpleNamespace as NS
+
+    from ehas_env.cli.diagnose import _stack_text
+
+    res = NS(steps=[NS(effect="external_leakage", kept=False, reason="stands in"),
+                    NS(effect="aug_beyond_chamber_a", kept=True, reason="a term above 45 bar")],
+             model=NS(effects={"aug_beyond_chamber_a": {}}))
+    lines = _stack_text(res).splitlines()
+    assert lines[2].split() == ["aug_beyond_chamber_a", "kept", "a", "term", "above", "45", "bar"]
+    assert lines[1].index("not kept") == lines[2].index("kept")
