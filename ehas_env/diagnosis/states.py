@@ -530,14 +530,12 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
     # the kind the choice below would keep: only a simpler kind can change it
     lead = min([kk for kk in kinds if refined[kk].cost <= least * 10.0 ** (WITHIN_DB / 10.0)],
                key=lambda kk: (len(own_params(kk[0])), refined[kk].cost))
-    # a simpler kind there, whether its own start left it behind the best or its screen did not reach the bar (a
-    # saturating term whose break the logs never reach is a proportional one: :class:`~ehas_env.physics.
-    # balance_blocks.Knee`): fitted again from the best's term as this kind's numbers, the better refit kept
+    # a simpler kind there (none is within WITHIN_DB), whether its own start left it behind or its screen missed
+    # the bar (a saturating term whose break the logs never reach is a proportional one: :class:`~ehas_env.physics.
+    # balance_blocks.Knee`): fitted again from the lead's term as this kind's numbers, the better refit kept
     simpler = [kk for kk in here if len(own_params(kk[0])) < len(own_params(lead[0]))]
     nested = [kk for kk in simpler if kk not in kinds]
-    for kk in [kk for kk in kinds if kk in simpler] + nested:  # a kind with more numbers is kept only if it fits
-        if kk in refined and refined[kk].cost <= least * 10.0 ** (WITHIN_DB / 10.0):  # better: not from here
-            continue
+    for kk in [kk for kk in kinds if kk in simpler] + nested:
         start = _projected_start(rep, kk[0], lead[0], refined[lead])
         if start is None:
             continue
