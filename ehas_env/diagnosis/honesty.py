@@ -27,6 +27,8 @@ True
 >>> size_not_shown(get_effect("aug_offset_pb_reading"), {"c": [-5e5, -3e5]}) is None
 True
 >>> size_not_shown(get_effect("aug_knee_chamber_a"), {"c": [-5e-8, 1e-7], "d": [-1.7e-6, -1.5e-6], "k": [4e6, 5e6]})
+>>> size_not_shown(get_effect("aug_saturating_supply"), {"c": [-3e6, 3e6], "k": [1e-6, 8e-4]}) is None
+True
 """
 from __future__ import annotations
 
@@ -104,8 +106,10 @@ def size_not_shown(cls, ci: dict) -> str | None:
     """Why a fitted block may not be kept (None when it may): each of its sizes -- the signed numbers with 0 their
     default and inside their range, where the block does nothing (an offset, a scale error, a balance's term; a
     piecewise-linear term's slope within and its change beyond) -- has a 95 % interval ``ci[name] = (lo, hi)``
-    that holds 0.  A block with no such number (a lag's time constant, a saturation's level) passes, and so does
-    one with a size whose interval is clear of 0.
+    that holds 0, both its ends inside the size's range.  A block with no such number (a lag's time constant, a
+    saturation's level) passes, and so does one with a size whose interval is clear of 0 or reaches an end of the
+    range (drawn case d01: a saturating term at the supply whose size's interval is its whole range, +-30 bar, its
+    level and its break trading off -- the linearised interval shows nothing, it does not show nothing).
 
     Parameters
     ----------
@@ -120,7 +124,12 @@ def size_not_shown(cls, ci: dict) -> str | None:
         The refusal in words, with the intervals.
     """
     sizes = [q for q in getattr(cls, "params", ()) if q.default == 0.0 and q.bounds[0] < 0.0 < q.bounds[1]]
-    if not sizes or any(q.name not in ci or not ci[q.name][0] <= 0.0 <= ci[q.name][1] for q in sizes):
+
+    def nothing(q) -> bool:  # an interval inside the range that holds 0 (one out to an end of the range is the
+        lo, hi = ci[q.name]  # linearisation failing, numbers that trade off: it shows nothing either way)
+        return q.bounds[0] < lo <= 0.0 <= hi < q.bounds[1]
+
+    if not sizes or any(q.name not in ci or not nothing(q) for q in sizes):
         return None
     held = ", ".join(f"{q.name} [{ci[q.name][0]:.3g}, {ci[q.name][1]:.3g}] {q.unit}" for q in sizes)
     return (f"the 95 % interval of its size{'s' if len(sizes) > 1 else ''} ({held}) hold{'' if len(sizes) > 1 else 's'}"

@@ -13,7 +13,7 @@ from ehas_env.diagnosis.states import judge, state_stage
 from ehas_env.measurement.synthetic import simulate_campaign
 from ehas_env.physics.augment import reading_blocks
 from ehas_env.physics.balance_blocks import BALANCE_KINDS, balance_blocks
-from ehas_env.physics.effects import REGISTRY
+from ehas_env.physics.effects import REGISTRY, get_effect
 
 #: what the stage tries in these tests: a lag at each of its two places and a link at each of its two (the hoses
 #: and the play are tried by the full list; four keep the test's replays few)
@@ -618,7 +618,8 @@ def test_a_block_whose_size_the_fit_cannot_tell_from_nothing_is_not_kept(monkeyp
     """The stage's last gate (honesty.size_not_shown): a block that passes every rule on the residuals but whose
     size's 95 % interval holds 0 is not named (drawn case d22: an offset of chamber B's reading of -0.0018
     [-0.0092, 0.0056] bar kept in place of a supply line's loss, the residual's fall the loss' removal); the same
-    block with its interval clear of 0 is kept.  The stage's fits and replays here are tables."""
+    block with its interval clear of 0 is kept, and so is one whose interval is its whole range (the linearised
+    interval failing: drawn case d01, a saturating term whose level and break trade off).  The stage's fits and replays here are tables."""
     from types import SimpleNamespace as NS
 
     name = "aug_offset_pb_reading"
@@ -635,7 +636,8 @@ def test_a_block_whose_size_the_fit_cannot_tell_from_nothing_is_not_kept(monkeyp
     monkeypatch.setattr(states, "term_refused", lambda a, b: None)
     monkeypatch.setattr(states, "validation_moved", lambda *a: None)
     monkeypatch.setattr(states, "_reading_not_closed", lambda *a: None)
-    for ci, kept in (((-923.6, 555.3), None), ((-300.0, -80.0), name)):
+    span = get_effect(name).param("c").bounds  # an interval out to the range's ends shows nothing either way
+    for ci, kept in (((-923.6, 555.3), None), ((-300.0, -80.0), name), (span, name)):
         monkeypatch.setattr(states, "confidence", lambda rep, f: {(name, "c"): ci})
         fit, rec = state_stage(None, full, final, {}, lambda m: None, names=[name], trigger=0.0)
         assert rec["kept"] == kept, rec
