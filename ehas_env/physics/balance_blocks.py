@@ -252,7 +252,8 @@ class BalanceStatic(Augmentation):
         where another kind at this place fitted a term, the start this kind's own fit takes from it (a term beyond
         a threshold from a piecewise-linear term whose slope within came out nil).  The sizes enter every
         kind's law linearly and are solved for exactly; a break is chosen on a log grid over what ``q`` reaches,
-        within its range.
+        within its range.  A kind of one's own whose law is not linear in its numbers other than ``k`` overrides
+        this method (the numbers found are only a fit's start: a poor one costs a refit, never a wrong answer).
 
         Parameters
         ----------
