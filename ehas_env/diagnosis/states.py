@@ -407,9 +407,12 @@ def _within(screened: dict, key, refined: dict | None = None) -> list:
     (theirs over the kept one's)}; a block refitted with ``key`` (``refined``: {key: Fit}) is compared on the
     refitted costs."""
     refined = refined or {}
-    # refitted against refitted where both were (:func:`_refined_choice`), else screen against screen
+    # refitted against refitted where both were (:func:`_refined_choice`), else screen against the best screen at
+    # the kept one's place (the screen its place was chosen on: a kind kept from another's term may have screened
+    # far behind its refit -- drawn case d01, a saturating term at the supply 1.6x the place's best screen)
+    own = min(f.cost for k, (f, _) in screened.items() if _place_of(k) == _place_of(key))
     ratios = {k: refined[k].cost / refined[key].cost if k in refined and key in refined
-              else screened[k][0].cost / screened[key][0].cost for k in screened if k[0] != key[0]}
+              else screened[k][0].cost / own for k in screened if k[0] != key[0]}
     out = sorted((r, k[0]) for k, r in ratios.items() if r <= 10.0 ** (WITHIN_DB / 10.0))
     seen, listed = set(), []
     for ratio, name in out:

@@ -721,3 +721,19 @@ def test_the_pipeline_replaces_the_kept_kind_and_says_so(monkeypatch):
             assert "holds it (1.002x its cost)" in s.steps[0].reason
         else:
             assert kept == [knee_fit] and asked == [] and rec["kept"] == "aug_knee_chamber_a"
+
+
+def test_rivals_not_refitted_are_compared_with_the_screen_the_kept_place_was_chosen_on():
+    """Drawn case d01: a saturating term at the supply kept from a piecewise-linear term's term screened 1.62x the
+    best screen and refitted far below it; blocks elsewhere that were not refitted must not be listed as rivals
+    "the runs cannot part" at 0.73x its cost (their screens against its poor own screen).  Against the place's
+    best screen (1.0): a term at the piston 1.17x is parted from it, one 1.05x is not."""
+    from types import SimpleNamespace as NS
+
+    scr = {"aug_knee_supply": 1.0, "aug_saturating_supply": 1.62, "aug_beyond_piston_velocity": 1.17,
+           "aug_cubic_crank_rate": 1.05}
+    screened = {(n, None): (NS(cost=c), None) for n, c in scr.items()}
+    refined = {("aug_knee_supply", None): NS(cost=0.5596), ("aug_saturating_supply", None): NS(cost=0.5541)}
+    near = states._within(screened, ("aug_saturating_supply", None), refined)
+    assert {n["effect"]: n["cost_ratio"] for n in near} == pytest.approx(
+        {"aug_knee_supply": 0.5596 / 0.5541, "aug_cubic_crank_rate": 1.05}, abs=1e-4)
