@@ -482,7 +482,8 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
     (:data:`KIND_DB`) -- a kind whose screen ran to an end of its range (``lower`` only: a break the held numbers
     pushed out of place) counts when its refit is sane.  With ``full`` and the validation samples ``parts``, a kind
     with more numbers is kept over the best simpler one only when its refit also lowers that one's validation
-    residual (:func:`~ehas_env.diagnosis.candidates.lowers_validation`).
+    residual (:func:`~ehas_env.diagnosis.candidates.lowers_validation`).  A simpler static kind at the place
+    that was never screened is fitted from the lead's term (its base the lead's).
 
     Returns
     -------
@@ -491,6 +492,7 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
         place, screened_ratio, refined_ratio, rounds} (the costs over the best screen's; ``rounds``, the refits
         made again from where the first stopped; ``validation``, its validation residual, where it was asked).
     """
+    lower = dict(lower)  # the simpler kinds never screened join it here, not in the caller's
     order = sorted(better, key=lambda kk: better[kk][0].cost)
     top = better[order[0]][0].cost
     firsts = {}
@@ -537,7 +539,12 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
     # the bar (a saturating term whose break the logs never reach is a proportional one: :class:`~ehas_env.physics.
     # balance_blocks.Knee`): fitted again from the lead's term as this kind's numbers, the better refit kept
     simpler = [kk for kk in here if len(own_params(kk[0])) < len(own_params(lead[0]))]
-    nested = [kk for kk in simpler if kk not in kinds]
+    # ... and the simpler kinds there that were never screened (a linearisation that removed little: a proportional
+    # term of the crank rate where a saturating one's break lies beyond every rate the runs reach, drawn case d22)
+    unseen = [(n, lead[1]) for n in _simpler_static(lead[0]) if (n, lead[1]) not in lower]
+    for kk in unseen:
+        lower[kk] = (Fit(model=lower[lead][1].model, cost=math.inf, free=[], sims=[], table=None), lower[lead][1])
+    nested = [kk for kk in simpler + unseen if kk not in kinds]
     for kk in [kk for kk in kinds if kk in simpler] + nested:
         start = _projected_start(rep, kk[0], lead[0], refined[lead])
         if start is None:
@@ -545,8 +552,8 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
         g = refine_candidate(rep, kk[0], start, lower[kk][1], dict(lower[kk][1].model.effects))
         if kk not in refined:  # a simpler kind fitted from the best's term alone
             at[kk] = len(made)
-            made.append({"effect": kk[0], "place": _place_of(kk)[0],
-                         "screened_ratio": _r(lower[kk][0].cost / top, 4), "rounds": 0})
+            made.append({"effect": kk[0], "place": _place_of(kk)[0], "rounds": 0,
+                         "screened_ratio": _r(lower[kk][0].cost / top, 4) if kk not in unseen else None})
         made[at[kk]]["projected_ratio"] = _r(g.cost / top, 4)
         if kk not in refined or g.cost < refined[kk].cost:
             refined[kk] = g
@@ -579,6 +586,16 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
         key = alt
 
 
+def _simpler_static(name: str) -> list[str]:
+    """The static kinds registered at the balance place of the static kind ``name`` with fewer numbers than it ([]
+    for a block that is no static kind)."""
+    cls = get_effect(name)
+    if not issubclass(cls, BalanceStatic):
+        return []
+    return [n for n in sorted(REGISTRY) if issubclass(REGISTRY[n], BalanceStatic)
+            and REGISTRY[n].balance_place == cls.balance_place and len(own_params(n)) < len(own_params(name))]
+
+
 def simpler_kind(rep: Replayer, full: Replayer, fit: Fit, name: str, parts: dict, val) -> tuple | None:
     """The static kind ``name`` kept in ``fit`` (validation residual ``val``) against the simpler kinds at its
     balance place, once the model around it changed (an effect kept before it that stood in for it refitted away:
@@ -594,12 +611,8 @@ def simpler_kind(rep: Replayer, full: Replayer, fit: Fit, name: str, parts: dict
         The model with the simpler kind, its name and the record ({effect, cost_ratio over ``fit``'s,
         validation}); None when ``name`` is no static kind, or no simpler kind holds it.
     """
-    cls = get_effect(name)
-    if not issubclass(cls, BalanceStatic):
-        return None
     base = {k: v for k, v in fit.model.effects.items() if k != name}
-    rivals = [n for n in sorted(REGISTRY) if n not in fit.model.effects and issubclass(REGISTRY[n], BalanceStatic)
-              and REGISTRY[n].balance_place == cls.balance_place and len(own_params(n)) < len(own_params(name))]
+    rivals = [n for n in _simpler_static(name) if n not in fit.model.effects]
     made, fair = [], []
     for n in rivals:
         start = _projected_start(rep, n, name, fit)
@@ -703,8 +716,9 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         say(f"  states: {record['words']}")
         return None, record
     key, refined, record["refined"] = _refined_choice(rep, better, lower, full, parts)
-    (best, dropped), base, f = key, lower[key][1], refined[key]
-    near = _within({**better, key: lower[key]}, key, refined)  # f: refitted while that paid (REFINE_ROUNDS)
+    (best, dropped), f = key, refined[key]
+    # f: refitted while that paid (REFINE_ROUNDS); a kind never screened is its own screen here
+    near = _within({**better, key: lower.get(key, (f, None))}, key, refined)
     if dropped:
         record["in_place_of"] = list(dropped)
     sims1 = full.simulate(f.model)

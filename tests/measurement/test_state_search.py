@@ -611,7 +611,11 @@ def test_a_simpler_kind_is_fitted_from_the_best_kinds_term_whatever_its_screen(m
         key, refined, rec = states._refined_choice(None, dict(lower), lower)
         assert key == (kept, None), (reach, rec)
         assert starts[0] == pytest.approx({"c": -14.7}, rel=1e-3)
-        assert [r["effect"] for r in rec] == ["aug_knee_crank_rate", "aug_prop_crank_rate"]
+        # the proportional term screened; then the kinds never screened there that hold the knee's term over the
+        # rates reached (a saturating term whose break lies beyond them, a term beyond a break near 0)
+        assert [r["effect"] for r in rec][:2] == ["aug_knee_crank_rate", "aug_prop_crank_rate"]
+        assert "aug_saturating_crank_rate" in [r["effect"] for r in rec][2:], rec
+        assert all(r["screened_ratio"] is None for r in rec[2:]), rec
 
 
 def test_a_block_whose_size_the_fit_cannot_tell_from_nothing_is_not_kept(monkeypatch):
