@@ -714,12 +714,13 @@ def test_the_pipeline_replaces_the_kept_kind_and_says_so(monkeypatch):
         s = NS(rep=None, full=NS(simulate=lambda m: "sims"), parts={}, steps=[], say=lambda m: None, held_idx=[],
                current=knee_fit, keep=lambda f, sims, val: kept.append(f))
         rec = {"kept": "aug_knee_chamber_a", "words": "a piecewise-linear term", "residual_x_noise_all_after": 1.1,
-               "residual_x_noise_validation_after": 1.3}
+               "residual_x_noise_validation_after": 1.3, "within": [{"effect": "aug_knee_piston_velocity"}]}
         asked.clear()
         pipeline._keep_state(s, knee_fit, rec, None)
         if dropped:
             assert kept == [beyond] and rec["kept"] == "aug_beyond_chamber_a", rec
             assert rec["reduced_from"] == "aug_knee_chamber_a" and rec["words"] == "a term above 45 bar"
+            assert rec["within"] == [] and rec["simpler"][0]["effect"] == "aug_beyond_chamber_a"  # not the knee's
             assert [(x.effect, x.kept) for x in s.steps] == [("aug_knee_chamber_a", False),
                                                             ("aug_beyond_chamber_a", True)]
             assert "holds it (1.002x its cost)" in s.steps[0].reason
