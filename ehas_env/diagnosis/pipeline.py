@@ -295,7 +295,7 @@ def _simpler_state(s: Search, f, sims, val, rec: dict) -> tuple:
     gs = s.full.simulate(g.model)
     gval = _parts_cost(s.full, gs, s.parts)
     # the rivals listed were the replaced kind's: the record keeps the kinds just fitted against it instead
-    rec.update(described(s.rep, g, new), kept=new, reduced_from=name, simpler=made, within=[])
+    rec.update(described(s.rep, g, new)[0], kept=new, reduced_from=name, simpler=made, within=[])
     ratio = next(m["cost_ratio"] for m in made if m["effect"] == new)
     why = (f"the simpler {get_effect(new).title} holds it ({ratio:.4g}x its cost) once the effects it shared its "
            "place with are gone")

@@ -35,8 +35,8 @@ from ehas_env.diagnosis.honesty import size_not_shown, term_refused
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, ModelSpec, Replayer
 from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
 from ehas_env.physics.augment import augmentations
-from ehas_env.physics.balance_blocks import BalanceStatic
-from ehas_env.physics.effects import REGISTRY, get_effect
+from ehas_env.physics.balance_blocks import BalanceStatic, balance_blocks
+from ehas_env.physics.effects import get_effect
 
 
 #: the stage runs only on a final model whose all-data residual is above this (x what does not repeat; 1 is
@@ -511,13 +511,16 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
             if gain <= REFINE_GAIN:
                 break
 
+    def entered(kk, screened) -> None:  # the record of the refits made of kk (``screened``: None, never screened)
+        at[kk] = len(made)
+        made.append({"effect": kk[0], "place": _place_of(kk)[0],
+                     "screened_ratio": None if screened is None else _r(screened.cost / top, 4), "rounds": 0})
+
     def refine(kk, rounds: int = 0):
         f, base = lower[kk]
         if kk not in refined:
             refined[kk] = refine_candidate(rep, kk[0], f, base, dict(base.model.effects))
-            at[kk] = len(made)
-            made.append({"effect": kk[0], "place": _place_of(kk)[0], "screened_ratio": _r(f.cost / top, 4),
-                         "rounds": 0})
+            entered(kk, f)
         if rounds and kk not in settled:
             settled.add(kk)
             again(kk, rounds)
@@ -551,9 +554,7 @@ def _refined_choice(rep: Replayer, better: dict, lower: dict, full: Replayer | N
             continue
         g = refine_candidate(rep, kk[0], start, lower[kk][1], dict(lower[kk][1].model.effects))
         if kk not in refined:  # a simpler kind fitted from the best's term alone
-            at[kk] = len(made)
-            made.append({"effect": kk[0], "place": _place_of(kk)[0], "rounds": 0,
-                         "screened_ratio": _r(lower[kk][0].cost / top, 4) if kk not in unseen else None})
+            entered(kk, None if kk in unseen else lower[kk][0])
         made[at[kk]]["projected_ratio"] = _r(g.cost / top, 4)
         if kk not in refined or g.cost < refined[kk].cost:
             refined[kk] = g
@@ -592,8 +593,8 @@ def _simpler_static(name: str) -> list[str]:
     cls = get_effect(name)
     if not issubclass(cls, BalanceStatic):
         return []
-    return [n for n in sorted(REGISTRY) if issubclass(REGISTRY[n], BalanceStatic)
-            and REGISTRY[n].balance_place == cls.balance_place and len(own_params(n)) < len(own_params(name))]
+    return [n for n in sorted(balance_blocks()) if get_effect(n).balance_place == cls.balance_place
+            and len(own_params(n)) < len(own_params(name))]
 
 
 def simpler_kind(rep: Replayer, full: Replayer, fit: Fit, name: str, parts: dict, val) -> tuple | None:
@@ -632,13 +633,14 @@ def simpler_kind(rep: Replayer, full: Replayer, fit: Fit, name: str, parts: dict
     return g, n, made
 
 
-def described(rep: Replayer, fit: Fit, name: str) -> dict:
-    """A kept block's record entries: ``params`` (4 significant digits), ``ci95`` (its 95 % intervals, in its
-    parameters' units) and ``words`` (the block in physical words with them)."""
+def described(rep: Replayer, fit: Fit, name: str) -> tuple[dict, dict]:
+    """A kept block's record entries -- ``params`` (4 significant digits), ``ci95`` (its 95 % intervals, in its
+    parameters' units) and ``words`` (the block in physical words with them) -- and the intervals unrounded
+    ({parameter: (lo, hi)}, what the honesty rules judge)."""
     ci = {p: tuple(v) for (eff, p), v in confidence(rep, fit).items() if eff == name}
     values = dict(fit.model.effects[name])
     return {"params": {k: _sig(v) for k, v in values.items()},
-            "ci95": {k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()}, "words": _words(name, values, ci)}
+            "ci95": {k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()}, "words": _words(name, values, ci)}, ci
 
 
 def _listed(items: list[str]) -> str:
@@ -742,24 +744,18 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
             why = None
     record["residual_x_noise_all_after"] = _r(all1)
     record["residual_x_noise_validation_after"] = _r(val1)
-    values = dict(f.model.effects[best])
-    if why is not None:
-        record["words"] = f"{get_effect(best).title} is not kept: {why}"
-        say(f"  states: {record['words']}")
-        return None, record
-    ci = {name: tuple(v) for (eff, name), v in confidence(rep, f).items() if eff == best}
-    why = size_not_shown(get_effect(best), ci)  # a block the fit cannot tell from nothing is not named
+    if why is None:
+        entry, ci = described(rep, f, best)
+        why = size_not_shown(get_effect(best), ci)  # a block the fit cannot tell from nothing is not named
     if why is not None:
         record["words"] = f"{get_effect(best).title} is not kept: {why}"
         say(f"  states: {record['words']}")
         return None, record
     moved = validation_moved(full, sims0, sims1, parts)  # sims1: the kept model's (on top or in place)
     unproven = moved is not None and moved < UNEXERCISED
-    record.update(kept=best, params={k: _sig(v) for k, v in values.items()},
-                  ci95={k: [_sig(lo), _sig(hi)] for k, (lo, hi) in ci.items()},
-                  within=near,
-                  words=_words(best, values, ci) + (" (the held-out runs never reach it: judged on the fitted runs "
-                                                    "alone, not proven on held-out data)" if unproven else "")
+    record.update(entry, kept=best, within=near,
+                  words=entry["words"] + (" (the held-out runs never reach it: judged on the fitted runs "
+                                          "alone, not proven on held-out data)" if unproven else "")
                   + ("" if not near else "; the fitted runs cannot part it from " + _listed(
                       [f"{get_effect(n['effect']).title} ({n['cost_ratio']:.3g}x its cost)" for n in near])),
                   held_out_reached=not unproven if moved is not None else None)

@@ -704,8 +704,8 @@ def test_the_pipeline_replaces_the_kept_kind_and_says_so(monkeypatch):
     asked = []
     monkeypatch.setattr(pipeline, "simpler_kind", lambda *a: asked.append(a[3]) or (
         beyond, "aug_beyond_chamber_a", [{"effect": "aug_beyond_chamber_a", "cost_ratio": 1.002}]))
-    monkeypatch.setattr(pipeline, "described", lambda rep, g, n: {"params": {"c": -1.5e-6}, "ci95": {},
-                                                                  "words": "a term above 45 bar"})
+    monkeypatch.setattr(pipeline, "described", lambda rep, g, n: ({"params": {"c": -1.5e-6}, "ci95": {},
+                                                                   "words": "a term above 45 bar"}, {}))
     monkeypatch.setattr(pipeline, "_parts_cost", lambda full, sims, parts: 1.3)
     monkeypatch.setattr(pipeline, "_held_fit", lambda full, sims, idx: None)
     for dropped in (True, False):
