@@ -235,7 +235,9 @@ def states_stage(s: Search) -> dict:
     if not s.options.get("states", True):
         return {"skipped": "not asked for", "kept": None}
     bare = s.bare[0] if s.bare is not None and not s.full.inputs else None
-    f, rec = state_stage(s.rep, s.full, s.current, s.parts, s.say, bare=bare)
+    # the recalibrated baseline too, where the search began (a measured input kept since changed every replay)
+    null = s.rounds[0].null if s.rounds and not s.full.inputs else None
+    f, rec = state_stage(s.rep, s.full, s.current, s.parts, s.say, bare=bare, null=null)
     if f is None:
         return rec
     _keep_state(s, f, rec, bare)
@@ -270,6 +272,8 @@ def _keep_state(s: Search, f, rec: dict, bare) -> None:
         for step in s.steps:
             if step.kept and step.effect in replaced:
                 step.kept, step.reason = False, why
+        if replaced and set(replaced) == set(s.current.model.effects) - set(s.rounds[0].null.model.effects):
+            s.bare = None  # kept on the recalibrated baseline: the library's model before the hypotheses went too
     s.steps.append(Step(name, True, f"{rec['words']}; a missing state: removes at least a tenth of the "
                         "residual's excess over the noise and lowers the validation residual", f, f.cost, val,
                         _held_fit(s.full, sims, s.held_idx)))

@@ -357,11 +357,17 @@ def _proxy_bar(cls) -> float:
     return PROXY_SHARE if getattr(cls, "break_share", None) is not None else LINEAR_PROXY_SHARE
 
 
+#: the record's name of a block's screened cost on a base that set effects aside: the library's model before the
+#: structural hypotheses, or the recalibrated baseline before the library's effects (a proxy-only base)
+_RATIO_KEY = {False: "cost_ratio_without_hypotheses", True: "cost_ratio_on_recalibrated_baseline"}
+
+
 def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, bases: list, trigger: float,
                 tried: list, say) -> dict:
-    """Each augmentation of ``names`` screened on each (model, effects it set aside) of ``bases``, those at a quiet
-    reading skipped: {(name, the effects set aside or None): (screened fit, its base)}; an entry per name appended
-    to ``tried`` (its cost over the final model's, or why it was skipped)."""
+    """Each augmentation of ``names`` screened on each (model, effects it set aside, proxy only) of ``bases``, those
+    at a quiet reading skipped: {(name, the effects set aside or None): (screened fit, its base)}; an entry per name
+    appended to ``tried`` (its cost over the final model's, or why it was skipped).  On a base marked ``proxy
+    only`` only the terms at a balance are screened, and only past their linearisation's bar (one replay each)."""
     screened = {}
     for k, name in enumerate(names, 1):
         cls = get_effect(name)
@@ -374,16 +380,16 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
         say(f"  states {k}/{len(names)}: {cls.title}")
         hint, start_at = _scan_hint(full, cls, sims0)
         proxy = {}
-        for base, dropped in bases:
-            if name in base.model.effects:
+        for base, dropped, proxy_only in bases:
+            if name in base.model.effects or (proxy_only and getattr(cls, "balance_place", None) is None):
                 continue
             if getattr(cls, "balance_place", None) is not None:  # linear in its size: its linearisation first
-                proxy[dropped is None] = share = linear_share(rep, base, name, start_at)
+                proxy[None if dropped is None else tuple(dropped)] = share = linear_share(rep, base, name, start_at)
                 if share < _proxy_bar(cls):
                     continue
             f = screen_candidate(rep, name, base, scan_extra=hint, start_at=start_at)
             screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
-            entry["cost_ratio" if dropped is None else "cost_ratio_without_hypotheses"] = _r(f.cost / final.cost, 4)
+            entry[_RATIO_KEY[proxy_only] if dropped else "cost_ratio"] = _r(f.cost / final.cost, 4)
         if proxy:
             entry["linear_share"] = _r(max(proxy.values()), 4)
             if max(proxy.values()) < _proxy_bar(cls):
@@ -648,7 +654,7 @@ def _listed(items: list[str]) -> str:
 
 
 def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, names=None,
-                trigger: float = STATE_TRIGGER, bare: Fit | None = None) -> tuple:
+                trigger: float = STATE_TRIGGER, bare: Fit | None = None, null: Fit | None = None) -> tuple:
     """Try each generic augmentation on top of the final model; keep the best when it passes :func:`judge`.
 
     Parameters
@@ -670,6 +676,11 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     bare : Fit, optional
         The library's model before the structural hypotheses: each augmentation is screened on it too, and one
         kept there replaces the hypotheses (``in_place_of``).
+    null : Fit, optional
+        The recalibrated baseline the search started from (beta and K fitted, no effect): the terms at a balance are
+        screened on it too, past their linearisation's bar (:func:`linear_share`, one replay each), and one kept
+        there replaces every effect kept since (``in_place_of``): the library's effects may have stood in for a
+        block the library lacks (a leak from chamber A alone, held by a leak from both chambers and a valve bias).
 
     Returns
     -------
@@ -705,9 +716,13 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         return None, record
     # on the final model; and on the library's model before the structural hypotheses (``bare``), whose kept
     # hypotheses may have stood in for the state (a dead volume where a hose is) and do not compose with it
-    bases = [(final, None)]
+    bases = [(final, None, False)]
     if bare is not None and set(bare.model.effects) != held:
-        bases.append((bare, sorted(held - set(bare.model.effects))))
+        bases.append((bare, sorted(held - set(bare.model.effects)), False))
+    # ... and, terms at a balance only, on the recalibrated baseline before the library's effects
+    if null is not None and set(null.model.effects) != held and (bare is None or set(bare.model.effects) != set(
+            null.model.effects)):
+        bases.append((null, sorted(held - set(null.model.effects)), True))
     screened = _screen_all(rep, full, final, sims0, names, bases, trigger, record["tried"], say)
     lower = {key: fb for key, fb in screened.items() if fb[0].cost < final.cost}
     better = {key: fb for key, fb in lower.items() if sanity(fb[0], key[0]) is None}
