@@ -304,9 +304,12 @@ def screen_candidate(rep: Replayer, effect: str, null: Fit, screened: dict | Non
 
 
 def refine_candidate(rep: Replayer, effect: str, screened: Fit, null: Fit, base_effects: dict) -> Fit:
-    """Stage 2: the effect's parameters with beta, K and the base effects, from the screening fit."""
+    """Stage 2: the effect's parameters with beta, K and the base effects, from the screening fit (over the ranges
+    the screen fitted them over: one widened toward its bounds stays so, :func:`_widen`)."""
     effects = {**base_effects, effect: {}}
-    free = own_params(effect) + [fp for n in base_effects for fp in own_params(n)] + recal_params(effects)
+    own = {fp.name: fp for fp in screened.free if fp.effect == effect}
+    free = ([own.get(fp.name, fp) for fp in own_params(effect)] + [fp for n in base_effects for fp in own_params(n)]
+            + recal_params(effects))
     m = screened.model
     start = {}
     for fp in free:

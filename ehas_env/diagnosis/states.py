@@ -28,7 +28,7 @@ from dataclasses import replace
 import numpy as np
 
 from ehas_env.diagnosis.candidates import (
-    UNEXERCISED, _parts_cost, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate,
+    UNEXERCISED, _parts_cost, _sane, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate,
     validation_moved)
 from ehas_env.diagnosis.fitting import MIN_SCORE, Fit, confidence, model_from, own_params, start_value
 from ehas_env.diagnosis.honesty import size_not_shown, term_refused
@@ -388,6 +388,10 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
                 if share < _proxy_bar(cls):
                     continue
             f = screen_candidate(rep, name, base, scan_extra=hint, start_at=start_at)
+            # a screen that ran into its fit range is fitted again with that range widened toward its bounds, as a
+            # library candidate is (a term beyond 7.5 L/min of the valve's opening, -26 bar per 25 L/min at the
+            # supply: 2.2 times the fit range's end, drawn case p5)
+            f = _sane(rep, f, name)[0]
             screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
             entry[_RATIO_KEY[proxy_only] if dropped else "cost_ratio"] = _r(f.cost / final.cost, 4)
         if proxy:

@@ -424,6 +424,23 @@ class Cubic(BalanceStatic):
     explanation = ("The balance gets a term in the cube of the quantity: small near zero, steep at the largest "
                    "values.")
     signature = "a residual at the quantity's largest values on the large runs, growing as its cube."
+    #: the share of the quantity's span S the runs may reach (assumed: a rig whose valve opens to 8.6 of its rated
+    #: 25 L/min, 0.34): the size, the term at S, must hold the largest term there (BalancePlace.out_span) where
+    #: they do, (1 / REACH)^3 = 27 times it
+    REACH = 1.0 / 3.0
+
+    @classmethod
+    def kind_params(cls, place: BalancePlace) -> tuple:
+        """The size ``c``, the term at one span ``S``: up to the largest term there at a third of the span
+        (27 times :attr:`BalancePlace.out_span`), typically 9 times the other kinds' (a term of their typical size
+        at a third of the span)."""
+        (c,) = super().kind_params(place)
+        m = round(cls.REACH ** -3)
+        return (Param("c", c.unit, 0.0, (m * c.bounds[0], m * c.bounds[1]),
+                      f"the term's size at one span S, {place.out_unit} (signed; assumed range: +-{m:g} x "
+                      f"{place.out_span:g} {place.out_unit}, the largest missing term there the place describes, "
+                      "BalancePlace.out_span, reached at a third of the span)",
+                      typical=(m / 3.0 * c.typical[0], m / 3.0 * c.typical[1])),)
 
     @classmethod
     def in_words(cls, params: dict, ci: dict | None = None) -> str:

@@ -244,3 +244,28 @@ def test_noise_score_gate_as_the_diagnosis_applies_it(share):
     before, after = _removing(share)
     e = D.Entry("x", {}, 0.0, F.score_db(before, after, 1), "", after, F.beats_noise(before, after, 1))
     assert e.beats_noise == (share > 0.1)
+
+
+def test_a_refit_keeps_the_range_its_screen_was_widened_to(monkeypatch):
+    """A screen that ran into its size's fit range is fitted again over a wider one (``_widen``); the refit with the
+    model's numbers must fit over that wider range, not the default one it ran into (else it stops at the same end);
+    parameters the screen did not widen keep their default ranges."""
+    from types import SimpleNamespace as NS
+
+    name = "aug_beyond_supply"
+    own = F.own_params(name)
+    wide = [F.FreeParam(fp.effect, fp.name, 2.5 * fp.lo, 2.5 * fp.hi, fp.log, fp.step) if fp.name == "c" else fp
+            for fp in own]
+    model = F.ModelSpec(effects={name: {"c": -2.6e6, "k": 1.2e-4}})
+    seen = {}
+
+    def fake_fit(rep, free, start, fixed=None, **kw):
+        seen["free"] = {fp.name: (fp.lo, fp.hi) for fp in free if fp.effect == name}
+        return NS(cost=0.5, model=fixed, free=free)
+
+    monkeypatch.setattr(D, "fit", fake_fit)
+    D.refine_candidate(None, name, NS(cost=1.0, model=model, free=wide), NS(), {})
+    by = {fp.name: fp for fp in wide}
+    assert seen["free"]["c"] == (by["c"].lo, by["c"].hi)
+    assert seen["free"]["k"] == (by["k"].lo, by["k"].hi)
+    assert seen["free"]["c"][1] == pytest.approx(2.5 * next(fp.hi for fp in own if fp.name == "c"))

@@ -764,6 +764,7 @@ def test_terms_at_a_balance_are_screened_on_the_recalibrated_baseline_too_past_t
         return NS(cost=1.0 if base is null else 1.9)
 
     monkeypatch.setattr(states, "screen_candidate", screen)
+    monkeypatch.setattr(states, "_sane", lambda rep, f, name: (f, None))
     tried = []
     bases = [(final, None, False), (null, ["external_leakage", "valve_null_bias"], True)]
     got = states._screen_all(None, None, final, None, ["aug_prop_chamber_a", "aug_prop_chamber_b", "aug_lag_coil"],
@@ -793,4 +794,17 @@ def test_a_term_the_library_stood_in_for_is_found_on_the_recalibrated_baseline_i
     assert rec["kept"] == "aug_prop_chamber_a" and rec["in_place_of"] == ["external_leakage"], rec
     assert set(fit.model.effects) == {"aug_prop_chamber_a"}
     assert rec["params"]["c"] == pytest.approx(-3.3e-6, rel=0.05)
+    assert rec["residual_x_noise_all_after"] < 1.5 < rec["residual_x_noise_all_before"]
+
+
+def test_a_term_beyond_its_fit_range_is_screened_again_over_a_wider_one_and_kept_with_its_size():
+    """A campaign simulated with a supply pressure that drops beyond 7.5 L/min of the valve's opening by 26 bar per
+    25 L/min (the package's synthetic writer; drawn case p5's size), 2.2 times the end of the size's fit range
+    (+-12 bar): the screen runs into that end, is fitted again with the range widened toward the bounds (+-30 bar),
+    and the refit keeps the wider range: the term is kept with its size and break."""
+    s, null = _search({"aug_beyond_supply": {"c": -2.6e6, "k": 7.5 / 60000.0}}, 3312)
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=["aug_beyond_supply"], trigger=0.0)
+    assert rec["kept"] == "aug_beyond_supply", rec
+    assert rec["params"]["c"] == pytest.approx(-2.6e6, rel=0.1)
+    assert rec["params"]["k"] == pytest.approx(7.5 / 60000.0, rel=0.1)
     assert rec["residual_x_noise_all_after"] < 1.5 < rec["residual_x_noise_all_before"]

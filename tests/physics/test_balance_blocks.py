@@ -236,3 +236,18 @@ def test_a_simpler_kind_nested_in_a_piecewise_linear_term_is_found_in_it():
     c = cubic.nearest(w, t)["c"]
     assert np.sum((cubic.term(w, {"c": c}) - t) ** 2) <= min(
         np.sum((cubic.term(w, {"c": c * f}) - t) ** 2) for f in (0.9, 1.1))
+
+
+def test_a_cubic_term_holds_the_largest_term_of_its_place_where_the_runs_reach_a_third_of_the_span():
+    """The cubic's size is its term at the span S: (S / (S/3))^3 = 27 times a term reached at a third of it, so its
+    bounds are 27 times the place's largest term (a return pressure rising 2.9 bar at 8.6 of 25 L/min needs 71 bar
+    at S: drawn case d03); the other kinds' sizes keep the place's."""
+    from ehas_env.physics.effects import get_effect
+
+    for place in ("return", "piston_velocity", "chamber_a"):
+        cubic, prop = get_effect(f"aug_cubic_{place}"), get_effect(f"aug_prop_{place}")
+        span = cubic.balance_place.out_span
+        assert cubic.param("c").bounds == pytest.approx((-27.0 * span, 27.0 * span))
+        assert prop.param("c").bounds == pytest.approx((-span, span))
+        third = cubic.balance_place.q_span / 3.0
+        assert cubic.term([third], {"c": cubic.param("c").bounds[1]})[0] == pytest.approx(span)
