@@ -154,11 +154,51 @@ def rivals_of(effect: str) -> list[str]:
     return sorted(n for n in out if n in REGISTRY)
 
 
+def kinds_at_its_balances(effect: str) -> list[str]:
+    """The static kinds at the balances where the structural hypothesis ``effect`` puts a term: every kind of
+    :mod:`ehas_env.physics.balance_blocks` at each of those balances' places ([] for an effect that is no
+    structural hypothesis, or one that is itself such a kind: the states stage compared the kinds at its place).
+
+    A hypothesis is one law written for one place; a term of another kind at the same balance (a drag that sets in
+    beyond a speed where a drag grows with the speed's square) fits the same place's residual, and which of them
+    the logs prefer is theirs to say, not the list of hypotheses'.
+
+    Parameters
+    ----------
+    effect : str
+        An effect of the registry.
+
+    Returns
+    -------
+    list of str
+        Registered effect names, in :func:`~ehas_env.physics.balance_blocks.balance_blocks` order.
+
+    Examples
+    --------
+    >>> kinds_at_its_balances("hyp_quadratic_drag")[:3]
+    ['aug_const_crank_rate', 'aug_prop_crank_rate', 'aug_beyond_crank_rate']
+    >>> kinds_at_its_balances("viscous_friction"), kinds_at_its_balances("aug_beyond_crank_rate")
+    ([], [])
+    """
+    from ehas_env.physics.balance_blocks import balance_blocks
+
+    cls = REGISTRY.get(effect)
+    if cls is None or cls.kind != "hypothesis" or getattr(cls, "balance_place", None) is not None:
+        return []
+    places = set(cls.terms())
+    return [n for n in balance_blocks() if REGISTRY[n].balance_place.place in places]
+
+
 def why_confused(a: str, b: str) -> str:
     """Why ``a`` and ``b`` can look alike (the reason of :data:`CONFUSABLE`, else the effect files' words)."""
     reason = CONFUSABLE.get(frozenset({a, b}))
     if reason:
         return reason
+    kind = next((n for n in (a, b) if n in kinds_at_its_balances(b if n == a else a)), None)
+    if kind is not None:  # a kind at a balance where the other, a structural hypothesis, puts its term
+        place = get_effect(kind).balance_place
+        return (f"{get_effect(a).title} and {get_effect(b).title} are both terms in {place.where}: over the range of "
+                f"{place.words} these runs reach they may fit alike (beyond it their laws part)")
     return f"{get_effect(a).title} and {get_effect(b).title} leave the same signature in these runs"
 
 
@@ -386,7 +426,7 @@ def find_alternatives(res, fit_null, fit_candidate, say=None) -> list[Alternativ
     out: dict[tuple, Alternative] = {}
     for effect in effects:
         rest = {n: dict(p) for n, p in effects.items() if n != effect}
-        rivals = [r for r in rivals_of(effect) if r not in effects]
+        rivals = [r for r in rivals_of(effect) + kinds_at_its_balances(effect) if r not in effects]
         null = None
         for r in rivals:
             if null is None:

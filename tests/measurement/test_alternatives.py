@@ -18,7 +18,7 @@ import pytest
 
 from ehas_env.diagnosis.alternatives import (CONFUSABLE, cluster_differences, resolvable_db, rivals_of,
                                                 alternatives_text)
-from ehas_env.physics.effects import REGISTRY
+from ehas_env.physics.effects import REGISTRY, get_effect
 
 
 def test_every_confusable_pair_names_registered_effects_and_is_symmetric():
@@ -292,3 +292,29 @@ def test_a_pair_no_run_decides_alone_gets_the_plans_other_runs():
     strong = [cand("s0", 0.0, 6.0), cand("s1", 0.0, 2.0)]
     assert [c.name for c in choose(strong, [(0, 2)])] == ["s0"]  # one run decides it alone
     assert [c.name for c in choose([cand("x", 0.2)], [(0, 1)])] == []  # nothing worth logging
+
+
+def test_a_hypothesis_at_a_balance_is_compared_with_every_kind_of_term_at_that_balance(monkeypatch):
+    """A structural hypothesis kept (a drag growing with the crank rate's square) is one law written for one place:
+    each static kind at that balance (:mod:`ehas_env.physics.balance_blocks`: a term beyond a threshold of the crank
+    rate, a saturating one ...) is fitted in its place, whatever the hand-written lists of rivals say; a library
+    effect and a kind itself get no such list."""
+    from types import SimpleNamespace as NS
+
+    from ehas_env.diagnosis import alternatives as A
+
+    kinds = A.kinds_at_its_balances("hyp_quadratic_drag")
+    assert {"aug_beyond_crank_rate", "aug_saturating_crank_rate", "aug_cubic_crank_rate"} <= set(kinds)
+    assert all(get_effect(n).balance_place.place == "crank_torque" for n in kinds)
+    assert A.kinds_at_its_balances("viscous_friction") == [] == A.kinds_at_its_balances("aug_knee_crank_rate")
+    fitted = []
+    monkeypatch.setattr(A, "compare", lambda rep, final, effect, alt, name, full=None, sims=None: NS(
+        score_difference_db=0.0, name=name, in_place_of=effect))
+    full = NS(simulate=lambda model: None)
+    res = NS(train=None, fit_train=NS(model=NS(effects={"hyp_quadratic_drag": {"T_10": 5.0}})), full=full,
+             sims_all=None, rounds=[])
+    A.find_alternatives(res, lambda rep, rest: NS(), lambda rep, name, null, rest: fitted.append(name) or NS(
+        model=None))
+    assert set(kinds) <= set(fitted) and "viscous_friction" in fitted  # the listed rival is still fitted
+    words = A.why_confused("hyp_quadratic_drag", "aug_beyond_crank_rate")
+    assert "both terms in the crank torque balance" in words and "crank rate" in words
