@@ -39,7 +39,7 @@ import re
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ehas_env.physics.effects.augmentation import Augmentation, kind_at
+from ehas_env.physics.effects.augmentation import Augmentation, kind_at, term_functions
 from ehas_env.physics.effects.augmentation import fmt_interval as _fmt
 from ehas_env.physics.effects.base import Param
 from ehas_env.physics.layout import SENSED
@@ -770,90 +770,14 @@ class Hose(Augmentation):
         "A hose between the valve and a chamber is a volume and a resistance: the valve meters against the "
         "line's pressure, the chamber fills through the line's laminar resistance R. At rest the line's pressure "
         "is the chamber's; moving, it leads it by R q, and the line's volume adds to the chamber's compliance. "
-        "A resistance too small for the integrator's sub-step is raised to the least it resolves (the "
-        "relaxation's time constant R / (beta (1/V_line + 1/V_chamber)) at least 0.6 sub-steps; below, only the "
-        "line's volume acts)."
+        "A hose whose exchange with its chamber the integrator's sub-step does not resolve (R / (beta (1/V_line + "
+        "1/V_chamber)) under 0.6 sub-steps) is taken quasi-static: its drop R q exact, its volume's compliance kept "
+        "(a short line of little resistance does little, as it should)."
     )
     signature = (
         "a pressure residual on one side proportional to that side's flow (the line's drop R q), the valve's "
         "flow lower where the line's pressure is nearer the supply; a softer hydraulic spring on that side."
     )
-
-    @classmethod
-    def adjust(cls, slots, substep_s):
-        key = f"{cls.name}.R_line"
-        if slots.get(f"{cls.name}.on") and key in slots:
-            # the relaxation's time constant R / (beta (1 / V_line + 1 / V_chamber)), the chamber at mid-stroke
-            v_chamber = slots["area"] * slots["half_stroke"] + slots["dead_volume"]
-            stiff = slots["beta"] * (1.0 / slots[f"{cls.name}.V_line"] + 1.0 / v_chamber)
-            slots[key] = max(slots[key], MIN_STEPS_PER_TAU * substep_s * stiff)
-
-
-class HoseA(Hose):
-    """The hose at chamber A."""
-
-    name = "aug_hose_a"
-    title = "volume with a resistance in the line to chamber A (hose)"
-    where = "the line from the valve to chamber A"
-    states = (("p_line", "Pa", 0.5 * SUPPLY_PRESSURE),)
-
-    @staticmethod
-    def state_rates(qc, ps, pa, beta, rated_drop, p_line, V_line, R_line):
-        d = ps - p_line if qc >= 0.0 else p_line  # the land metering into A (ehas_env.physics.baseline.land_flows)
-        q_valve = qc * math.copysign(math.sqrt(abs(d) / (0.5 * rated_drop)), d)
-        return beta / V_line * (q_valve - (p_line - pa) / R_line)
-
-    @staticmethod
-    def chamber_flows(q_a, pa, p_line, R_line):
-        return (p_line - pa) / R_line - q_a, 0.0
-
-    @staticmethod
-    def port_pressures(pa, pb, p_line):
-        return p_line, pb
-
-
-class HoseB(Hose):
-    """The hose at chamber B."""
-
-    name = "aug_hose_b"
-    title = "volume with a resistance in the line to chamber B (hose)"
-    where = "the line from the valve to chamber B"
-    states = (("p_line", "Pa", 0.5 * SUPPLY_PRESSURE),)
-
-    @staticmethod
-    def state_rates(qc, ps, pb, beta, rated_drop, p_line, V_line, R_line):
-        d = p_line if qc >= 0.0 else ps - p_line  # the land metering into B (ehas_env.physics.baseline.land_flows)
-        q_valve = -qc * math.copysign(math.sqrt(abs(d) / (0.5 * rated_drop)), d)
-        return beta / V_line * (q_valve - (p_line - pb) / R_line)
-
-    @staticmethod
-    def chamber_flows(q_b, pb, p_line, R_line):
-        return 0.0, (p_line - pb) / R_line - q_b
-
-    @staticmethod
-    def port_pressures(pa, pb, p_line):
-        return pa, p_line
-
-
-class HoseAB(Hose):
-    """A hose in each line, alike (the usual pair of hoses from a valve manifold to the cylinder's ports): one volume
-    and one resistance, in a form that stays integrable however small the hose.
-
-    Each land meters against its line's pressure (the flow meter at the valve's port reads that flow,
-    :meth:`port_pressures`), and the line drains into its chamber through R: V_line / beta p_line' = q_land -
-    (p_line - p) / R.  A hose whose exchange with its chamber, R / (beta (1/V_line + 1/V_chamber)), the integrator
-    does not resolve (R below ``R_exact``) is taken quasi-static instead: the land's flow q solves
-    q = q_c sgn(d) sqrt(|d| / (dp_n / 2)) with d its drop at p_line = p + R q (a quadratic in sqrt(|d|), in closed
-    form), the line's pressure follows p + R q within ``T_min`` (a sub-step), and the chamber receives q less what
-    the line's volume stores, through a state that follows it within ``T_min`` so that the chamber's pressure never
-    sees the stiff 1 / R -- the drop R q exact, the volume's compliance kept.  (The single-line hoses
-    :class:`HoseA`, :class:`HoseB` raise such a resistance to the least resolved instead.)"""
-
-    name = "aug_hose_ab"
-    title = "volume with a resistance in each line, A and B (a pair of hoses)"
-    where = "each line from the valve to its chamber"
-    states = (("p_line_a", "Pa", 0.5 * SUPPLY_PRESSURE), ("p_line_b", "Pa", 0.5 * SUPPLY_PRESSURE),
-              ("q_in_a", "m^3/s", 0.0), ("q_in_b", "m^3/s", 0.0))
     constants = (
         Param("T_min", "s", 1.0e-4, (1.0e-7, 1.0),
               "time constant of the quasi-static hose's states: the integrator's sub-step (times sqrt(V_line / "
@@ -862,46 +786,6 @@ class HoseAB(Hose):
               "least resistance the line's own balance is integrated with (below it, quasi-static): the "
               "relaxation R / (beta (1/V_line + 1/V_chamber)) at least 0.6 sub-steps, set when the model is built"),
     )
-
-    @staticmethod
-    def state_rates(qc, ps, pa, pb, beta, rated_drop, p_line_a, p_line_b, q_in_a, q_in_b, V_line, R_line, T_min,
-                    R_exact):
-        cap = V_line / beta
-        if R_line >= R_exact:
-            # a hose the sub-step resolves: the line's own balance, the lands metering at the lines' pressures
-            # (ehas_env.physics.baseline.land_flows); the chamber's inflow (p_line - p) / R (chamber_flows)
-            da = ps - p_line_a if qc >= 0.0 else p_line_a
-            db = p_line_b if qc >= 0.0 else ps - p_line_b
-            q_va = qc * math.copysign(math.sqrt(abs(da) / (0.5 * rated_drop)), da)
-            q_vb = -qc * math.copysign(math.sqrt(abs(db) / (0.5 * rated_drop)), db)
-            in_a, in_b = (p_line_a - pa) / R_line, (p_line_b - pb) / R_line
-            return (q_va - in_a) / cap, (q_vb - in_b) / cap, -q_in_a / T_min, -q_in_b / T_min
-        else:
-            # quasi-static: |q| = 2 |d0| / (R + sqrt(R^2 + 4 |d0| / c2)) solves q^2 = c2 (d0 - R q), d0 the land's
-            # drop at the chamber's pressure, c2 = qc^2 / (dp_n / 2); the line follows p + R q within T_min
-            c2 = qc * qc / (0.5 * rated_drop)
-            d0a = ps - pa if qc >= 0.0 else pa
-            d0b = pb if qc >= 0.0 else ps - pb
-            ma = mb = 0.0
-            if c2 > 0.0:
-                ma = math.copysign(2.0 * abs(d0a) / (R_line + math.sqrt(R_line * R_line + 4.0 * abs(d0a) / c2)), d0a)
-                mb = math.copysign(2.0 * abs(d0b) / (R_line + math.sqrt(R_line * R_line + 4.0 * abs(d0b) / c2)), d0b)
-            qa = ma if qc >= 0.0 else -ma
-            qb = -mb if qc >= 0.0 else mb
-            rate_a = (pa + R_line * qa - p_line_a) / T_min
-            rate_b = (pb + R_line * qb - p_line_b) / T_min
-            in_a, in_b = qa - cap * rate_a, qb - cap * rate_b
-        return rate_a, rate_b, (in_a - q_in_a) / T_min, (in_b - q_in_b) / T_min
-
-    @staticmethod
-    def chamber_flows(q_a, q_b, pa, pb, p_line_a, p_line_b, q_in_a, q_in_b, R_line, R_exact):
-        if R_line >= R_exact:
-            return (p_line_a - pa) / R_line - q_a, (p_line_b - pb) / R_line - q_b
-        return q_in_a - q_a, q_in_b - q_b
-
-    @staticmethod
-    def port_pressures(pa, pb, p_line_a, p_line_b):
-        return p_line_a, p_line_b
 
     @classmethod
     def adjust(cls, slots, substep_s):
@@ -913,6 +797,79 @@ class HoseAB(Hose):
             slots[f"{cls.name}.T_min"] = substep_s * max(1.0, math.sqrt(v_line / v_chamber))
             slots[f"{cls.name}.R_exact"] = (MIN_STEPS_PER_TAU * substep_s * slots["beta"]
                                             * (1.0 / v_line + 1.0 / v_chamber))
+
+
+#: each line's words in a hose's source: its chamber's pressure, when its land meters from the supply, the sign of
+#: its flow against the valve's no-load flow q_c (:func:`ehas_env.physics.baseline.land_flows`)
+_LINE = {"a": ("pa", "qc >= 0.0", ""), "b": ("pb", "qc < 0.0", "-")}
+
+
+def _hose_texts(sides: str) -> list[str]:
+    """The source of the terms of a hose in each line of ``sides`` (``"a"``, ``"b"`` or ``"ab"``): one law, written
+    once for any set of lines (the compiled model copies a term's text).
+
+    Each land meters against its line's pressure, and the line drains into its chamber through R: V_line / beta
+    p_line' = q_land - (p_line - p) / R.  A hose whose exchange with its chamber, R / (beta (1/V_line +
+    1/V_chamber)), the integrator does not resolve (R below ``R_exact``) is taken quasi-static instead: the land's
+    flow q solves q = q_c sgn(d) sqrt(|d| / (dp_n / 2)) with d its drop at p_line = p + R q (a quadratic in
+    sqrt(|d|), in closed form), the line's pressure follows p + R q within ``T_min`` (a sub-step), and the chamber
+    receives q less what the line's volume stores, through a state that follows it within ``T_min`` so that the
+    chamber's pressure never sees the stiff 1 / R -- the drop R q exact, the volume's compliance kept.
+    """
+    lines = [(x, *_LINE[x]) for x in sides]
+    states = [f"p_line_{x}" for x in sides] + [f"q_in_{x}" for x in sides]
+    exact, quasi = [], []
+    for x, p, supplied, sign in lines:
+        exact += [f"        d{x} = ps - p_line_{x} if {supplied} else p_line_{x}",
+                  f"        q_v{x} = {sign}qc * math.copysign(math.sqrt(abs(d{x}) / (0.5 * rated_drop)), d{x})",
+                  f"        in_{x} = (p_line_{x} - {p}) / R_line"]
+        quasi += [f"        d0{x} = ps - {p} if {supplied} else {p}",
+                  f"        m{x} = 0.0 if c2 <= 0.0 else math.copysign(2.0 * abs(d0{x}) / (R_line + math.sqrt(R_line * "
+                  f"R_line + 4.0 * abs(d0{x}) / c2)), d0{x})",
+                  f"        q{x} = {sign}(m{x} if qc >= 0.0 else -m{x})",
+                  f"        rate_{x} = ({p} + R_line * q{x} - p_line_{x}) / T_min",
+                  f"        in_{x} = q{x} - cap * rate_{x}"]
+    rates = ", ".join
+    state_rates = "\n".join(
+        [f"def state_rates(qc, ps, pa, pb, beta, rated_drop, {', '.join(states)}, V_line, R_line, T_min, R_exact):",
+         "    cap = V_line / beta",
+         "    if R_line >= R_exact:"] + exact +
+        [f"        return {rates([f'(q_v{x} - in_{x}) / cap' for x in sides] + [f'-q_in_{x} / T_min' for x in sides])}",
+         "    else:",
+         "        c2 = qc * qc / (0.5 * rated_drop)"] + quasi +
+        [f"        return {rates([f'rate_{x}' for x in sides] + [f'(in_{x} - q_in_{x}) / T_min' for x in sides])}"])
+    flows = {x: (f"(p_line_{x} - {p}) / R_line - q_{x}", f"q_in_{x} - q_{x}") for x, p, _, _ in lines}
+    chamber_flows = "\n".join(
+        [f"def chamber_flows(q_a, q_b, pa, pb, {', '.join(states)}, R_line, R_exact):",
+         "    if R_line >= R_exact:",
+         f"        return {flows.get('a', ('0.0',))[0]}, {flows.get('b', ('0.0',))[0]}",
+         f"    return {flows.get('a', (None, '0.0'))[1]}, {flows.get('b', (None, '0.0'))[1]}"])
+    port_pressures = "\n".join(
+        [f"def port_pressures(pa, pb, {', '.join(f'p_line_{x}' for x in sides)}):",
+         f"    return {'p_line_a' if 'a' in sides else 'pa'}, {'p_line_b' if 'b' in sides else 'pb'}"])
+    return [t + "\n" for t in (state_rates, chamber_flows, port_pressures)]
+
+
+def _hose(sides: str, name: str, title: str, where: str, doc: str) -> type:
+    """The hose effect ``name`` in the lines ``sides`` (:func:`_hose_texts`)."""
+    body = {"name": name, "title": title, "where": where, "__doc__": doc, "__module__": __name__,
+            "__qualname__": f"Hose{sides.upper()}",
+            "states": tuple((f"p_line_{x}", "Pa", 0.5 * SUPPLY_PRESSURE) for x in sides)
+            + tuple((f"q_in_{x}", "m^3/s", 0.0) for x in sides)}
+    for text in _hose_texts(sides):
+        body.update({k: staticmethod(v) for k, v in term_functions(f"{name}.{text[4:text.index('(')]}",
+                                                                    text).items()})
+    return type(Hose)(body["__qualname__"], (Hose,), body)
+
+
+HoseA = _hose("a", "aug_hose_a", "volume with a resistance in the line to chamber A (hose)",
+              "the line from the valve to chamber A", "The hose at chamber A.")
+HoseB = _hose("b", "aug_hose_b", "volume with a resistance in the line to chamber B (hose)",
+              "the line from the valve to chamber B", "The hose at chamber B.")
+HoseAB = _hose("ab", "aug_hose_ab", "volume with a resistance in each line, A and B (a pair of hoses)",
+               "each line from the valve to its chamber",
+               "A hose in each line, alike (the usual pair of hoses from a valve manifold to the cylinder's ports): "
+               "one volume and one resistance.")
 
 
 #: play in a joint: the library's effect (rod-crank joint), tried by the state stage with the others

@@ -80,7 +80,7 @@ def test_hose_steady_drop_is_R_times_the_flow():
     i_mA = 4.0
     s = plant.initial_state(0.0)
     r = plant.simulate(np.full(4000, i_mA))
-    k = plant.model.STATE_NAMES.index("aug_hose_a.p_line")
+    k = plant.model.STATE_NAMES.index("aug_hose_a.p_line_a")
     # the final state: run again, returning it (simulate logs outputs only): integrate with the compiled driver
     from ehas_env.physics import layout as K
     out = np.zeros((4000, K.N_OUT))
@@ -426,3 +426,17 @@ def test_a_flow_meter_lag_is_the_first_order_filter_of_the_metered_flow():
     moved = np.max(np.abs(lagged.flow_lpm - u))
     assert moved > 0.2  # L/min: the lag shows
     assert np.max(np.abs(lagged.flow_lpm - want)) < 0.03 * moved
+
+
+@pytest.mark.parametrize("hose", ["aug_hose_a", "aug_hose_b", "aug_hose_ab"])
+def test_a_short_line_of_little_resistance_does_little(hose):
+    """A 5 cm^3 line of 0.01 bar/(L/min) (an exchange with its chamber far faster than the integrator's sub-step):
+    moving the piston at up to a few L/min its drop R q is under 0.1 bar and its volume is a few per cent of the
+    chamber's, so the chambers' pressures stay within a bar of the model without it.  (A hose whose resistance was
+    raised to what the sub-step resolves, 2 bar/(L/min) here, made it a restrictor of tens of bar.)"""
+    current = 3.0 * np.sin(2.0 * np.pi * 2.0 * np.arange(1000) * 1e-3)
+    plain = Plant(disc_sets=1).simulate(current)
+    short = Plant(disc_sets=1, effects={hose: {"V_line": 5.0, "R_line": 0.01}}).simulate(current)
+    assert np.max(np.abs(plain.flow_lpm)) > 2.0  # the valve does pass oil
+    assert np.max(np.abs(short.p_a_bar - plain.p_a_bar)) < 1.0
+    assert np.max(np.abs(short.p_b_bar - plain.p_b_bar)) < 1.0
