@@ -30,7 +30,7 @@ from . import acceptance as acc
 from . import unlisted
 from .grammar import (DB_HIGH, DB_LOW, KINDS, N_PAIRS, N_SINGLES, PLACES, SEED, Screen, counts, describe,
                       drawn_cases)
-from .judge import block_items, honesty, judge_blocks
+from .judge import alternatives_hold, block_items, honesty, judge_blocks
 from .unlisted import _atomic, _f, _pct, baseline_residual
 
 #: issue 43's thresholds (point 5): right place and kind, closed, weak terms, models worse than the book's
@@ -57,7 +57,7 @@ def run(case: dict, work: Path, out: Path, caps: dict) -> dict:
     final = acc._num(rec.get("residual_after"))
     if final is None:
         final = acc._num(diag.get("residual_x_noise"))
-    rec["place_kind"] = judge_blocks(case["blocks"], block_items(diag))
+    rec["place_kind"] = _judged(case["blocks"], diag)
     rec["honesty"] = honesty(diag, base, final)
     rec["unexplained_text"] = ((diag.get("unexplained") or {}).get("no_term")
                                or (diag.get("unexplained") or {}).get("text"))
@@ -65,9 +65,16 @@ def run(case: dict, work: Path, out: Path, caps: dict) -> dict:
     return rec
 
 
+def _judged(blocks: list[dict], diag: dict) -> dict:
+    """:func:`.judge.judge_blocks` of the diagnosis, with ``alternatives``: whether each block missed is among what
+    the logs cannot part from what was named (:func:`.judge.alternatives_hold`)."""
+    j = judge_blocks(blocks, block_items(diag))
+    return {**j, "alternatives": alternatives_hold(blocks, diag, j["per_block"])}
+
+
 def rejudge(rec: dict, out: Path) -> dict:
     """The record judged again from its stored diagnosis by the judge as it is now (:func:`.unlisted.rejudge`)."""
-    return unlisted.rejudge(rec, out, lambda r, diag: judge_blocks(r["blocks"], block_items(diag)))
+    return unlisted.rejudge(rec, out, lambda r, diag: _judged(r["blocks"], diag))
 
 
 def summarise(recs: list[dict]) -> dict:
@@ -76,6 +83,11 @@ def summarise(recs: list[dict]) -> dict:
     s = unlisted.summarise(recs, THRESHOLDS, per="per_block")
     ok = [r for r in recs if "error" not in r and "place_kind" in r]
     s["by_kind"], s["by_place"] = _by(ok, "kind"), _by(ok, "place")
+    # the explained cases that named a stand-in: is each block missed among the alternatives the logs cannot part?
+    stand = [r for r in ok if r.get("verdict") == "explained" and r["place_kind"].get("alternatives")]
+    s["explained_by_stand_in"] = len(stand)
+    s["stand_in_lists_truth"] = sum(1 for r in stand
+                                    if all(v["listed"] for v in r["place_kind"]["alternatives"].values()))
     return s
 
 
@@ -124,6 +136,9 @@ def readme(recs: list[dict], summ: dict, command: str, seed: int = SEED, full: l
          "(threshold 0).",
          f"* Recommended models worse than the book model (a kept hypothesis that leaves the all-data residual above "
          f"the bare library model's): {summ['worsening_hypotheses']} (threshold 0).",
+         f"* Explained with a block missed (a stand-in named): {summ['explained_by_stand_in']}; the missed blocks' "
+         f"kind at their place among the alternatives the logs cannot part from what was named (issue 42): "
+         f"{summ['stand_in_lists_truth']}/{summ['explained_by_stand_in']} (`judge.alternatives_hold`).",
          f"* Cases that failed to run: {summ['errors']}.", "",
          "How it is judged (`tests/independent_rig/judge.py`, `judge_blocks`, `honesty`): every item the diagnosis "
          "names in words (kept library effects, hypotheses and states, the proposal's `named` forms; bare proposal "

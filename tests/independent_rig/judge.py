@@ -606,6 +606,35 @@ def block_items(diag: dict) -> list[dict]:
             for it in worded_items(diag)]
 
 
+def alternatives_hold(blocks: list[dict], diag: dict, per: dict) -> dict:
+    """For each drawn block the diagnosis did not name right (``per``: :func:`judge_blocks`' ``per_block``): is its
+    kind at its place among what the logs cannot part from what was named -- the alternatives stage's ``within``
+    entries and the states stage's ``within`` blocks (issue 42: "a stand-in that explains one lists the truth's kind
+    among its alternatives where the logs cannot part them")?
+
+    Returns
+    -------
+    dict
+        {"kind@place": {"listed": bool, "alternatives": [names]}} over the blocks not named right.
+    """
+    names = [a.get("name") for a in diag.get("alternatives") or [] if isinstance(a, dict) and a.get("within")]
+    for rec in [diag.get("state")] + list(diag.get("states") or []):
+        if isinstance(rec, dict):
+            names += [w.get("effect") for w in rec.get("within") or [] if isinstance(w, dict)]
+    items = [{"label": n, "kinds": sorted(LIBRARY_KIND.get(n, {"unknown"})), "places": sorted(LIBRARY_PLACE.get(n, ()))}
+             for n in dict.fromkeys(n for n in names if n)]
+    items = [{**it, "block_kinds": block_kinds_of(it), "grammar_places": grammar_places_of(it)} for it in items]
+    out = {}
+    for b in blocks:
+        key = f"{b['kind']}@{b['place']}"
+        if per[key]["right_kind"] and per[key]["right_place"]:
+            continue
+        acc = accepted_block_kinds(b["kind"])
+        out[key] = {"listed": any(acc & it["block_kinds"] and b["place"] in it["grammar_places"] for it in items),
+                    "alternatives": [it["label"] for it in items]}
+    return out
+
+
 def accepted_block_kinds(kind: str) -> set:
     """The block kinds a diagnosis may name a block of ``kind`` as and be right: its own and its ``accept``."""
     return {kind, *_grammar().KINDS[kind].accept}

@@ -253,3 +253,26 @@ def test_a_stand_in_is_judged_by_whether_the_truths_kind_is_among_its_alternativ
     assert stand_in(rec([]), "rest", diag(["viscous_friction"])) is None
     assert stand_in(rec([]), "rest", diag(["bulk_modulus"], "unexplained")) is None
     assert stand_in({"effects": {}}, "rest", diag(["bulk_modulus"])) is None  # a clean campaign
+
+
+def test_a_drawn_block_missed_is_listed_when_its_kind_at_its_place_is_among_the_alternatives():
+    """The drawn set's form of the same question (``judge.alternatives_hold``): a term beyond a threshold of the crank
+    rate hidden, a quadratic drag named; listed when the alternatives the logs cannot part from it (the alternatives
+    stage's ``within`` entries, the states stage's ``within`` blocks) hold a term beyond a threshold at the crank
+    torque; not when they hold only other kinds, or the right kind at another balance; a block named right is not
+    asked."""
+    from independent_rig.judge import alternatives_hold, block_items, judge_blocks
+
+    blocks = [{"place": "crank_torque", "kind": "dead_zone"}]
+
+    def held(alts, within=(), kept=("hyp_quadratic_drag",)):
+        diag = {"verdict": "explained", "model": {"effects": {k: {} for k in kept}},
+                "alternatives": [{"name": a, "within": True} for a in alts],
+                "state": {"within": [{"effect": w} for w in within]}}
+        return alternatives_hold(blocks, diag, judge_blocks(blocks, block_items(diag))["per_block"])
+
+    assert held(["aug_cubic_crank_rate", "aug_beyond_crank_rate"])["dead_zone@crank_torque"]["listed"]
+    assert held([], within=["aug_beyond_crank_rate"])["dead_zone@crank_torque"]["listed"]
+    assert not held(["aug_cubic_crank_rate"])["dead_zone@crank_torque"]["listed"]
+    assert not held(["aug_beyond_chamber_a"])["dead_zone@crank_torque"]["listed"]
+    assert held(["aug_cubic_crank_rate"], kept=("aug_beyond_crank_rate",)) == {}
