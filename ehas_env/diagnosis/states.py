@@ -367,7 +367,8 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
     """Each augmentation of ``names`` screened on each (model, effects it set aside, proxy only) of ``bases``, those
     at a quiet reading skipped: {(name, the effects set aside or None): (screened fit, its base)}; an entry per name
     appended to ``tried`` (its cost over the final model's, or why it was skipped).  On a base marked ``proxy
-    only`` only the terms at a balance are screened, and only past their linearisation's bar (one replay each)."""
+    only`` the blocks at a signal (the followers and reading blocks, 56 screens) are not screened: the terms at a
+    balance are, past their linearisation's bar (one replay each), and the links, hoses and play (6)."""
     screened = {}
     for k, name in enumerate(names, 1):
         cls = get_effect(name)
@@ -381,7 +382,7 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
         hint, start_at = _scan_hint(full, cls, sims0)
         proxy = {}
         for base, dropped, proxy_only in bases:
-            if name in base.model.effects or (proxy_only and getattr(cls, "balance_place", None) is None):
+            if name in base.model.effects or (proxy_only and getattr(cls, "signal_place", None) is not None):
                 continue
             if getattr(cls, "balance_place", None) is not None:  # linear in its size: its linearisation first
                 proxy[None if dropped is None else tuple(dropped)] = share = linear_share(rep, base, name, start_at)
@@ -682,9 +683,11 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
         kept there replaces the hypotheses (``in_place_of``).
     null : Fit, optional
         The recalibrated baseline the search started from (beta and K fitted, no effect): the terms at a balance are
-        screened on it too, past their linearisation's bar (:func:`linear_share`, one replay each), and one kept
-        there replaces every effect kept since (``in_place_of``): the library's effects may have stood in for a
-        block the library lacks (a leak from chamber A alone, held by a leak from both chambers and a valve bias).
+        screened on it too, past their linearisation's bar (:func:`linear_share`, one replay each), and the links,
+        hoses and play (not the 56 blocks at signals), and one kept there replaces every effect kept since
+        (``in_place_of``): the library's effects may have stood in for a block the library lacks (a leak from
+        chamber A alone, held by a leak from both chambers and a valve bias; a hose at chamber B, held by a softer
+        oil).
 
     Returns
     -------
@@ -723,7 +726,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     bases = [(final, None, False)]
     if bare is not None and set(bare.model.effects) != held:
         bases.append((bare, sorted(held - set(bare.model.effects)), False))
-    # ... and, terms at a balance only, on the recalibrated baseline before the library's effects
+    # ... and, but for the blocks at signals, on the recalibrated baseline before the library's effects
     if null is not None and set(null.model.effects) != held and (bare is None or set(bare.model.effects) != set(
             null.model.effects)):
         bases.append((null, sorted(held - set(null.model.effects)), True))

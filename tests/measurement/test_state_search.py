@@ -745,9 +745,9 @@ def test_rivals_not_refitted_are_compared_with_the_screen_the_kept_place_was_cho
 
 
 def test_terms_at_a_balance_are_screened_on_the_recalibrated_baseline_too_past_their_proxy(monkeypatch):
-    """A third base, the recalibrated baseline before the library's effects (proxy only): a term at a balance is
-    screened there when its linearisation passes its bar, under the key of every effect it sets aside; a block with no
-    balance (a lag of the coil) is not screened there at all, and a term below its bar is not screened."""
+    """A third base, the recalibrated baseline before the library's effects: a term at a balance is screened there
+    when its linearisation passes its bar, under the key of every effect it sets aside, a hose in full; a block at a
+    signal (a lag of the coil) is not screened there at all, and a term below its bar is not screened."""
     from types import SimpleNamespace as NS
 
     final = NS(cost=2.0, model=NS(effects={"external_leakage": {}, "valve_null_bias": {}}))
@@ -767,11 +767,13 @@ def test_terms_at_a_balance_are_screened_on_the_recalibrated_baseline_too_past_t
     monkeypatch.setattr(states, "_sane", lambda rep, f, name: (f, None))
     tried = []
     bases = [(final, None, False), (null, ["external_leakage", "valve_null_bias"], True)]
-    got = states._screen_all(None, None, final, None, ["aug_prop_chamber_a", "aug_prop_chamber_b", "aug_lag_coil"],
-                             bases, 0.0, tried, lambda m: None)
+    got = states._screen_all(None, None, final, None, ["aug_prop_chamber_a", "aug_prop_chamber_b", "aug_lag_coil",
+                                                       "aug_hose_b"], bases, 0.0, tried, lambda m: None)
     set_aside = ("external_leakage", "valve_null_bias")
-    assert set(got) == {("aug_prop_chamber_a", set_aside), ("aug_lag_coil", None)}
-    assert screens == [("aug_prop_chamber_a", id(null)), ("aug_lag_coil", id(final))]
+    assert set(got) == {("aug_prop_chamber_a", set_aside), ("aug_lag_coil", None), ("aug_hose_b", None),
+                        ("aug_hose_b", set_aside)}
+    assert screens == [("aug_prop_chamber_a", id(null)), ("aug_lag_coil", id(final)), ("aug_hose_b", id(final)),
+                       ("aug_hose_b", id(null))]
     assert tried[0]["cost_ratio_on_recalibrated_baseline"] == 0.5 and tried[0]["linear_share"] == 0.6
     assert "skipped" in tried[1] and "cost_ratio" in tried[2]
 
@@ -808,3 +810,21 @@ def test_a_term_beyond_its_fit_range_is_screened_again_over_a_wider_one_and_kept
     assert rec["params"]["c"] == pytest.approx(-2.6e6, rel=0.1)
     assert rec["params"]["k"] == pytest.approx(7.5 / 60000.0, rel=0.1)
     assert rec["residual_x_noise_all_after"] < 1.5 < rec["residual_x_noise_all_before"]
+
+
+def test_a_hose_the_librarys_softer_oil_stood_in_for_is_found_on_the_recalibrated_baseline_in_its_place():
+    """A campaign simulated with a hose at chamber B (40 cm^3 behind 0.73 bar/(L/min); drawn case d24's numbers, the
+    package's synthetic writer): the library's softer oil fitted first holds part of its compliance.  Screened on the
+    recalibrated baseline too (no ``bare`` model: no hypothesis was kept), the hose is kept in the oil's place with
+    its volume and resistance."""
+    from ehas_env.diagnosis.candidates import fit_candidate
+
+    s, null = _search({"aug_hose_b": {"V_line": 40.0, "R_line": 0.73}}, 3313)
+    soft = fit_candidate(s.rep, "bulk_modulus", null)
+    assert soft.cost < null.cost
+    fit, rec = state_stage(s.rep, s.full, soft, s.parts, lambda m: None, names=["aug_hose_b"], trigger=0.0, null=null)
+    assert rec["kept"] == "aug_hose_b" and rec["in_place_of"] == ["bulk_modulus"], rec
+    assert "bulk_modulus" not in fit.model.effects
+    assert rec["params"]["V_line"] == pytest.approx(40.0, rel=0.15)
+    assert rec["params"]["R_line"] == pytest.approx(0.73, rel=0.15)
+    assert "cost_ratio_on_recalibrated_baseline" in rec["tried"][0]
