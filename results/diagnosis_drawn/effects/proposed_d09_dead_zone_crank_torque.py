@@ -1,8 +1,8 @@
-"""proposed_d09_dead_zone_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/drA_work/d09_dead_zone@crank_torque/campaign.
+"""proposed_d09_dead_zone_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/drC_work/d09_dead_zone@crank_torque/campaign.
 
 A drag torque on the load grows with the square of its speed: 2.38 N m at 10 rad/s.
 T_10 = 2.381 N m (95 % CI 2.312 to 2.451)
-Residual against what does not repeat: 1.45x -> 1.06x.
+Residual against what does not repeat: 1.45x -> 1.07x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 from ehas_env.physics.effects import Effect, Param
@@ -12,10 +12,10 @@ class ProposedD09DeadZoneCrankTorque(Effect):
     name = "proposed_d09_dead_zone_crank_torque"
     title = "drag torque growing with the square of the crank rate"
     params = (
-        Param("T_10", "N m", 2.38056, (0.0, 2000.0),
+        Param("T_10", "N m", 2.38068, (0.0, 2000.0),
               "drag torque on the crank at 10 rad/s (air or oil drag on the discs, a fan, a damper; assumed "
               "range: up to the torque the actuator gives at a fifth of its stall force)",
-              typical=(1.19028, 4.76112), log_scale=True),
+              typical=(1.19034, 4.76137), log_scale=True),
     )
     main_param = "T_10"
     explanation = (
