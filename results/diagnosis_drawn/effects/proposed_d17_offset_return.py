@@ -1,8 +1,8 @@
-"""proposed_d17_offset_return: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/drX_work/d17_offset@return/campaign.
+"""proposed_d17_offset_return: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/drE_work/d17_offset@return/campaign.
 
 The return line is at 7.44 bar at the valve's return lands (the baseline: 0 bar).
 p_t = 7.444 bar (95 % CI 7.424 to 7.464)
-Residual against what does not repeat: 6.36x -> 1.13x.
+Residual against what does not repeat: 6.36x -> 1.14x.
 Next: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
 import math
@@ -15,7 +15,7 @@ class ProposedD17OffsetReturn(Effect):
     title = "return-line (tank) pressure at the valve"
     valve_side = True  # flow through the metering lands: a meter in line A (and the bench's) reads it
     params = (
-        Param("p_t", "bar", 7.44411, (0.0, 60.0),
+        Param("p_t", "bar", 7.44412, (0.0, 60.0),
               "pressure in the return line at the valve's return lands (assumed: a filter, cooler or long "
               "return hose; the baseline takes 0)",
               typical=(3.72206, 14.8882), log_scale=True, si=1e5),
