@@ -333,7 +333,11 @@ def measured_input_stage(full, rep, final_fit, parts, say=None) -> tuple:
            "residual_x_noise_before": None, "residual_x_noise_after": None, "share_removed": None, "refused": None,
            "validation_before": None, "validation_after": None, "elapsed_s": 0.0, "text": ""}
 
+    trial = []  # (replayer, its copy with the input): the copy's replays are counted on the replayer
+
     def done(f, text):
+        for r, copy in trial:
+            r.n_evals += copy.n_evals
         rec["text"] = text
         rec["elapsed_s"] = round(time.perf_counter() - t0, 2)
         say("  " + text)
@@ -355,6 +359,7 @@ def measured_input_stage(full, rep, final_fit, parts, say=None) -> tuple:
     say(f"{how}: refitting the final model with it as a measured input")
     rec["tried"] = True
     full_in, rep_in = measured(full, (name,)), measured(rep, (name,))
+    trial += [(full, full_in)] + ([(rep, rep_in)] if rep is not full else [])
     before_sims = full.simulate(final_fit.model)
     before = residual_x_noise(full, before_sims, without=(name,))
     start = {(fp.effect, fp.name): _value_of(final_fit.model, fp) for fp in final_fit.free}

@@ -201,7 +201,9 @@ def measured_inputs_stage(s: Search) -> dict:
         return {"skipped": True, "kept": False, "inputs": []}
     f, rec = measured_input_stage(s.full, s.rep, s.current, s.parts, s.say)
     if f is not None:
-        s.full, s.rep = measured(s.full, rec["inputs"]), measured(s.rep, rec["inputs"])
+        full, rep = measured(s.full, rec["inputs"]), measured(s.rep, rec["inputs"])
+        full.n_evals, rep.n_evals = s.full.n_evals, s.rep.n_evals  # the campaign's replays go on being counted
+        s.full, s.rep = full, rep
         sims = s.full.simulate(f.model)
         s.keep(f, sims, _parts_cost(s.full, sims, s.parts))
     return rec

@@ -149,7 +149,11 @@ def _stage(runs):
     free = recal_params({})
     final = fit(full, free, {(fp.effect, fp.name): start_value(fp) for fp in free}, ModelSpec())
     notes = []
+    n = full.n_evals
     f, rec = measured_input_stage(full, full, final, {}, notes.append)
+    # the replays it made with the logged input (on copies of the replayer) are counted on the replayer: at least
+    # the final model's before and after (the diagnosis' record of the stage counted them as negative)
+    assert full.n_evals >= n + (2 if rec["tried"] else 0)
     return f, rec, notes
 
 
