@@ -1,6 +1,6 @@
-"""proposed_p1_saturation_chamber_a_volume_return: a term proposed by ehas diagnose for /tmp/drH_work/p1_saturation@chamber_a+volume@return/campaign.
+"""proposed_p1_saturation_chamber_a_volume_return: a term proposed by ehas diagnose for /tmp/drG_work/p1_saturation@chamber_a+volume@return/campaign.
 
-F_piston [N] += c_v·v   with c_v = -569.1 N s/m (95 % CI -589.9 to -548.3)
+F_piston [N] += c_v·v   with c_v = -569.2 N s/m (95 % CI -590 to -548.5)
 
 Residual (geometric mean of noise-normalised residual energy, 1 = noise): 13 -> 9.32; fit 80.3 % -> 79.8 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
@@ -13,11 +13,11 @@ class ProposedP1SaturationChamberAVolumeReturn(Effect):
     name = "proposed_p1_saturation_chamber_a_volume_return"
     title = "proposed term (piston force)"
     params = (
-        Param("f_v", "N s/m", 569.06, (0.0, 11381.2),
-              "viscous force per m/s (fitted: -569.1, 95 % CI -589.9 to -548.3)", typical=(284.53, 1138.12)),
+        Param("f_v", "N s/m", 569.222, (0.0, 11384.4),
+              "viscous force per m/s (fitted: -569.2, 95 % CI -590 to -548.5)", typical=(284.611, 1138.44)),
     )
     main_param = "f_v"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_v·v with c_v = -569.1 N s/m (95 % CI -589.9 to -548.3)'
+    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_v·v with c_v = -569.2 N s/m (95 % CI -590 to -548.5)'
     signature = 'the residual it was fitted to: v'
 
     @staticmethod
