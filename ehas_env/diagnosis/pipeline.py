@@ -274,7 +274,8 @@ def _keep_state(s: Search, f, rec: dict, bare) -> None:
         for step in s.steps:
             if step.kept and step.effect in replaced:
                 step.kept, step.reason = False, why
-        if replaced and set(replaced) == set(s.current.model.effects) - set(s.rounds[0].null.model.effects):
+        rounds = s.rounds if replaced else []  # (a search whose first round never ran has no recalibrated baseline)
+        if rounds and set(replaced) == set(s.current.model.effects) - set(rounds[0].null.model.effects):
             s.bare = None  # kept on the recalibrated baseline: the library's model before the hypotheses went too
     s.steps.append(Step(name, True, f"{rec['words']}; a missing state: removes at least a tenth of the "
                         "residual's excess over the noise and lowers the validation residual", f, f.cost, val,

@@ -358,17 +358,18 @@ def _proxy_bar(cls) -> float:
 
 
 #: the record's name of a block's screened cost on a base that set effects aside: the library's model before the
-#: structural hypotheses, or the recalibrated baseline before the library's effects (a proxy-only base)
+#: structural hypotheses, or the recalibrated baseline before the library's effects
 _RATIO_KEY = {False: "cost_ratio_without_hypotheses", True: "cost_ratio_on_recalibrated_baseline"}
 
 
 def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, bases: list, trigger: float,
                 tried: list, say) -> dict:
-    """Each augmentation of ``names`` screened on each (model, effects it set aside, proxy only) of ``bases``, those
-    at a quiet reading skipped: {(name, the effects set aside or None): (screened fit, its base)}; an entry per name
-    appended to ``tried`` (its cost over the final model's, or why it was skipped).  On a base marked ``proxy
-    only`` the blocks at a signal (the followers and reading blocks, 56 screens) are not screened: the terms at a
-    balance are, past their linearisation's bar (one replay each), and the links, hoses and play (6)."""
+    """Each augmentation of ``names`` screened on each (model, effects it set aside, whether it is the recalibrated
+    baseline) of ``bases``, those at a quiet reading skipped: {(name, the effects set aside or None): (screened fit,
+    its base)}; an entry per name appended to ``tried`` (its cost over the final model's, or why it was skipped).
+    On the recalibrated baseline the blocks at a signal (the followers and reading blocks, 56 screens) are not
+    screened: the terms at a balance are, past their linearisation's bar (one replay each), and the links, hoses
+    and play (6)."""
     screened = {}
     for k, name in enumerate(names, 1):
         cls = get_effect(name)
@@ -381,8 +382,8 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
         say(f"  states {k}/{len(names)}: {cls.title}")
         hint, start_at = _scan_hint(full, cls, sims0)
         proxy = {}
-        for base, dropped, proxy_only in bases:
-            if name in base.model.effects or (proxy_only and getattr(cls, "signal_place", None) is not None):
+        for base, dropped, recalibrated in bases:
+            if name in base.model.effects or (recalibrated and getattr(cls, "signal_place", None) is not None):
                 continue
             if getattr(cls, "balance_place", None) is not None:  # linear in its size: its linearisation first
                 proxy[None if dropped is None else tuple(dropped)] = share = linear_share(rep, base, name, start_at)
@@ -394,7 +395,7 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
             # supply: 2.2 times the fit range's end, drawn case p5)
             f = _sane(rep, f, name)[0]
             screened[(name, None if dropped is None else tuple(dropped))] = (f, base)
-            entry[_RATIO_KEY[proxy_only] if dropped else "cost_ratio"] = _r(f.cost / final.cost, 4)
+            entry[_RATIO_KEY[recalibrated] if dropped else "cost_ratio"] = _r(f.cost / final.cost, 4)
         if proxy:
             entry["linear_share"] = _r(max(proxy.values()), 4)
             if max(proxy.values()) < _proxy_bar(cls):
