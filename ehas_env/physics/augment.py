@@ -39,7 +39,7 @@ import re
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ehas_env.physics.effects.augmentation import Augmentation, kind_at, term_functions
+from ehas_env.physics.effects.augmentation import Augmentation, kind_at, term_methods
 from ehas_env.physics.effects.augmentation import fmt_interval as _fmt
 from ehas_env.physics.effects.base import Param
 from ehas_env.physics.layout import SENSED
@@ -855,10 +855,7 @@ def _hose(sides: str, name: str, title: str, where: str, doc: str) -> type:
     body = {"name": name, "title": title, "where": where, "__doc__": doc, "__module__": __name__,
             "__qualname__": f"Hose{sides.upper()}",
             "states": tuple((f"p_line_{x}", "Pa", 0.5 * SUPPLY_PRESSURE) for x in sides)
-            + tuple((f"q_in_{x}", "m^3/s", 0.0) for x in sides)}
-    for text in _hose_texts(sides):
-        body.update({k: staticmethod(v) for k, v in term_functions(f"{name}.{text[4:text.index('(')]}",
-                                                                    text).items()})
+            + tuple((f"q_in_{x}", "m^3/s", 0.0) for x in sides), **term_methods(name, _hose_texts(sides))}
     return type(Hose)(body["__qualname__"], (Hose,), body)
 
 
