@@ -242,7 +242,7 @@ def states_stage(s: Search) -> dict:
     f, rec = state_stage(s.rep, s.full, s.current, s.parts, s.say, bare=bare, null=null)
     if f is None:
         return rec
-    _keep_state(s, f, rec, bare)
+    _keep_state(s, f, rec, bare, null)
     more = []
     while len(more) + 1 < MAX_STATES:
         s.say("  states: looking for another on top of it")
@@ -250,15 +250,16 @@ def states_stage(s: Search) -> dict:
         more.append(again)
         if f is None:
             break
-        _keep_state(s, f, again, None)
+        _keep_state(s, f, again, None, None)
     rec["more"] = more
     return rec
 
 
-def _keep_state(s: Search, f, rec: dict, bare) -> None:
+def _keep_state(s: Search, f, rec: dict, bare, null) -> None:
     """The augmentation ``rec`` kept (its model ``f``) made the model kept: a step, the effects it stood in for said
-    not kept (the structural hypotheses, when it did best on the library's model ``bare``), then any effect kept
-    before that it makes unnecessary refitted away."""
+    not kept (the structural hypotheses, when it did best on the library's model ``bare``; every effect kept, when
+    it did best on the recalibrated baseline ``null``), then any effect kept before that it makes unnecessary
+    refitted away."""
     name = rec["kept"]
     sims = s.full.simulate(f.model)
     val = _parts_cost(s.full, sims, s.parts)
@@ -274,8 +275,7 @@ def _keep_state(s: Search, f, rec: dict, bare) -> None:
         for step in s.steps:
             if step.kept and step.effect in replaced:
                 step.kept, step.reason = False, why
-        rounds = s.rounds if replaced else []  # (a search whose first round never ran has no recalibrated baseline)
-        if rounds and set(replaced) == set(s.current.model.effects) - set(rounds[0].null.model.effects):
+        if null is not None and replaced and set(replaced) == set(s.current.model.effects) - set(null.model.effects):
             s.bare = None  # kept on the recalibrated baseline: the library's model before the hypotheses went too
     s.steps.append(Step(name, True, f"{rec['words']}; a missing state: removes at least a tenth of the "
                         "residual's excess over the noise and lowers the validation residual", f, f.cost, val,

@@ -716,7 +716,7 @@ def test_the_pipeline_replaces_the_kept_kind_and_says_so(monkeypatch):
         rec = {"kept": "aug_knee_chamber_a", "words": "a piecewise-linear term", "residual_x_noise_all_after": 1.1,
                "residual_x_noise_validation_after": 1.3, "within": [{"effect": "aug_knee_piston_velocity"}]}
         asked.clear()
-        pipeline._keep_state(s, knee_fit, rec, None)
+        pipeline._keep_state(s, knee_fit, rec, None, None)
         if dropped:
             assert kept == [beyond] and rec["kept"] == "aug_beyond_chamber_a", rec
             assert rec["reduced_from"] == "aug_knee_chamber_a" and rec["words"] == "a term above 45 bar"
