@@ -338,6 +338,13 @@ def states_kept(diag: dict) -> list[str]:
     return list(dict.fromkeys(names))
 
 
+def named_item(name: str, source: str) -> dict:
+    """An item named by its effect's name: its kinds and places (:data:`LIBRARY_KIND`, :data:`LIBRARY_PLACE`), in
+    words when the judge knows the effect."""
+    return {"label": name, "kinds": sorted(LIBRARY_KIND.get(name, {"unknown"})),
+            "places": sorted(LIBRARY_PLACE.get(name, set())), "words": name in LIBRARY_KIND, "source": source}
+
+
 def worded_items(diag: dict) -> list[dict]:
     """What the diagnosis names, with places and whether it is said in physical words.
 
@@ -347,22 +354,13 @@ def worded_items(diag: dict) -> list[dict]:
         ``label``, ``kinds`` (sorted list), ``places`` (sorted list of :data:`.effects.PLACES`), ``words`` (bool),
         ``source`` (library, hypothesis, named, disturbance, proposal).
     """
-    items = []
-    for name in kept_effects(diag):
-        items.append({"label": name, "kinds": sorted(LIBRARY_KIND.get(name, {"unknown"})),
-                      "places": sorted(LIBRARY_PLACE.get(name, set())), "words": name in LIBRARY_KIND,
-                      "source": "hypothesis" if name.startswith("hyp_") else "library"})
+    items = [named_item(name, "hypothesis" if name.startswith("hyp_") else "library") for name in kept_effects(diag)]
     for name in states_kept(diag):
         if name not in {i["label"] for i in items}:
-            items.append({"label": name, "kinds": sorted(LIBRARY_KIND.get(name, {"unknown"})),
-                          "places": sorted(LIBRARY_PLACE.get(name, set())), "words": name in LIBRARY_KIND,
-                          "source": "state"})
+            items.append(named_item(name, "state"))
     hyp = diag.get("hypothesis")
     if isinstance(hyp, dict) and hyp.get("effect") and hyp["effect"] not in {i["label"] for i in items}:
-        name = hyp["effect"]
-        items.append({"label": name, "kinds": sorted(LIBRARY_KIND.get(name, {"unknown"})),
-                      "places": sorted(LIBRARY_PLACE.get(name, set())), "words": name in LIBRARY_KIND,
-                      "source": "hypothesis"})
+        items.append(named_item(hyp["effect"], "hypothesis"))
     prop = proposal(diag) or {}
     named = prop.get("named")
     if isinstance(named, list) and named:
@@ -602,8 +600,12 @@ def grammar_places_of(item: dict) -> set:
 
 def block_items(diag: dict) -> list[dict]:
     """:func:`worded_items`, each with its block kinds (``block_kinds``) and grammar places (``grammar_places``)."""
-    return [{**it, "block_kinds": sorted(block_kinds_of(it)), "grammar_places": sorted(grammar_places_of(it))}
-            for it in worded_items(diag)]
+    return [_with_blocks(it) for it in worded_items(diag)]
+
+
+def _with_blocks(item: dict) -> dict:
+    """``item`` with its block kinds (``block_kinds``) and grammar places (``grammar_places``), sorted."""
+    return {**item, "block_kinds": sorted(block_kinds_of(item)), "grammar_places": sorted(grammar_places_of(item))}
 
 
 def alternatives_hold(blocks: list[dict], diag: dict, per: dict) -> dict:
@@ -621,16 +623,14 @@ def alternatives_hold(blocks: list[dict], diag: dict, per: dict) -> dict:
     for rec in [diag.get("state")] + list(diag.get("states") or []):
         if isinstance(rec, dict):
             names += [w.get("effect") for w in rec.get("within") or [] if isinstance(w, dict)]
-    items = [{"label": n, "kinds": sorted(LIBRARY_KIND.get(n, {"unknown"})), "places": sorted(LIBRARY_PLACE.get(n, ()))}
-             for n in dict.fromkeys(n for n in names if n)]
-    items = [{**it, "block_kinds": block_kinds_of(it), "grammar_places": grammar_places_of(it)} for it in items]
+    items = [_with_blocks(named_item(n, "alternative")) for n in dict.fromkeys(n for n in names if n)]
     out = {}
     for b in blocks:
         key = f"{b['kind']}@{b['place']}"
         if per[key]["right_kind"] and per[key]["right_place"]:
             continue
         acc = accepted_block_kinds(b["kind"])
-        out[key] = {"listed": any(acc & it["block_kinds"] and b["place"] in it["grammar_places"] for it in items),
+        out[key] = {"listed": any(acc & set(it["block_kinds"]) and b["place"] in it["grammar_places"] for it in items),
                     "alternatives": [it["label"] for it in items]}
     return out
 
