@@ -122,6 +122,43 @@ def fit_range(effect: str, pname: str) -> FreeParam:
     return FreeParam(effect, pname, lo, hi, log, _step(effect, pname))
 
 
+def covering(fp: FreeParam, value: float, margin: float = 1.25) -> FreeParam:
+    """``fp``'s fit range widened, inside its parameter's bounds, to hold ``value`` ``margin`` inside an end (a
+    given value is a start, never clipped to the default range: a diagnosis fits past it when the data ask,
+    :func:`ehas_env.diagnosis.candidates._widen`, and its printed command must start where it ended).
+
+    Parameters
+    ----------
+    fp : FreeParam
+        An effect's parameter as fitted by default (:func:`fit_range`).
+    value : float
+        The value it is given.
+    margin : float
+        The widened end lies this factor beyond ``value`` (where the bounds allow).
+
+    Returns
+    -------
+    FreeParam
+        ``fp`` itself when its range already holds ``value``.
+
+    Examples
+    --------
+    >>> fp = FreeParam(None, "x", -2.0, 2.0, False)
+    >>> covering(fp, 1.0) is fp
+    True
+    """
+    if fp.lo <= value <= fp.hi:
+        return fp
+    blo, bhi = get_effect(fp.effect).param(fp.name).bounds if fp.effect else (-math.inf, math.inf)
+    if fp.lo < 0.0:  # a signed range stays symmetric about zero (fit_range)
+        m = max(fp.hi, min(margin * abs(value), bhi, -blo))
+        lo, hi = -m, m
+    else:
+        lo = max(blo, min(fp.lo, value / margin if value > 0 else margin * value))
+        hi = min(bhi, max(fp.hi, value * margin))
+    return FreeParam(fp.effect, fp.name, lo, hi, lo > 0 and hi / lo >= 8.0, fp.step)
+
+
 #: numbers the model resolves in stairs, in integrator sub-steps: the delay is a whole number of sub-steps
 STAIRCASE = {("transport_delay", "tau"): 1.0}
 

@@ -91,3 +91,28 @@ def test_the_fit_minimises_the_figure_on_the_samples_the_verdict_judges(diagnose
         unclipped = math.exp(sum(b.n * math.log(b.x) for b in judged) / n)
         floors = math.exp(sum(b.n * math.log(b.floor) for b in judged) / n)
         assert rep.log_cost(sims) / floors == pytest.approx(unclipped, rel=1e-9)
+
+
+def test_compare_fit_from_a_diagnosis_values_starts_where_they_stand_and_fits_them_together(tmp_path):
+    """A diagnosis' ``next:`` line gives ``compare --fit`` the values it found; the refit must start there and not
+    end worse (a drawn pair's line once reproduced 3.14x what does not repeat where the diagnosis stood at 1.12x).
+    Two causes, each failing this test: a value past the effect's default fit range was clipped to its end (a
+    diagnosis widens a range the data run into), and the effects were fitted one after another (the first alone
+    drifted away, the second's damping ran into its bound).  Truth: the simulated campaign's own values."""
+    from ehas_env.diagnosis.candidates import calibrate
+    from ehas_env.diagnosis.fitting import fit_range
+    from ehas_env.measurement.campaign import read_campaign
+    from ehas_env.measurement.replay import Replayer
+
+    truth = {"aug_beyond_piston_velocity": {"c": -3600.0, "k": 0.29},
+             "hyp_load_compliance": {"k_load": 6e7, "zeta_joint": 0.8}}
+    r = fit_range("aug_beyond_piston_velocity", "c")
+    assert not r.lo <= truth["aug_beyond_piston_velocity"]["c"] <= r.hi  # past the default range
+    runs, _ = simulate_campaign(truth, seed=SEED + 7, perturb=True, duration=2.0,
+                                plan=((1, 35.0, 3.0), (3, 20.0, 1.0), (7, 10.0, 3.0)))
+    rep = Replayer(read_campaign(write_campaign(tmp_path / "camp", runs)), hypotheses=True)
+    null, f = calibrate(rep, {n: dict(v) for n, v in truth.items()})
+    got = f.model.effects
+    assert got["aug_beyond_piston_velocity"]["c"] == pytest.approx(-3600.0, rel=0.05)
+    assert got["hyp_load_compliance"]["k_load"] == pytest.approx(6e7, rel=0.15)
+    assert f.cost < 0.2 * null.cost
