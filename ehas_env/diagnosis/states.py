@@ -117,8 +117,9 @@ def _logged_at_place(full: Replayer, cls) -> list:
 
 def _balance_quantity(full: Replayer, sims, cls) -> list:
     """A balance block's local quantity (:class:`~ehas_env.physics.balance_blocks.BalancePlace`) over the
-    closed-loop runs as the final model simulates them (``sims``: every run's signals), in SI: the crank's rate, the
-    piston's velocity r cos(theta) omega, a chamber's pressure, the valve's opening (K i), a land's flow (line A's);
+    closed-loop runs as the final model simulates them (``sims``: every run's signals), in SI: the crank's rate and
+    angle, the piston's velocity r cos(theta) omega and position r sin(theta), a chamber's pressure, the load
+    pressure, the valve's opening (K i), a land's flow (line A's);
     [] for another block or a
     quantity the replay does not return."""
     q = getattr(getattr(cls, "balance_place", None), "quantity", None)
@@ -130,7 +131,10 @@ def _balance_quantity(full: Replayer, sims, cls) -> list:
         rig = full.plant(ModelSpec(), c.run).rig
         # the valve's opening as no-load flow: its gain (LPM/mA) times the current, the steady opening
         values = {"omega": lambda: w, "v": lambda: rig.radius * np.cos(np.radians(sim["theta_deg"])) * w,
+                  "theta": lambda: np.radians(sim["theta_deg"]),
+                  "x": lambda: rig.radius * np.sin(np.radians(sim["theta_deg"])),
                   "pa": lambda: sim["p_a_bar"] * 1.0e5, "pb": lambda: sim["p_b_bar"] * 1.0e5,
+                  "p_load": lambda: (sim["p_a_bar"] - sim["p_b_bar"]) * 1.0e5,
                   "qc": lambda: rig.K * sim["current_mA"] / 60000.0,
                   # a land's flow: the flow line A meters, for either land (only its largest magnitude is used, the
                   # break's start; the lands pass alike but for the areas' ratio)

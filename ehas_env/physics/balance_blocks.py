@@ -35,6 +35,7 @@ Examples
 """
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import dataclass
 from typing import ClassVar
@@ -101,9 +102,55 @@ class BalancePlace:
 
 _LPM = (60000.0, "L/min")
 _BAR = (1.0e-5, "bar")
+#: the other local quantities a balance's law reads, each described once: (its name in a place's short name, SI
+#: unit, typical span on the rig, how words show it, words).  Spans (assumed, the book's rig): the piston's +-25 mm
+#: at +-30 deg of the 50 mm crank, +-30 deg of the crank, a load pressure of 100 bar, the piston's 0.5 m/s (a
+#: chamber's rate of expansion over its area)
+LOCAL_QUANTITIES = {
+    "x": ("position", "m", 0.025, (1.0e3, "mm"), "the piston position"),
+    "theta": ("angle", "rad", 0.5236, (180.0 / math.pi, "deg"), "the crank angle"),
+    "p_load": ("load_pressure", "Pa", 1.0e7, _BAR, "the load pressure p_A - p_B"),
+    "v": ("velocity", "m/s", 0.5, (1.0, "m/s"), "the piston velocity"),
+}
+#: each balance's local quantities besides its own (BALANCE_PLACES' first four): what its law in the model's
+#: derivatives reads (ehas_env.physics.codegen): the piston's force A p_load moves a body whose position sets the
+#: crank's geometry; the crank's torque acts at its angle; a chamber's pressure rises with the flow in less its
+#: expansion A v and leaks across the piston with p_load.  A friction that rises with the load pressure, a spring or
+#: a cushion with the position, a leak across the piston.
+OTHER_LOCALS = {"piston_velocity": ("x", "p_load"), "crank_rate": ("theta",), "chamber_a": ("p_load", "v"),
+                "chamber_b": ("p_load", "v")}
+
+
+def with_local(place: "BalancePlace", quantity: str) -> "BalancePlace":
+    """The balance of ``place`` with another of its local quantities (:data:`LOCAL_QUANTITIES`), as a place of its
+    own, ``<body>_<quantity's name>`` (e.g. ``piston_load_pressure``, ``chamber_a_velocity``).
+
+    Parameters
+    ----------
+    place : BalancePlace
+        A balance with its own quantity.
+    quantity : str
+        An argument the model defines where the balance's terms are called (``x``, ``theta``, ``p_load``, ``v``).
+
+    Returns
+    -------
+    BalancePlace
+
+    Examples
+    --------
+    >>> with_local(BALANCE_PLACES[0], "p_load").short
+    'piston_load_pressure'
+    """
+    name, unit, span, shown, words = LOCAL_QUANTITIES[quantity]
+    body = place.short if place.place == "chamber_flows" else place.short.split("_")[0]
+    return BalancePlace(place.place, f"{body}_{name}", quantity, unit, span, shown, place.out_unit, place.out_span,
+                        place.out_shown, place.returns, place.where, words)
+
+
 #: every balance of the model with its own rate-setting local quantity (the piston's force with its velocity, the
-#: crank's torque with its rate, each chamber's flow with its pressure)
-BALANCE_PLACES = (
+#: crank's torque with its rate, each chamber's flow with its pressure), then with the other quantities its law
+#: reads (OTHER_LOCALS)
+_OWN_PLACES = (
     BalancePlace("piston_force", "piston_velocity", "v", "m/s", 0.5, (1.0, "m/s"), "N", 5.0e3, (1.0, "N"), "t",
                  "the piston force balance", "the piston velocity"),
     BalancePlace("crank_torque", "crank_rate", "omega", "rad/s", 10.0, (1.0, "rad/s"), "N m", 250.0, (1.0, "N m"),
@@ -131,6 +178,7 @@ BALANCE_PLACES = (
     BalancePlace("land_flows", "land_b", "q_b", "m^3/s", 25.0 / 60000.0, _LPM, "m^3/s", 25.0 / 60000.0, _LPM,
                  "q_a, q_b + t", "land B's flow (out of the valve's port B)", "land B's flow", chain=("q_a", "q_b")),
 )
+BALANCE_PLACES = _OWN_PLACES + tuple(with_local(p, q) for p in _OWN_PLACES for q in OTHER_LOCALS.get(p.short, ()))
 
 
 def check_place(place: BalancePlace) -> BalancePlace:

@@ -195,7 +195,14 @@ BALANCE_STEM_BLOCK = {"const": "offset", "prop": "gain", "beyond": "dead_zone", 
 BALANCE_PLACE = {"piston_velocity": ("piston_force", "friction"), "crank_rate": ("crank_torque", "friction"),
                  "chamber_a": ("chamber_flows", "leakage/flow"), "chamber_b": ("chamber_flows", "leakage/flow"),
                  "supply": ("supply", "supply/return"), "return": ("return", "supply/return"),
-                 "land_a": ("chamber_flows", "leakage/flow"), "land_b": ("chamber_flows", "leakage/flow")}
+                 "land_a": ("chamber_flows", "leakage/flow"), "land_b": ("chamber_flows", "leakage/flow"),
+                 # the balances with their other local quantities (balance_blocks.OTHER_LOCALS)
+                 "piston_position": ("piston_force", "load"), "piston_load_pressure": ("piston_force", "friction"),
+                 "crank_angle": ("crank_torque", "load"),
+                 "chamber_a_load_pressure": ("chamber_flows", "leakage/flow"),
+                 "chamber_b_load_pressure": ("chamber_flows", "leakage/flow"),
+                 "chamber_a_velocity": ("chamber_flows", "leakage/flow"),
+                 "chamber_b_velocity": ("chamber_flows", "leakage/flow")}
 for _stem in BALANCE_STEM_BLOCK:
     for _short, (_place, _kind) in BALANCE_PLACE.items():
         LIBRARY_KIND[f"aug_{_stem}_{_short}"] = {_kind, "load"} if _kind == "friction" else {_kind}

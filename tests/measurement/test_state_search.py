@@ -828,3 +828,20 @@ def test_a_hose_the_librarys_softer_oil_stood_in_for_is_found_on_the_recalibrate
     assert rec["params"]["V_line"] == pytest.approx(40.0, rel=0.15)
     assert rec["params"]["R_line"] == pytest.approx(0.73, rel=0.15)
     assert "cost_ratio_on_recalibrated_baseline" in rec["tried"][0]
+
+
+def test_a_term_of_another_local_quantity_of_a_balance_is_found_there_not_at_the_balances_own_quantity():
+    """A campaign simulated with a saturating term of the load pressure p_A - p_B in the piston's force balance
+    (-484 N reached at 20 bar: held-out drawn case d07's size, its break wider; the package's synthetic writer): the
+    balance's own quantity (the piston velocity) cannot hold it -- a friction-like term of the velocity changes sign
+    at the reversals, this one where the load pressure does -- and the place of the same balance with the load
+    pressure (balance_blocks.OTHER_LOCALS) is kept with its size and break.  (d07's own break, 5.5 bar, is passed
+    within milliseconds at each reversal: a term that steep in a quantity the oil's stiffness sets leaves even the
+    truth 2.1 noise variances from its own campaign's replay.)"""
+    s, null = _search({"aug_saturating_piston_load_pressure": {"c": -484.0, "k": 2.0e6}}, 3314)
+    names = ["aug_saturating_piston_velocity", "aug_saturating_piston_load_pressure"]
+    fit, rec = state_stage(s.rep, s.full, null, s.parts, lambda m: None, names=names, trigger=0.0)
+    assert rec["kept"] == "aug_saturating_piston_load_pressure", rec
+    assert rec["params"]["c"] == pytest.approx(-484.0, rel=0.1)
+    assert rec["params"]["k"] == pytest.approx(2.0e6, rel=0.2)
+    assert rec["residual_x_noise_all_after"] < 1.5 < rec["residual_x_noise_all_before"]

@@ -32,7 +32,9 @@ def test_every_kind_at_every_balance_place_is_registered_tried_and_worded():
                                               "N m", 250.0, (1.0, "N m"), "t", "the crank torque balance",
                                               "the crank angle")
     assert not balance_blocks.Constant.fits(crank_angle) and balance_blocks.Beyond.fits(crank_angle)
-    assert all(balance_blocks.Constant.fits(p) for p in balance_blocks.BALANCE_PLACES)
+    # nor the balances' other local quantities: one constant per balance, at its own quantity's place
+    constants = [p for p in balance_blocks.BALANCE_PLACES if balance_blocks.Constant.fits(p)]
+    assert len({(p.place, p.returns) for p in constants}) == len(constants) == 8
 
 
 def test_a_place_the_model_cannot_compute_is_refused():
@@ -152,34 +154,57 @@ def test_the_lands_at_the_supply_and_the_tank_are_the_book_model_bit_for_bit():
         assert m.lands(qc, pa, pb, 210e5, P) == land_flows(qc, pa, pb, 210e5, 0.0, P[m.IDX["rated_drop"]])
 
 
-def test_the_docs_place_of_ones_own_is_the_crank_angle_with_every_kind():
+def test_the_docs_place_of_ones_own_is_the_crank_load_with_every_kind():
     """docs/effects-and-controllers.md's balance place of one's own, the file as the page shows it: loaded with
-    effects_path it is an effect per kind at the crank's torque balance; a term beyond +-0.3 rad of the crank angle
-    leaves a +-10 deg run bit for bit (0.17 rad: never beyond) and moves a +-25 deg one.  In a child process: the
-    example's effects must not join this session's registry."""
+    effects_path it is an effect per kind at the crank's torque balance; a saturating term of the load pressure
+    (a bearing's friction that rises with its load) moves a run, its sign with the load's, and opposes the motion
+    where the load drives it.  In a child process: the example's effects must not join this session's registry."""
     import subprocess
     import sys
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
     page = (root / "docs" / "effects-and-controllers.md").read_text(encoding="utf-8")
-    shown = page.split("`docs/examples/my_kinds/crank_angle_place.py`", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
-    assert shown == (root / "docs" / "examples" / "my_kinds" / "crank_angle_place.py").read_text(encoding="utf-8")
+    shown = page.split("`docs/examples/my_kinds/crank_load_place.py`", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    assert shown == (root / "docs" / "examples" / "my_kinds" / "crank_load_place.py").read_text(encoding="utf-8")
     code = (
         "import numpy as np\n"
         "from ehas_env.simulation.plant import Plant\n"
         "from ehas_env.physics.balance_blocks import balance_blocks\n"
-        "stop = {'aug_beyond_crank_angle': {'c': -200.0, 'k': 0.3}}\n"
-        "def run(amp, effects):\n"
+        "from ehas_env.physics.effects import get_effect\n"
+        "def run(effects):\n"
         "    return Plant(disc_sets=3, effects=effects, effects_path='docs/examples/my_kinds').simulate_closed_loop(\n"
-        "        amplitude_deg=amp, freq_hz=1.0, cycles=2).theta_deg\n"
-        "assert np.array_equal(run(10.0, stop), run(10.0, {}))\n"
-        "assert {f'aug_{k}_crank_angle' for k in ('prop', 'beyond', 'saturating', 'cubic')} <= set(balance_blocks())\n"
-        "print(float(np.max(np.abs(run(25.0, stop) - run(25.0, {})))))\n")
+        "        amplitude_deg=20.0, freq_hz=2.0, cycles=2)\n"
+        "base, sat = run({}), run({'aug_saturating_crank_load': {'c': 30.0, 'k': 5.0e5}})\n"
+        "assert {f'aug_{k}_crank_load' for k in ('prop', 'beyond', 'saturating', 'cubic', 'knee')} <= set(balance_blocks())\n"
+        "assert 'aug_const_crank_load' not in balance_blocks()\n"
+        "assert get_effect('aug_saturating_crank_load').balance_place.quantity == 'p_load'\n"
+        "print(float(np.max(np.abs(sat.theta_deg - base.theta_deg))))\n")
     r = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr[-1500:]
-    # deg: the stop acts beyond 0.3 rad (17 deg): 0.047 deg on this run, the loop holding the angle against it
+    # deg: a torque of 30 N m that follows the load pressure's sign moves the run
     assert float(r.stdout.strip().splitlines()[-1]) > 0.02
+
+
+def test_a_term_of_the_piston_position_at_its_force_is_a_spring_on_the_crank():
+    """A balance's other local quantities are the model's own (issue 43, places from the structure): a term
+    proportional to the piston position x = r sin(theta) in the piston's force balance is, at the crank, a torque
+    c r^2 sin(theta) cos(theta) / S -- within 1.5 % of a torsion spring k = -c r^2 / S over +-10 deg (the library's
+    hyp_crank_spring, a law written independently); and a term of the load pressure at the piston's force is the
+    load pressure's own force scaled (c / S = -A: the piston's area cancelled, the crank stalls at its start)."""
+    place = get_effect("aug_prop_piston_position").balance_place
+    assert (place.place, place.quantity) == ("piston_force", "x")
+    c = -4000.0  # N at one span: a spring of 160 N/mm at the piston
+    r = 0.05
+    k = -c * r ** 2 / place.q_span
+    run = lambda eff: Plant(disc_sets=3, effects=eff).simulate_closed_loop(amplitude_deg=10.0, freq_hz=2.0, cycles=3)
+    spring, term, base = (run({"hyp_crank_spring": {"k": k, "T_0": 0.0}}), run({"aug_prop_piston_position": {"c": c}}),
+                          run({}))
+    d_spring = np.max(np.abs(spring.p_a_bar - base.p_a_bar))
+    assert d_spring > 1.0  # bar: the spring loads the run
+    assert np.max(np.abs(term.p_a_bar - spring.p_a_bar)) < 0.03 * d_spring
+    assert {"piston_load_pressure", "crank_angle", "chamber_a_load_pressure", "chamber_b_velocity"} <= {
+        p.short for p in balance_blocks.BALANCE_PLACES}
 
 
 @pytest.mark.parametrize("stem,params,law", [
