@@ -405,14 +405,16 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
 
 
 def calibrate(campaign_or_replayer, effects: dict, *, scan: bool = True) -> tuple[Fit, Fit]:
-    """Fit ``effects`` (added one after another, then refitted together) with beta and K.
+    """Fit ``effects`` with beta and K two ways, and keep the fit of the lower cost: added one after another (each
+    refitted with those before it), and all together from where they are given (:func:`fit_together`).
 
     Parameters
     ----------
     campaign_or_replayer : Campaign or Replayer
     effects : dict
         {name: {param: value}}; given values are start values (no scan for an
-        effect whose main parameter is given).
+        effect whose main parameter is given), a range widened to hold one past it
+        (:func:`ehas_env.diagnosis.fitting.covering`).
     scan : bool
         Scan the main parameter of effects given without values.
 
