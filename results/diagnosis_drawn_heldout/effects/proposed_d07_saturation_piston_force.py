@@ -1,0 +1,25 @@
+"""proposed_d07_saturation_piston_force: a term proposed by ehas diagnose for /tmp/drHB_work/d07_saturation@piston_force/campaign.
+
+F_piston [N] += c_pa·p_A   with c_pa = -1.205e-06 m^2 (95 % CI -1.825e-06 to -5.849e-07)
+
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.96 -> 2.69; fit 93.4 % -> 93.3 %.
+Rename the file, the class and ``name``, give the parameters physical names and documentation,
+then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
+"""
+from ehas_env.physics.effects import Effect, Param
+
+
+class ProposedD07SaturationPistonForce(Effect):
+    name = "proposed_d07_saturation_piston_force"
+    title = "proposed term (piston force)"
+    params = (
+        Param("f_pa", "m^2", 1.20501e-06, (0.0, 2.41001e-05),
+              "force per Pa of chamber A pressure (area error on side A) (fitted: -1.205e-06, 95 % CI -1.825e-06 to -5.849e-07)", typical=(6.02504e-07, 2.41001e-06)),
+    )
+    main_param = "f_pa"
+    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_pa·p_A with c_pa = -1.205e-06 m^2 (95 % CI -1.825e-06 to -5.849e-07)'
+    signature = 'the residual it was fitted to: p_A'
+
+    @staticmethod
+    def piston_force(pa, f_pa):
+        return -(f_pa * pa)
