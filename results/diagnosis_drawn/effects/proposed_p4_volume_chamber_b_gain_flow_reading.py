@@ -1,4 +1,4 @@
-"""proposed_p4_volume_chamber_b_gain_flow_reading: a term proposed by ehas diagnose for /tmp/drD_work/p4_volume@chamber_b+gain@flow_reading/campaign.
+"""proposed_p4_volume_chamber_b_gain_flow_reading: a term proposed by ehas diagnose for /tmp/drD2_work/p4_volume@chamber_b+gain@flow_reading/campaign.
 
 F_piston [N] += c_vv·v |v|   with c_vv = -880.7 N s^2/m^2 (95 % CI -915 to -846.4)
 
