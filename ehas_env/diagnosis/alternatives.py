@@ -176,7 +176,7 @@ def kinds_at_its_balances(effect: str) -> list[str]:
     Examples
     --------
     >>> kinds_at_its_balances("hyp_quadratic_drag")[:3]
-    ['aug_const_crank_rate', 'aug_prop_crank_rate', 'aug_beyond_crank_rate']
+    ['aug_const_crank_rate', 'aug_prop_crank_rate', 'aug_prop_crank_angle']
     >>> kinds_at_its_balances("viscous_friction"), kinds_at_its_balances("aug_beyond_crank_rate")
     ([], [])
     """
