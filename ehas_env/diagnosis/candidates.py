@@ -53,7 +53,8 @@ from ehas_env.diagnosis.keeping import agree, least_half_width, run_groups
 from ehas_env.diagnosis.honesty import at_bounds
 from ehas_env.diagnosis.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _value_of,
-    beats_noise, confidence, covering, fit, own_params, recal_params, reopens_baseline, score_db, start_value)
+    beats_noise, confidence, covering, fit, own_params, recal_params, reopens_baseline, score_db, spanning,
+    start_value)
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.residuals import evidence_text
 from ehas_env.measurement.verdict import blocks_of, grade, run_residual
@@ -939,8 +940,7 @@ def _widen(rep: Replayer, f: Fit, effect: str) -> Fit:
                     hi = min(p.bounds[1], fp.hi * 4.0)
             if (lo, hi) != (fp.lo, fp.hi):
                 changed = True
-                log = lo > 0 and hi / lo >= 8.0
-                fp = FreeParam(fp.effect, fp.name, lo, hi, log, fp.step)
+                fp = spanning(fp.effect, fp.name, lo, hi, fp.step)
         free.append(fp)
     if not changed:
         return f

@@ -118,8 +118,20 @@ def fit_range(effect: str, pname: str) -> FreeParam:
         # recalibrations and the precharge act strongly (the loop's stability hangs on beta and wn):
         # a narrower range, scanned finely enough to land in the valley
         lo, hi = max(blo, tlo / 1.6), min(bhi, thi * 1.6)
-    log = lo > 0 and hi / lo >= 8.0
-    return FreeParam(effect, pname, lo, hi, log, _step(effect, pname))
+    return spanning(effect, pname, lo, hi, _step(effect, pname))
+
+
+def spanning(effect: str | None, pname: str, lo: float, hi: float, step: float = 2e-3) -> FreeParam:
+    """A fitted number over [lo, hi]: on a log scale where the range lies above zero and spans 8x or more (the
+    scale every fit range takes: :func:`fit_range`, :func:`covering`, a range widened by
+    :func:`ehas_env.diagnosis.candidates._widen`).
+
+    Examples
+    --------
+    >>> spanning("coulomb_friction", "Fc", 37.5, 2400.0).log, spanning(None, "x", -2.0, 2.0).log
+    (True, False)
+    """
+    return FreeParam(effect, pname, lo, hi, lo > 0 and hi / lo >= 8.0, step)
 
 
 def covering(fp: FreeParam, value: float, margin: float = 1.25) -> FreeParam:
@@ -156,7 +168,7 @@ def covering(fp: FreeParam, value: float, margin: float = 1.25) -> FreeParam:
     else:
         lo = max(blo, min(fp.lo, value / margin if value > 0 else margin * value))
         hi = min(bhi, max(fp.hi, value * margin))
-    return FreeParam(fp.effect, fp.name, lo, hi, lo > 0 and hi / lo >= 8.0, fp.step)
+    return spanning(fp.effect, fp.name, lo, hi, fp.step)
 
 
 #: numbers the model resolves in stairs, in integrator sub-steps: the delay is a whole number of sub-steps
