@@ -869,6 +869,81 @@ HoseAB = _hose("ab", "aug_hose_ab", "volume with a resistance in each line, A an
                "one volume and one resistance.")
 
 
+class PortLine(Augmentation):
+    """A line volume behind a laminar resistance at one of the valve's boundary ports, the supply's or the
+    return's: the lands meter against the line's pressure at the port, which the line's flow through R pulls away
+    from the far end's (the supply's gauge, the tank), and the line's oil V / beta lags it.  Its state is that
+    drop, ``dp_line`` (0 at rest): C dp' = q - dp / R with q the flow the lands send through the line (the
+    supply's draw, or what the return lands pass: the supply's draw less what flows out of ports A and B).
+
+    The drop's relaxation is as fast as the land's own conductance g = |q| / (2 |its drop|) makes it
+    (C / (1 / R + g)); where that is shorter than the integrator's sub-step (``T_min``) the line's compliance is
+    taken as T_min (1 / R + g): the drop R q exact, its lag one sub-step, far below what a log at 1 kHz resolves.
+    The valve's flow bench has its own regulated supply and return: a line's drop keeps its rest there."""
+
+    form = "a line volume"
+    params = Hose.params
+    main_param = "R_line"
+    constants = (Param("T_min", "s", 1.0e-4, (1.0e-7, 1.0),
+                       "the least relaxation of the line's drop: the integrator's sub-step, set when the model is "
+                       "built"),)
+    states = (("dp_line", "Pa", 0.0),)
+    explanation = (
+        "A line between the supply's gauge and the valve's pressure port (or between its tank port and the tank) "
+        "is a volume behind a resistance: the flow it carries drops R q across it, so the lands meter from less "
+        "than the gauge reads (or into more than the tank's pressure), and its oil lags that drop. Nothing "
+        "changes at rest; the more the valve passes, the more it loses."
+    )
+    #: the port (``"supply"`` or ``"return"``), the words of the line's far end
+    port: ClassVar[str] = ""
+    signature = (
+        "the valve's flow lower where it is large (the line's drop R q taken from the land's), the supply's "
+        "gauge flat while the chambers see less than it; a softer supply or return at the valve's ports."
+    )
+
+    @classmethod
+    def adjust(cls, slots, substep_s):
+        if slots.get(f"{cls.name}.on"):
+            slots[f"{cls.name}.T_min"] = substep_s
+
+
+#: each port's line in a line volume's source: how its drop changes the lands' pressures, the flow through it (the
+#: supply's draw; what the return lands pass, the supply's draw less what leaves through ports A and B), the
+#: land whose drop it shares (the one from the supply, or to the tank, as the valve's opening qc sets), and the
+#: quantities that reads
+_PORT = {"supply": ("p_sup - dp_line, p_ret", "q_supply", "ps - dp_line - (pa if qc >= 0.0 else pb)",
+                    "qc, pa, pb, ps, q_supply"),
+         "return": ("p_sup, p_ret + dp_line", "q_supply - q_a - q_b", "(pb if qc >= 0.0 else pa) - dp_line",
+                    "qc, pa, pb, q_a, q_b, q_supply")}
+
+
+def _port_line_texts(port: str) -> list[str]:
+    """The source of a line volume's terms at ``port``: one law for either port, C dp' = q - dp / R with C the
+    line's V / beta, or T_min (1 / R + g) where the land's conductance g = |q| / (2 |its drop|) and R make the
+    drop relax faster than a sub-step (the compiled model copies a term's text)."""
+    pressures, flow, land_drop, reads = _PORT[port]
+    return [f"def land_pressures(p_sup, p_ret, dp_line):\n    return {pressures}\n",
+            f"def state_rates({reads}, beta, dp_line, V_line, R_line, T_min):\n"
+            f"    q = {flow}\n"
+            f"    g = abs(q) / (2.0 * max(abs({land_drop}), 1.0e3))\n"
+            "    cap = max(V_line / beta, T_min * (1.0 / R_line + g))\n"
+            "    return (q - dp_line / R_line) / cap\n"]
+
+
+def _port_line(port: str, name: str, where: str) -> type:
+    """The line volume at the valve's ``port`` (:func:`_port_line_texts`)."""
+    body = {"name": name, "port": port, "where": where, "__module__": __name__, "__qualname__": f"Line{port.title()}",
+            "title": f"volume with a resistance in the {port} line",
+            "__doc__": f"The line volume at the valve's {port} port.", **term_methods(name, _port_line_texts(port))}
+    return type(PortLine)(body["__qualname__"], (PortLine,), body)
+
+
+LineSupply = _port_line("supply", "aug_line_supply",
+                        "the supply line (between the supply's gauge and the valve's pressure port)")
+LineReturn = _port_line("return", "aug_line_return",
+                        "the return line (between the valve's tank port and the tank)")
+
+
 #: play in a joint: the library's effect (rod-crank joint), tried by the state stage with the others
 PLAY = ("backlash",)
 
@@ -887,7 +962,7 @@ def augmentations() -> list[str]:
     from ehas_env.physics.effects.base import REGISTRY
 
     first = ["aug_lag_coil", "aug_slew_coil", "aug_lag_position_sensor"]  # the usual ones, tried first
-    order = (LinkRodCrank, LinkMount, HoseAB, HoseA, HoseB)
+    order = (LinkRodCrank, LinkMount, HoseAB, HoseA, HoseB, LineSupply, LineReturn)
     balances = [n for n, c in REGISTRY.items() if getattr(c, "balance_place", None) is not None]
     return (first + [c.name for c in order] + list(PLAY) + [n for n in followers() if n not in first]
             + reading_blocks() + balances)

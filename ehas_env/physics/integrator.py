@@ -264,21 +264,22 @@ def run_open_loop(s, P, cmd, dt, nsub, hist, out):
 
 
 @njit(cache=True)
-def bench_flow(qc, supply, scale, P):
+def bench_flow(s, qc, supply, scale, P):
     """The bench meter's flow with the control ports joined through it, m^3/s: q_c sqrt(supply / rated drop)
     for the critically lapped lands; with valve-side effects on, the flow at the ports' pressure where what
-    enters through A leaves through B (bisection)."""
+    enters through A leaves through B (bisection).  ``s``: the bench's state (a supply or return line's volume
+    keeps its rest there: the bench has its own regulated supply and return, only the valve's states move)."""
     if P[I_EFFECTS_ON] == 0.0:
         return qc * scale
-    ea, eb = valve_side_flows(qc, 0.5 * supply, 0.5 * supply, supply, P)
+    ea, eb = valve_side_flows(s, qc, 0.5 * supply, 0.5 * supply, supply, P)
     if ea == 0.0 and eb == 0.0 and not lands_changed(P):  # nothing acts at the lands: their exact figure
         return qc * scale
     lo, hi = 0.0, supply
     qa = 0.0
     for _ in range(60):
         pm = 0.5 * (lo + hi)
-        la, lb, _ = lands(qc, pm, pm, supply, P)
-        ea, eb = valve_side_flows(qc, pm, pm, supply, P)
+        la, lb, _ = lands(s, qc, pm, pm, supply, P)
+        ea, eb = valve_side_flows(s, qc, pm, pm, supply, P)
         qa = la + ea
         if qa + lb + eb > 0.0:  # more enters the ports than leaves: their pressure is higher
             lo = pm
@@ -307,7 +308,7 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out, supply_log=None):
         if supply_log is not None:
             supply = supply_log[k]
             scale = math.sqrt(max(supply, 0.0) / P[I_DROP])
-        out[k, 0] = bench_flow(s[2], supply, scale, P)
+        out[k, 0] = bench_flow(s, s[2], supply, scale, P)
         out[k, 1] = s[2]
         hist[k % hist.shape[0]] = cmd[k]
         for j in range(nsub):

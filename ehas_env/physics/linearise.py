@@ -114,7 +114,7 @@ def _trim_pressures(plant, s: np.ndarray, load: float) -> None:
     def steady(pb):
         # the chambers' rates with pa = load + r pb and the piston at the speed of the flow into A
         x[ia], x[ib] = load + r * pb, pb
-        q_a = m.lands(x[2], x[ia], x[ib], x[names.index("ps")], P)[0]
+        q_a = m.lands(x, x[2], x[ia], x[ib], x[names.index("ps")], P)[0]
         x[names.index("omega")] = q_a / (rig.area * lever)
         if push != names.index("omega"):
             x[push] = lever * x[names.index("omega")]
@@ -198,7 +198,7 @@ def linearise(plant, *, theta_deg: float = 0.0, load_bar: float = 0.0, current_m
     if flow_lpm:
         # a valve passing flow is an operating point only with the piston moving at the speed that flow
         # gives (chamber pressures steady): otherwise d(P')/d(x) would carry the filling of a locked chamber
-        q_a = m.lands(s0[2], s0[4], s0[5], s0[6], plant.param_vector)[0]
+        q_a = m.lands(s0, s0[2], s0[4], s0[5], s0[6], plant.param_vector)[0]
         s0[1] = q_a / (plant.rig.area * plant.rig.radius * math.cos(s0[0]))
         s0[8] = plant.rig.radius * math.cos(s0[0]) * s0[1]
     A, b = jacobian(plant, s0, current_mA, keep_nonsmooth=keep_nonsmooth)

@@ -79,14 +79,16 @@ def coil_current(state: dict, i: float, p: dict) -> tuple[float, dict]:
     return i, rates
 
 
-def lands(qc: float, pa: float, pb: float, ps: float, p: dict) -> tuple:
+def lands(qc: float, pa: float, pb: float, ps: float, p: dict, own: dict | None = None) -> tuple:
     """Merritt's per-land law between the pressures at the supply and return lands (the supply's and the tank's 0,
     unless the effects' ``land_pressures`` chain changes them), each land's flow then as the ``land_flows`` chain
-    changes it: (Q into A, Q into B, Q from supply -- the orifice law's)."""
+    changes it: (Q into A, Q into B, Q from supply -- the orifice law's).  ``own``: the effects' own states by
+    their full names (a line's volume at a land reads its state)."""
     half = p["rated_drop"] / 2.0
     p_sup, p_ret = ps, 0.0
     for name in _chain("land_pressures", p):
-        p_sup, p_ret = _term(name, "land_pressures", p, {"qc": qc, "ps": ps, "p_sup": p_sup, "p_ret": p_ret})
+        p_sup, p_ret = _term(name, "land_pressures", p, {**(own or {}), "qc": qc, "ps": ps, "p_sup": p_sup,
+                                                          "p_ret": p_ret})
     if qc >= 0.0:
         q_a = qc * _root(p_sup - pa, half)
         q_b, q_s = -qc * _root(pb - p_ret, half), q_a
@@ -106,7 +108,7 @@ def metered_flow(state: dict, p: dict) -> float:
     pva, pvb = state["pa"], state["pb"]
     for name in _chain("port_pressures", p):
         pva, pvb = _term(name, "port_pressures", p, {**own, "pa": pva, "pb": pvb})
-    q_a, q_b, q_s = lands(qc, pva, pvb, ps, p)
+    q_a, q_b, q_s = lands(qc, pva, pvb, ps, p, own)
     ctx = {"qc": qc, "pa": pva, "pb": pvb, "ps": ps, "p_load": pva - pvb, "q_a": q_a, "q_b": q_b, "q_supply": q_s}
     side = [n for n in _chain("chamber_flows", p) if REGISTRY[n].valve_side]
     return q_a + sum(_term(n, "chamber_flows", p, ctx)[0] for n in sorted(side))
@@ -136,7 +138,7 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
         d["theta_a"] = d["omega_a"] = 0.0
 
     # per-land orifice law, between the pressures at the lands
-    q_a, q_b, q_supply = lands(qc, pa, pb, ps, p)
+    q_a, q_b, q_supply = lands(qc, pa, pb, ps, p, {k: v for k, v in state.items() if "." in k})
 
     joint = any(p.get(f"{n}.on") and "joint_force" in REGISTRY[n].terms() for n in REGISTRY)
     if joint:

@@ -204,6 +204,77 @@ def test_pair_of_hoses_steady_drop_is_R_times_the_flow(V_cm3, R_lpm):
     assert q_valve == pytest.approx(q, rel=0.01)
 
 
+def _steady_clamped(effects, i_mA=4.0, n=4000):
+    """The final state of a clamped piston (huge inertia) with a leak across it, the valve held open at
+    ``i_mA``: the valve's flow is the leak's in the steady state."""
+    from ehas_env.physics import layout as K
+
+    plant = Plant(disc_sets=1, inertia=1e9, effects=effects)
+    s = plant.initial_state(0.0).copy()
+    plant.model.run_open_loop(s, plant.param_vector, np.full(n, i_mA), plant.dt, plant.substeps,
+                              np.zeros(K.history_length(0.05, plant.dt)), np.zeros((n, K.N_OUT)))
+    return plant, s
+
+
+@pytest.mark.parametrize("port", ["supply", "return"])
+@pytest.mark.parametrize("V_cm3,R_lpm", [(400.0, 2.0), (5.0, 0.5)])
+def test_port_line_steady_drop_is_R_times_the_flow(port, V_cm3, R_lpm):
+    """A line volume behind a resistance at the valve's supply or return port, integrated (400 cm^3, 2 bar/LPM)
+    and with its compliance floored at the sub-step (5 cm^3, 0.5 bar/LPM), in the steady state of a clamped
+    piston with a leak across it: the line's drop is R q with q the leak's flow, and the land it shares meters
+    across what is left, q = q_c sqrt((P_S - dp - P_A) / (dp_n / 2)) from the supply, q_c sqrt((P_B - dp) /
+    (dp_n / 2)) into the tank (Merritt's orifice law, solved by hand here)."""
+    leak, i_mA, name = 1e-11, 4.0, f"aug_line_{port}"
+    plant, s = _steady_clamped({"internal_leakage": {"C_leak": leak}, name: {"V_line": V_cm3, "R_line": R_lpm}},
+                               i_mA)
+    slots = plant.slots()
+    floored = V_cm3 / 1e6 / slots["beta"] < slots[f"{name}.T_min"] / (R_lpm * augment.BAR_PER_LPM)
+    assert floored == (V_cm3 < 10.0)  # each case runs the regime it is meant to
+    pa, pb = s[4], s[5]
+    dp = s[plant.model.STATE_NAMES.index(f"{name}.dp_line")]
+    q = leak * (pa - pb)
+    assert dp > 0.3e5 and dp == pytest.approx(R_lpm * augment.BAR_PER_LPM * q, rel=0.01)
+    half = 0.5 * slots["rated_drop"]
+    qc = slots["K"] * i_mA
+    land = (plant.rig.supply - dp - pa) if port == "supply" else (pb - dp)
+    assert qc * math.sqrt(land / half) == pytest.approx(q, rel=0.01)
+    # without the line the same leak settles elsewhere: the line's drop is what moved it
+    _, s0 = _steady_clamped({"internal_leakage": {"C_leak": leak}}, i_mA)
+    assert abs((s0[4] - s0[5]) - (pa - pb)) > 0.1e5
+
+
+@pytest.mark.parametrize("port", ["supply", "return"])
+def test_port_line_relaxes_at_its_volume_against_R_and_the_land(port):
+    """The drop's own rate, linearised in the drop (all else held), is -(1 / R + g) / C with C = V / beta and g the
+    land's conductance |q| / (2 |its drop|): a volume filled through R and drained through the land (the
+    orifice's slope, by hand), at a valve open 6 mA with the chambers at 150 and 60 bar."""
+    V, R_lpm, name = 400.0, 2.0, f"aug_line_{port}"
+    plant = Plant(disc_sets=2, effects={name: {"V_line": V, "R_line": R_lpm}})
+    m, P, slots = plant.model, plant.param_vector, plant.slots()
+    s = plant.initial_state(0.0).copy()
+    k = m.STATE_NAMES.index(f"{name}.dp_line")
+    s[2], s[4], s[5] = slots["K"] * 6.0, 150e5, 60e5
+    s[k] = 2e5
+
+    def rate(dp):
+        x = s.copy()
+        x[k] = dp
+        ds = np.zeros(m.N_STATES)
+        m.derivatives(x, 6.0, P, ds)
+        return ds[k]
+
+    h = 100.0
+    slope = (rate(s[k] + h) - rate(s[k] - h)) / (2 * h)
+    land = (plant.rig.supply - s[k] - s[4]) if port == "supply" else (s[5] - s[k])
+    q = s[2] * math.sqrt(land / (0.5 * slots["rated_drop"]))
+    g = q / (2.0 * land)
+    C = V * 1e-6 / slots["beta"]
+    assert slope == pytest.approx(-(1.0 / (R_lpm * augment.BAR_PER_LPM) + g) / C, rel=0.01)
+    land0 = (plant.rig.supply - s[4]) if port == "supply" else s[5]
+    q0 = s[2] * math.sqrt(land0 / (0.5 * slots["rated_drop"]))
+    assert rate(0.0) == pytest.approx(q0 / C, rel=0.01)  # no drop yet: the land's whole flow fills it at V / beta
+
+
 def test_a_new_sensed_output_is_a_place_of_every_follower_kind():
     """The reading places come from the model's sensed outputs (layout.SENSED), not from a list of the followers:
     each sensed output whose rate the model has is a place of every kind."""

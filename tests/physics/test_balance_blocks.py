@@ -139,7 +139,7 @@ def test_a_land_term_of_its_own_flow_is_added_to_the_orifice_law():
     P = plant.param_vector
     for qc, pa, pb in [(2e-4, 120e5, 60e5), (-2e-4, 80e5, 130e5)]:
         qa, qb, qs = land_flows(qc, pa, pb, 210e5, 0.0, P[plant.model.IDX["rated_drop"]])
-        got = plant.model.lands(qc, pa, pb, 210e5, P)
+        got = plant.model.lands(plant.initial_state(0.0), qc, pa, pb, 210e5, P)
         assert got[0] == qa and got[2] == qs
         assert got[1] == pytest.approx(qb + c * (qb / span) ** 3, rel=1e-12)
 
@@ -151,7 +151,8 @@ def test_the_lands_at_the_supply_and_the_tank_are_the_book_model_bit_for_bit():
     m = Plant(disc_sets=1).model
     P = Plant(disc_sets=1).param_vector
     for qc, pa, pb in [(2e-4, 120e5, 60e5), (-2e-4, 80e5, 130e5), (0.0, 100e5, 100e5)]:
-        assert m.lands(qc, pa, pb, 210e5, P) == land_flows(qc, pa, pb, 210e5, 0.0, P[m.IDX["rated_drop"]])
+        assert m.lands(np.zeros(m.N_STATES), qc, pa, pb, 210e5, P) == land_flows(qc, pa, pb, 210e5, 0.0,
+                                                                               P[m.IDX["rated_drop"]])
 
 
 def test_the_docs_place_of_ones_own_is_the_crank_load_with_every_kind():
