@@ -372,8 +372,8 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
     baseline) of ``bases``, those at a quiet reading skipped: {(name, the effects set aside or None): (screened fit,
     its base)}; an entry per name appended to ``tried`` (its cost over the final model's, or why it was skipped).
     On the recalibrated baseline the blocks at a signal (the followers and reading blocks, 56 screens) are not
-    screened: the terms at a balance are, past their linearisation's bar (one replay each), and the links, hoses
-    and play (6)."""
+    screened: the terms at a balance are, past their linearisation's bar (one replay each), and the links, the
+    hoses, the line volumes at the supply and return ports and play (8)."""
     screened = {}
     for k, name in enumerate(names, 1):
         cls = get_effect(name)

@@ -42,7 +42,7 @@ from ehas_env.measurement.campaign import Campaign, Run, reference_of
 from ehas_env.measurement.verdict import envelope_cost_block, sine_timing, unpredictable_runs
 from ehas_env.physics.effects import resolve_effects
 from ehas_env.simulation.metrics import fit_percent
-from ehas_env.simulation.plant import TAU_MAX, Plant, RigController
+from ehas_env.simulation.plant import TAU_MAX, Plant, RigController, at_rest
 from ehas_env.physics.rig import BAR, BULK_MODULUS, LPM, VALVE_K, RigParams
 from ehas_env.ranges import check_field
 
@@ -398,7 +398,7 @@ class Replayer:
             raise ValueError(f"the extended model has no state {missing[0]!r} of the plant's model")
         for k, name in enumerate(plant.model.STATE_NAMES):
             out[pos[name]] = s[k]
-        return out
+        return at_rest(mod, out)
 
     def absolute(self, model: ModelSpec) -> ModelSpec:
         """``model`` with the bulk modulus (Pa) and valve gain (LPM/mA) the plant runs (see ``model=``)."""
@@ -521,6 +521,7 @@ class Replayer:
         if case.supply is not None:  # at rest at the measured supply: P_A = P_B = P_S / 2 (as Plant.initial_state)
             s0[KN.S_PA] = s0[KN.S_PB] = 0.5 * case.supply[0]
             s0[KN.S_PS] = case.supply[0]
+            at_rest(mod, s0)
         return _Job(case, mod, P, s0, plant.rig.i_max, np.zeros((case.n_sim, KN.N_OUT)))
 
     def _run_case(self, job: _Job) -> dict[str, np.ndarray]:

@@ -29,8 +29,8 @@ neither the library fit nor the structural-hypothesis stage tries them: the stat
 A follower at a place whose signal has a rate in the model keeps the error between what it passes on and what
 comes (0 at rest, whatever the position or pressure a run starts from); at the coil it keeps the current itself
 (0 mA at rest); a line's
-pressure starts at the chambers' initial half supply pressure (:meth:`ehas_env.simulation.plant.Plant.initial_state`)
-of the book's rig, and relaxes to its chamber's within a fraction of a millisecond on a rig whose supply differs.
+pressure starts at its chamber's (``rests_at``: at rest the line's pressure is its chamber's, on any rig's supply;
+:func:`ehas_env.simulation.plant.at_rest`).
 """
 from __future__ import annotations
 
@@ -855,7 +855,8 @@ def _hose(sides: str, name: str, title: str, where: str, doc: str) -> type:
     body = {"name": name, "title": title, "where": where, "__doc__": doc, "__module__": __name__,
             "__qualname__": f"Hose{sides.upper()}",
             "states": tuple((f"p_line_{x}", "Pa", 0.5 * SUPPLY_PRESSURE) for x in sides)
-            + tuple((f"q_in_{x}", "m^3/s", 0.0) for x in sides), **term_methods(name, _hose_texts(sides))}
+            + tuple((f"q_in_{x}", "m^3/s", 0.0) for x in sides), "rests_at": {f"p_line_{x}": f"p{x}" for x in sides},
+            **term_methods(name, _hose_texts(sides))}
     return type(Hose)(body["__qualname__"], (Hose,), body)
 
 

@@ -150,6 +150,29 @@ class SimResult:
 
 
 
+def at_rest(model, s: np.ndarray) -> np.ndarray:
+    """``s`` with each effect's states that rest at a baseline state (``Effect.rests_at``: a hose's line pressure
+    at its chamber's) set to that state's value; in place.
+
+    Parameters
+    ----------
+    model : module
+        A compiled model (its ``EFFECTS`` and ``STATE_NAMES``).
+    s : ndarray
+        A state vector of ``model`` whose baseline states are set.
+
+    Returns
+    -------
+    ndarray
+        ``s``.
+    """
+    names = model.STATE_NAMES
+    for name in model.EFFECTS:  # (a proposal's terms are in EFFECTS too, no registered effect: no states)
+        for own, base in getattr(REGISTRY.get(name), "rests_at", {}).items():
+            s[names.index(f"{name}.{own}")] = s[names.index(base)]
+    return s
+
+
 class Plant:
     """The rig: baseline reference model plus effects, simulated at fixed step.
 
@@ -321,7 +344,7 @@ class Plant:
         s[4] = s[5] = 0.5 * self.rig.supply
         s[6] = self.rig.supply
         s[7] = self.rig.radius * math.sin(th) - x_off
-        return s
+        return at_rest(self._model, s)
 
     def _true_position(self, reading: float) -> float:
         """The piston position at which the sensor reads ``reading`` (m): the sensor chain inverted by a secant

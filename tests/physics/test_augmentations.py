@@ -69,6 +69,22 @@ def test_hose_at_zero_flow_leaves_the_pressures(hose):
     np.testing.assert_allclose(with_hose.p_b_bar, plain.p_b_bar, atol=1e-9)
 
 
+@pytest.mark.parametrize("hose", ["aug_hose_a", "aug_hose_b", "aug_hose_ab"])
+def test_hose_at_rest_on_a_rig_of_another_supply_leaves_the_pressures(hose):
+    """At rest on a rig whose supply is not the book's (180 bar: the chambers at 90 bar), a hose's line starts at
+    its chamber's pressure: nothing moves (a line started at the book's 105 bar pushed 15 bar into the chamber
+    and rang the loop for 0.1 s at the start of every run)."""
+    from ehas_env.physics.rig import RigParams
+
+    rig = RigParams(supply=180e5)
+    plain = Plant(disc_sets=2, rig=rig).simulate(np.zeros(200), theta0_deg=5.0)
+    with_hose = Plant(disc_sets=2, rig=rig, effects={hose: {"V_line": 40.0, "R_line": 0.6}}).simulate(
+        np.zeros(200), theta0_deg=5.0)
+    np.testing.assert_allclose(with_hose.p_a_bar, 90.0, atol=1e-6)
+    np.testing.assert_allclose(with_hose.p_b_bar, plain.p_b_bar, atol=1e-6)
+    np.testing.assert_allclose(with_hose.theta_deg, plain.theta_deg, atol=1e-9)
+
+
 def test_hose_steady_drop_is_R_times_the_flow():
     """Clamped piston (huge inertia) with a cross-piston leak: in the steady state the valve's flow passes the hose
     and the leak; the line's pressure is above chamber A's by R q, and the valve meters against it:

@@ -238,6 +238,10 @@ class Effect:
     constants: ClassVar[tuple[Param, ...]] = ()
     #: the effect's own states: (name, unit, initial value in SI)
     states: ClassVar[tuple[tuple[str, str, float], ...]] = ()
+    #: own states that at rest equal a state of the baseline ({own state: baseline state name}, e.g. a hose's line
+    #: pressure its chamber's): they start where that one starts, whatever the rig's supply, not at the declared
+    #: value (:func:`ehas_env.simulation.plant.at_rest`)
+    rests_at: ClassVar[dict] = {}
     #: (hypotheses) library effects that fit this hypothesis' residual as well, being another law of the same
     #: signature (a transport delay for a coil's lag): when the diagnosis keeps one of them, it fits this
     #: hypothesis in its place and keeps whichever the validation data prefer (the other is named a stand-in)
@@ -330,6 +334,13 @@ class Effect:
         if "state_rates" in cls.terms() and not states:
             raise ValueError(f"{who}: state_rates gives the rates of the effect's own states, but it declares no "
                              "states = ((name, unit, initial value in SI), ...)")
+        from ehas_env.physics.layout import STATE_NAMES as baseline
+
+        mine = [st[0] for st in states]
+        for own_state, base in dict(cls.rests_at).items():
+            if own_state not in mine or base not in baseline:
+                raise ValueError(f"{who}: rests_at maps one of its own states ({', '.join(mine) or 'none'}) to a "
+                                 f"state of the baseline ({', '.join(baseline)}), got {own_state!r}: {base!r}")
         own = [p.name for p in cls.params]
         if not isinstance(cls.main_param, str):
             raise ValueError(f"{who}: main_param must be the name of one of its parameters "
