@@ -67,6 +67,8 @@ LIBRARY_KIND = {
     "aug_lag_position_sensor": {"sensor"}, "aug_link_rod_crank": {"compliance"}, "aug_link_mount": {"compliance"},
     "aug_hose_a": {"compliance", "leakage/flow"}, "aug_hose_b": {"compliance", "leakage/flow"},
     "aug_hose_ab": {"compliance", "leakage/flow"},
+    # a line volume behind a resistance at the valve's supply or return port: the line's drop R q at the lands
+    "aug_line_supply": {"supply/return", "compliance"}, "aug_line_return": {"supply/return", "compliance"},
 }
 
 #: kinds of the proposal's forms, "place.coefficient" (ehas_env/measurement/proposal_terms.py's dictionary as
@@ -171,6 +173,7 @@ LIBRARY_PLACE = {
     "aug_lag_coil": {"coil_current", "valve_current"}, "aug_slew_coil": {"coil_current", "valve_current"},
     "aug_lag_position_sensor": {"position_reading"}, "aug_link_rod_crank": {"piston_force", "crank_torque"}, "aug_link_mount": {"piston_force"},
     "aug_hose_a": {"chamber_flows"}, "aug_hose_b": {"chamber_flows"}, "aug_hose_ab": {"chamber_flows"},
+    "aug_line_supply": {"supply"}, "aug_line_return": {"return"},
 }
 #: ehas's reading places (ehas_env.physics.layout.SENSED: aug_<kind>_<output>_reading) -> the grammar's place (the
 #: supply pressure's reading stands for the supply, which the grammar has no reading of)
@@ -511,7 +514,7 @@ LIBRARY_BLOCK = {
     "hyp_lugre_friction": {"saturation"}, "hyp_coil_lag": {"lag"}, "hyp_crank_offset": {"offset"},
     "aug_lag_coil": {"lag"}, "aug_slew_coil": {"rate_limit"}, "aug_lag_position_sensor": {"lag"},
     "aug_link_rod_crank": {"compliance"}, "aug_link_mount": {"compliance"}, "aug_hose_a": {"volume"},
-    "aug_hose_b": {"volume"}, "aug_hose_ab": {"volume"},
+    "aug_hose_b": {"volume"}, "aug_hose_ab": {"volume"}, "aug_line_supply": {"volume"}, "aug_line_return": {"volume"},
 }
 for _stem, _kind in STEM_BLOCK.items():  # every generated block at every place ehas has
     for _place in ("coil", "position_sensor", *(f"{o}_reading" for o in READING_PLACE)):
