@@ -84,7 +84,7 @@ class SignalPlace:
     where : str
         The place in words ("chamber B's pressure reading").
     held : tuple of (str, str)
-        Static kinds (their ``stem``) the model or the library holds here, each with what holds it.
+        Kinds (their ``stem``, static or follower) the model or the library holds here, each with what holds it.
     in_loop : bool
         Whether a follower there is a rival of what makes the loop late (the position the controller feeds back: a
         lag of it makes the loop late as a delay of its command does); a logged reading's follower is not.
@@ -100,8 +100,8 @@ class SignalPlace:
     where: str
     in_loop: bool = False
     signed: bool = True
-    #: the static kinds the model or the library already holds at this place, as (kind stem, what holds it): the
-    #: product (:data:`STATICS`) leaves them out, not to try one law twice under two names
+    #: the kinds the model or the library already holds at this place, as (kind stem, what holds it): the
+    #: products (:data:`STATICS`, :data:`FOLLOWERS`) leave them out, not to try one law twice under two names
     held: tuple = ()
 
 
@@ -128,7 +128,8 @@ SIGNAL_PLACES = (
     # the current's offset is the library's null bias, its dead zone the valve's deadband, its scale the valve's
     # gain K (recalibrated in every fit)
     SignalPlace("coil_current", "coil", "i", None, "mA", 10.0, (1.0, "mA"), "the valve's current path (command to coil)",
-                held=(("offset", "valve_null_bias"), ("dz", "valve_deadband"), ("gain", "the valve's gain K"))),
+                held=(("offset", "valve_null_bias"), ("dz", "valve_deadband"), ("gain", "the valve's gain K"),
+                      ("delay", "transport_delay"))),
     # the reading's zero and scale are the library's structural hypotheses of the sensor
     SignalPlace("position_reading", "position_sensor", "x", "v", "m", 0.05, (1.0e3, "mm"),
                 "the position sensor's reading", in_loop=True,
@@ -152,10 +153,8 @@ class Follower(Augmentation):
     #: the effects a follower of this kind in the loop may be mistaken for (its ``mistaken_for`` there)
     loop_rivals: ClassVar[tuple] = ()
     #: what is passed on is ``u + through * (y - u)``: 1 passes the follower's output ``y``; 2 passes ``2 y - u``,
-    #: the all-pass a first-order Pade delay is (:class:`Delay`), which needs the place's rate (the error form)
+    #: the all-pass a first-order Pade delay is (:class:`Delay`)
     through: ClassVar[float] = 1.0
-    #: whether the kind needs the place's rate (the error form) to be put there
-    needs_rate: ClassVar[bool] = False
 
     @classmethod
     def kind_params(cls, place: SignalPlace) -> tuple:
@@ -192,7 +191,9 @@ class Follower(Augmentation):
         else:  # y itself, from rest
             state = f"{place.value}_{cls.stem}"
             rates = f"def state_rates({place.value}, {state}, {args}):\n    d = {place.value} - {state}\n    return {cls.law}\n"
-            passed = f"def {place.place}({state}):\n    return {state}\n"
+            passed = (f"def {place.place}({state}):\n    return {state}\n" if cls.through == 1.0 else
+                      f"def {place.place}({place.value}, {state}):\n"
+                      f"    return {place.value} + {cls.through!r} * ({state} - {place.value})\n")
         body = {"states": ((state, place.unit, 0.0),)}
         if place.place == "position_reading":
             # after the sensor's static effects (an offset, a shape): the state acts on what the conditioner outputs
@@ -306,7 +307,6 @@ class Delay(Follower):
     kind_title = "pure delay"
     law = "d / (0.5 * tau)"
     through = 2.0
-    needs_rate = True
     params = (
         Param("tau", "ms", 1.0, (0.1, 30.0),
               "the delay: a converter's or filter's latency, a transducer's transport time (assumed range: a tenth "
@@ -361,11 +361,11 @@ class Play(Follower):
         return {"b": place.shown}
 
 
-#: the follower kinds, each applied at every signal place it can be put (a delay needs the place's rate)
+#: the follower kinds, each applied at every signal place but where the model or the library holds that kind
 FOLLOWER_KINDS = (Lag, RateLimit, Delay, Play)
 #: the product, generated once (registered as effects when this module is imported)
 FOLLOWERS = tuple(kind.at(place) for kind in FOLLOWER_KINDS for place in SIGNAL_PLACES
-                  if place.rate or not kind.needs_rate)
+                  if kind.stem not in dict(place.held))
 
 
 # -- a static block at a sensor's reading: a kind defined once, applied at every reading -----------------------------

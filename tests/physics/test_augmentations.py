@@ -19,13 +19,11 @@ def test_every_kind_has_a_place_registered_and_named():
     names = augment.augmentations()
     assert {"aug_lag_coil", "aug_slew_coil", "aug_lag_position_sensor", "aug_link_rod_crank", "aug_link_mount",
             "aug_hose_ab", "aug_hose_a", "aug_hose_b", "backlash"} <= set(names)
-    # the followers: every kind at every signal place it can be put (a delay needs the place's rate), none written
-    # by hand
+    # the followers: every kind at every signal place but where the library holds it, none written by hand
     assert set(augment.followers()) <= set(names)
-    assert len(augment.FOLLOWERS) == sum(1 for k in augment.FOLLOWER_KINDS for p in augment.SIGNAL_PLACES
-                                         if p.rate or not k.needs_rate)
-    # no delay at the coil or the flow meter: neither has a rate in the balances (a delay passes 2 y - u)
-    assert len(augment.FOLLOWERS) == len(augment.FOLLOWER_KINDS) * len(augment.SIGNAL_PLACES) - 2
+    # no delay at the coil alone: the command's delay there is the library's transport_delay
+    assert len(augment.FOLLOWERS) == len(augment.FOLLOWER_KINDS) * len(augment.SIGNAL_PLACES) - 1
+    assert "aug_delay_coil" not in names and "aug_delay_flow_a_reading" in names
     assert {c.name for c in augment.FOLLOWERS} <= set(augment.followers())
     for n in [n for n in names if n != "backlash"]:
         cls = REGISTRY[n]
@@ -481,19 +479,21 @@ def test_a_reading_with_a_knee_is_the_quantity_with_its_slope_changed_beyond_it(
 
 
 def test_a_delayed_reading_is_the_reading_shifted_by_the_delay():
-    """A 2 ms delay of chamber B's reading (the first-order Pade all-pass) is the plain reading 2 ms late to within
-    1 % of what the delay moves it by; nothing the loop feeds back moves.  A delay needs its place's rate: none at
-    the coil (the command's delay is the library's transport_delay)."""
+    """A 2 ms delay of chamber B's reading and of the flow meter's (the first-order Pade all-pass; the flow meter's
+    kept as the delayed reading itself, the balances having no rate of the metered flow) is the plain reading 2 ms
+    late to within 1 % of what the delay moves it by; nothing the loop feeds back moves.  None at the coil (the
+    command's delay is the library's transport_delay)."""
     tau = 2.0  # ms
     plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=15.0, freq_hz=2.0, cycles=3)
-    late = Plant(disc_sets=2, effects={"aug_delay_pb_reading": {"tau": tau}}).simulate_closed_loop(
-        amplitude_deg=15.0, freq_hz=2.0, cycles=3)
-    t = plain.t
-    shifted = np.interp(t - tau * 1e-3, t, plain.p_b_bar)
-    k = t > 0.5  # after the start (the reading and its delay both at rest before it)
-    moved = np.sqrt(np.mean((plain.p_b_bar - shifted)[k] ** 2))
-    assert np.sqrt(np.mean((late.p_b_bar - shifted)[k] ** 2)) < 0.01 * moved
-    np.testing.assert_array_equal(late.theta_deg, plain.theta_deg)
+    for effect, signal in (("aug_delay_pb_reading", "p_b_bar"), ("aug_delay_flow_a_reading", "flow_lpm")):
+        late = Plant(disc_sets=2, effects={effect: {"tau": tau}}).simulate_closed_loop(
+            amplitude_deg=15.0, freq_hz=2.0, cycles=3)
+        t, y = plain.t, getattr(plain, signal)
+        shifted = np.interp(t - tau * 1e-3, t, y)
+        k = t > 0.5  # after the start (the reading and its delay both at rest before it)
+        moved = np.sqrt(np.mean((y - shifted)[k] ** 2))
+        assert np.sqrt(np.mean((getattr(late, signal) - shifted)[k] ** 2)) < 0.01 * moved, effect
+        np.testing.assert_array_equal(late.theta_deg, plain.theta_deg)
     assert "aug_delay_coil" not in augment.followers() and "aug_delay_position_sensor" in augment.followers()
 
 
