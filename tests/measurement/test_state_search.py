@@ -420,7 +420,7 @@ def test_a_static_block_in_the_loop_is_found_with_its_size(effect, param, value,
     from ehas_env.physics import augment
 
     held = {place.place: dict(place.held) for place in augment.SIGNAL_PLACES}
-    assert set(held["coil_current"]) == {"offset", "dz", "gain"}
+    assert set(held["coil_current"]) == {"offset", "dz", "gain", "delay"}  # the delay: the command's transport_delay
     assert set(held["position_reading"]) == {"offset", "gain", "bend"}
     made = set(reading_blocks())
     assert {"aug_offset_coil", "aug_dz_coil", "aug_gain_coil", "aug_offset_position_sensor",
