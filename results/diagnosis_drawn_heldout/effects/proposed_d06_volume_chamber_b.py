@@ -1,4 +1,4 @@
-"""proposed_d06_volume_chamber_b: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/drHB_work/d06_volume@chamber_b/campaign.
+"""proposed_d06_volume_chamber_b: pressure loss in the supply line between the regulated supply and the valve, found by ehas diagnose on /tmp/drLH_work/d06_volume@chamber_b/campaign.
 
 The supply line loses 23.9 bar at 25 LPM before the valve (growing with the square of the flow).
 dp_25 = 23.91 bar (95 % CI 23.51 to 24.32)
