@@ -1,8 +1,8 @@
-"""proposed_unl_bearing_friction_strong: a term proposed by ehas diagnose for /tmp/unl-work/unl_bearing_friction_strong/campaign.
+"""proposed_unl_bearing_friction_strong: a term proposed by ehas diagnose for /tmp/unlL_work/unl_bearing_friction_strong/campaign.
 
-T_crank [N m] += c_jsw·|p_A - p_B| r |cos theta| tanh(r omega / v_tanh)   with c_jsw = -7.554e-05 m^3 (95 % CI -7.83e-05 to -7.279e-05)
+F_piston [N] += c_plsv·|p_A - p_B| tanh(v / v_tanh)   with c_plsv = -7.553e-05 m^2 (95 % CI -7.799e-05 to -7.308e-05)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 3.68 -> 1.19; fit 91.5 % -> 96.1 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.94 -> 1.15; fit 93.0 % -> 96.5 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
@@ -13,15 +13,15 @@ from ehas_env.physics.effects import Effect, Param
 
 class ProposedUnlBearingFrictionStrong(Effect):
     name = "proposed_unl_bearing_friction_strong"
-    title = "proposed term (crank torque)"
+    title = "proposed term (piston force)"
     params = (
-        Param("t_jsw", "m^3", 7.55441e-05, (0.0, 0.00151088),
-              "dry torque that rises with the joint's load: per Pa of |p_L| r |cos theta|, times sign(omega) (a joint's friction, Pa x m^2 x m) (fitted: -7.554e-05, 95 % CI -7.83e-05 to -7.279e-05)", typical=(3.7772e-05, 0.000151088)),
+        Param("f_plsv", "m^2", 7.55349e-05, (0.0, 0.0015107),
+              "dry force that rises with the load pressure: per Pa of |p_L|, times sign(v) (fitted: -7.553e-05, 95 % CI -7.799e-05 to -7.308e-05)", typical=(3.77675e-05, 0.00015107)),
     )
-    main_param = "t_jsw"
-    explanation = 'Proposed by the diagnosis, not yet a physical explanation: T_crank [N m] += c_jsw·|p_A - p_B| r |cos theta| tanh(r omega / v_tanh) with c_jsw = -7.554e-05 m^3 (95 % CI -7.83e-05 to -7.279e-05)'
-    signature = 'the residual it was fitted to: |p_A - p_B| r |cos theta| tanh(r omega / v_tanh)'
+    main_param = "f_plsv"
+    explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_plsv·|p_A - p_B| tanh(v / v_tanh) with c_plsv = -7.553e-05 m^2 (95 % CI -7.799e-05 to -7.308e-05)'
+    signature = 'the residual it was fitted to: |p_A - p_B| tanh(v / v_tanh)'
 
     @staticmethod
-    def crank_torque(theta, omega, pa, pb, radius, v_tanh, t_jsw):
-        return -(t_jsw * abs(pa - pb) * radius * abs(math.cos(theta)) * math.tanh(radius * omega / v_tanh))
+    def piston_force(pa, pb, v, v_tanh, f_plsv):
+        return -(f_plsv * abs(pa - pb) * math.tanh(v / v_tanh))
