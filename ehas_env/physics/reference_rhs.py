@@ -138,7 +138,8 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
         d["theta_a"] = d["omega_a"] = 0.0
 
     # per-land orifice law, between the pressures at the lands
-    q_a, q_b, q_supply = lands(qc, pa, pb, ps, p, {k: v for k, v in state.items() if "." in k})
+    own = {k: v for k, v in state.items() if "." in k}  # the effects' own states, by their full names
+    q_a, q_b, q_supply = lands(qc, pa, pb, ps, p, own)
 
     joint = any(p.get(f"{n}.on") and "joint_force" in REGISTRY[n].terms() for n in REGISTRY)
     if joint:
@@ -147,7 +148,7 @@ def rhs(state: dict, i_valve_mA: float, p: dict) -> dict:
         x, xd = r * math.sin(th) - p.get("piston_offset", 0.0), r * math.cos(th) * om
     ctx = {"theta": th, "omega": om, "qc": qc, "qc_dot": qcd, "pa": pa, "pb": pb, "ps": ps, "xp": state["xp"],
            "vp": state["vp"], "i": i_valve_mA, "p_load": pa - pb, "q_a": q_a, "q_b": q_b, "q_supply": q_supply,
-           "x": x, "v": xd, **{k: v for k, v in state.items() if "." in k}}
+           "x": x, "v": xd, **own}
     for _, (dqa, dqb) in _terms("chamber_flows", p, ctx):
         q_a += dqa
         q_b += dqb

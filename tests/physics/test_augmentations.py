@@ -190,34 +190,6 @@ def test_flow_meter_at_the_port_reads_the_land_flow_at_the_line_pressure():
                                             rel=1e-3)
 
 
-@pytest.mark.parametrize("V_cm3,R_lpm", [(100.0, 1.0), (5.0, 0.05)])
-def test_pair_of_hoses_steady_drop_is_R_times_the_flow(V_cm3, R_lpm):
-    """Both regimes of the pair of hoses -- integrated (100 cm^3, 1 bar/LPM) and quasi-static (5 cm^3,
-    0.05 bar/LPM: an exchange the sub-step does not resolve) -- in the steady state of a clamped piston with a
-    leak across it: line A above chamber A by R q, line B below chamber B by R q, the valve metering
-    q = q_c sqrt((P_S - p_line_A) / (dp_n / 2)) (analytic, as for the single hose)."""
-    from ehas_env.physics import layout as K
-
-    leak = 1e-11
-    plant = Plant(disc_sets=1, inertia=1e9, effects={"internal_leakage": {"C_leak": leak},
-                                                     "aug_hose_ab": {"V_line": V_cm3, "R_line": R_lpm}})
-    slots = plant.slots()
-    quasi = slots["aug_hose_ab.R_line"] < slots["aug_hose_ab.R_exact"]
-    assert quasi == (V_cm3 < 10.0)  # each case runs the branch it is meant to
-    i_mA, n = 4.0, 4000
-    s = plant.initial_state(0.0).copy()
-    plant.model.run_open_loop(s, plant.param_vector, np.full(n, i_mA), plant.dt, plant.substeps,
-                              np.zeros(K.history_length(0.05, plant.dt)), np.zeros((n, K.N_OUT)))
-    names = plant.model.STATE_NAMES
-    pa, pb = s[4], s[5]
-    la, lb = s[names.index("aug_hose_ab.p_line_a")], s[names.index("aug_hose_ab.p_line_b")]
-    q = leak * (pa - pb)
-    R = R_lpm * augment.BAR_PER_LPM
-    assert la - pa == pytest.approx(R * q, rel=0.01) and pb - lb == pytest.approx(R * q, rel=0.01)
-    q_valve = slots["K"] * i_mA * math.sqrt((plant.rig.supply - la) / (0.5 * slots["rated_drop"]))
-    assert q_valve == pytest.approx(q, rel=0.01)
-
-
 def _steady_clamped(effects, i_mA=4.0, n=4000):
     """The final state of a clamped piston (huge inertia) with a leak across it, the valve held open at
     ``i_mA``: the valve's flow is the leak's in the steady state."""
@@ -228,6 +200,28 @@ def _steady_clamped(effects, i_mA=4.0, n=4000):
     plant.model.run_open_loop(s, plant.param_vector, np.full(n, i_mA), plant.dt, plant.substeps,
                               np.zeros(K.history_length(0.05, plant.dt)), np.zeros((n, K.N_OUT)))
     return plant, s
+
+
+@pytest.mark.parametrize("V_cm3,R_lpm", [(100.0, 1.0), (5.0, 0.05)])
+def test_pair_of_hoses_steady_drop_is_R_times_the_flow(V_cm3, R_lpm):
+    """Both regimes of the pair of hoses -- integrated (100 cm^3, 1 bar/LPM) and quasi-static (5 cm^3,
+    0.05 bar/LPM: an exchange the sub-step does not resolve) -- in the steady state of a clamped piston with a
+    leak across it: line A above chamber A by R q, line B below chamber B by R q, the valve metering
+    q = q_c sqrt((P_S - p_line_A) / (dp_n / 2)) (analytic, as for the single hose)."""
+    leak, i_mA = 1e-11, 4.0
+    plant, s = _steady_clamped({"internal_leakage": {"C_leak": leak},
+                                "aug_hose_ab": {"V_line": V_cm3, "R_line": R_lpm}}, i_mA)
+    slots = plant.slots()
+    quasi = slots["aug_hose_ab.R_line"] < slots["aug_hose_ab.R_exact"]
+    assert quasi == (V_cm3 < 10.0)  # each case runs the branch it is meant to
+    names = plant.model.STATE_NAMES
+    pa, pb = s[4], s[5]
+    la, lb = s[names.index("aug_hose_ab.p_line_a")], s[names.index("aug_hose_ab.p_line_b")]
+    q = leak * (pa - pb)
+    R = R_lpm * augment.BAR_PER_LPM
+    assert la - pa == pytest.approx(R * q, rel=0.01) and pb - lb == pytest.approx(R * q, rel=0.01)
+    q_valve = slots["K"] * i_mA * math.sqrt((plant.rig.supply - la) / (0.5 * slots["rated_drop"]))
+    assert q_valve == pytest.approx(q, rel=0.01)
 
 
 @pytest.mark.parametrize("port", ["supply", "return"])

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from ehas_env.physics.layout import SENSED as _SENSED
+from ehas_env.physics.layout import STATE_NAMES as _BASELINE_STATES
 
 #: where an effect's terms enter the model: place -> what the term returns
 PLACES = {
@@ -334,13 +335,11 @@ class Effect:
         if "state_rates" in cls.terms() and not states:
             raise ValueError(f"{who}: state_rates gives the rates of the effect's own states, but it declares no "
                              "states = ((name, unit, initial value in SI), ...)")
-        from ehas_env.physics.layout import STATE_NAMES as baseline
-
         mine = [st[0] for st in states]
         for own_state, base in dict(cls.rests_at).items():
-            if own_state not in mine or base not in baseline:
+            if own_state not in mine or base not in _BASELINE_STATES:
                 raise ValueError(f"{who}: rests_at maps one of its own states ({', '.join(mine) or 'none'}) to a "
-                                 f"state of the baseline ({', '.join(baseline)}), got {own_state!r}: {base!r}")
+                                 f"state of the baseline ({', '.join(_BASELINE_STATES)}), got {own_state!r}: {base!r}")
         own = [p.name for p in cls.params]
         if not isinstance(cls.main_param, str):
             raise ValueError(f"{who}: main_param must be the name of one of its parameters "
