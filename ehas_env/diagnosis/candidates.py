@@ -682,14 +682,16 @@ def default_holdout(campaign: Campaign) -> list[str]:
 
 def sanity(f: Fit, effect: str) -> str | None:
     """Why the fitted ``effect`` is not physically sane (None when it is): a parameter pinned at a bound of
-    its range, a Stribeck breakaway force not above the sliding force."""
+    its range (but at the end where its block takes a limit that is still its physics, ``Param.limit``: a hose
+    whose volume the logs do not resolve is still a resistance in that line), a Stribeck breakaway force not
+    above the sliding force."""
     vals = f.model.effects.get(effect, {})
     for fp in f.free:
         if fp.effect != effect:
             continue
         where = fp.end(vals[fp.name])
-        if where is not None:
-            p = get_effect(effect).param(fp.name)
+        p = get_effect(effect).param(fp.name)
+        if where is not None and not (p.limit and p.limit[0] == where):
             return (f"{fp.name} = {vals[fp.name]:.4g} {p.unit} sits at the {where} end of its range "
                     f"[{fp.lo:.4g}, {fp.hi:.4g}]")
     if effect == "stribeck_friction" and vals.get("Fs", 0.0) <= DEGENERATE_STRIBECK * vals.get("Fc", 0.0):

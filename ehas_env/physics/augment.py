@@ -759,7 +759,8 @@ class Hose(Augmentation):
               "line volume: oil between the valve's port and the resistance (assumed range: a short hose to a "
               "long one of 3 L; typical 0.3 to 4 m of 8 mm bore, 15 to 200 cm^3; default 10 cm^3, a short hose "
               "that does almost nothing: where a fit starts from no effect)", typical=(15.0, 200.0),
-              si=1.0e-6, log_scale=True),
+              si=1.0e-6, log_scale=True,
+              limit=("lower", "the line's resistance alone: its oil too little for the logs to resolve")),
         Param("R_line", "bar/(L/min)", 0.1, (0.01, 20.0),
               "laminar resistance: 128 mu L / (pi d^4) of a hose, or a restrictor (assumed range; a 3 m, 6 mm "
               "hose at 32 cSt: about 0.5; default 0.1, nearly none)", typical=(0.1, 2.0), si=BAR_PER_LPM,

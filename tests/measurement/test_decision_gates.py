@@ -219,6 +219,33 @@ def test_a_fit_at_the_end_of_its_range_is_not_sane():
     assert D.sanity(inside, "coulomb_friction") is None
 
 
+def test_a_fit_at_the_end_where_its_block_takes_its_limit_is_sane():
+    """A hose whose volume runs to the lower end of its range is the line's resistance alone (``Param.limit``): still
+    a hose, a candidate the state search refits (unlisted pair hose_line + bore_wear: dropped for it, a bend at the
+    coil was kept, 7.49x).  The same hose at its volume's upper end, or at its resistance's lower end (no drop:
+    nothing), is not sane, and neither is a parameter without a limit at either end."""
+    from ehas_env.physics.effects import get_effect
+
+    assert get_effect("aug_hose_b").param("V_line").limit[0] == "lower"
+    assert get_effect("aug_line_supply").param("V_line").limit[0] == "lower"
+    v = F.FreeParam("aug_hose_b", "V_line", 5.0, 800.0, True)
+    r = F.FreeParam("aug_hose_b", "R_line", 0.025, 8.0, True)
+    assert D.sanity(_fit({"aug_hose_b": {"V_line": 5.0, "R_line": 0.5}}, [v, r]), "aug_hose_b") is None
+    assert "upper end" in D.sanity(_fit({"aug_hose_b": {"V_line": 800.0, "R_line": 0.5}}, [v, r]), "aug_hose_b")
+    assert "lower end" in D.sanity(_fit({"aug_hose_b": {"V_line": 50.0, "R_line": 0.025}}, [v, r]), "aug_hose_b")
+
+
+def test_a_limit_is_declared_as_an_end_and_its_words():
+    """``Param.limit`` names an end of the range and what the block is there; anything else is refused when the
+    effect registers."""
+    from ehas_env.physics.effects.base import Param
+
+    ok = Param("V", "m^3", 1.0, (0.5, 2.0), "a volume", limit=("lower", "a resistance alone"))
+    assert ok.problem() is None
+    for bad in (("low", "a resistance alone"), ("lower", ""), ("lower",), "lower"):
+        assert "limit must be" in Param("V", "m^3", 1.0, (0.5, 2.0), "a volume", limit=bad).problem()
+
+
 # --- the verdict's thresholds ---------------------------------------------------------------------------------------
 
 def test_verdict_thresholds_against_the_acceptance():

@@ -121,6 +121,11 @@ class Param:
         Fit on a log scale (parameters spanning decades, e.g. leakage).
     si : float
         Factor from ``unit`` to SI (1 for SI units, 1e5 for bar): the terms see ``value * si``.
+    limit : tuple of str, optional
+        ``(end, words)``: the end of the range (``"lower"`` or ``"upper"``) where the block takes a limit that is
+        still the same physics, and what it is there (a hose's volume at its lower end: the line's resistance
+        alone, its oil too little for the logs to resolve).  A fit at that end is no sign that the block stands
+        in for another; at any other end it is.
     """
 
     name: str
@@ -132,6 +137,8 @@ class Param:
     log_scale: bool = False
     #: factor from ``unit`` to SI: the terms see ``value * si`` (e.g. 1e5 for bar)
     si: float = 1.0
+    #: (end, words): the end of the range where the block takes a limit that is still its physics (None: none)
+    limit: tuple[str, str] | None = None
 
     def problem(self) -> str | None:
         """What is wrong with this declaration (None when nothing): the rules every effect's parameters and
@@ -175,6 +182,11 @@ class Param:
             return f"doc must be a string, got {self.doc!r}"
         if not isinstance(self.log_scale, bool):
             return f"log_scale must be True or False, got {self.log_scale!r}"
+        if self.limit is not None and not (isinstance(self.limit, tuple) and len(self.limit) == 2
+                                           and self.limit[0] in ("lower", "upper") and isinstance(self.limit[1], str)
+                                           and self.limit[1]):
+            return (f"limit must be None or (end, words) with end 'lower' or 'upper' and words what the block is "
+                    f"there, got {self.limit!r}")
         if self.name in QUANTITIES or self.name in _AT_RATES:
             return (f"name {self.name!r} is a model quantity a term can take ({QUANTITIES.get(self.name, self.name)}); "
                     "a parameter needs a name of its own")
