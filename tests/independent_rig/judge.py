@@ -182,10 +182,13 @@ READING_PLACE = {"pa": "pressure_reading_a", "pb": "pressure_reading_b", "ps": "
 #: ehas's generated block kinds (the stem of aug_<kind>_<place>) -> the grammar's kind
 STEM_BLOCK = {"lag": "lag", "slew": "rate_limit", "offset": "offset", "gain": "gain", "sat": "saturation",
               "dz": "dead_zone", "delay": "delay", "play": "play",
-              "knee": "piecewise_linear"}
+              "knee": "piecewise_linear", "bend": "smooth"}
 # the state stage's generated blocks (ehas_env/physics/augment.py, aug_<kind>_<place>): a follower or a static
-# block at the position sensor's or at another sensor's reading is a sensor's, at that reading
+# block at the position sensor's or at another sensor's reading is a sensor's, at that reading; one in the valve's
+# current path (command to coil) is the command path's, there, as the coil's lag is
 for _stem in STEM_BLOCK:
+    LIBRARY_KIND.setdefault(f"aug_{_stem}_coil", {"command path", "valve"})
+    LIBRARY_PLACE.setdefault(f"aug_{_stem}_coil", {"coil_current", "valve_current"})
     LIBRARY_KIND.setdefault(f"aug_{_stem}_position_sensor", {"sensor"})
     LIBRARY_PLACE.setdefault(f"aug_{_stem}_position_sensor", {"position_reading"})
     for _out, _place in READING_PLACE.items():

@@ -10,7 +10,7 @@ import pytest
 
 from independent_rig import campaign as gen
 from independent_rig.effects import LIBRARY, OUT_OF_LIBRARY, to_si
-from independent_rig.judge import FORM_KIND, LIBRARY_KIND, judge
+from independent_rig.judge import FORM_KIND, LIBRARY_BLOCK, LIBRARY_KIND, LIBRARY_PLACE, judge
 
 HERE = Path(__file__).parent
 PACKAGE_ROOTS = {"ehas_env", "ehas_controllers", "ehas_train", "controllers", "train", "ehas"}
@@ -53,6 +53,11 @@ def test_the_out_of_library_effects_are_not_in_the_library():
     # every effect of ehas's library has a kind (user effects other tests registered in this process aside)
     library = {n for n, c in REGISTRY.items() if c.__module__.startswith("ehas_env.physics.effects.")}
     assert set(LIBRARY_KIND) >= library - {"loading"}
+    # ... and so has every block the state stage generates at every place (a block the judge has no words for
+    # would count as a bare constant: drawn held-out d11, a play in the current path named right, judged wrong)
+    generated = {n for n, c in REGISTRY.items() if c.__module__.startswith("ehas_env.physics.")} - library
+    assert generated and not generated - set(LIBRARY_KIND) - {"loading"}
+    assert not generated - set(LIBRARY_PLACE) and not generated - set(LIBRARY_BLOCK)
     for spec in OUT_OF_LIBRARY.values():
         assert spec.values(0) != spec.values(1)
         assert spec.kind in spec.accepted_kinds
