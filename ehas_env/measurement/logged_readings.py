@@ -4,8 +4,9 @@ a candidate does not change).
 A static block at a sensor's reading (:class:`ehas_env.physics.augment.Static`: an offset, a scale error, a clip, a
 dead zone, a knee, a cubic bend of chamber A's pressure reading, the flow meter's, the load reading...) changes
 what the logger records and nothing else: the controller feeds back the model's states, not these readings
-(:func:`ehas_env.simulation.loops` takes the load pressure from the chambers' states), and the valve bench's flow
-is the bench's own.  Its effect on a replay is therefore its term applied to the replay of the model without it,
+(:func:`ehas_env.simulation.loops` takes the load pressure from the chambers' states); the valve bench's flow is
+metered through the same flow meter (the ports joined through it), so a block at the flow meter's reading acts
+on a valve run's flow too.  Its effect on a replay is therefore its term applied to the replay of the model without it,
 sample by sample -- what the compiled model does inside ``measure`` -- and a screen or a fit of such a block's own
 parameters needs one replay of the rest, not one per value tried.  The term is the block's own Python function,
 evaluated on whole arrays (its ``min`` and ``max`` elementwise); the replay of the rest is cached by the
@@ -107,15 +108,14 @@ def split(effects: dict, others=()) -> tuple[dict, list] | None:
     return rest, blocks
 
 
-def apply(sims: list, kinds: list, blocks: list) -> list:
+def apply(sims: list, blocks: list) -> list:
     """The replay ``sims`` (every run's signals; None where not simulated) of the rest of a model with its static
     blocks at logged readings ``blocks`` (from :func:`split`) applied: the closed-loop runs' reading signals
-    through each block's term (in SI); a valve run (``kinds``: each run's kind) as it is.
+    through each block's term (in SI); a valve run its flow alone, metered through the same flow meter.
 
     Parameters
     ----------
     sims : list of dict or None
-    kinds : list of str
     blocks : list
 
     Returns
@@ -124,13 +124,14 @@ def apply(sims: list, kinds: list, blocks: list) -> list:
         New dicts (``sims`` is left as it is).
     """
     out = []
-    for sim, kind in zip(sims, kinds):
-        if sim is None or kind != "closed_loop":
+    for sim in sims:
+        if sim is None:
             out.append(sim)
             continue
         sim = dict(sim)
         for _, place, g, values in blocks:
             signal, si = READING_SIGNALS[place]
-            sim[signal] = np.asarray(g(sim[signal] * si, *values), dtype=float) / si
+            if signal in sim:  # a valve run records the flow meter's reading alone
+                sim[signal] = np.asarray(g(sim[signal] * si, *values), dtype=float) / si
         out.append(sim)
     return out

@@ -431,7 +431,6 @@ class Replayer:
         if any(p is not None for p in parted):
             from ehas_env.measurement import logged_readings
 
-            kinds = [c.run.kind for c in self.cases]
             # the rests this call needs: kept ones (moved to the end: the most recently used stay), the others
             # replayed together (a rest kept from a call on other runs is replayed for these)
             got, todo = {}, {}
@@ -452,7 +451,7 @@ class Replayer:
             whole = [m for m, p in zip(models, parted) if p is None]
             done = iter(self.simulate_many(whole, runs) if whole else [])
             return [next(done) if p is None else logged_readings.apply(
-                [x if runs is None or i in runs else None for i, x in enumerate(got[p[0]])], kinds, p[2])
+                [x if runs is None or i in runs else None for i, x in enumerate(got[p[0]])], p[2])
                 for p in parted]
         self.n_evals += len(models)
         jobs = [(m, i) for m in range(len(models)) for i in range(len(self.cases)) if runs is None or i in runs]

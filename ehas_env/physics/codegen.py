@@ -354,6 +354,25 @@ class ModelSource:
         a("    qa, _, _ = lands(s, s[2], pva, pvb, s[6], P)")
         a("    return qa + valve_side_flows(s, s[2], pva, pvb, s[6], P)[0]")
         a("")
+        # the flow meter's own states (a follower of its reading: a lag, a delay...) move on the valve bench too:
+        # the bench meters its flow through the same meter, the ports joined through it
+        meter = [c for c in self._with("flow_a_reading") if c.states and "state_rates" in c.terms()
+                 and all(c.arg_kind(arg, "state_rates") != "quantity" or arg == "q"
+                         for arg in c.term_args("state_rates"))]
+        a('@njit(cache=True, inline="always")')
+        a("def bench_meter_on(P):")
+        a('    """True when an effect with states of its own acts at the flow meter\'s reading (they move on the bench)."""')
+        a("    return " + (self._any_on(meter) if meter else "False"))
+        a("")
+        a('@njit(cache=True, inline="always")')
+        a("def bench_reading_rates(s, q, P, ds):")
+        a('    """The rates of the flow meter\'s own states into ds on the valve bench, for the flow q it meters there."""')
+        for cls in meter:
+            ks = [self.state_owner[f"{cls.name}.{st[0]}"] for st in cls.states]
+            a(f"    if {self._on(cls)}:")
+            L.extend(self._state_rates(cls, ks))
+        a("    return")
+        a("")
         a('@njit(cache=True, inline="always")')
         a("def valve_side_flows(s, qc, pa, pb, ps, P):")
         a('    """Flows into lines A and B added at the valve\'s lands by valve-side effects (Effect.valve_side),')

@@ -154,6 +154,9 @@ def rates(s, i_valve, P, ds, bench_supply):
         for j in range(ds.shape[0]):
             ds[j] = 0.0
         valve_rates(s, coil_current(s, i_valve, P, ds), bench_supply, 0.0, P, ds)
+        if P[I_EFFECTS_ON] != 0.0 and bench_meter_on(P):  # the meter's own states follow the flow it meters
+            q = bench_flow(s, s[2], bench_supply, math.sqrt(max(bench_supply, 0.0) / P[I_DROP]), P)
+            bench_reading_rates(s, q, P, ds)
 
 
 @njit(cache=True, inline="always")
@@ -294,7 +297,8 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out, supply_log=None):
     """Valve alone, control ports joined through the flow meter (rated test).
 
     Two lands in series share the supply drop, so the metered flow is
-    q_c * sqrt(supply / rated_drop).  out[k] = (flow m^3/s, q_c m^3/s, valve current mA).
+    q_c * sqrt(supply / rated_drop), as the meter in line A reads it (its reading's effects, and their states,
+    act on the bench too).  out[k] = (flow m^3/s, q_c m^3/s, valve current mA).
     ``supply_log`` (Pa, one per sample; left out: the constant ``supply``) is a measured
     supply pressure: sample k and the step after it run at supply_log[k].
     """
@@ -308,7 +312,8 @@ def run_valve_test(P, cmd, dt, nsub, supply, hist, out, supply_log=None):
         if supply_log is not None:
             supply = supply_log[k]
             scale = math.sqrt(max(supply, 0.0) / P[I_DROP])
-        out[k, 0] = bench_flow(s, s[2], supply, scale, P)
+        # the flow meter's reading of it (the ports are joined through the meter: its own blocks act here too)
+        out[k, 0] = flow_a_reading(bench_flow(s, s[2], supply, scale, P), P, s)
         out[k, 1] = s[2]
         hist[k % hist.shape[0]] = cmd[k]
         for j in range(nsub):
