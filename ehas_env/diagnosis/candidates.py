@@ -691,7 +691,7 @@ def sanity(f: Fit, effect: str) -> str | None:
             continue
         where = fp.end(vals[fp.name])
         p = get_effect(effect).param(fp.name)
-        if where is not None and not (p.limit and p.limit[0] == where):
+        if where is not None and p.limit_at(where) is None:
             return (f"{fp.name} = {vals[fp.name]:.4g} {p.unit} sits at the {where} end of its range "
                     f"[{fp.lo:.4g}, {fp.hi:.4g}]")
     if effect == "stribeck_friction" and vals.get("Fs", 0.0) <= DEGENERATE_STRIBECK * vals.get("Fc", 0.0):

@@ -173,7 +173,7 @@ def at_bounds(fit, effects=None) -> list[dict]:
         physical = abs((fp.lo if end == "lower" else fp.hi) - bound) <= 1e-9 * max(abs(bound), 1e-300)
         text = (f"{fp.effect}.{fp.name} = {v:.4g} {p.unit} sits at the {end} end of its fit range "
                 f"[{fp.lo:.4g}, {fp.hi:.4g}]" + (" (its physical bound)" if physical else "")
-                + (f": {p.limit[1]}, no point estimate" if p.limit and p.limit[0] == end
+                + (f": {p.limit_at(end)}, no point estimate" if p.limit_at(end)
                    else ": no point estimate, the data ask for a value beyond it"))
         out.append({"effect": fp.effect, "param": fp.name, "value": float(f"{v:.4g}"), "unit": p.unit, "end": end,
                     "range": [float(f"{fp.lo:.4g}"), float(f"{fp.hi:.4g}")], "physical_bound": bool(physical),

@@ -772,8 +772,9 @@ class Hose(Augmentation):
         "line's pressure, the chamber fills through the line's laminar resistance R. At rest the line's pressure "
         "is the chamber's; moving, it leads it by R q, and the line's volume adds to the chamber's compliance. "
         "A hose whose exchange with its chamber the integrator's sub-step does not resolve (R / (beta (1/V_line + "
-        "1/V_chamber)) under 0.6 sub-steps) is taken quasi-static: line and chamber one node of both volumes, the "
-        "drop R q exact (a short line of little resistance does little, as it should)."
+        "1/V_chamber)) under 0.6 sub-steps) is taken quasi-static: the land's flow passes the line at once but for "
+        "what its oil takes as its pressure moves, the drop R q and the compliance exact (a short line of little "
+        "resistance does little, as it should)."
     )
     signature = (
         "a pressure residual on one side proportional to that side's flow (the line's drop R q), the valve's "
@@ -830,8 +831,7 @@ def _hose_texts(sides: str) -> list[str]:
     moves, cap (p' + dl') -- the chamber's pressure rate and the drop dl = p_line - p, which follows R (q - S)
     within ``T_min`` (a sub-step).  S (the state ``q_in``) follows that within a time the integrator resolves,
     0.7 T_min (1 + (V_line / V_chamber) T_min / (T_min + R cap)): the chamber's rate reads S, and S the chamber's
-    rate.  The drop R q and
-    the line's compliance are kept, and the chamber's inflow is never lagged.  (A quasi-static line that lagged
+    rate.  The drop R q and the line's compliance are kept, and the chamber's inflow is never lagged.  (A quasi-static line that lagged
     the chamber's whole inflow by a sub-step, twice, missed a small rig whose hose held more oil than its chamber
     by 0.7 bar rms where the resolved integration leaves the noise: held-out d06 at the truth's values.)
     """

@@ -272,7 +272,7 @@ class ModelSource:
         a('    """The current the torque motor acts on for the valve current i, mA; the rates of the coil effects\'')
         a('    states into ds (they move with the current alone: the same in the right-hand side and on the bench)."""')
         for cls in coils:
-            ks = [self.state_owner[f"{cls.name}.{st[0]}"] for st in cls.states]
+            ks = self._state_slots(cls)
             for k in ks:
                 a(f"    ds[{k}] = 0.0")
             a(f"    if P[I_EFFECTS_ON] != 0.0 and {self._on(cls)}:")
@@ -362,13 +362,13 @@ class ModelSource:
         a('@njit(cache=True, inline="always")')
         a("def bench_meter_on(P):")
         a('    """True when an effect with states of its own acts at the flow meter\'s reading (they move on the bench)."""')
-        a("    return " + (self._any_on(meter) if meter else "False"))
+        a("    return " + self._any_on(meter))
         a("")
         a('@njit(cache=True, inline="always")')
         a("def bench_reading_rates(s, q, P, ds):")
         a('    """The rates of the flow meter\'s own states into ds on the valve bench, for the flow q it meters there."""')
         for cls in meter:
-            ks = [self.state_owner[f"{cls.name}.{st[0]}"] for st in cls.states]
+            ks = self._state_slots(cls)
             a(f"    if {self._on(cls)}:")
             L.extend(self._state_rates(cls, ks))
         a("    return")
@@ -483,7 +483,7 @@ class ModelSource:
         for cls in self.effects:
             if not cls.states or "coil_current" in cls.terms():  # a coil effect's rates: in coil_current
                 continue
-            ks = [self.state_owner[f"{cls.name}.{st[0]}"] for st in cls.states]
+            ks = self._state_slots(cls)
             for k in ks:
                 a(f"    ds[{k}] = 0.0")
             if "state_rates" in cls.terms():
@@ -491,6 +491,10 @@ class ModelSource:
                 L.extend(self._state_rates(cls, ks))
         a("")
         return "\n".join(L) + "\n"
+
+    def _state_slots(self, cls) -> list:
+        """The indices of ``cls``'s own states in the model's state vector, in the order of its ``states``."""
+        return [self.state_owner[f"{cls.name}.{st[0]}"] for st in cls.states]
 
     def _state_rates(self, cls, ks: list) -> list:
         """Lines (inside an ``if`` of the effect's on-flag) writing the rates of ``cls``'s states ``ks`` into ds."""

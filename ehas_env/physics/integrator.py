@@ -154,7 +154,7 @@ def rates(s, i_valve, P, ds, bench_supply):
         for j in range(ds.shape[0]):
             ds[j] = 0.0
         valve_rates(s, coil_current(s, i_valve, P, ds), bench_supply, 0.0, P, ds)
-        if P[I_EFFECTS_ON] != 0.0 and bench_meter_on(P):  # the meter's own states follow the flow it meters
+        if bench_meter_on(P):  # the meter's own states follow the flow it meters
             q = bench_flow(s, s[2], bench_supply, math.sqrt(max(bench_supply, 0.0) / P[I_DROP]), P)
             bench_reading_rates(s, q, P, ds)
 

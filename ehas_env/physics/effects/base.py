@@ -140,6 +140,27 @@ class Param:
     #: (end, words): the end of the range where the block takes a limit that is still its physics (None: none)
     limit: tuple[str, str] | None = None
 
+    def limit_at(self, end: str | None) -> str | None:
+        """What the block is at ``end`` of the range when it takes its limit there.
+
+        Parameters
+        ----------
+        end : str or None
+            ``"lower"`` or ``"upper"`` (a fit's :meth:`~ehas_env.diagnosis.fitting.FreeParam.end`; None: inside).
+
+        Returns
+        -------
+        str or None
+            The words of :attr:`limit` at that end; else None (a fit at that end is then no value of the block).
+
+        Examples
+        --------
+        >>> p = Param("V", "m^3", 1.0, (0.5, 2.0), "a volume", limit=("lower", "a resistance alone"))
+        >>> p.limit_at("lower"), p.limit_at("upper")
+        ('a resistance alone', None)
+        """
+        return self.limit[1] if self.limit is not None and self.limit[0] == end else None
+
     def problem(self) -> str | None:
         """What is wrong with this declaration (None when nothing): the rules every effect's parameters and
         constants are held to when the effect registers.
