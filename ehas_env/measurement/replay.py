@@ -372,7 +372,7 @@ class Replayer:
         ext = extended_model()
         named = plant.slots()
         named.update(term_slots(model.terms))
-        mark_effects_on(named)
+        mark_effects_on(named, ext)
         return ext, np.array([named.get(n, 0.0) for n in ext.SLOTS], dtype=float), plant
 
     @staticmethod

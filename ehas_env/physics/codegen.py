@@ -57,6 +57,10 @@ from pathlib import Path
 
 from ehas_env.physics import baseline, layout
 
+#: the prefix of a group's all-off slot (``all_off.<place>``: 1 when every effect with a term there is off)
+ALL_OFF = "all_off."
+#: the group of the effects whose states follow the flow meter's reading before its chain
+METERED = "metered_flow"
 #: files whose part below the ``# >>> compiled`` line is copied into every model, in this order
 COMPILED_PARTS = (
     "ehas_env/physics/integrator.py",
@@ -145,6 +149,19 @@ class ModelSource:
         self.slots = list(layout.BASE_SLOTS)
         for cls in self.effects:
             self.slots.extend(cls.slot_names())
+        # one slot a group of effects (those with a term at a place, those whose states follow the flow meter):
+        # 1 when every one of them is off, so a replay with two effects on of a model of 178 passes each place's
+        # list of on-checks with one test (mark_effects_on sets them; a slot left 0 only costs the checks)
+        self.groups = {}
+        for place in sorted({p for cls in self.effects for p in cls.terms()}):
+            self.groups[place] = [c.name for c in self.effects if place in c.terms()]
+        self.groups[METERED] = [c.name for c in self._metered_rates()]
+        self.groups = {g: names for g, names in self.groups.items() if names}
+        self.slots.extend(f"{ALL_OFF}{g}" for g in self.groups)
+        # the states the integrator moves: their count, then their indices (the baseline's and those of the
+        # effects on; mark_effects_on writes them, a count left 0 moves every state).  An effect that is off
+        # has rates 0, so its states' RK4 sums are s + 0: leaving them out changes no number
+        self.slots.extend([layout.MOVED + "n"] + [f"{layout.MOVED}{j}" for j in range(len(self.states))])
         self.idx = {n: k for k, n in enumerate(self.slots)}
         self.sections = [_compiled_sections(rel) for rel in COMPILED_PARTS]  # (shared, own) of each file, read once
 
@@ -172,6 +189,23 @@ class ModelSource:
             return "False"
         return "P[I_EFFECTS_ON] != 0.0 and (" + " or ".join(f"({self._on(c)})" for c in classes) + ")"
 
+    def _some_on(self, group: str) -> str:
+        """The test that some effect of ``group`` (a place, or :data:`METERED`) may be on: its all-off slot is 0."""
+        return f"P[{self.idx[ALL_OFF + group]}] == 0.0"
+
+    def _guarded(self, group: str, lines: list) -> list:
+        """``lines`` (each effect's on-check and term at ``group``'s place) behind the one test of
+        :meth:`_some_on`, one indent deeper; nothing when no effect of the model is at the place."""
+        if not lines:
+            return []
+        indent = len(lines[0]) - len(lines[0].lstrip())
+        return [" " * indent + f"if {self._some_on(group)}:"] + ["    " + ln for ln in lines]
+
+    def _metered_rates(self) -> list:
+        """The effects whose states follow the flow meter's reading before its chain (their rates take ``q``)."""
+        return [c for c in self.effects if c.states and "coil_current" not in c.terms()
+                and "state_rates" in c.terms() and "q" in c.term_args("state_rates")]
+
     def _with(self, place: str):
         return [c for c in self.effects if place in c.terms()]
 
@@ -180,6 +214,10 @@ class ModelSource:
                 f"SLOTS = {tuple(self.slots)!r}", f"N_SLOTS = {len(self.slots)}",
                 "IDX = {n: k for k, n in enumerate(SLOTS)}",
                 f"EFFECTS = {tuple(c.name for c in self.effects)!r}",
+                f"GROUPS = {tuple((ALL_OFF + g, tuple(n + '.on' for n in names)) for g, names in self.groups.items())!r}",
+                "STATE_GROUPS = " + repr(tuple((f"{c.name}.on", tuple(self._state_slots(c))) for c in self.effects
+                                              if c.states)),
+                f"N_BASE_STATES = {len(layout.STATE_NAMES)}", f"I_MOVED = {self.idx[layout.MOVED + 'n']}",
                 f"LAWS = {tuple(name for name, _ in self.laws)!r}", ""]
 
     def _library(self) -> str:
@@ -251,7 +289,7 @@ class ModelSource:
         out = []
         for cls in sorted(self._with(place), key=lambda c: (c.chain_order, c.name)):
             out += [f"    if {self._on(cls)}:", f"        {var} = {self._call(cls, place)}"]
-        return out
+        return self._guarded(place, out)
 
     def _assembled(self) -> str:
         L = []
@@ -271,14 +309,18 @@ class ModelSource:
         a("def coil_current(s, i, P, ds):")
         a('    """The current the torque motor acts on for the valve current i, mA; the rates of the coil effects\'')
         a('    states into ds (they move with the current alone: the same in the right-hand side and on the bench)."""')
+        body = []
         for cls in coils:
             ks = self._state_slots(cls)
             for k in ks:
                 a(f"    ds[{k}] = 0.0")
-            a(f"    if P[I_EFFECTS_ON] != 0.0 and {self._on(cls)}:")
+            body.append(f"    if {self._on(cls)}:")
             if "state_rates" in cls.terms():
-                L.extend(self._state_rates(cls, ks))
-            a(f"        i = {self._call(cls, 'coil_current')}")
+                body.extend(self._state_rates(cls, ks))
+            body.append(f"        i = {self._call(cls, 'coil_current')}")
+        if body:
+            a("    if P[I_EFFECTS_ON] != 0.0:")
+            L.extend("    " + ln for ln in self._guarded("coil_current", body))
         a("    return i")
         a("")
         a('@njit(cache=True, inline="always")')
@@ -310,9 +352,10 @@ class ModelSource:
         if ports:
             a("    if P[I_EFFECTS_ON] == 0.0:")
             a("        return pa, pb")
+            body = []
             for cls in ports:
-                a(f"    if {self._on(cls)}:")
-                a(f"        pa, pb = {self._call(cls, 'port_pressures')}")
+                body += [f"    if {self._on(cls)}:", f"        pa, pb = {self._call(cls, 'port_pressures')}"]
+            L.extend(self._guarded("port_pressures", body))
         a("    return pa, pb")
         a("")
         a('@njit(cache=True, inline="always")')
@@ -325,7 +368,7 @@ class ModelSource:
         a("    p_sup, p_ret = ps, 0.0")
         at_lands = self._with("land_pressures")
         if at_lands:
-            a("    if P[I_EFFECTS_ON] != 0.0:")
+            a(f"    if P[I_EFFECTS_ON] != 0.0 and {self._some_on('land_pressures')}:")
             for cls in at_lands:
                 a(f"        if {self._on(cls)}:")
                 a(f"            p_sup, p_ret = {self._call(cls, 'land_pressures')}")
@@ -334,7 +377,7 @@ class ModelSource:
             a("    return land_flows(qc, pa, pb, p_sup, p_ret, P[I_DROP])")
         else:
             a("    q_a, q_b, q_supply = land_flows(qc, pa, pb, p_sup, p_ret, P[I_DROP])")
-            a("    if P[I_EFFECTS_ON] != 0.0:")
+            a(f"    if P[I_EFFECTS_ON] != 0.0 and {self._some_on('land_flows')}:")
             for cls in at_flows:
                 a(f"        if {self._on(cls)}:")
                 a(f"            q_a, q_b = {self._call(cls, 'land_flows')}")
@@ -387,11 +430,10 @@ class ModelSource:
             a("    q_a, q_b, q_supply = lands(s, qc, pa, pb, ps, P)")
             a("    extra_a = 0.0")
             a("    extra_b = 0.0")
-            for cls in side:
-                a(f"    if {self._on(cls)}:")
-                a(f"        dqa, dqb = {self._call(cls, 'chamber_flows')}")
-                a("        extra_a += dqa")
-                a("        extra_b += dqb")
+            L.extend(self._guarded("chamber_flows", [
+                ln for cls in side for ln in (f"    if {self._on(cls)}:",
+                                              f"        dqa, dqb = {self._call(cls, 'chamber_flows')}",
+                                              "        extra_a += dqa", "        extra_b += dqb")]))
             a("    return extra_a, extra_b")
         a("")
         joint = self._with("joint_force")
@@ -429,23 +471,15 @@ class ModelSource:
         a("    else:")
         a("        x, v = r * sn - P[I_XOFF], r * c * omega")
         a("    qa_in, qb_in = q_a, q_b")
-        for cls in self._with("chamber_flows"):
-            a(f"    if {self._on(cls)}:")
-            a(f"        dqa, dqb = {self._call(cls, 'chamber_flows')}")
-            a("        qa_in += dqa")
-            a("        qb_in += dqb")
-        a("    f = A * p_load")
-        for cls in self._with("piston_force"):
-            a(f"    if {self._on(cls)}:")
-            a(f"        f += {self._call(cls, 'piston_force')}")
-        a("    m = 0.0")
-        for cls in self._with("moving_mass"):
-            a(f"    if {self._on(cls)}:")
-            a(f"        m += {self._call(cls, 'moving_mass')}")
-        a("    tq = 0.0")
-        for cls in self._with("crank_torque"):
-            a(f"    if {self._on(cls)}:")
-            a(f"        tq += {self._call(cls, 'crank_torque')}")
+        L.extend(self._guarded("chamber_flows", [
+            ln for cls in self._with("chamber_flows")
+            for ln in (f"    if {self._on(cls)}:", f"        dqa, dqb = {self._call(cls, 'chamber_flows')}",
+                       "        qa_in += dqa", "        qb_in += dqb")]))
+        for place, var, init in (("piston_force", "f", "A * p_load"), ("moving_mass", "m", "0.0"),
+                                 ("crank_torque", "tq", "0.0")):
+            a(f"    {var} = {init}")
+            L.extend(self._guarded(place, [ln for cls in self._with(place) for ln in (
+                f"    if {self._on(cls)}:", f"        {var} += {self._call(cls, place)}")]))
         a("    if joint:")
         a("        gap = xp - (r * sn - P[I_XOFF])")
         a("        gap_rate = vp - r * c * omega")
@@ -477,9 +511,13 @@ class ModelSource:
             for out, (arg, _, rate, _, _) in layout.SENSED.items():
                 if rate:
                     a(f"    {arg}_rate = {rate}")
-        if any("q" in c.term_args("state_rates") for c in rated if "state_rates" in c.terms()):
-            # the flow meter's reading before its chain (it has no rate in the balances: a follower keeps its own)
-            a("    q = metered_flow(s, P)")
+        if self._metered_rates():
+            # the flow meter's reading before its chain (it has no rate in the balances: a follower keeps its
+            # own), computed only when such a follower is on (it meters the lands again)
+            a("    q = 0.0")
+            a(f"    if {self._some_on(METERED)}:")
+            a("        q = metered_flow(s, P)")
+        rates = []
         for cls in self.effects:
             if not cls.states or "coil_current" in cls.terms():  # a coil effect's rates: in coil_current
                 continue
@@ -487,8 +525,9 @@ class ModelSource:
             for k in ks:
                 a(f"    ds[{k}] = 0.0")
             if "state_rates" in cls.terms():
-                a(f"    if {self._on(cls)}:")
-                L.extend(self._state_rates(cls, ks))
+                rates.append(f"    if {self._on(cls)}:")
+                rates.extend(self._state_rates(cls, ks))
+        L.extend(self._guarded("state_rates", rates))
         a("")
         return "\n".join(L) + "\n"
 

@@ -168,29 +168,33 @@ def rk4_substep(s, i_valve, P, h, k1, k2, k3, k4, tmp, bench_supply, have_k1):
     right-hand side inlined four times over was most of the inlined build's compile.  Each stage's rates land in
     k4 and are kept in k1..k3; the stage states are the same sums as the textbook's, so the numbers are too.
     """
-    n = N_STATES  # a compile-time constant, so the loops unroll
-    for j in range(n):
+    # the states moved: the baseline's and those of the effects on (P's ``moved.*`` slots, mark_effects_on); the
+    # others have rates 0 and would add 0 (a model of every hypothesis has 52 states, a replay moves 11-15 of them)
+    listed = P[I_MOVED] > 0.0
+    n = int(P[I_MOVED]) if listed else N_STATES
+    for a in range(n):
+        j = int(P[I_MOVED + 1 + a]) if listed else a
         tmp[j] = s[j]
     for st in range(4):
         if st == 0 and have_k1:
-            for j in range(n):
+            for a in range(n):
+                j = int(P[I_MOVED + 1 + a]) if listed else a
                 k4[j] = k1[j]
         else:
             rates(tmp, i_valve, P, k4, bench_supply)
         if st < 3:
             c = h if st == 2 else 0.5 * h
-            for j in range(n):
+            for a in range(n):
+                j = int(P[I_MOVED + 1 + a]) if listed else a
                 tmp[j] = s[j] + c * k4[j]
-            if st == 0:
-                for j in range(n):
+                if st == 0:
                     k1[j] = k4[j]
-            elif st == 1:
-                for j in range(n):
+                elif st == 1:
                     k2[j] = k4[j]
-            else:
-                for j in range(n):
+                else:
                     k3[j] = k4[j]
-    for j in range(n):
+    for a in range(n):
+        j = int(P[I_MOVED + 1 + a]) if listed else a
         s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 
 

@@ -75,6 +75,9 @@ N_BASE_SLOTS = len(BASE_SLOTS)
  I_VTANH, I_VALVE_MODEL, I_WB_KT, I_WB_KW, I_WB_KF, I_WB_JA, I_WB_BA, I_WB_R, I_WB_AV, I_WB_K2, I_WB_PREF, I_WB_K3,
  I_WB_XF0, I_WB_KFF, I_WB_BFF, I_WB_AN, I_WB_KJET, I_WB_XVMAX, I_EFFECTS_ON, I_XOFF) = range(N_BASE_SLOTS)
 WHITE_BOX = 1.0  # valve_model value of the white-box valve
+#: after the effects' slots, every generated model lists the states its integrator moves: ``moved.n`` (how many;
+#: 0, unset: all) and ``moved.<a>`` (which), written by ``effects.base.mark_effects_on`` (ehas_env.physics.codegen)
+MOVED = "moved."
 
 # Output channels written by the simulators (SI).  theta/omega are what the LVDT
 # sees (piston position through asin(x/r)); theta_sensed is the controller's

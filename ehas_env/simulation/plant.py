@@ -304,7 +304,7 @@ class Plant:
             REGISTRY[name].apply(values, s)
         for name in self.effects:
             REGISTRY[name].adjust(s, self.dt / self.substeps)
-        return mark_effects_on(s)
+        return mark_effects_on(s, self._model)
 
     def _param_vector(self) -> np.ndarray:
         s = self.slots()

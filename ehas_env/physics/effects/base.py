@@ -715,10 +715,38 @@ def effect_value(slots: dict, name: str, param: str) -> float:
     return slots.get(f"{name}.{param}", 0.0) if slots.get(f"{name}.on") else 0.0
 
 
-def mark_effects_on(slots: dict) -> dict:
+def mark_effects_on(slots: dict, model=None) -> dict:
     """Set the ``effects_on`` slot from the effects' on flags (0 lets the compiled model take the
-    baseline's short path); call after changing any ``<effect>.on``.  Returns ``slots``."""
+    baseline's short path); with the compiled ``model``, also each group's all-off slot and the states its
+    integrator moves.  Call after changing any ``<effect>.on``.
+
+    Parameters
+    ----------
+    slots : dict
+        The model's slots by name.
+    model : module, optional
+        The compiled model (:mod:`ehas_env.physics.codegen`) the slots are for: its ``GROUPS`` ((all-off slot,
+        the on-slots of its effects) pairs: each all-off slot 1 when every one of those is 0) and its
+        ``STATE_GROUPS`` ((on-slot, state indices) pairs: ``moved.n`` and ``moved.<k>`` list the baseline's
+        states and those of the effects on).  Turning an effect off afterwards in the vector is safe (its rates
+        are 0); turning one on is not: mark again.
+
+    Returns
+    -------
+    dict
+        ``slots``, changed in place.
+    """
     slots["effects_on"] = 1.0 if any(v for k, v in slots.items() if k.endswith(".on")) else 0.0
+    if model is not None:
+        for name, members in model.GROUPS:
+            slots[name] = 0.0 if any(slots.get(m) for m in members) else 1.0
+        moved = list(range(model.N_BASE_STATES))
+        moved += [k for on, ks in model.STATE_GROUPS if slots.get(on) for k in ks]
+        from ehas_env.physics.layout import MOVED
+
+        slots[MOVED + "n"] = float(len(moved))
+        for a, k in enumerate(moved):
+            slots[f"{MOVED}{a}"] = float(k)
     return slots
 
 
