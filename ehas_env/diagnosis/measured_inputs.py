@@ -18,9 +18,11 @@ How the logged series becomes the model's input (:func:`measured` makes the repl
    period's mid-point value (the period's mean to second order: no half-period lag), the run starting at rest at
    it (P_A = P_B = P_S / 2); the valve bench's metered flow at sample k is taken at the supply of sample k.
 
-In the compiled model the supply state and the supply the pressures are capped at both take the value of the step
-(``closed_loop(..., supply)`` in ``ehas_env/simulation/loops.py``, ``run_valve_test(..., supply_log)`` in
-``ehas_env/physics/integrator.py``); a supply effect's own dynamics (``supply_droop``) is overridden.  A quantity
+In the compiled model the supply state takes the value of the step and the chambers are held below the highest
+value of the run, the supply's setting (``closed_loop(..., supply)`` in ``ehas_env/simulation/loops.py``,
+``run_valve_test(..., supply_log)`` in ``ehas_env/physics/integrator.py``): a chamber above a falling supply
+discharges through its land, it is not clipped to it; a supply effect's own dynamics (``supply_droop``) is
+overridden.  A quantity
 taken as an input is no longer an output compared: ``p_s_bar`` leaves the runs' signals (cost, fit %, verdict).
 Only the supply pressure is a measurable input today: the measurement format logs no return-line pressure.
 

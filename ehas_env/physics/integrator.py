@@ -71,17 +71,19 @@ def project(s, P):
     Returns True when the piston sits at a stroke end.
     """
     spool_stops(s, P)
+    # the chambers are held below the supply's setting P[I_SUPPLY], not below the supply state s[6]: a supply that
+    # falls (a pump's ripple, a droop) does not take oil out of a chamber above it -- the chamber discharges
+    # through its land by the orifice law; with a constant supply the two are the same number
     ps_cap = P[I_SUPPLY]
     if s[6] > ps_cap:
         s[6] = ps_cap
     if s[6] < 0.0:
         s[6] = 0.0
-    ps = s[6]
     for j in (4, 5):
         if s[j] < 0.0:
             s[j] = 0.0
-        elif s[j] > ps:
-            s[j] = ps
+        elif s[j] > ps_cap:
+            s[j] = ps_cap
     r = P[I_RADIUS]
     hit = False
     if two_body(P):
@@ -105,13 +107,13 @@ def project(s, P):
 @njit(cache=True, inline="always")
 def held_at_bounds(s, P, ds):
     """What ``project`` holds after a step, held inside it too (in place): a chamber at its bound (0 or the
-    supply) has no rate outward, and a piston at a stroke end, not moving inward and pushed outward, neither
+    supply's setting) has no rate outward, and a piston at a stroke end, not moving inward and pushed outward, neither
     moves nor accelerates (the stop's reaction).  Clipped only after each step, the stages of the step inside it
     run past the bound: a first-order error in the step (a start from rest that empties a chamber rang 0.18 deg
     rms off the converged run at 10 sub-steps of 0.1 ms; an impact at a stroke end left the pressures 17 bar
     off at its instant)."""
     for j in (4, 5):
-        if (s[j] <= 0.0 and ds[j] < 0.0) or (s[j] >= s[6] and ds[j] > 0.0):
+        if (s[j] <= 0.0 and ds[j] < 0.0) or (s[j] >= P[I_SUPPLY] and ds[j] > 0.0):
             ds[j] = 0.0
     lim = P[I_HALF_STROKE]
     if two_body(P):
@@ -206,12 +208,12 @@ REFINE = 8
 
 
 @njit(cache=True, inline="always")
-def near_bound(s, k1, h):
+def near_bound(s, k1, h, P):
     """Whether a chamber pressure, moving at the rates k1 for two steps h, would pass its bound (0 or the
-    supply s[6]): the sub-step that follows is refined."""
+    supply's setting P[I_SUPPLY]): the sub-step that follows is refined."""
     for j in (4, 5):
         step = 2.0 * h * k1[j]
-        if s[j] + step < 0.0 or s[j] + step > s[6]:
+        if s[j] + step < 0.0 or s[j] + step > P[I_SUPPLY]:
             return True
     return False
 
@@ -245,7 +247,7 @@ def advance(s, P, hist, k, dt, nsub, i_initial, k1, k2, k3, k4, tmp):
         i_v = valve_current(i_cmd, P)
         if j == 0:
             rates(s, i_v, P, k1, -1.0)
-        m = REFINE if near_bound(s, k1, h) or near_stroke_end(s, P) else 1
+        m = REFINE if near_bound(s, k1, h, P) or near_stroke_end(s, P) else 1
         for q in range(m):
             # the period's first rates are those of its first step: kept, not evaluated twice
             rk4_substep(s, i_v, P, h / m, k1, k2, k3, k4, tmp, -1.0, j == 0 and q == 0)

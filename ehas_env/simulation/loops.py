@@ -94,12 +94,13 @@ def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, 
     DAC lsb mA, LVDT gain error, output limit mA).  Writes ``metrics`` (see
     METRICS; error window [k0, k1)) and, when ``out`` has rows, the outputs of
     every period (layout ``OUT_NAMES``).  ``supply`` (Pa, one per period; left out:
-    the model's own) is a measured supply pressure: period k runs at supply[k], the
-    supply state and the supply the model caps pressures at both set to it
-    (ehas_env.diagnosis.measured_inputs; P itself is not changed).
+    the model's own) is a measured supply pressure: period k runs at supply[k] (the
+    supply state set to it), the chambers held below its highest value, the supply's
+    setting (ehas_env.diagnosis.measured_inputs; P itself is not changed).
     """
     if supply is not None:
         P = P.copy()
+        P[I_SUPPLY] = np.max(supply)
     k1v, k2v, k3v, k4v, tmp = rk4_work(s)
     row = np.zeros(N_OUT)
     adc, dac, gain_err, u_max = sensor[0], sensor[1], sensor[2], sensor[3]
@@ -115,7 +116,6 @@ def closed_loop(s, P, law, gains, ref, kind, dt, nsub, hist, noise, sensor, k0, 
     n = noise.shape[0]
     for k in range(n):
         if supply is not None:
-            P[I_SUPPLY] = supply[k]
             s[6] = supply[k]
         measure(s, P, row)
         t = k * dt
