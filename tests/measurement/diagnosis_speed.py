@@ -8,18 +8,23 @@ Two parts, each written to ``OUT/results.json`` and ``OUT/README.md`` (with the 
   pairs), split by verdict (unexplained after the full search / explained), their median and longest against
   the issue's 45 s / 120 s / 20 s, and, for the diagnoses that said an estimate at their start (the data stage's
   ``estimate``), the ratio of the time taken to it (the issue: within a factor 2);
+* ``replay`` -- one replay of the base campaign below on the model a diagnosis replays (every effect and structural
+  hypothesis compiled in), the book model's and models with one block on: CPU seconds on one thread (the least of
+  five rounds of four replays: CPU time, not wall time, so a shared machine moves it little), recorded under the
+  commit of the package that ran it (``PYTHONPATH=<an older checkout>`` times that one);
 * ``scaling`` -- three campaigns of the independent generator (``tests/independent_rig``) with the same hidden
   physics, diagnosed here one after the other: the base (the 4 closed-loop runs and the valve chirp of 3 s),
   4x the runs (19 closed-loop runs and the chirp) and 10x the log length (30 s runs); the first diagnosis
   of the base runs on an empty model cache (compile included), the others on the cache it filled.
 
-    python -m tests.measurement.diagnosis_speed --out results/diagnosis_speed [--part sets|scaling|all]
+    python -m tests.measurement.diagnosis_speed --out results/diagnosis_speed [--part sets|replay|scaling|all]
         [--effects bore_wear_friction:Fw=1200]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -131,6 +136,46 @@ def _diagnose(camp: Path, js: Path, env: dict) -> dict:
             "estimate_s": (data.get("estimate") or {}).get("estimate_s"), "replays": replays, "load_after": _load()}
 
 
+#: the models a replay is timed with: the book's and one block on each (a balance's term, a hose, a follower of the
+#: flow meter, the coil's rate limit)
+REPLAY_MODELS = {"book": {}, "Coulomb friction": {"coulomb_friction": {"Fc": 300.0}},
+                 "hose at chamber B": {"aug_hose_b": {"V_line": 40.0, "R_line": 0.5}},
+                 "lag of the flow reading": {"aug_lag_flow_a_reading": {"T": 3.0}},
+                 "rate limit at the coil": {"aug_slew_coil": {"S": 2000.0}}}
+
+
+def package_commit() -> str:
+    """The commit of the checkout the package ``ehas_env`` is imported from."""
+    import ehas_env
+
+    return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                          cwd=Path(ehas_env.__file__).parent).stdout.strip()
+
+
+def replay_times(rounds: int = 5, batch: int = 4) -> dict:
+    """CPU seconds of one replay of the base campaign (generator seed 701, 5 runs of 3 s) on the diagnosis' model,
+    one thread, per model of :data:`REPLAY_MODELS`."""
+    sys.path.append(str(ROOT))  # the generator; the package stays the one on the path (an older checkout's)
+    from ehas_env.measurement.campaign import read_campaign
+    from ehas_env.measurement.replay import ModelSpec, Replayer
+    from tests.independent_rig import campaign as gen
+
+    runs, truth = gen.simulate({}, seed=701, rig="book")
+    folder = gen.write(Path(tempfile.mkdtemp(prefix="ehas_replay_")) / "c", runs, truth, overwrite=True)
+    rep = Replayer(read_campaign(folder), hypotheses=True, threads=1)
+    out = {}
+    for label, effects in REPLAY_MODELS.items():
+        models = [ModelSpec(effects=effects, beta=1.0e9 * (1.0 + 1e-4 * j)) for j in range(batch)]
+        rep.simulate_many(models[:1])  # compiles or loads the model
+        best = math.inf
+        for _ in range(rounds):
+            t0 = time.process_time()
+            rep.simulate_many(models)
+            best = min(best, (time.process_time() - t0) / batch)
+        out[label] = round(best, 4)
+    return {"cpu_s": out, "load_after": _load()}
+
+
 def scaling(effects: str, work: Path) -> dict:
     """The base campaign, 4x its runs and 10x its length, diagnosed here (the base first on an empty cache)."""
     sys.path.insert(0, str(ROOT))
@@ -183,6 +228,16 @@ def _readme(res: dict, cmd: str) -> str:
               f"{TARGETS['unexplained_longest_s']:g} s; explained median <= {TARGETS['explained_median_s']:g} s (on an "
               "empty model cache; these cases ran on a warm one, beside other jobs); the estimate said at the start "
               "within a factor 2 of the time taken (only diagnoses made since the estimate exists carry one).", ""]
+    if res.get("replay"):
+        labels = list(REPLAY_MODELS)
+        L += ["## One replay", "",
+              "CPU seconds of one replay of the base campaign (5 runs of 3 s) on the model a diagnosis replays (178 "
+              "effects, 52 states), one thread, the least of 5 rounds of 4, by the commit of the package that ran "
+              "it:", "", "| package at | " + " | ".join(labels) + " | load after |",
+              "|---|" + "---:|" * len(labels) + "---|"]
+        for at, r in res["replay"].items():
+            L.append(f"| {at} | " + " | ".join(str(r["cpu_s"].get(k, "-")) for k in labels) + f" | {r['load_after']} |")
+        L.append("")
     if "scaling" in res:
         L += ["## Growth with the runs and the log length", "",
               "| campaign | wall s | replays | estimate s | verdict, figure | load before |", "|---|---:|---:|---:|---|---|"]
@@ -198,16 +253,18 @@ def _readme(res: dict, cmd: str) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="results/diagnosis_speed")
-    ap.add_argument("--part", choices=("sets", "scaling", "all"), default="all")
+    ap.add_argument("--part", choices=("sets", "replay", "scaling", "all"), default="all")
     ap.add_argument("--effects", default="bore_wear_friction:Fw=1200")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     old = json.loads((out / "results.json").read_text()) if (out / "results.json").is_file() else {}
-    res = {k: v for k, v in old.items() if k in ("sets", "sets_summary", "scaling", "growth", "parts")}
+    res = {k: v for k, v in old.items() if k in ("sets", "sets_summary", "replay", "scaling", "growth", "parts")}
     if a.part in ("sets", "all"):
         res["sets"] = set_times()
         res["sets_summary"] = {k: _summary(v) for k, v in res["sets"].items() if v}
+    if a.part in ("replay", "all"):
+        res.setdefault("replay", {})[package_commit()] = replay_times()
     if a.part in ("scaling", "all"):
         work = Path(tempfile.mkdtemp(prefix="ehas_speed_"))
         res["scaling"] = scaling(a.effects, work)
