@@ -7,7 +7,9 @@ foretell: the book model's figure on the fit data (a campaign the book's rig nea
 library's rounds, a few hundred replays; one it misses by far goes on through the structural hypotheses, the
 states and a proposed term, thousands), and whether one library effect alone, its main parameter at the values the
 screen scans first, takes most of that miss away (the library's rounds then end it: :func:`library_share`, about
-120 replays in one batch).  :data:`REPLAYS` and :data:`LIBRARY_REPLAYS` hold the counts measured (``ehas
+120 replays in one batch), or whether the logged supply pressure, taken as a measured input, does (one replay:
+:func:`measured_input_figure`).  :data:`REPLAYS`, :data:`LIBRARY_REPLAYS` and :data:`MEASURED_INPUT_REPLAYS` hold
+the counts measured (``ehas
 diagnose`` prints its count at the end).  A replay beyond the library's first rounds costs more than the one timed
 (:data:`SEARCH_REPLAY_COST`): its models carry more (a structural hypothesis, a missing state, a term) and a share
 of them replays every run at full length.
@@ -17,6 +19,7 @@ from __future__ import annotations
 import math
 import time
 
+from ehas_env.diagnosis.measured_inputs import measured, residual_x_noise, variation
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer
 from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
 
@@ -36,6 +39,13 @@ REPLAYS = ((2.0, 400), (4.0, 1500), (math.inf, 4300))
 #: 0.62-1.0 on a clean campaign, a return line at 20 bar and three campaigns the library leaves unexplained; the
 #: drawn set's three at 0.28-0.33 went on to 2953-6753 replays, none ended by the library)
 LIBRARY_REPLAYS, LIBRARY_SHARE = 1000, 0.25
+#: replays of a diagnosis that a logged supply taken as a measured input ends (the library's rounds and the
+#: structural hypotheses find nothing, the input explains the campaign, no state is looked for).  Measured on the
+#: start-conditions set's pump ripple of 10 bar at 23.7 Hz (results/verdict_start_conditions, at 5f4951f): 755,
+#: 802 and 779 replays for the faded-in, the from-rest and the knocked campaigns; and the share of the book model's
+#: figure the input may leave for that path to be foretold (its figure with the input at or below the top of
+#: :data:`REPLAYS`' first class: a campaign the book's rig then nearly explains)
+MEASURED_INPUT_REPLAYS = 800
 #: seconds a diagnosis spends besides its replays at a load of one per core (the stages' own work, the written
 #: figures and JSON; measured at load 2.5 a core: the clean campaign's 12.4 s less its 396 replays timed at 26 ms)
 FIXED_S = 2.0
@@ -103,7 +113,9 @@ def estimate(rep: Replayer, load_scale: float = 1.0, candidates=None) -> dict:
     -------
     dict
         ``estimate_s`` (s), ``replay_s`` (one replay of the fit data, wall s), ``book_x_noise`` (the book model's
-        figure on the fit data), ``replays`` (the count expected) and ``load_scale`` (as given).
+        figure on the fit data), ``replays`` (the count expected), ``load_scale`` (as given),
+        ``library_share_left`` and ``library_effect`` (:func:`library_share`) and ``measured_input_x_noise``
+        (:func:`measured_input_figure`, None when not asked).
     """
     book = ModelSpec()
     n0 = rep.n_evals
@@ -118,14 +130,38 @@ def estimate(rep: Replayer, load_scale: float = 1.0, candidates=None) -> dict:
     if replays == REPLAYS[0][1] and g["worst"] and g["worst"]["residual_x_noise"] > 1.0 + BLOCK_EXPLAINED_X:
         replays = REPLAYS[1][1]  # a miss in one run and signal: the search goes on (hypotheses, states)
     share, effect = (1.0, None)
-    if replays > REPLAYS[0][1]:  # beyond a recalibration: would one library effect end it?
+    with_input = measured_input_figure(rep) if replays > REPLAYS[0][1] else None
+    if with_input is not None and with_input <= REPLAYS[0][0]:  # the logged supply, taken as an input, ends it
+        replays = MEASURED_INPUT_REPLAYS
+    elif replays > REPLAYS[0][1]:  # beyond a recalibration: would one library effect end it?
         share, effect = library_share(rep, rep.log_cost(sims), candidates)
         if share <= LIBRARY_SHARE:
             replays = LIBRARY_REPLAYS
     rep.n_evals = n0  # the timing and probing replays are not the search's
     return {"estimate_s": round(seconds(replays, replay_s, load_scale), 1), "replay_s": round(replay_s, 4),
             "book_x_noise": round(figure, 3), "replays": replays, "load_scale": round(load_scale, 3),
-            "library_share_left": round(share, 3), "library_effect": effect}
+            "library_share_left": round(share, 3), "library_effect": effect,
+            "measured_input_x_noise": None if with_input is None else round(with_input, 3)}
+
+
+def measured_input_figure(rep: Replayer) -> float | None:
+    """The book model's figure on ``rep`` with the logged supply pressure taken as a measured input
+    (:func:`ehas_env.diagnosis.measured_inputs.measured`), the supply left out of the comparison as the diagnosis'
+    stage leaves it; None when no run logs a supply that varies beyond its noise (the stage would not try it).
+
+    Parameters
+    ----------
+    rep : Replayer
+
+    Returns
+    -------
+    float or None
+    """
+    var = variation(rep, "p_s_bar")
+    if not var or not var["varies"]:
+        return None
+    mrep = measured(rep, ("p_s_bar",))
+    return residual_x_noise(mrep, mrep.simulate(ModelSpec()), without=("p_s_bar",))
 
 
 def seconds(replays: int, replay_s: float, load_scale: float = 1.0) -> float:

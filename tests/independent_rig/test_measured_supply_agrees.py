@@ -27,3 +27,19 @@ def test_a_chamber_above_a_falling_supply_is_not_clipped_to_it(tmp_path):
     assert (p_b > supply + 5.0).any()  # the chamber does go beyond the supply of the moment (by up to 16 bar)
     # measured 2.19 (the same campaign without the ripple, at the sidecar's constant supply: 1.37); 45.2 clipped
     assert grade(blocks_of(rep, sims, COST_SIGNALS))["residual_x_noise"] < 3.0
+
+
+def test_the_estimate_foretells_a_search_the_measured_supply_ends(tmp_path):
+    """The generator's pump ripple of 10 bar on a faded-in campaign: the book model misses it far beyond a figure of
+    4 (the search's longest class), the logged supply taken as an input leaves it near the noise; the estimate
+    counts the replays of a search that input ends, not those of a search that goes on through the states."""
+    from ehas_env.diagnosis import estimate as E
+
+    runs, truth = gen.simulate({"supply_ripple": {"a": 10.0}}, seed=4, rig="book", duration=1.0,
+                               plan=((3, 20.0, 1.0), (1, 35.0, 3.0)), perturb=False, valve=False)
+    gen.write(tmp_path / "c", runs, truth)
+    rep = Replayer(read_campaign(tmp_path / "c"))
+    est = E.estimate(rep)
+    assert est["book_x_noise"] > E.REPLAYS[1][0]
+    assert est["measured_input_x_noise"] <= E.REPLAYS[0][0]
+    assert est["replays"] == E.MEASURED_INPUT_REPLAYS and rep.n_evals == 0

@@ -95,7 +95,9 @@ def restated(est: dict) -> float | None:
         today = float(est["estimate_s"]) - E.seconds(n_then, replay_s, 0.0)
         fixed_then = today if 0.0 <= today <= 20.0 * E.FIXED_S else max(float(est["estimate_s"]) - n_then * replay_s,
                                                                           0.0)
-    if est.get("library_effect") and float(est.get("library_share_left", 1.0)) <= E.LIBRARY_SHARE:
+    if est.get("measured_input_x_noise") is not None and float(est["measured_input_x_noise"]) <= E.REPLAYS[0][0]:
+        n = E.MEASURED_INPUT_REPLAYS
+    elif est.get("library_effect") and float(est.get("library_share_left", 1.0)) <= E.LIBRARY_SHARE:
         n = E.LIBRARY_REPLAYS
     else:
         k = next(i for i, (upper, _) in enumerate(E.REPLAYS) if figure <= upper)
