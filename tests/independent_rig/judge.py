@@ -502,11 +502,12 @@ def honesty(diag: dict, baseline, final) -> dict:
 # -- the drawn set (tests/independent_rig/grammar.py): right place and right kind of a block ------------------------
 #: the block kinds (grammar.KINDS) each library effect, structural hypothesis and state of the diagnosis stands for,
 #: by its law: a Coulomb friction is a saturating force of the velocity, a viscous one a term linear in it, a
-#: coil lag a first-order lag of the coil current, a hose a line volume behind a resistance
+#: coil lag a first-order lag of the coil current, a hose a line volume behind a resistance, the valve's dynamics its
+#: second-order follower and its flow gain K (a gain in the command path: the logs cannot tell it from the coil's)
 LIBRARY_BLOCK = {
     "coulomb_friction": {"saturation"}, "viscous_friction": {"gain"}, "stribeck_friction": {"saturation", "smooth"},
     "internal_leakage": {"gain"}, "external_leakage": {"gain"}, "valve_deadband": {"dead_zone"},
-    "valve_null_bias": {"offset"}, "valve_dynamics": {"lag"}, "transport_delay": {"delay"},
+    "valve_null_bias": {"offset"}, "valve_dynamics": {"lag", "gain"}, "transport_delay": {"delay"},
     "supply_droop": {"volume"}, "piston_mass": {"compliance"}, "backlash": {"play", "compliance"},
     "bulk_modulus": {"volume"},
     "hyp_rod_area": {"gain"}, "hyp_return_pressure": {"offset"}, "hyp_direction_gain": {"piecewise_linear", "gain"},
