@@ -51,6 +51,7 @@ import numpy as np
 from ehas_env.measurement.campaign import Campaign
 from ehas_env.diagnosis.keeping import agree, least_half_width, run_groups
 from ehas_env.diagnosis.honesty import at_bounds
+from ehas_env.diagnosis.side_by_side import side_by_side
 from ehas_env.diagnosis.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _value_of,
     beats_noise, confidence, covering, fit, own_params, recal_params, reopens_baseline, score_db, spanning,
@@ -362,12 +363,19 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
         # one bar per stage, each total known before it is shown: the refinements' count is known only after
         # the screening (a single bar's total changed mid-run, 13/16 -> 13/14)
         bar = tqdm(total=len(names), desc="diagnose: screening", unit="fit")
-    # nested effects after the effects they extend (warm starts)
-    names.sort(key=lambda n: n in NESTED)
-    for n in names:
-        fits[n] = screen_candidate(rep, n, null, fits)
+    def screen(n):  # one effect's screen (the bar counts each as it ends)
+        f = screen_candidate(rep, n, null, fits)
         if bar:
             bar.update()
+        return f
+
+    # side by side, in waves: a nested effect after the one it extends (its warm start), the fits of a wave read
+    # only those of the waves before
+    left = list(names)
+    while left:
+        wave = [n for n in left if NESTED.get(n, (None,))[0] not in left]
+        fits.update(zip(wave, side_by_side(screen, wave)))
+        left = [n for n in left if n not in wave]
     helpful = [n for n in sorted(fits, key=lambda n: fits[n].cost) if fits[n].cost < null.cost * (1.0 - SKIP_MARGIN)]
     # refine the best, and whoever screened within REFINE_WITHIN_DB of it (a close call is decided
     # after beta and K have been refitted with each)
@@ -375,10 +383,13 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
     if bar:
         bar.close()
         bar = tqdm(total=len(near[:REFINE_TOP]), desc="diagnose: refining", unit="fit") if near[:REFINE_TOP] else None
-    for n in near[:REFINE_TOP]:
-        fits[n] = refine_candidate(rep, n, fits[n], null, base_effects)
+    def refine(n):
+        f = refine_candidate(rep, n, fits[n], null, base_effects)
         if bar:
             bar.update()
+        return f
+
+    fits.update(zip(near[:REFINE_TOP], side_by_side(refine, near[:REFINE_TOP])))
     if bar:
         bar.close()
     # a Stribeck fit without a breakaway peak is Coulomb friction: Coulomb gets that fit (fewer parameters,

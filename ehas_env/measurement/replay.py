@@ -29,8 +29,11 @@ True
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -92,6 +95,35 @@ def noise_level(y: np.ndarray) -> float:
         return 0.0
     mad = np.median(np.abs(d3 - np.median(d3)))
     return float(1.4826 * mad / math.sqrt(20.0))
+
+
+#: set while a Ctrl-C stops screens run side by side on threads (:mod:`ehas_env.diagnosis.side_by_side`): a replay
+#: asked then raises :class:`ReplaysStopped` at once, so each thread ends at its next replay, not at its fit's end
+STOP = threading.Event()
+
+
+class ReplaysStopped(Exception):
+    """A replay asked while :data:`STOP` is set."""
+
+
+#: the kept rests (:meth:`Replayer.simulate_many`) of one call among calls run side by side: {id(replayer): rests}
+_REST_SCOPE = contextvars.ContextVar("ehas_rest_scope", default=None)
+
+
+@contextlib.contextmanager
+def own_rests():
+    """Within this context each replayer keeps the rests it replays apart, starting from those it kept before.
+
+    Calls run side by side on threads (:mod:`ehas_env.diagnosis.side_by_side`) would otherwise share them: which
+    one replays a rest and which one reads it would depend on which came first, and so would the count of
+    replays.  Apart, each call replays what it would replay alone after the calls before the threads began.
+    """
+    outer = _REST_SCOPE.get()  # within a call that keeps its own: from those
+    token = _REST_SCOPE.set({k: dict(v) for k, v in (outer or {}).items()})
+    try:
+        yield
+    finally:
+        _REST_SCOPE.reset(token)
 
 
 @dataclass(frozen=True)
@@ -294,6 +326,7 @@ class Replayer:
         self.inputs = dict(inputs or {})
         self.cases = [self._case(r) for r in campaign.runs]
         self.n_evals = 0
+        self._count = threading.Lock()  # n_evals is counted from screens run side by side (diagnosis.side_by_side)
         self._executor = None  # (pid, ThreadPoolExecutor) of :meth:`_pool`
         self._rests = {}  # replays of models' rests that static blocks at logged readings apply to (simulate_many)
 
@@ -429,31 +462,44 @@ class Replayer:
         """
         parted = [self._parted(m) for m in models]
         if any(p is not None for p in parted):
-            from ehas_env.measurement import logged_readings
+            return self._simulate_parted(models, parted, runs)
+        return self._simulate_whole(models, runs)
 
-            # the rests this call needs: kept ones (moved to the end: the most recently used stay), the others
-            # replayed together (a rest kept from a call on other runs is replayed for these)
-            got, todo = {}, {}
-            for p in parted:
-                if p is None or p[0] in got or p[0] in todo:
-                    continue
-                kept = self._rests.pop(p[0], None)
-                if kept is not None and all(kept[i] is not None or (runs is not None and i not in runs)
-                                            for i in range(len(self.cases))):
-                    got[p[0]] = kept
-                else:
-                    todo[p[0]] = p[1]
-            if todo:
-                got.update(zip(todo, self.simulate_many(list(todo.values()), runs)))
-            self._rests.update(got)
-            while len(self._rests) > REST_KEPT:
-                self._rests.pop(next(iter(self._rests)))
-            whole = [m for m, p in zip(models, parted) if p is None]
-            done = iter(self.simulate_many(whole, runs) if whole else [])
-            return [next(done) if p is None else logged_readings.apply(
-                [x if runs is None or i in runs else None for i, x in enumerate(got[p[0]])], p[2])
-                for p in parted]
-        self.n_evals += len(models)
+    def _simulate_parted(self, models: list[ModelSpec], parted: list, runs) -> list:
+        """:meth:`simulate_many` of models some of which are parted (:meth:`_parted`)."""
+        from ehas_env.measurement import logged_readings
+
+        scope = _REST_SCOPE.get()  # kept apart in a call run side by side with others (own_rests)
+        kept_rests = self._rests if scope is None else scope.setdefault(id(self), dict(self._rests))
+        # the rests this call needs: kept ones (moved to the end: the most recently used stay), the others
+        # replayed together (a rest kept from a call on other runs is replayed for these)
+        got, todo = {}, {}
+        for p in parted:
+            if p is None or p[0] in got or p[0] in todo:
+                continue
+            kept = kept_rests.pop(p[0], None)
+            if kept is not None and all(kept[i] is not None or (runs is not None and i not in runs)
+                                        for i in range(len(self.cases))):
+                got[p[0]] = kept
+            else:
+                todo[p[0]] = p[1]
+        if todo:
+            got.update(zip(todo, self.simulate_many(list(todo.values()), runs)))
+        kept_rests.update(got)
+        while len(kept_rests) > REST_KEPT:
+            kept_rests.pop(next(iter(kept_rests)))
+        whole = [m for m, p in zip(models, parted) if p is None]
+        done = iter(self.simulate_many(whole, runs) if whole else [])
+        return [next(done) if p is None else logged_readings.apply(
+            [x if runs is None or i in runs else None for i, x in enumerate(got[p[0]])], p[2])
+            for p in parted]
+
+    def _simulate_whole(self, models: list[ModelSpec], runs) -> list:
+        """:meth:`simulate_many` of models replayed whole."""
+        if STOP.is_set():
+            raise ReplaysStopped("replays stopped (Ctrl-C)")
+        with self._count:
+            self.n_evals += len(models)
         jobs = [(m, i) for m in range(len(models)) for i in range(len(self.cases)) if runs is None or i in runs]
         # the plants (and a first compiled model) are made here, one after the other; only the compiled runs go
         # to the threads
@@ -508,7 +554,11 @@ class Replayer:
     def __getstate__(self):
         """A replayer sent to another process leaves its threads behind (it makes its own there), and its kept
         replays."""
-        return {**self.__dict__, "_executor": None, "_rests": {}}
+        return {**self.__dict__, "_executor": None, "_rests": {}, "_count": None}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._count = threading.Lock()
 
     def _prepare(self, model: ModelSpec, case: _Case) -> _Job:
         """What one replay of ``case`` with ``model`` needs: its compiled model, parameters, initial state and

@@ -32,7 +32,8 @@ def status(message: str, prefix: str = "ehas") -> None:
     if quiet():
         return
     try:
-        print(f"[{prefix}] {message}", file=sys.stderr, flush=True)
+        sys.stderr.write(f"[{prefix}] {message}\n")  # one write: lines from threads side by side never run together
+        sys.stderr.flush()
     except (BrokenPipeError, ValueError):  # stderr closed: nobody to tell
         pass
 

@@ -36,6 +36,19 @@ def test_judge_refuses_what_does_not_lower_the_validation_residual():
     assert "validation residual" in judge(3.0, 2.0, 4.0, 3.95)  # lower, but by less than the share (2 %)
 
 
+def test_a_block_the_held_out_runs_never_reach_must_remove_half_the_excess():
+    """The validation gate cannot judge a block the held-out runs never reach (it moves them by less than
+    UNEXERCISED): it must then remove half the all-data excess, not a tenth (the unlisted pair of a pump's ripple and
+    a rate limit at the coil kept a knee of the position sensor's reading that removed 11.5 %)."""
+    unreached = 0.5 * states.UNEXERCISED
+    # 3.0 -> 2.2 removes 40 % of the excess 2.0: enough for a proven block, not for an unproven one
+    assert "held-out runs never reach it" in judge(3.0, 2.2, 4.0, 4.0, val_moved=unreached)
+    assert "40 %" in judge(3.0, 2.2, 4.0, 4.0, val_moved=unreached)
+    assert judge(3.0, 1.9, 4.0, 4.0, val_moved=unreached) is None  # 55 %
+    assert judge(3.0, 2.2, 4.0, 3.0, val_moved=1.0) is None  # reached, and the validation residual falls
+    assert judge(3.0, 2.2, None, None, val_moved=None) is None  # no validation samples: the all-data rule alone
+
+
 def test_the_blocks_the_fitted_runs_cannot_part_from_the_kept_one_are_listed_closest_first():
     """Within 0.3 dB of the kept block's screened cost (x1.072): listed with their cost over its, closest first; a
     block screened on two bases once, at its better; one 0.35 dB above, not."""
