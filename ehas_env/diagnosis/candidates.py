@@ -363,6 +363,7 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
         # one bar per stage, each total known before it is shown: the refinements' count is known only after
         # the screening (a single bar's total changed mid-run, 13/16 -> 13/14)
         bar = tqdm(total=len(names), desc="diagnose: screening", unit="fit")
+
     def screen(n):  # one effect's screen (the bar counts each as it ends)
         f = screen_candidate(rep, n, null, fits)
         if bar:
@@ -372,26 +373,32 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
     # side by side, in waves: a nested effect after the one it extends (its warm start), the fits of a wave read
     # only those of the waves before
     left = list(names)
-    while left:
-        wave = [n for n in left if NESTED.get(n, (None,))[0] not in left]
-        fits.update(zip(wave, side_by_side(screen, wave)))
-        left = [n for n in left if n not in wave]
+    try:
+        while left:
+            wave = [n for n in left if NESTED.get(n, (None,))[0] not in left]
+            fits.update(zip(wave, side_by_side(screen, wave)))
+            left = [n for n in left if n not in wave]
+    finally:  # a bar ends its line, a Ctrl-C's included
+        if bar:
+            bar.close()
     helpful = [n for n in sorted(fits, key=lambda n: fits[n].cost) if fits[n].cost < null.cost * (1.0 - SKIP_MARGIN)]
     # refine the best, and whoever screened within REFINE_WITHIN_DB of it (a close call is decided
     # after beta and K have been refitted with each)
     near = [n for n in helpful if 10.0 * math.log10(fits[n].cost / fits[helpful[0]].cost) <= REFINE_WITHIN_DB]
     if bar:
-        bar.close()
         bar = tqdm(total=len(near[:REFINE_TOP]), desc="diagnose: refining", unit="fit") if near[:REFINE_TOP] else None
+
     def refine(n):
         f = refine_candidate(rep, n, fits[n], null, base_effects)
         if bar:
             bar.update()
         return f
 
-    fits.update(zip(near[:REFINE_TOP], side_by_side(refine, near[:REFINE_TOP])))
-    if bar:
-        bar.close()
+    try:
+        fits.update(zip(near[:REFINE_TOP], side_by_side(refine, near[:REFINE_TOP])))
+    finally:
+        if bar:
+            bar.close()
     # a Stribeck fit without a breakaway peak is Coulomb friction: Coulomb gets that fit (fewer parameters,
     # so it ranks above it), and the peak is claimed only when it is really there
     st = fits.get("stribeck_friction")

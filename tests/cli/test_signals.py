@@ -188,3 +188,33 @@ def test_ctrl_c_during_the_swap_waits_until_the_new_set_is_in_place(tmp_path, mo
     assert len(calls) >= 2  # the swap went on after the signal
     assert (final / "a.txt").read_text() == "new"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report"]  # no temporaries, no old set aside
+
+
+@pytest.mark.slow  # a diagnosis up to its library's screens (with a first compile of the diagnosis' model: 1-2 min)
+def test_ctrl_c_during_the_screens_side_by_side_stops_every_thread(tmp_path):
+    """Ctrl-C while the library's screens run two at a time on threads (ehas_env.diagnosis.side_by_side): 130, one
+    line, no JSON; every thread ends at its next replay, so no screen is completed after the signal (a thread left
+    running would finish its screen, and the next, before the interpreter could exit)."""
+    import re
+
+    from ehas_env.measurement.synthetic import write_simulated_campaign
+
+    camp = tmp_path / "camp"
+    write_simulated_campaign(camp, {"coulomb_friction": {"Fc": 400.0}}, seed=3340)
+    out = tmp_path / "d.json"
+    proc = subprocess.Popen(_ehas_cmd() + ["diagnose", str(camp), "--json", str(out)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, preexec_fn=_ctrl_c_ready)
+    err = b""
+    while b"diagnose: screening" not in err or not re.search(rb"\| ([1-9]\d*)/\d+ ", err.split(b"screening")[-1]):
+        ch = proc.stderr.read1(4096)
+        assert ch, err.decode(errors="replace")  # the screens started before the command ended
+        err += ch
+    done = max(int(n) for n in re.findall(rb"\| (\d+)/\d+ ", err.split(b"screening")[-1]))
+    proc.send_signal(signal.SIGINT)
+    rest, more = proc.communicate(timeout=120)
+    err = (err + more).decode(errors="replace")
+    assert proc.returncode == 130, err
+    _one_interrupted_line(err, "diagnose")
+    after = [int(n) for n in re.findall(r"\| (\d+)/\d+ ", err.split("screening")[-1])]
+    assert max(after) <= done + 1, (done, after)  # at most the one the bar had not drawn yet
+    assert not out.exists()
