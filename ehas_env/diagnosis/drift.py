@@ -420,6 +420,10 @@ def drift_text(d: dict) -> str:
         best = max(d["correlations"].items(), key=lambda kv: abs(kv[1]), default=(None, 0.0))
         return (f"{d['parameter']} differs between runs but follows none of the recorded quantities (largest rank "
                 f"correlation {best[1]:+.2f}, with {best[0]}); {test}")
+    # a term signed negative by its law (a friction torque -c sign(omega)) whose size grows "falls" in number: said
+    # as what it does, its size growing or shrinking
+    verb = d["direction"] if d["ratio_first_last"] is None or d["last"] > 0 else \
+        ("grows in size" if d["ratio_first_last"] >= 1 else "shrinks in size")
     size = (f"{d['ratio_first_last']:.2g}x" if d["ratio_first_last"] is not None and d["ratio_first_last"] >= 1 else
             f"to {d['ratio_first_last']:.2g}x" if d["ratio_first_last"] is not None else
             f"by {d['last'] - d['first']:+.3g}{u}")
@@ -433,7 +437,7 @@ def drift_text(d: dict) -> str:
     if lw is not None and d["follows"] not in ("recording order", "file order"):
         per = (f": {'rises' if lw['pct'] > 0 else 'falls'} {abs(lw['pct']):.3g} % per {lw['per']:g} of "
                f"{d['follows']} (95 % interval {lw['pct_ci95'][0]:+.3g} to {lw['pct_ci95'][1]:+.3g} %)")
-    return (f"{d['parameter']} {d['direction']} {size} {along} ({d['first']:.4g} -> "
+    return (f"{d['parameter']} {verb} {size} {along} ({d['first']:.4g} -> "
             f"{d['last']:.4g}{u}; rank correlation {d['rho']:+.2f}){per}; {test}")
 
 

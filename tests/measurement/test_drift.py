@@ -250,6 +250,23 @@ def test_a_drift_along_a_setting_is_worded_along_that_setting_not_the_runs_order
     assert "first run to the last" not in text
 
 
+def test_a_negative_term_whose_size_grows_is_said_to_grow_not_to_fall():
+    """A friction torque at the crank fitted as c = -9.7 ... -22.1 N m (the term -c sign(omega) of a saturating
+    crank-rate block, the drift set's friction that rises 2.4x): its number falls, its size grows 2.3x; the words
+    say what the friction does."""
+    from ehas_env.diagnosis.drift import drift_text, relate
+
+    vals = [-9.75, -12.8, -15.9, -19.0, -22.1]
+    rel = relate(vals, [(v - 0.5, v + 0.5) for v in vals], {"recording order": [0.0, 1.0, 2.0, 3.0, 4.0]})
+    d = {"parameter": "aug_saturating_crank_rate.c", "unit": "N m", "p_value": 1e-9, "chi2": 90.0, "dof": 4, **rel}
+    text = drift_text(d)
+    assert d["direction"] == "falls" and d["ratio_first_last"] == pytest.approx(2.27, rel=0.01)
+    assert "c grows in size 2.3x from the first run to the last" in text and "falls" not in text, text
+    vals = [-22.1, -19.0, -15.9, -12.8, -9.75]  # ... and one whose size shrinks
+    d.update(relate(vals, [(v - 0.5, v + 0.5) for v in vals], {"recording order": [0.0, 1.0, 2.0, 3.0, 4.0]}))
+    assert "c shrinks in size to 0.44x" in drift_text(d)
+
+
 def test_a_parameter_that_follows_a_recorded_temperature_is_reported_as_a_law():
     """Coulomb friction falls 6 N per degree of oil temperature, and the sidecars record each run's temperature
     (``oil_temperature_C``: 25, 40, 55, 30, 45 deg C, not in file order): the drift stage relates Fc to that condition,
