@@ -174,14 +174,28 @@ def run_all(cases: list, path: Path, command: str, run_one, idx=None, fresh: boo
     return recs
 
 
+def _way(d: dict) -> str:
+    """A drift's way as the package words it: a negative term whose number falls while last / first > 1 grows in
+    size (a friction torque c < 0).
+
+    >>> _way({"direction": "falls", "ratio_first_last": 2.27}), _way({"direction": "falls", "ratio_first_last": 0.6})
+    ('grows in size', 'falls')
+    """
+    r = d.get("ratio_first_last")
+    if r is not None and (d["direction"] == "falls") == (r >= 1.0):
+        return "grows in size" if r >= 1.0 else "shrinks in size"
+    return d["direction"]
+
+
 def readme(recs: list, command: str) -> str:
     lines = ["# Drift: parameters that change from run to run (issue 33)", "",
              f"Regenerate: `{command}` (tests/independent_rig/drift.py; the independent generator with a per-run "
              "schedule; five closed-loop runs of 2 s recorded 40 min apart, settings in an order unrelated to the "
              "recording order; `drift.json` holds every record).", "",
              "Named: the diagnosis JSON's `drift` holds a parameter of the drifting quantity (friction: the "
-             "Coulomb level or the pressure-friction coefficient, which at one supply is the same force), following "
-             "the recording order, in the right direction, "
+             "Coulomb level, the pressure-friction coefficient, which at one supply is the same force, or the level "
+             "of a saturating term of the piston's velocity or the crank's rate), following "
+             "the recording order, in the right direction (of its size), "
              f"its change first -> last (ratio - 1) within {100 * TOL:.0f} % of the truth's. Without drift: none "
              "reported. Other parameters in a row are effects judged but not kept (stand-ins the same change made "
              "fit on some runs), refitted run by run too: the report lists them beside the named one. "
@@ -189,8 +203,8 @@ def readme(recs: list, command: str) -> str:
              "| campaign | seed | true ratio | reported | follows | change error | ok | verdict | s |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in recs:
-        rep = "; ".join(f"{d['parameter']} {d['direction']} " + (f"{d['ratio_first_last']:g}x" if d["ratio_first_last"]
-                                                                  is not None else "(through zero)")
+        rep = "; ".join(f"{d['parameter']} {_way(d)} " + (f"{d['ratio_first_last']:g}x" if d["ratio_first_last"]
+                                                             is not None else "(through zero)")
                         for d in r["drift"]) or "none"
         fol = "; ".join(d["follows"] or "none" for d in r["drift"]) or "-"
         err = "-" if r["error"] is None else f"{100 * r['error']:.0f} %"
