@@ -91,6 +91,8 @@ def test_the_state_stage_side_by_side_is_the_stage_one_after_the_other(monkeypat
     assert out[2] == out[1]
 
 
+@pytest.mark.slow  # a library diagnosis twice (about 30 s of a default run past 10 min); the state stage's test above
+# holds side by side against one after the other in the default run
 def test_the_library_screens_side_by_side_rank_as_one_after_the_other(monkeypatch):
     """The library's screens (Stribeck friction after the Coulomb friction it starts from) and refits on two
     threads: the same ranking, values and costs as on one."""
