@@ -329,32 +329,10 @@ def fit_candidate(rep: Replayer, effect: str, null: Fit, base_effects: dict | No
     return refine_candidate(rep, effect, screen_candidate(rep, effect, null), null, base_effects or {})
 
 
-def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates=None, progress: bool = False,
-             replayer: Replayer | None = None) -> Diagnosis:
-    """Rank the library's effects by how much of the baseline's misfit each explains.
-
-    Parameters
-    ----------
-    campaign : Campaign
-        The measurements.
-    base_effects : dict, optional
-        Effects already added ({name: {param: value}}): refitted with every
-        candidate, so the next effect is found on top of them.
-    candidates : iterable of str, optional
-        Effects to try (default: every effect of the registry not in ``base_effects``).
-    progress : bool
-        Show a progress bar.
-    """
-    t0 = time.perf_counter()
-    rep = replayer or Replayer(campaign)
-    base_effects = with_defaults(base_effects)
-    names = [n for n in (candidates or library_effects()) if n not in base_effects]
-    for n in names:
-        get_effect(n)
-    baseline_sims = rep.simulate(ModelSpec(effects=base_effects))
-    baseline = Fit(ModelSpec(effects=base_effects), rep.log_cost(baseline_sims), [], baseline_sims,
-                   rep.fit_table(baseline_sims))
-    null = fit_null(rep, base_effects)
+def _screened_and_refined(rep: Replayer, names: list, null: Fit, base_effects: dict, progress: bool) -> dict:
+    """Stage 1 and 2 of :func:`diagnose`: every effect of ``names`` screened on ``null`` (side by side, in waves: a
+    nested effect after the one it extends), and the best within :data:`REFINE_WITHIN_DB` refined (at most
+    :data:`REFINE_TOP`): {name: Fit}."""
     fits = {}
     bar = None
     if progress:
@@ -399,6 +377,36 @@ def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates
     finally:
         if bar:
             bar.close()
+    return fits
+
+
+def diagnose(campaign: Campaign, *, base_effects: dict | None = None, candidates=None, progress: bool = False,
+             replayer: Replayer | None = None) -> Diagnosis:
+    """Rank the library's effects by how much of the baseline's misfit each explains.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The measurements.
+    base_effects : dict, optional
+        Effects already added ({name: {param: value}}): refitted with every
+        candidate, so the next effect is found on top of them.
+    candidates : iterable of str, optional
+        Effects to try (default: every effect of the registry not in ``base_effects``).
+    progress : bool
+        Show a progress bar.
+    """
+    t0 = time.perf_counter()
+    rep = replayer or Replayer(campaign)
+    base_effects = with_defaults(base_effects)
+    names = [n for n in (candidates or library_effects()) if n not in base_effects]
+    for n in names:
+        get_effect(n)
+    baseline_sims = rep.simulate(ModelSpec(effects=base_effects))
+    baseline = Fit(ModelSpec(effects=base_effects), rep.log_cost(baseline_sims), [], baseline_sims,
+                   rep.fit_table(baseline_sims))
+    null = fit_null(rep, base_effects)
+    fits = _screened_and_refined(rep, names, null, base_effects, progress)
     # a Stribeck fit without a breakaway peak is Coulomb friction: Coulomb gets that fit (fewer parameters,
     # so it ranks above it), and the peak is claimed only when it is really there
     st = fits.get("stribeck_friction")

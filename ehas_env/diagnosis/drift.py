@@ -410,6 +410,32 @@ def ordered(values, order) -> bool:
     return bool(np.all(d > 0) or np.all(d < 0))
 
 
+def way(d: dict) -> str:
+    """Which way a drifting parameter goes, in words: its ``direction``, but for a term signed negative by its law
+    (a friction torque c < 0 against the motion), whose number falls as its size grows: said as what it does.
+
+    Parameters
+    ----------
+    d : dict
+        A drift record: ``direction`` ("rises"/"falls") and ``ratio_first_last`` (None when a sign changes).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> way({"direction": "falls", "ratio_first_last": 2.27}), way({"direction": "falls", "ratio_first_last": 0.6})
+    ('grows in size', 'falls')
+    >>> way({"direction": "rises", "ratio_first_last": 0.44})
+    'shrinks in size'
+    """
+    r = d.get("ratio_first_last")
+    if r is not None and (d["direction"] == "falls") == (r >= 1.0):  # same sign, number and size opposite: negative
+        return "grows in size" if r >= 1.0 else "shrinks in size"
+    return d["direction"]
+
+
 def drift_text(d: dict) -> str:
     """One drifting parameter in words: "coulomb_friction.Fc rises 2.4x from the first run to the last, in
     recording order (...)"."""
@@ -420,10 +446,6 @@ def drift_text(d: dict) -> str:
         best = max(d["correlations"].items(), key=lambda kv: abs(kv[1]), default=(None, 0.0))
         return (f"{d['parameter']} differs between runs but follows none of the recorded quantities (largest rank "
                 f"correlation {best[1]:+.2f}, with {best[0]}); {test}")
-    # a term signed negative by its law (a friction torque -c sign(omega)) whose size grows "falls" in number: said
-    # as what it does, its size growing or shrinking
-    verb = d["direction"] if d["ratio_first_last"] is None or d["last"] > 0 else \
-        ("grows in size" if d["ratio_first_last"] >= 1 else "shrinks in size")
     size = (f"{d['ratio_first_last']:.2g}x" if d["ratio_first_last"] is not None and d["ratio_first_last"] >= 1 else
             f"to {d['ratio_first_last']:.2g}x" if d["ratio_first_last"] is not None else
             f"by {d['last'] - d['first']:+.3g}{u}")
@@ -437,7 +459,7 @@ def drift_text(d: dict) -> str:
     if lw is not None and d["follows"] not in ("recording order", "file order"):
         per = (f": {'rises' if lw['pct'] > 0 else 'falls'} {abs(lw['pct']):.3g} % per {lw['per']:g} of "
                f"{d['follows']} (95 % interval {lw['pct_ci95'][0]:+.3g} to {lw['pct_ci95'][1]:+.3g} %)")
-    return (f"{d['parameter']} {verb} {size} {along} ({d['first']:.4g} -> "
+    return (f"{d['parameter']} {way(d)} {size} {along} ({d['first']:.4g} -> "
             f"{d['last']:.4g}{u}; rank correlation {d['rho']:+.2f}){per}; {test}")
 
 

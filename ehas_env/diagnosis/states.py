@@ -275,9 +275,10 @@ def judge(all_before: float, all_after: float, val_before: float | None, val_aft
     if refused is not None:
         return refused
     unproven = val_before is not None and val_moved is not None and val_moved < UNEXERCISED
-    if unproven and share_removed(all_before, all_after) < UNPROVEN_SHARE:
+    share = share_removed(all_before, all_after)
+    if unproven and share < UNPROVEN_SHARE:
         return (f"the held-out runs never reach it, and on the fitted runs it takes the residual from "
-                f"{all_before:.3g}x to {all_after:.3g}x noise: {100 * share_removed(all_before, all_after):.0f} % of "
+                f"{all_before:.3g}x to {all_after:.3g}x noise: {100 * share:.0f} % of "
                 f"the excess, less than the {100 * UNPROVEN_SHARE:.0f} % a block held-out data cannot judge must "
                 "remove")
     if val_before is not None and val_after is not None and not lowers_validation(val_before, val_after) \
