@@ -27,8 +27,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ehas_env.diagnosis.drift import way
-
 from .acceptance import _run, ehas_exe
 from .campaign import simulate, write
 
@@ -176,6 +174,19 @@ def run_all(cases: list, path: Path, command: str, run_one, idx=None, fresh: boo
     return recs
 
 
+def _way(d: dict) -> str:
+    """A drift's way as the package words it (``ehas_env.diagnosis.drift.way``; this runner imports nothing of the
+    package): a negative term whose number falls while last / first > 1 grows in size (a friction torque c < 0).
+
+    >>> _way({"direction": "falls", "ratio_first_last": 2.27}), _way({"direction": "falls", "ratio_first_last": 0.6})
+    ('grows in size', 'falls')
+    """
+    r = d.get("ratio_first_last")
+    if r is not None and (d["direction"] == "falls") == (r >= 1.0):
+        return "grows in size" if r >= 1.0 else "shrinks in size"
+    return d["direction"]
+
+
 def readme(recs: list, command: str) -> str:
     lines = ["# Drift: parameters that change from run to run (issue 33)", "",
              f"Regenerate: `{command}` (tests/independent_rig/drift.py; the independent generator with a per-run "
@@ -192,7 +203,7 @@ def readme(recs: list, command: str) -> str:
              "| campaign | seed | true ratio | reported | follows | change error | ok | verdict | s |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in recs:
-        rep = "; ".join(f"{d['parameter']} {way(d)} " + (f"{d['ratio_first_last']:g}x" if d["ratio_first_last"]
+        rep = "; ".join(f"{d['parameter']} {_way(d)} " + (f"{d['ratio_first_last']:g}x" if d["ratio_first_last"]
                                                              is not None else "(through zero)")
                         for d in r["drift"]) or "none"
         fol = "; ".join(d["follows"] or "none" for d in r["drift"]) or "-"
