@@ -82,6 +82,9 @@ def test_linear_costs_are_the_replayed_costs_of_a_linear_response():
     np.testing.assert_allclose(P._linear_costs(r0, dr, coefs), direct, rtol=1e-12)
 
 
+# about 32 s on 2 cores with an empty model cache (the default suite's 10 minutes): slow; the linearised costs it
+# ranks by are held against the direct sums in the default run (above)
+@pytest.mark.slow
 def test_the_backward_elimination_ranks_the_true_term_last():
     """The proposal leaves out, one at a time, the forms that carry nothing, ranked by the fit's linearisation (one
     Jacobian) instead of refitting every subset (a sparse start of ten forms made thousands of replays).  A crank
