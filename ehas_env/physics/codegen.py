@@ -698,13 +698,21 @@ def _load(name: str, text: str, fresh: list):
 #: the environment's step alone: results/first_step.md; a benchmark grid's driver alone: the "inline" figure)
 COMPILE_CPU_S = {"inline": 90.0, "quick": 16.0, "quick, library cached": 9.0,
                  "inline, environment step": 36.0, "inline, benchmark grid": 90.0}
+#: measured CPU seconds a kilobyte of freshly generated text takes to compile, by build: a model's compile grows with
+#: the text it compiles (a quick build of the registered effects, 58.7 kB: 7.9 s; with the diagnosis' hypotheses and
+#: blocks, 229 kB of new effect and model modules over a cached library: 27.6 s, where the seconds of
+#: :data:`COMPILE_CPU_S` say 9; both at load 1.3-1.4 a core, divided by :func:`load_scale`; 2026-12-02).  Used for
+#: the announced compile of a model whose text size is known; this machine's record of its own rates wins
+COMPILE_CPU_S_PER_KB = {"quick": 0.117, "quick, library cached": 0.101}
+#: the record's key of a build's per-kilobyte rates (:data:`COMPILE_RECORD`)
+PER_KB = " per kB"
 _WATCH = {"depth": 0, "start": 0.0, "name": "", "thread": None, "est": 0.0, "build": None, "scale": 1.0,
-          "mods": set(), "spent": 0.0, "going": False, "first": False}
+          "mods": set(), "spent": 0.0, "going": False, "first": False, "kb": None}
 HEARTBEAT_S = 10.0
 _FRESH: dict[str, tuple] = {}  # modules written by this process, not yet compiled: (build, their model's module)
 
 
-def compile_estimate_s(build: str) -> float:
+def compile_estimate_s(build: str, kb: float | None = None) -> float:
     """Seconds a first compile of ``build`` should take now: the quiet figure scaled by the load.
 
     Parameters
@@ -714,13 +722,15 @@ def compile_estimate_s(build: str) -> float:
         numba already holds (only the effects' terms and the assembled model compile); "inline, environment
         step": the inlined build's ``single_reset`` and ``single_step`` alone (what an environment compiles);
         "inline, benchmark grid": its ``closed_loop_batch`` alone (what a benchmark grid compiles).
+    kb : float, optional
+        Kilobytes of generated text the compile covers (:func:`quiet_compile_s`).
 
     Returns
     -------
     float
-        ``COMPILE_CPU_S[build]`` times the square root of the run queue per core when above one.
+        :func:`quiet_compile_s` times the square root of the run queue per core when above one.
     """
-    return quiet_compile_s(build) * load_scale()
+    return quiet_compile_s(build, kb) * load_scale()
 
 
 #: the file in :func:`cache_dir` holding this machine's measured compile times: ``{build: [s, ...]}`` (the last
@@ -729,29 +739,55 @@ COMPILE_RECORD = "compile_times.json"
 COMPILE_KEPT = 5
 
 
-def quiet_compile_s(build: str) -> float:
+def quiet_compile_s(build: str, kb: float | None = None) -> float:
     """A quiet machine's seconds for a first compile of ``build``: the median of this machine's last compiles of
-    it (:data:`COMPILE_RECORD`), else :data:`COMPILE_CPU_S`'s figure.
+    it (:data:`COMPILE_RECORD`), else :data:`COMPILE_CPU_S`'s figure; for a compile of ``kb`` kilobytes of
+    generated text, that size times the median of this machine's last rates per kilobyte of the build, else
+    :data:`COMPILE_CPU_S_PER_KB`'s (a build without a measured rate: its seconds, as without ``kb``).
 
     The figures of :data:`COMPILE_CPU_S` were measured once for one kind of model (results/compile.md); a model
-    whose effects add states compiles more (a coil lag's: 37 CPU s where the table says 9), so the machine's own
-    record of what its compiles took is the better guess.
+    whose effects add states compiles more (a coil lag's: 37 CPU s where the table says 9; the diagnosis' model,
+    229 kB of new text, 23 s), so the size of what compiles and the machine's own record of what its compiles
+    took are the better guess.
 
     Parameters
     ----------
     build : str
         A key of :data:`COMPILE_CPU_S`.
+    kb : float, optional
+        Kilobytes of newly generated text the compile covers.
 
     Returns
     -------
     float
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> before = os.environ.get("EHAS_CACHE_DIR")
+    >>> os.environ["EHAS_CACHE_DIR"] = tempfile.mkdtemp()  # no record yet: the tables
+    >>> quiet_compile_s("quick, library cached"), round(quiet_compile_s("quick, library cached", kb=229.0), 1)
+    (9.0, 23.1)
+    >>> quiet_compile_s("inline", kb=100.0)  # no rate per kB measured for this build: its seconds
+    90.0
+    >>> _ = os.environ.pop("EHAS_CACHE_DIR") if before is None else os.environ.update(EHAS_CACHE_DIR=before)
     """
-    try:
-        seen = json.loads((cache_dir() / COMPILE_RECORD).read_text()).get(build) or []
-        seen = [float(x) for x in seen if isinstance(x, (int, float)) and 0.0 < x < 1e5]
-    except (OSError, ValueError, AttributeError):
-        seen = []
+    if kb is not None and (build + PER_KB in _record() or build in COMPILE_CPU_S_PER_KB):
+        rates = _record().get(build + PER_KB)
+        return float(kb) * (statistics.median(rates) if rates else COMPILE_CPU_S_PER_KB[build])
+    seen = _record().get(build)
     return statistics.median(seen) if seen else COMPILE_CPU_S[build]
+
+
+def _record() -> dict:
+    """This machine's record of its compiles (:data:`COMPILE_RECORD`): {key: [figures]}, the figures that are
+    plausible only; empty when there is none or it cannot be read."""
+    try:
+        doc = json.loads((cache_dir() / COMPILE_RECORD).read_text())
+        return {k: kept for k, v in doc.items() if isinstance(v, list)
+                and (kept := [float(x) for x in v if isinstance(x, (int, float)) and 0.0 < x < 1e5])}
+    except (OSError, ValueError, AttributeError):
+        return {}
 
 
 def record_compile_s(build: str, seconds: float, new: bool = True) -> None:
@@ -767,7 +803,7 @@ def record_compile_s(build: str, seconds: float, new: bool = True) -> None:
         if not isinstance(doc, dict):
             doc = {}
         kept = [float(x) for x in doc.get(build) or [] if isinstance(x, (int, float))]
-        doc[build] = ((kept if new or not kept else kept[:-1]) + [round(float(seconds), 2)])[-COMPILE_KEPT:]
+        doc[build] = ((kept if new or not kept else kept[:-1]) + [float(f"{float(seconds):.4g}")])[-COMPILE_KEPT:]
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
         tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
@@ -792,6 +828,14 @@ def load_scale() -> float:
     except OSError:
         load = 1.0
     return max(1.0, load) ** 0.5
+
+
+def _text_kb(modules) -> float | None:
+    """Kilobytes of the generated files of ``modules`` (names of imported modules); None when one has no file."""
+    try:
+        return sum(os.path.getsize(sys.modules[m].__file__) for m in modules) / 1000.0
+    except (KeyError, TypeError, OSError):
+        return None
 
 
 def _watch_compiles(modules: list, build: str) -> None:
@@ -821,9 +865,10 @@ def _watch_compiles(modules: list, build: str) -> None:
                     mods = [m for m, (_, of) in _FRESH.items() if of == model]
                     for m in mods:  # one line for one model
                         del _FRESH[m]
-                    _WATCH["est"] = compile_estimate_s(build)
+                    kb = _text_kb(mods)
+                    _WATCH["est"] = compile_estimate_s(build, kb)
                     _WATCH.update(build=build, scale=load_scale(), mods=set(mods), spent=0.0, going=True,
-                                  first=True)
+                                  first=True, kb=kb)
                     what = "fast-step build" if build == "inline" else f"{build} build"
                     print(f"ehas: compiling the simulator for this set of effects and controllers ({what}, "
                           f"{_WATCH['name']}; first run only; about {_WATCH['est']:.0f} s at this machine's load)",
@@ -837,6 +882,8 @@ def _watch_compiles(modules: list, build: str) -> None:
                 # took, kept for the next estimate of its build
                 _WATCH["spent"] += (time.monotonic() - _WATCH["start"]) / _WATCH["scale"]
                 record_compile_s(_WATCH["build"], _WATCH["spent"], new=_WATCH["first"])
+                if _WATCH["kb"]:  # and its rate per kilobyte of the text it compiled
+                    record_compile_s(_WATCH["build"] + PER_KB, _WATCH["spent"] / _WATCH["kb"], new=_WATCH["first"])
                 _WATCH["going"] = _WATCH["first"] = False
 
     def beat():

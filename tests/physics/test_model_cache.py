@@ -45,18 +45,27 @@ def _effect(rate_scale: str) -> str:
     return text.replace("return -(k * theta)", f"return -({rate_scale} * k * theta)")
 
 
-def _run(tmp_path, folder) -> dict:
-    env = {**os.environ, "EHAS_CACHE_DIR": str(tmp_path / "models"), "EHAS_QUIET_COMPILE": "1"}
+def _run(tmp_path, folder, quiet: bool = True) -> dict:
+    env = {**os.environ, "EHAS_CACHE_DIR": str(tmp_path / "models"), "EHAS_QUIET_COMPILE": "1" if quiet else "0"}
     out = subprocess.run([sys.executable, "-c", PROBE, str(folder)], capture_output=True, text=True, env=env,
                          check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return {**json.loads(out.stdout.strip().splitlines()[-1]), "stderr": out.stderr}
 
 
 def test_edited_effect_file_gives_a_new_model_and_an_unchanged_one_is_not_recompiled(tmp_path):
     fx = tmp_path / "fx"
     fx.mkdir()
     (fx / "spring.py").write_text(_effect("1.0"))
-    first = _run(tmp_path, fx)
+    first = _run(tmp_path, fx, quiet=False)
+    # the first compile was announced and its time kept, in seconds and per kilobyte of the text it compiled: every
+    # generated file here is this model's (a fresh cache)
+    from ehas_env.physics import codegen
+
+    assert "ehas: compiling the simulator" in first["stderr"]
+    record = json.loads((tmp_path / "models" / codegen.COMPILE_RECORD).read_text())
+    kb = sum(p.stat().st_size for p in (tmp_path / "models").glob("*.py")) / 1000.0
+    (seconds,), (rate,) = record["quick"], record["quick" + codegen.PER_KB]
+    assert rate * kb == pytest.approx(seconds, rel=1e-3)
     again = _run(tmp_path, fx)
     assert first["misses"] >= 1 and first["hits"] == 0  # compiled in the first process
     assert again["module"] == first["module"]  # the same text: the same generated model ...
@@ -118,3 +127,10 @@ def test_the_compile_estimate_learns_this_machines_compile_times(tmp_path, monke
     assert codegen.quiet_compile_s(build) == codegen.COMPILE_CPU_S[build]
     codegen.record_compile_s(build, 12.0)  # a broken record is started again
     assert codegen.quiet_compile_s(build) == 12.0
+    # a compile of known size: the size times the rate per kilobyte, the table's until this machine has its own
+    assert codegen.quiet_compile_s(build, kb=200.0) == pytest.approx(200.0 * codegen.COMPILE_CPU_S_PER_KB[build])
+    for r in (0.2, 0.05, 0.1):
+        codegen.record_compile_s(build + codegen.PER_KB, r)
+    assert codegen.quiet_compile_s(build, kb=200.0) == pytest.approx(20.0)
+    assert codegen.quiet_compile_s(build) == 12.0  # the seconds' record is its own
+    assert codegen.quiet_compile_s("inline", kb=200.0) == codegen.COMPILE_CPU_S["inline"]  # no rate: its seconds
