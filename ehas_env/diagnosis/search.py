@@ -140,7 +140,7 @@ def data_stage(campaign: Campaign, *, holdout=None, window_s: float, model=None,
     if not train_runs:
         raise ValueError("--holdout: every run is held out; nothing is left to fit")
     train_c = windowed(Campaign(campaign.path, train_runs), window_s)
-    # one compiled model for every round, the structural hypotheses' included when they may be tried
+    # the structural hypotheses' model compiled when a replay names one (or a proposal's terms, when they may be tried)
     rep = Replayer(train_c, model=model, hypotheses=hypotheses)
     full = Replayer(campaign, model=rep.model, hypotheses=hypotheses)
     held_idx = [i for i, c in enumerate(full.cases) if c.run.name in held]
