@@ -634,14 +634,16 @@ def alternatives_stage(s: Search) -> dict:
     -------
     dict
         ``within``: the names of the alternatives the logs cannot tell apart; ``preferred``: the explanation the
-        logs preferred and put in place of the one first reported (None when none).
+        logs preferred and put in place of the one first reported (None when none); ``not_fitted``: the kinds at a
+        structural hypothesis' balances not fitted, their linearisation removing nothing (each with its share).
     """
     res = s.result
     if not s.options.get("alternatives", True) or not res.model.effects:
-        return {"within": [], "preferred": None}
+        return {"within": [], "preferred": None, "not_fitted": []}
     from ehas_env.diagnosis.alternatives import find_alternatives
 
-    res.alternatives = find_alternatives(res, fit_null, fit_candidate, s.say)
+    not_fitted = []  # kinds at a hypothesis' balances whose linearisation removes nothing
+    res.alternatives = find_alternatives(res, fit_null, fit_candidate, s.say, not_fitted)
     better = sorted((a for a in res.alternatives if a.preferred), key=lambda a: a.score_difference_db)
     swapped = None
     if better:
@@ -657,7 +659,7 @@ def alternatives_stage(s: Search) -> dict:
                   f"{res.residual_x_noise:.3g}x; {a.in_place_of} stays")
             return {"within": [a.name for a in res.alternatives if a.within], "preferred": None,
                     "not_swapped": {"name": a.name, "in_place_of": a.in_place_of, "residual_x_noise": x_new,
-                                    "residual_x_noise_kept": res.residual_x_noise}}
+                                    "residual_x_noise_kept": res.residual_x_noise}, "not_fitted": not_fitted}
         val = _parts_cost(s.full, sims, s.parts)
         why = (f"these logs prefer {a.name} to {a.in_place_of}: {-a.score_difference_db:.2f} dB better over the "
                f"campaign (they resolve {a.resolvable_db:.2f} dB), worse on no run by more than the logs allow, and "
@@ -675,9 +677,10 @@ def alternatives_stage(s: Search) -> dict:
         # the final model measured again (a second measure record: the reported figure is the last measure's), and
         # the explanation it replaced compared in its place
         measure_again(s, why)
-        s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say)
+        s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say, not_fitted)
         swapped = {"name": a.name, "in_place_of": a.in_place_of, "score_difference_db": round(a.score_difference_db, 2)}
-    return {"within": [a.name for a in s.result.alternatives if a.within], "preferred": swapped}
+    return {"within": [a.name for a in s.result.alternatives if a.within], "preferred": swapped,
+            "not_fitted": not_fitted}
 
 
 def _drop_swapped_stand_ins(s: Search, hyp: str, now: tuple, x_now: float) -> tuple:

@@ -374,9 +374,21 @@ def linear_share(rep: Replayer, base: Fit, name: str, start_at: dict) -> float:
     return 0.0 if dd <= 0.0 or rr <= 0.0 else min(float(np.dot(r, d)) ** 2 / (dd * rr), 1.0)
 
 
-def _proxy_bar(cls) -> float:
-    """The linear share a term at a balance needs to be screened: :data:`LINEAR_PROXY_SHARE` for a kind without a
-    break (its linearisation is its screen's), :data:`PROXY_SHARE` for one whose break the screen also places."""
+def proxy_bar(cls) -> float:
+    """The linear share a term at a balance needs to be screened (and to be fitted as an alternative,
+    :func:`ehas_env.diagnosis.alternatives.find_alternatives`): :data:`LINEAR_PROXY_SHARE` for a kind without a
+    break (its linearisation is its screen's), :data:`PROXY_SHARE` for one whose break the screen also places.
+
+    Parameters
+    ----------
+    cls : type
+        A registered effect class of :mod:`ehas_env.physics.balance_blocks`.
+
+    Returns
+    -------
+    float
+        A share of the residual's energy, in (0, 1).
+    """
     return PROXY_SHARE if getattr(cls, "break_share", None) is not None else LINEAR_PROXY_SHARE
 
 
@@ -409,7 +421,7 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
                 continue
             if getattr(cls, "balance_place", None) is not None:  # linear in its size: its linearisation first
                 proxy[None if dropped is None else tuple(dropped)] = share = linear_share(rep, base, name, start_at)
-                if share < _proxy_bar(cls):
+                if share < proxy_bar(cls):
                     continue
             f = screen_candidate(rep, name, base, scan_extra=hint, start_at=start_at)
             # a screen that ran into its fit range is fitted again with that range widened toward its bounds, as a
@@ -420,9 +432,9 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
             entry[_RATIO_KEY[recalibrated] if dropped else "cost_ratio"] = _r(f.cost / final.cost, 4)
         if proxy:
             entry["linear_share"] = _r(max(proxy.values()), 4)
-            if max(proxy.values()) < _proxy_bar(cls):
+            if max(proxy.values()) < proxy_bar(cls):
                 entry["skipped"] = (f"its linearisation removes at most {100 * max(proxy.values()):.2g} % of the "
-                                    f"residual's energy at its best size (a screen needs {100 * _proxy_bar(cls):.2g} "
+                                    f"residual's energy at its best size (a screen needs {100 * proxy_bar(cls):.2g} "
                                     "%)")
         return entry, mine
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -302,19 +303,71 @@ def test_a_hypothesis_at_a_balance_is_compared_with_every_kind_of_term_at_that_b
     from types import SimpleNamespace as NS
 
     from ehas_env.diagnosis import alternatives as A
+    from ehas_env.measurement.replay import ModelSpec
 
     kinds = A.kinds_at_its_balances("hyp_quadratic_drag")
     assert {"aug_beyond_crank_rate", "aug_saturating_crank_rate", "aug_cubic_crank_rate"} <= set(kinds)
     assert all(get_effect(n).balance_place.place == "crank_torque" for n in kinds)
     assert A.kinds_at_its_balances("viscous_friction") == [] == A.kinds_at_its_balances("aug_knee_crank_rate")
-    fitted = []
+    fitted, skipped = [], []
     monkeypatch.setattr(A, "compare", lambda rep, final, effect, alt, name, full=None, sims=None: NS(
         score_difference_db=0.0, name=name, in_place_of=effect))
+    # every kind's linearisation removes a tenth of the residual's energy but the saturating term's, which removes
+    # nothing: that one is not fitted, and the record says why
+    probed = []
+
+    def gains(own, share):  # the drag's own change removes ``own``; each kind ``share(name)``
+        def linearised_gains(rep, base, models):
+            probed.extend(models[1:])
+            return [own] + [share(next(n for n in m.effects if n.startswith("aug_"))) for m in models[1:]]
+        return linearised_gains
+
+    monkeypatch.setattr(A, "linearised_gains", gains(0.3, lambda n: 0.0 if "saturating" in n else 0.1))
     full = NS(simulate=lambda model: None)
-    res = NS(train=None, fit_train=NS(model=NS(effects={"hyp_quadratic_drag": {"T_10": 5.0}})), full=full,
+    res = NS(train=None, fit_train=NS(model=ModelSpec(effects={"hyp_quadratic_drag": {"T_10": 5.0}})), full=full,
              sims_all=None, rounds=[])
-    A.find_alternatives(res, lambda rep, rest: NS(), lambda rep, name, null, rest: fitted.append(name) or NS(
-        model=None))
-    assert set(kinds) <= set(fitted) and "viscous_friction" in fitted  # the listed rival is still fitted
+    A.find_alternatives(res, lambda rep, rest: NS(model=ModelSpec()), lambda rep, name, null, rest: fitted.append(name) or NS(
+        model=None), not_fitted=skipped)
+    low = [k for k in kinds if "saturating" in k]
+    assert set(kinds) - set(low) <= set(fitted) and "viscous_friction" in fitted  # the listed rival is still fitted
+    assert low and not set(low) & set(fitted)
+    assert [r["name"] for r in skipped] == low and all(r["linear_share"] < r["bar"] for r in skipped)
+    # each probed at a hundredth of its typical size (a linearisation, not the response at a size that may be far
+    # from proportional to it)
+    from ehas_env.diagnosis.fitting import own_params, start_value
+
+    main = next(fp for fp in own_params(kinds[0]) if fp.name == get_effect(kinds[0]).main_param)
+    assert probed[0].effects[kinds[0]][main.name] == pytest.approx(A.PROBE_SCALE * start_value(main))
+    assert A.PROBE_SCALE <= 0.01
+    # a hypothesis whose own change removes little: the bar is half of it, and a kind removing that is fitted
+    monkeypatch.setattr(A, "linearised_gains", gains(0.004, lambda n: 0.0025 if "saturating" in n else 0.0))
+    fitted.clear()
+    A.find_alternatives(res, lambda rep, rest: NS(model=ModelSpec()), lambda rep, name, null, rest: fitted.append(
+        name) or NS(model=None))
+    assert set(fitted) == set(low) | {"viscous_friction"}
     words = A.why_confused("hyp_quadratic_drag", "aug_beyond_crank_rate")
     assert "both terms in the crank torque balance" in words and "crank rate" in words
+
+
+def test_the_linearised_gain_counts_what_a_term_adds_beyond_the_bases_own_numbers():
+    """On a campaign with Coulomb friction hidden (the package's synthetic rig), fitted on the recalibrated
+    baseline: the friction's change removes much of the residual to first order; the same model with its bulk
+    modulus moved (a change the base's own numbers make) adds nothing; a constant torque on the crank (a change
+    no number of the base makes, and not the friction's shape) adds far less than the friction."""
+    from ehas_env.diagnosis import alternatives as A
+    from ehas_env.diagnosis.candidates import fit_null
+    from ehas_env.measurement.campaign import Campaign, validate_run
+    from ehas_env.measurement.replay import Replayer
+    from ehas_env.measurement.synthetic import simulate_campaign
+
+    runs, _ = simulate_campaign({"coulomb_friction": {"Fc": 400.0}}, seed=4, duration=1.5,
+                                plan=((3, 20.0, 1.5), (5, 25.0, 2.0)), valve=False)
+    rep = Replayer(Campaign(None, [validate_run(n, c, m) for n, c, m in runs]))
+    null = fit_null(rep, {})
+    moved = replace(null.model, beta=null.model.beta * 1.002)
+    friction = replace(null.model, effects={"coulomb_friction": {"Fc": 40.0}})
+    g_friction, g_moved, g_const = A.linearised_gains(rep, null, [friction, moved, A._probe("aug_const_crank_rate",
+                                                                                          null.model)])
+    assert g_friction > 0.3
+    assert g_moved < 1e-3
+    assert g_const < 0.25 * g_friction

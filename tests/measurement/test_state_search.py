@@ -484,7 +484,7 @@ def test_terms_at_other_balances_are_not_screened_where_their_linearisation_remo
     for name, t in by.items():
         if "piston" in name or "crank" in name or name.endswith(("_supply", "_return")):
             # below its kind's bar: 1 % with a break to place, half of what a kept term removes without one
-            assert "linearisation removes" in t["skipped"] and t["linear_share"] < states._proxy_bar(
+            assert "linearisation removes" in t["skipped"] and t["linear_share"] < states.proxy_bar(
                 REGISTRY[name]) <= 0.034, t
     assert "skipped" not in by["aug_beyond_chamber_a"] and by["aug_beyond_chamber_a"]["linear_share"] > 0.1
     # one replay for each term's linearisation; a screen of 15-45 for each screened, the refits that choose the kind
