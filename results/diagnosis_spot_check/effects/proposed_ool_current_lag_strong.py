@@ -1,4 +1,4 @@
-"""proposed_ool_current_lag_strong: lag of the valve's coil current behind the command (torque-motor inductance), found by ehas diagnose on /tmp/lx/workS/ool_current_lag_strong/campaign.
+"""proposed_ool_current_lag_strong: lag of the valve's coil current behind the command (torque-motor inductance), found by ehas diagnose on /tmp/sc_work/ool_current_lag_strong/campaign.
 
 The valve's coil current lags the command: a first-order lag of 6 ms (corner 26.5 Hz), the torque motor's inductance against its drive.
 T = 5.998 ms (95 % CI 5.994 to 6.002)
