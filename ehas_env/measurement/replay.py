@@ -305,8 +305,9 @@ class Replayer:
         as every replay did before 2026-12-02.  Any other replay runs on the model of the registered effects
         unless it names a hypothesis or block: the same numbers bit for bit (an effect that is off is skipped;
         ``tests/measurement/test_replay.py``), at about 0.067 CPU s a replay of a 5-run campaign against 0.087
-        on the larger model, and a diagnosis the library's effects end never compiles the larger one (59 kB of
-        generated text, 8 s, against 229 kB, 28 s, on an empty model cache).
+        on the larger model; a diagnosis that never names one never compiles the larger model (a clean
+        5-run campaign on an empty model cache: 34.7 s -> 13.9 s; one whose alternatives fit a hypothesis
+        compiles it there: Coulomb friction kept, 59.1 s -> 54.1 s; 2026-12-02, load 1.2-1.6 on 2 cores).
     threads : int, optional
         Replays run side by side on this many threads, 1 to 1024 (default: one per core this process may use).
     inputs : dict, optional
