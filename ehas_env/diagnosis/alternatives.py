@@ -51,9 +51,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ehas_env.diagnosis.fitting import (
-    CI_BLOCK_S, MIN_SCORE, PENALTY_PER_PARAM, Fit, Objective, _value_of, confidence, model_from, own_params,
-    start_value)
-from ehas_env.diagnosis.states import proxy_bar
+    CI_BLOCK_S, MIN_SCORE, PENALTY_PER_PARAM, Fit, Objective, _value_of, confidence, own_params, start_value)
+from ehas_env.diagnosis.states import proxy_bar, term_at
 from ehas_env.measurement.replay import COST_SIGNALS, Replayer
 from ehas_env.physics.effects import REGISTRY, get_effect
 
@@ -492,11 +491,8 @@ OFF_SPAN = 0.02
 def _probe(name: str, base):
     """``base`` with the kind ``name`` added, its main parameter at :data:`PROBE_SCALE` of its typical size and its
     others at their starts."""
-    free = own_params(name)
-    values = {(fp.effect, fp.name): start_value(fp) for fp in free}
-    main = next(fp for fp in free if fp.name == REGISTRY[name].main_param)
-    values[(main.effect, main.name)] = min(max(PROBE_SCALE * start_value(main), main.lo), main.hi)
-    return model_from(free, values, base)
+    main = next(fp for fp in own_params(name) if fp.name == REGISTRY[name].main_param)
+    return term_at(name, base, {main.name: PROBE_SCALE * start_value(main)})
 
 
 def linearised_gains(rep: Replayer, base: Fit, models: list) -> list[float]:

@@ -677,6 +677,7 @@ def alternatives_stage(s: Search) -> dict:
         # the final model measured again (a second measure record: the reported figure is the last measure's), and
         # the explanation it replaced compared in its place
         measure_again(s, why)
+        not_fitted = []  # the record's: those of the model reported now
         s.result.alternatives = find_alternatives(s.result, fit_null, fit_candidate, s.say, not_fitted)
         swapped = {"name": a.name, "in_place_of": a.in_place_of, "score_difference_db": round(a.score_difference_db, 2)}
     return {"within": [a.name for a in s.result.alternatives if a.within], "preferred": swapped,

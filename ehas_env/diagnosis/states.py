@@ -334,6 +334,29 @@ PROXY_SHARE = 0.01
 LINEAR_PROXY_SHARE = 0.5 * (1.0 - 10.0 ** (-MIN_SCORE / 10.0))
 
 
+def term_at(name: str, base: ModelSpec, start_at: dict) -> ModelSpec:
+    """``base`` with the term ``name`` added, its parameters at ``start_at`` ({name: value}, in their units, each
+    within its fit range) or at their typical middle (:func:`~ehas_env.diagnosis.fitting.start_value`).
+
+    Parameters
+    ----------
+    name : str
+        A registered effect.
+    base : ModelSpec
+    start_at : dict
+
+    Returns
+    -------
+    ModelSpec
+    """
+    free = own_params(name)
+    values = {(fp.effect, fp.name): start_value(fp) for fp in free}
+    for fp in free:
+        if fp.name in start_at:
+            values[(fp.effect, fp.name)] = min(max(float(start_at[fp.name]), fp.lo), fp.hi)
+    return model_from(free, values, base)
+
+
 def linear_share(rep: Replayer, base: Fit, name: str, start_at: dict) -> float:
     """The share of ``base``'s residual energy (each run and signal's block weighted by 1 / its RMS, the log cost's
     gradient) that the term ``name`` removes at its best size on its linearisation: one replay with its size at
@@ -360,13 +383,8 @@ def linear_share(rep: Replayer, base: Fit, name: str, start_at: dict) -> float:
     float
         In [0, 1].
     """
-    free = own_params(name)
-    values = {(fp.effect, fp.name): start_value(fp) for fp in free}
-    for fp in free:
-        if fp.name in start_at:
-            values[(fp.effect, fp.name)] = min(max(float(start_at[fp.name]), fp.lo), fp.hi)
     r0 = rep.cost_blocks(base.sims)
-    r1 = rep.cost_blocks(rep.simulate(model_from(free, values, base.model)))
+    r1 = rep.cost_blocks(rep.simulate(term_at(name, base.model, start_at)))
     w = [1.0 / math.sqrt(max(float(np.dot(x, x)) / max(x.size, 1), 1e-12)) for x in r0]
     r = np.concatenate([wi * x for wi, x in zip(w, r0)])
     d = np.concatenate([wi * (y - x) for wi, x, y in zip(w, r0, r1)])

@@ -387,13 +387,14 @@ class Replayer:
     def plant(self, model: ModelSpec, run: Run, dt: float | None = None) -> Plant:
         """The :class:`Plant` that ``model`` is for this run (disc sets, supply, period)."""
         sets = run.meta.get("disc_sets", 1)
+        hypotheses = self.hypotheses and bool(model.terms)  # otherwise the plant's effects choose the model
         if self.model is not None:  # the model file's rig, its effects with the spec's (docs/model-file.md)
             m = self.absolute(model)
             return Plant(disc_sets=sets, effects=model.effects, model=self.model, dt=dt or run.dt,
-                         substeps=self.substeps, hypotheses=self.hypotheses and bool(model.terms),
+                         substeps=self.substeps, hypotheses=hypotheses,
                          rig=self.model.rig.replace(beta=m.beta, K=m.K, supply=run.meta["supply_bar"] * BAR))
         return Plant(disc_sets=sets, effects=model.effects, rig=model.rig(run.meta["supply_bar"]),
-                     dt=dt or run.dt, substeps=self.substeps, hypotheses=self.hypotheses and bool(model.terms))
+                     dt=dt or run.dt, substeps=self.substeps, hypotheses=hypotheses)
 
     def compiled(self, model: ModelSpec, run: Run, dt: float | None = None):
         """(compiled model module, parameter vector, plant) that ``model`` runs on for this run.

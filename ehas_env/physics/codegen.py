@@ -772,10 +772,11 @@ def quiet_compile_s(build: str, kb: float | None = None) -> float:
     90.0
     >>> _ = os.environ.pop("EHAS_CACHE_DIR") if before is None else os.environ.update(EHAS_CACHE_DIR=before)
     """
-    if kb is not None and (build + PER_KB in _record() or build in COMPILE_CPU_S_PER_KB):
-        rates = _record().get(build + PER_KB)
+    record = _record()
+    rates = record.get(build + PER_KB)
+    if kb is not None and (rates or build in COMPILE_CPU_S_PER_KB):
         return float(kb) * (statistics.median(rates) if rates else COMPILE_CPU_S_PER_KB[build])
-    seen = _record().get(build)
+    seen = record.get(build)
     return statistics.median(seen) if seen else COMPILE_CPU_S[build]
 
 
