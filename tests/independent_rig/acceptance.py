@@ -109,6 +109,26 @@ def rig_model(rig: str):
     return None if rig == "book" else gen.RIGS_DIR / f"{rig}.json"
 
 
+def generate_campaign(case: dict, camp: Path) -> bool:
+    """Write ``case``'s campaign to ``camp``, unless the one there is this case's (same effects, blocks, seed, rig,
+    length); returns whether it was written."""
+    if (camp / "truth.json").exists():
+        t = json.loads((camp / "truth.json").read_text())
+        if (t.get("effects"), t.get("blocks"), t.get("seed"), t.get("rig"), t.get("duration_s")) == (
+                case["effects"], case.get("blocks"), case["seed"], case["rig"], case["duration"]):
+            return False
+    # a drawn case's blocks of hidden physics (tests/independent_rig/grammar.py) are generated with it
+    runs, truth = gen.simulate(case["effects"], seed=case["seed"], rig=case["rig"], duration=case["duration"],
+                               **({"blocks": case["blocks"]} if case.get("blocks") else {}))
+    truth["command"] = (f"python -m tests.independent_rig.campaign {camp} --seed {case['seed']} "
+                        f"--rig {case['rig']} --duration {case['duration']:g} --effects '"
+                        + ";".join(f"{n}:" + ",".join(f"{k}={v:g}" for k, v in p.items())
+                                   for n, p in case["effects"].items()) + "'"
+                        + (f" --case {case['id']}" if case.get("blocks") else ""))
+    gen.write(camp, runs, truth, overwrite=True)
+    return True
+
+
 def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool = False, log=print,
              resolution: bool = True) -> dict:
     """Generate, diagnose and (when an effect file is written) compare one case; returns its record
@@ -118,21 +138,7 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
     camp = wdir / "campaign"
     rec = {**case, "kinds": {n: ALL[n].kind for n in case["effects"]}, "steps": {}}
     t0 = time.time()
-    stale = True
-    if (camp / "truth.json").exists():  # reuse a campaign only if it is this case's (same effects, blocks, seed, rig,
-        t = json.loads((camp / "truth.json").read_text())  # length)
-        stale = (t.get("effects"), t.get("blocks"), t.get("seed"), t.get("rig"), t.get("duration_s")) != (
-            case["effects"], case.get("blocks"), case["seed"], case["rig"], case["duration"])
-    if stale:
-        # a drawn case's blocks of hidden physics (tests/independent_rig/grammar.py) are generated with it
-        runs, truth = gen.simulate(case["effects"], seed=case["seed"], rig=case["rig"], duration=case["duration"],
-                                   **({"blocks": case["blocks"]} if case.get("blocks") else {}))
-        truth["command"] = (f"python -m tests.independent_rig.campaign {camp} --seed {case['seed']} "
-                            f"--rig {case['rig']} --duration {case['duration']:g} --effects '"
-                            + ";".join(f"{n}:" + ",".join(f"{k}={v:g}" for k, v in p.items())
-                                       for n, p in case["effects"].items()) + "'"
-                            + (f" --case {case['id']}" if case.get("blocks") else ""))
-        gen.write(camp, runs, truth, overwrite=True)
+    generate_campaign(case, camp)
     rec["steps"]["generate_s"] = round(time.time() - t0, 2)
     model = rig_model(case["rig"])
     mopt = ["--model", str(model)] if model else []
