@@ -22,7 +22,7 @@ import time
 from dataclasses import dataclass, field
 
 from ehas_env.diagnosis import proposal as P
-from ehas_env.diagnosis.estimate import estimate, in_words
+from ehas_env.diagnosis.estimate import REPLAYS, estimate, in_words
 from ehas_env.measurement.campaign import Campaign
 from ehas_env.diagnosis.candidates import (
     FIT_WINDOW_S, Diagnosis, Step, _drop_stand_ins, _held_fit, _held_table, _parts_cost, _round, confidence,
@@ -840,6 +840,10 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
 
     est = estimate(s.rep, load_scale(), candidates)
     s.say(in_words(est))
+    if est["replays"] >= REPLAYS[1][1]:
+        # the search will go beyond the library's rounds: the model with the structural hypotheses and blocks
+        # compiles on the other core while the library's rounds replay (a first diagnosis on this machine)
+        s.rep.compile_behind()
     if s.full.not_compared_text():
         s.say(s.full.not_compared_text())
     s.records.append({"stage": "data", "elapsed_s": round(time.perf_counter() - t0, 2), "holdout": s.held,

@@ -33,7 +33,9 @@ import contextlib
 import contextvars
 import functools
 import math
+import os
 import threading
+import time
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -56,6 +58,38 @@ DEFAULT_DOC_PLAN = ((2, 15.0, 2.0),)  # a tiny plan for doctests
 REST_KEPT = 4
 
 #: closed-loop signals in the order tables show them
+#: models compiled behind, in a background process (:meth:`Replayer.compile_behind`): {(process id, id(module)):
+#: FastBuildBehind} (a forked child does not wait on its parent's)
+_BEHIND: dict = {}
+_TAKEN: dict = {}  # ... the compile watcher's entries of each (codegen.take_fresh), given back if it gave up
+_BEHIND_LOCK = threading.Lock()
+
+
+def _wait_behind(mod) -> None:
+    """Before the first replay on ``mod``: when a background process compiles it, wait for it and load what it
+    compiled (each thread of the screens side by side waits here; one loads)."""
+    key = (os.getpid(), id(mod))
+    behind = _BEHIND.get(key)
+    if behind is None or behind.done:
+        return
+    with _BEHIND_LOCK:
+        from ehas_env.output.progress import status
+        from ehas_env.physics.codegen import HEARTBEAT_S
+
+        t0 = time.monotonic()
+        while not behind.done:  # nothing silent for long: a line every HEARTBEAT_S while it waits
+            behind.wait(HEARTBEAT_S)
+            if not behind.done:
+                status(f"the diagnosis waits for the background compile of the {behind.fast_name} "
+                       f"({time.monotonic() - t0:.0f} s so far)")
+        taken = _TAKEN.pop(key, None)
+        if taken is not None and not behind.compiled_behind():
+            # it gave up: the compile happens here, announced and recorded as one of this process
+            from ehas_env.physics.codegen import put_fresh
+
+            put_fresh(mod, *taken)
+
+
 CL_SIGNALS = ("theta_deg", "current_mA", "flow_lpm", "p_a_bar", "p_b_bar", "p_s_bar", "load_kN")
 VALVE_SIGNALS = ("flow_lpm",)
 #: signals that enter the calibration cost and the verdict: every logged signal.  The load reading is judged too:
@@ -510,6 +544,8 @@ class Replayer:
         # the plants (and a first compiled model) are made here, one after the other; only the compiled runs go
         # to the threads
         ready = [self._prepare(models[m], self.cases[i]) for m, i in jobs]
+        for mod in {id(j.mod): j.mod for j in ready}.values():
+            _wait_behind(mod)
         # a driver's first call compiles it (or loads it from numba's cache): that one runs here, where Ctrl-C
         # stops it, not in a thread the interpreter would wait for at exit
         first = {}
@@ -547,8 +583,6 @@ class Replayer:
     def _pool(self):
         """The threads replays run on (``threads``, or one per core this process may use), made on first use
         (and again in a forked child: the parent's threads are not there)."""
-        import os
-
         if self._executor is None or self._executor[0] != os.getpid():
             from concurrent.futures import ThreadPoolExecutor
 
@@ -579,24 +613,67 @@ class Replayer:
             at_rest(mod, s0)
         return _Job(case, mod, P, s0, plant.rig.i_max, np.zeros((case.n_sim, KN.N_OUT)))
 
-    def _run_case(self, job: _Job) -> dict[str, np.ndarray]:
-        """Runs one replay :meth:`_prepare` made ready (the compiled drivers release the GIL)."""
+    def _driver_args(self, job: _Job) -> tuple:
+        """The arguments of ``job``'s compiled driver (:attr:`_Job.driver`), a fresh command history among them."""
         case, out = job.case, job.out
         hist = np.zeros(case.hist_len)
         if job.s0 is None:
-            if case.supply is None:
-                job.driver(job.P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out)
-            else:
-                job.driver(job.P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out,
-                           case.supply)
-            return {"flow_lpm": out[:, 0] / LPM}
-        args = (job.s0, job.P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
-                hist, case.zeros, np.array([0.0, 0.0, 0.0, job.i_max]), 0, 0, np.zeros(6), out)
-        if case.supply is None:
-            job.driver(*args)
+            args = (job.P, case.cmd, case.dt, self.substeps, case.run.meta["supply_bar"] * BAR, hist, out)
         else:
-            job.driver(*args, case.supply)
-        return self._closed_loop_signals(case, out)
+            args = (job.s0, job.P, RigController.law_id(), case.gains, case.ref, 0, case.dt, self.substeps,
+                    hist, case.zeros, np.array([0.0, 0.0, 0.0, job.i_max]), 0, 0, np.zeros(6), out)
+        return args if case.supply is None else args + (case.supply,)
+
+    def _run_case(self, job: _Job) -> dict[str, np.ndarray]:
+        """Runs one replay :meth:`_prepare` made ready (the compiled drivers release the GIL)."""
+        job.driver(*self._driver_args(job))
+        if job.s0 is None:
+            return {"flow_lpm": job.out[:, 0] / LPM}
+        return self._closed_loop_signals(job.case, job.out)
+
+    def compile_behind(self) -> bool:
+        """Start compiling, in a background process on the other core, the model a replay of a structural
+        hypothesis or a block runs on (every registered effect and hypothesis: the larger model), while this
+        process goes on replaying the registered effects; a later replay on it waits for that process and loads
+        what it compiled (:meth:`_simulate_whole`).  Only for a replayer that tries the hypotheses, when this
+        process has just written that model's files (a first compile: numba's cache cannot hold it) and
+        ``EHAS_COMPILE_BEHIND`` is not ``0``.
+
+        Returns
+        -------
+        bool
+            Whether a compile runs behind (or another process of this one's already compiles that model).
+        """
+        if not self.hypotheses or os.environ.get("EHAS_COMPILE_BEHIND", "") == "0":
+            return False
+        from ehas_env.physics.codegen import take_fresh
+        from ehas_env.physics.effects import REGISTRY
+        from ehas_env.physics.compile_behind import FastBuildBehind
+
+        # a hypothesis away from the position sensor: the plant's initial state reads the sensor chain in Python,
+        # which would compile an effect there
+        hyp = next((c for c in REGISTRY.values() if c.kind == "hypothesis" and "position_reading" not in c.terms()),
+                   None)
+        if hyp is None:
+            return False
+        spec = ModelSpec(effects={hyp.name: {p.name: p.default for p in hyp.params}})
+        # one replay of each kind of run, made ready on the larger model: the drivers and argument types it needs
+        jobs = {(c.run.kind, c.supply is None): self._prepare(spec, c) for c in self.cases}
+        mod = next(iter(jobs.values())).mod
+        if (os.getpid(), id(mod)) in _BEHIND:
+            return True
+        fresh = take_fresh(mod)
+        if fresh is None:
+            return False
+        _TAKEN[(os.getpid(), id(mod))] = fresh
+        # a run without a measured supply calls its driver without that last argument: compiled as left out
+        calls = [(job.driver.__name__, self._driver_args(job) + ((None,) if job.case.supply is None else ()))
+                 for job in jobs.values()]
+        _BEHIND[(os.getpid(), id(mod))] = FastBuildBehind(
+            mod, mod, calls, what="the diagnosis", estimate=fresh[0], kb=fresh[1],
+            meanwhile_name="model of the registered effects",
+            fast_name="model with the structural hypotheses and blocks")
+        return True
 
     def _closed_loop_signals(self, case: _Case, o: np.ndarray) -> dict[str, np.ndarray]:
         run = case.run

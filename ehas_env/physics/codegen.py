@@ -831,6 +831,39 @@ def load_scale() -> float:
     return max(1.0, load) ** 0.5
 
 
+def take_fresh(module) -> tuple[str, float | None] | None:
+    """The build and the kilobytes of new generated text of ``module``'s model, when this process wrote its files
+    and numba has not compiled them yet, taken off the compile watcher's list: their compile runs in another
+    process, which is announced there (:class:`ehas_env.physics.compile_behind.FastBuildBehind`), and a load of
+    what it compiled is no compile to announce or record here.  None when there is no such text (the files were
+    there before: numba's cache may hold the model).
+
+    Parameters
+    ----------
+    module : module
+        A generated model module (:func:`build_model`).
+
+    Returns
+    -------
+    (str, float or None, list of str) or None
+        (build, kB, the modules taken): :func:`put_fresh` gives them back.
+    """
+    mods = [m for m, (_, of) in _FRESH.items() if of == module.__name__]
+    if not mods:
+        return None
+    build = _FRESH[mods[0]][0]
+    kb = _text_kb(mods)
+    for m in mods:
+        del _FRESH[m]
+    return build, kb, mods
+
+
+def put_fresh(module, build: str, kb: float | None, mods: list) -> None:
+    """Give back to the compile watcher what :func:`take_fresh` took of ``module``'s model (the background compile
+    gave up: it compiles here, announced and recorded as any first compile of this process)."""
+    _FRESH.update(dict.fromkeys(mods, (build, module.__name__)))
+
+
 def _text_kb(modules) -> float | None:
     """Kilobytes of the generated files of ``modules`` (names of imported modules); None when one has no file."""
     try:

@@ -115,11 +115,15 @@ def _copy(a):
 
 
 def _pack_args(calls: list) -> dict:
-    """``[(entry, args), ...]`` as named arrays for ``np.savez``: ``<call>|<entry>|<k>|<w or r>`` is argument k of
-    call number ``call`` (a number as a 0-d array; ``r``: a read-only array, a type of its own for numba)."""
+    """``[(entry, args), ...]`` as named arrays for ``np.savez``: ``<call>|<entry>|<k>|<w, r or n>`` is argument k of
+    call number ``call`` (a number as a 0-d array; ``r``: a read-only array, a type of its own for numba; ``n``: None,
+    an optional argument left out, compiled as its default)."""
     out = {}
     for i, (entry, args) in enumerate(calls):
         for k, a in enumerate(args):
+            if a is None:  # an optional argument left out: its default's type (numba's Omitted)
+                out[f"{i}|{entry}|{k}|n"] = np.asarray(0.0)
+                continue
             if isinstance(a, np.ndarray):
                 v = a
             elif isinstance(a, (bool, np.bool_)):
@@ -142,7 +146,9 @@ def _unpack_args(data) -> list:
     for key in data.files:
         i, entry, k, ro = key.split("|")
         a = data[key]
-        if a.ndim == 0:
+        if ro == "n":
+            v = None
+        elif a.ndim == 0:
             v = a[()]
         else:
             v = np.ascontiguousarray(a)
@@ -154,19 +160,20 @@ def _unpack_args(data) -> list:
 def _compile_all(module, calls: list) -> None:
     """Compile each entry point of ``module`` for the types of its example arguments, or load it from numba's
     cache (nothing is run: the arguments' values do not matter)."""
-    from numba import typeof
+    from numba import typeof, types
 
     for entry, args in calls:
-        getattr(module, entry).compile(tuple(typeof(a) for a in args))
+        getattr(module, entry).compile(tuple(types.Omitted(None) if a is None else typeof(a) for a in args))
 
 
-def _estimate(build: str) -> str:
-    """How long the background compile of ``build`` should take now, as a range: the quiet CPU figure
-    (:data:`~ehas_env.physics.codegen.COMPILE_CPU_S`) scaled by the square root of the run queue per core (the
-    project's compile estimate) up to the run queue per core itself (a process that gets its share of the cores
-    and no more: measured 272 s for 36.2 s of CPU at 11 runnable processes per core, results/first_step.md)."""
-    low = codegen.compile_estimate_s(build)
-    high = codegen.quiet_compile_s(build) * codegen.load_scale() ** 2
+def _estimate(build: str, kb: float | None = None) -> str:
+    """How long the background compile of ``build`` (``kb`` kilobytes of new text, when known) should take now,
+    as a range: the quiet CPU figure (:func:`~ehas_env.physics.codegen.quiet_compile_s`) scaled by the square root
+    of the run queue per core (the project's compile estimate) up to the run queue per core itself (a process that
+    gets its share of the cores and no more: measured 272 s for 36.2 s of CPU at 11 runnable processes per core,
+    results/first_step.md)."""
+    low = codegen.compile_estimate_s(build, kb)
+    high = codegen.quiet_compile_s(build, kb) * codegen.load_scale() ** 2
     return f"about {low:.0f} s" if high < 1.2 * low else f"about {low:.0f}-{high:.0f} s"
 
 
@@ -192,6 +199,10 @@ class FastBuildBehind:
         The key of :data:`~ehas_env.physics.codegen.COMPILE_CPU_S` whose figure the message's estimate scales.
     meanwhile_name : str
         How the messages call the ``meanwhile`` build.
+    fast_name : str
+        How the messages call the ``fast`` build.
+    kb : float, optional
+        Kilobytes of new generated text the compile covers (the estimate grows with it).
 
     Attributes
     ----------
@@ -200,11 +211,14 @@ class FastBuildBehind:
     """
 
     def __init__(self, fast, meanwhile, calls, what: str = "the environment's step", estimate: str = "inline",
-                 meanwhile_name: str = "interpreted build (same numbers, slower step)"):
+                 meanwhile_name: str = "interpreted build (same numbers, slower step)",
+                 fast_name: str = "fast-step build", kb: float | None = None):
         self.fast = fast
         self.meanwhile = meanwhile
         self.meanwhile_name = meanwhile_name
+        self.fast_name = fast_name
         self.estimate = estimate
+        self.kb = kb
         self.what = what
         pairs = calls.items() if isinstance(calls, dict) else calls
         self._calls = [(e, tuple(_copy(a) for a in args)) for e, args in pairs]
@@ -226,7 +240,7 @@ class FastBuildBehind:
     # -- the background process -------------------------------------------
     def _start(self) -> None:
         lock = _beside(self._file, ".compiling")
-        est = _estimate(self.estimate)
+        est = _estimate(self.estimate, self.kb)
         if lock.exists() and _lock_alive(lock):
             try:
                 pid = int(lock.read_text().strip() or "0")
@@ -235,8 +249,8 @@ class FastBuildBehind:
             if pid in _OURS or (self._file, pid) in _TOLD:
                 return  # already said: environments made by the hundred (validation, evaluation) say it once
             _TOLD.add((self._file, pid))
-            status(f"{self.what} runs on the {self.meanwhile_name} while another process compiles the fast-step "
-                   f"build ({est} at this machine's load); it switches when that is done")
+            status(f"{self.what} runs on the {self.meanwhile_name} while another process compiles the "
+                   f"{self.fast_name} ({est} at this machine's load); it switches when that is done")
             return
         lock.unlink(missing_ok=True)
         try:
@@ -263,12 +277,12 @@ class FastBuildBehind:
             self._give_up(f"could not start the background compile ({exc})")
             return
         os.close(fd)
-        status(f"{self.what} runs on the {self.meanwhile_name} while its fast-step build "
+        status(f"{self.what} runs on the {self.meanwhile_name} while its {self.fast_name} "
                f"compiles in a background process ({est} at this machine's load; log {log}); it "
                "switches when that is done")
 
     def _give_up(self, why: str) -> None:
-        status(f"{why}; compiling the fast-step build here")
+        status(f"{why}; compiling the {self.fast_name} here")
         self.model = self.fast
         self.done = True
 
@@ -279,6 +293,16 @@ class FastBuildBehind:
             self._error = exc
 
     # -- the caller's side ------------------------------------------------------
+    def compiled_behind(self) -> bool:
+        """True when the background process compiled every entry point (their markers are there), False when
+        the caller compiles them itself (it gave up) or it has not finished.
+
+        Returns
+        -------
+        bool
+        """
+        return is_ready(self._file, self._entries)
+
     def poll(self):
         """The build to call now (switches to the fast one once it is compiled and loaded).
 
@@ -315,14 +339,14 @@ class FastBuildBehind:
         if self._thread.is_alive():
             return self.model
         if self._error is not None:
-            self._give_up(f"loading the fast-step build failed ({type(self._error).__name__}: {self._error})")
+            self._give_up(f"loading the {self.fast_name} failed ({type(self._error).__name__}: {self._error})")
             return self.model
         self.model = self.fast
         self.done = True
         if (self._file, "switched") in _TOLD:
             return self.model
         _TOLD.add((self._file, "switched"))
-        status(f"{self.what} switched to the fast-step build ({time.monotonic() - self._t0:.0f} s after it started "
+        status(f"{self.what} switched to the {self.fast_name} ({time.monotonic() - self._t0:.0f} s after it started "
                f"on the {self.meanwhile_name.split(' (')[0]})")
         return self.model
 
@@ -371,6 +395,8 @@ def main(argv=None) -> int:
         with np.load(args_file, allow_pickle=False) as data:
             calls = _unpack_args(data)
         name = module_file.stem
+        # a model of several generated modules (the quick build) imports the others by name, from its folder
+        sys.path.insert(0, str(module_file.parent))
         spec = importlib.util.spec_from_file_location(name, module_file)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
