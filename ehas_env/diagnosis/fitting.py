@@ -399,12 +399,29 @@ COARSE_SLACK = 0.2
 SCAN_WATCHERS: list = []
 
 
-def coarse_scan(values: list, grid: list, extra: list) -> list[int]:
+def asks_fine_grid(effect: str | None) -> bool:
+    """Whether the numbers of ``effect`` (None: the baseline's; :data:`TERM`: a proposal's) are scanned over a finer
+    grid than the default (the effect's ``scan_points``: its valley is narrow, backlash): such a scan is replayed
+    whole, without :func:`coarse_scan` first.
+
+    Parameters
+    ----------
+    effect : str or None
+
+    Returns
+    -------
+    bool
+    """
+    return effect is not None and effect != TERM and bool(get_effect(effect).scan_points)
+
+
+def coarse_scan(values: list, grid: list, extra: list, points: int = COARSE_POINTS,
+                each_sign: bool = True) -> list[int]:
     """The indices into ``values`` (the scan's sorted values: the grid ``grid`` and the values the data point at,
-    ``extra``) a screen replays first: :data:`COARSE_POINTS` of the grid's values spread evenly over it (its ends
-    among them; on a grid of both signs, as many over each sign's) and every value the data point at.  A candidate
-    whose best there stays above the null model's cost (by :data:`COARSE_SLACK`) is not scanned further: the rest
-    of its grid lies between values that did nothing.
+    ``extra``) a screen replays first: ``points`` of the grid's values spread evenly over it (its ends among them;
+    on a grid of both signs and with ``each_sign``, as many over each sign's) and every value the data point at.  A
+    candidate whose best there stays above the null model's cost (by :data:`COARSE_SLACK`) is not scanned further:
+    the rest of its grid lies between values that did nothing.
 
     Parameters
     ----------
@@ -414,6 +431,11 @@ def coarse_scan(values: list, grid: list, extra: list) -> list[int]:
         The parameter's own grid (:func:`scan_values`), sorted.
     extra : list of float
         The values the data point at.
+    points : int
+        Values spread over the grid (over each sign's); the diagnosis' :data:`COARSE_POINTS`, others for the survey
+        that judges the rule.
+    each_sign : bool
+        Spread over each sign's values apart (the diagnosis' rule) or over the whole grid.
 
     Returns
     -------
@@ -429,11 +451,10 @@ def coarse_scan(values: list, grid: list, extra: list) -> list[int]:
     """
     def spread(side: list) -> set:
         n = len(side)
-        return set(side) if n <= COARSE_POINTS else {side[round(i * (n - 1) / (COARSE_POINTS - 1))]
-                                                     for i in range(COARSE_POINTS)}
+        return set(side) if n <= points else {side[round(i * (n - 1) / (points - 1))] for i in range(points)}
 
     negative, positive = [v for v in grid if v < 0.0], [v for v in grid if v >= 0.0]
-    picked = spread(negative) | spread(positive) if negative and positive else spread(list(grid))
+    picked = spread(negative) | spread(positive) if each_sign and negative and positive else spread(list(grid))
     picked |= set(extra)
     return [j for j, v in enumerate(values) if v in picked]
 
@@ -487,7 +508,7 @@ def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | No
     u0 = np.array([fp.u(start[(fp.effect, fp.name)]) for fp in free])
     evals0 = rep.n_evals
     obj = Objective(rep, free, fixed)
-    blocks, cost = obj.blocks, obj.cost
+    cost = obj.cost
 
     def result(u) -> Fit:
         u = np.asarray(u, dtype=float)
@@ -495,45 +516,12 @@ def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | No
         return Fit(model=obj.model(u), cost=cost(u), free=free, sims=sims, table=rep.fit_table(sims),
                    nfev=rep.n_evals - evals0)
 
+    watched = None
     if scan is not None:
-        k = free.index(scan)
-        grid = []
-        extra = [float(v) for v in scan_extra if scan.lo <= v <= scan.hi]
-        values = sorted(scan_values(scan) + extra)
-        for value in values:
-            u = u0.copy()
-            u[k] = scan.u(value)
-            grid.append(u)
-        if null_cost is not None and not (scan.effect is not None and scan.effect != TERM
-                                          and get_effect(scan.effect).scan_points):
-            # the coarse grid first: a candidate none of whose coarse values comes near the null model is not
-            # scanned further (:func:`coarse_scan`); not for an effect that asks for a finer grid than the default
-            # (its valley is narrow: backlash)
-            first = coarse_scan(values, scan_values(scan), extra)
-            blocks([grid[j] for j in first])
-            near = min(first, key=lambda j: cost(grid[j]))
-            if cost(grid[near]) >= null_cost * (1.0 - SKIP_MARGIN) * (1.0 + COARSE_SLACK):
-                return result(grid[near])
-        blocks(grid)
-        costs = [cost(u) for u in grid]
-        best = int(np.argmin(costs))
-        watched = None
-        if null_cost is not None and SCAN_WATCHERS:  # a survey of the scans (tests/measurement/coarse_scan_survey.py)
-            watched = {"effect": scan.effect, "param": scan.name, "values": values, "grid": scan_values(scan),
-                       "extra": extra, "costs": costs, "null": null_cost, "n_free": len(free)}
-        if null_cost is not None and costs[best] >= null_cost * (1.0 - SKIP_MARGIN):
-            _tell(watched, costs[best])
-            return result(grid[best])
-        # zoom: a finer scan between the best point's neighbours
-        left = grid[max(best - 1, 0)][k]
-        right = grid[min(best + 1, len(grid) - 1)][k]
-        fine = []
-        for x in np.linspace(left, right, 6)[1:-1]:
-            u = grid[best].copy()
-            u[k] = x
-            fine.append(u)
-        blocks(fine)
-        u0 = min(grid + fine, key=cost)
+        u0, stop, watched = _scanned(obj, free, u0, scan, null_cost, scan_extra)
+        if stop:
+            _tell(watched, cost(u0))
+            return result(u0)
     # iteratively reweighted least squares for the log cost: each block weighted by its
     # residual level at the round's start point (the log cost's gradient there)
     u_ref = np.clip(u0, 0.0, 1.0)
@@ -552,9 +540,59 @@ def fit(rep: Replayer, free: list[FreeParam], start: dict, fixed: ModelSpec | No
         if cost(u_new) >= cost(u_ref):
             break
         u_ref = u_new
-    if scan is not None:
-        _tell(watched, cost(u_ref))
+    _tell(watched, cost(u_ref))
     return result(u_ref)
+
+
+def _scanned(obj: Objective, free: list[FreeParam], u0: np.ndarray, scan: FreeParam, null_cost: float | None,
+             scan_extra: tuple) -> tuple:
+    """The scan of :func:`fit`: ``scan`` over its grid and the values the data point at (``scan_extra``), the
+    coarse grid first when a ``null_cost`` is to be beaten (:func:`coarse_scan`), then a zoom between the best
+    point's neighbours.
+
+    Returns
+    -------
+    (ndarray, bool, dict or None)
+        The point the least squares start from, or the best scanned one with True when the candidate is not fitted
+        further (it beat ``null_cost`` nowhere); and the scan's record for :data:`SCAN_WATCHERS` (None: unwatched).
+    """
+    blocks, cost = obj.blocks, obj.cost
+    k = free.index(scan)
+    grid = []
+    extra = [float(v) for v in scan_extra if scan.lo <= v <= scan.hi]
+    own = scan_values(scan)
+    values = sorted(own + extra)
+    for value in values:
+        u = u0.copy()
+        u[k] = scan.u(value)
+        grid.append(u)
+    if null_cost is not None and not asks_fine_grid(scan.effect):
+        # the coarse grid first: a candidate none of whose coarse values comes near the null model is not
+        # scanned further (:func:`coarse_scan`)
+        first = coarse_scan(values, own, extra)
+        blocks([grid[j] for j in first])
+        near = min(first, key=lambda j: cost(grid[j]))
+        if cost(grid[near]) >= null_cost * (1.0 - SKIP_MARGIN) * (1.0 + COARSE_SLACK):
+            return grid[near], True, None
+    blocks(grid)
+    costs = [cost(u) for u in grid]
+    best = int(np.argmin(costs))
+    watched = None
+    if null_cost is not None and SCAN_WATCHERS:  # a survey of the scans (tests/measurement/coarse_scan_survey.py)
+        watched = {"effect": scan.effect, "param": scan.name, "values": values, "grid": own,
+                   "extra": extra, "costs": costs, "null": null_cost, "n_free": len(free)}
+    if null_cost is not None and costs[best] >= null_cost * (1.0 - SKIP_MARGIN):
+        return grid[best], True, watched
+    # zoom: a finer scan between the best point's neighbours
+    left = grid[max(best - 1, 0)][k]
+    right = grid[min(best + 1, len(grid) - 1)][k]
+    fine = []
+    for x in np.linspace(left, right, 6)[1:-1]:
+        u = grid[best].copy()
+        u[k] = x
+        fine.append(u)
+    blocks(fine)
+    return min(grid + fine, key=cost), False, watched
 
 
 def _tell(watched: dict | None, final: float) -> None:

@@ -57,7 +57,6 @@ DEFAULT_DOC_PLAN = ((2, 15.0, 2.0),)  # a tiny plan for doctests
 #: screened on: a screen's base, the model kept and the library's)
 REST_KEPT = 4
 
-#: closed-loop signals in the order tables show them
 #: models compiled behind, in a background process (:meth:`Replayer.compile_behind`): {(process id, id(module)):
 #: FastBuildBehind} (a forked child does not wait on its parent's)
 _BEHIND: dict = {}
@@ -87,9 +86,10 @@ def _wait_behind(mod) -> None:
             # it gave up: the compile happens here, announced and recorded as one of this process
             from ehas_env.physics.codegen import put_fresh
 
-            put_fresh(mod, *taken)
+            put_fresh(mod, taken)
 
 
+#: closed-loop signals in the order tables show them
 CL_SIGNALS = ("theta_deg", "current_mA", "flow_lpm", "p_a_bar", "p_b_bar", "p_s_bar", "load_kN")
 VALVE_SIGNALS = ("flow_lpm",)
 #: signals that enter the calibration cost and the verdict: every logged signal.  The load reading is judged too:
@@ -658,7 +658,10 @@ class Replayer:
             return False
         spec = ModelSpec(effects={hyp.name: {p.name: p.default for p in hyp.params}})
         # one replay of each kind of run, made ready on the larger model: the drivers and argument types it needs
-        jobs = {(c.run.kind, c.supply is None): self._prepare(spec, c) for c in self.cases}
+        jobs = {}
+        for c in self.cases:
+            if (c.run.kind, c.supply is None) not in jobs:
+                jobs[(c.run.kind, c.supply is None)] = self._prepare(spec, c)
         mod = next(iter(jobs.values())).mod
         if (os.getpid(), id(mod)) in _BEHIND:
             return True

@@ -831,7 +831,7 @@ def load_scale() -> float:
     return max(1.0, load) ** 0.5
 
 
-def take_fresh(module) -> tuple[str, float | None] | None:
+def take_fresh(module) -> tuple[str, float | None, list] | None:
     """The build and the kilobytes of new generated text of ``module``'s model, when this process wrote its files
     and numba has not compiled them yet, taken off the compile watcher's list: their compile runs in another
     process, which is announced there (:class:`ehas_env.physics.compile_behind.FastBuildBehind`), and a load of
@@ -858,9 +858,10 @@ def take_fresh(module) -> tuple[str, float | None] | None:
     return build, kb, mods
 
 
-def put_fresh(module, build: str, kb: float | None, mods: list) -> None:
-    """Give back to the compile watcher what :func:`take_fresh` took of ``module``'s model (the background compile
-    gave up: it compiles here, announced and recorded as any first compile of this process)."""
+def put_fresh(module, taken: tuple) -> None:
+    """Give back to the compile watcher what :func:`take_fresh` took of ``module``'s model, ``taken`` (the
+    background compile gave up: it compiles here, announced and recorded as any first compile of this process)."""
+    build, _, mods = taken
     _FRESH.update(dict.fromkeys(mods, (build, module.__name__)))
 
 

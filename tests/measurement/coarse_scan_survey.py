@@ -26,6 +26,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from ehas_env.diagnosis.fitting import MIN_SCORE as MIN_SCORE_DB  # what a candidate must remove to count, dB
+from ehas_env.diagnosis.fitting import SKIP_MARGIN, asks_fine_grid, coarse_scan
+
 COMMAND = "python -m tests.measurement.coarse_scan_survey --out results/coarse_scan"
 #: the drawn campaigns surveyed by default (those the rule was set on, and the set's other singles are one option)
 CASES = ("d01_volume@supply", "d05_rate_limit@load_reading", "d06_compliance@crank_torque",
@@ -43,23 +46,13 @@ RECORDS_NOTE = ("The records in `results/coarse_scan/scans_bad8e6b.jsonl.gz` are
                 "Without `--records` the survey diagnoses the campaigns again in this process.")
 #: the rules judged: (points over the grid, spread over each sign's values apart, slack)
 RULES = tuple((k, signed, slack) for k in (3, 4) for signed in (False, True) for slack in (0.03, 0.1, 0.2, 0.3))
-MIN_SCORE_DB = 0.3  # what a candidate must remove to count (ehas_env.diagnosis.fitting.MIN_SCORE)
-SKIP_MARGIN = 0.002  # ... and beat by to be fitted further (fitting.SKIP_MARGIN)
-
-
-def _spread(side: list, k: int) -> set:
-    n = len(side)
-    return set(side) if n <= k else {side[round(i * (n - 1) / (k - 1))] for i in range(k)}
 
 
 def coarse_indices(rec: dict, k: int, signed: bool) -> list[int]:
     """The indices into ``rec``'s values of a coarse grid of ``k`` points (each sign's apart when ``signed``) and
-    the values the data point at (the survey's own statement of the rule, to judge variants of it)."""
-    grid = rec["grid"]
-    neg, pos = [v for v in grid if v < 0.0], [v for v in grid if v >= 0.0]
-    chosen = (_spread(neg, k) | _spread(pos, k)) if signed and neg and pos else _spread(list(grid), k)
-    chosen |= set(rec["extra"])
-    return [j for j, v in enumerate(rec["values"]) if v in chosen]
+    the values the data point at: the package's rule (:func:`ehas_env.diagnosis.fitting.coarse_scan`) with its
+    variants."""
+    return coarse_scan(rec["values"], rec["grid"], rec["extra"], points=k, each_sign=signed)
 
 
 def judge(recs: list[dict], k: int, signed: bool, slack: float) -> dict:
@@ -68,7 +61,7 @@ def judge(recs: list[dict], k: int, signed: bool, slack: float) -> dict:
     saved = total = cut = 0
     mattered = []
     for r in recs:
-        if r["effect"] == "backlash":  # asks for its finer grid: scanned whole
+        if asks_fine_grid(r["effect"]):  # asks for its finer grid (backlash): scanned whole
             total += len(r["costs"])
             continue
         c, null = r["costs"], r["null"]
@@ -90,7 +83,7 @@ def margins(recs: list[dict], k: int = 3, signed: bool = True, n: int = 8) -> li
     rows = []
     for r in recs:
         c, null = r["costs"], r["null"]
-        if r["effect"] == "backlash" or min(c) >= null * (1.0 - SKIP_MARGIN):
+        if asks_fine_grid(r["effect"]) or min(c) >= null * (1.0 - SKIP_MARGIN):
             continue
         coarse = min(c[j] for j in coarse_indices(r, k, signed)) / null
         rows.append({"effect": r["effect"], "coarse_best": round(coarse, 4), "grid_best": round(min(c) / null, 4),

@@ -45,7 +45,7 @@ def test_what_the_background_takes_off_the_compile_watcher_it_gives_back(monkeyp
     assert taken[0] == "quick" and sorted(taken[2]) == ["ehas_fx_test", "ehas_lib_test", "ehas_model_test"]
     assert list(codegen._FRESH) == ["ehas_model_other"]  # another model's stay
     assert codegen.take_fresh(Model) is None  # nothing left to take
-    codegen.put_fresh(Model, *taken)
+    codegen.put_fresh(Model, taken)
     assert codegen._FRESH["ehas_fx_test"] == ("quick", "ehas_model_test") and len(codegen._FRESH) == 4
 
 
