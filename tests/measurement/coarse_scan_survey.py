@@ -120,12 +120,41 @@ def survey(cid: str, work: Path) -> Path:
     return path
 
 
+#: the fields a scan's record must hold to be judged
+RECORD_FIELDS = ("effect", "values", "grid", "extra", "costs", "null", "final")
+
+
 def read_records(paths) -> list[dict]:
+    """The scans' records of the ``.jsonl`` (or ``.jsonl.gz``) files ``paths``, those with a model to beat.
+
+    Raises
+    ------
+    ValueError
+        A file that cannot be read, a line that is no JSON object with :data:`RECORD_FIELDS` (one line, naming
+        the file and line).
+    """
     recs = []
     for p in paths:
         opener = gzip.open if str(p).endswith(".gz") else open
-        with opener(p, "rt") as f:
-            recs.extend(json.loads(line) for line in f if line.strip())
+        try:
+            with opener(p, "rt") as f:
+                for n, line in enumerate(f, 1):
+                    if not line.strip():
+                        continue
+                    try:
+                        rec = json.loads(line)
+                    except ValueError as exc:
+                        raise ValueError(f"--records: {p}, line {n}: not JSON ({exc})") from None
+                    if not isinstance(rec, dict) or any(k not in rec for k in RECORD_FIELDS):
+                        raise ValueError(f"--records: {p}, line {n}: a scan's record needs the fields "
+                                         f"{', '.join(RECORD_FIELDS)}")
+                    if not isinstance(rec["costs"], list) or not isinstance(rec["values"], list) or \
+                            len(rec["costs"]) != len(rec["values"]) or not rec["costs"]:
+                        raise ValueError(f"--records: {p}, line {n}: 'costs' and 'values' must be lists of one "
+                                         "length, not empty")
+                    recs.append(rec)
+        except (OSError, EOFError) as exc:
+            raise ValueError(f"--records: {p}: cannot be read ({exc.strerror or exc})") from None
     return [r for r in recs if r.get("null") is not None]
 
 
@@ -162,6 +191,17 @@ def main(argv=None) -> int:
     ap.add_argument("--records", nargs="*", default=None, help="judge these recorded scans (.jsonl[.gz]) only")
     a = ap.parse_args(argv)
     out, work = Path(a.out), Path(a.work)
+    if a.records is None:
+        from tests.independent_rig import grammar
+
+        known = {c["id"] for c in grammar.drawn_cases()}
+        unknown = [c for c in a.cases.split(",") if c and c not in known]
+        if unknown:
+            raise SystemExit(f"--cases: unknown drawn case id(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+    try:
+        recs = read_records([Path(p) for p in a.records]) if a.records is not None else None
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from None
     out.mkdir(parents=True, exist_ok=True)
     if a.records is not None:
         paths, command = [Path(p) for p in a.records], f"{COMMAND} --records {' '.join(a.records)}"
@@ -178,7 +218,8 @@ def main(argv=None) -> int:
                 print(f"[scans]   {time.time() - t0:.0f} s", flush=True)
             paths.append(done)
         command = COMMAND if a.cases == ",".join(CASES) else f"{COMMAND} --cases {a.cases}"
-    recs = read_records(paths)
+    if recs is None:
+        recs = read_records(paths)
     res = {"records": [str(p) for p in paths] if a.records is not None else None, "scans": len(recs), "cases": sorted({r.get("case", "?") for r in recs}),
            "went_on": sum(1 for r in recs if min(r["costs"]) < r["null"] * (1.0 - SKIP_MARGIN)),
            "mattered": sum(1 for r in recs if r["final"] < r["null"] * 10.0 ** (-MIN_SCORE_DB / 10.0)),

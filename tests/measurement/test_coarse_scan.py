@@ -74,3 +74,28 @@ def test_on_a_grid_of_both_signs_the_coarse_grid_spreads_over_each_sign():
     for sign in (-1.0, 1.0):
         side = sorted(abs(v) for v in picked if v * sign > 0)
         assert side[0] == pytest.approx(0.01) and side[-1] == pytest.approx(10.0) and len(side) == D.COARSE_POINTS
+
+
+def test_the_package_rule_cuts_no_recorded_candidate_that_went_on_to_a_fit():
+    """The committed scans (results/coarse_scan, 17 drawn campaigns): the diagnosis' own coarse grid and slack cut
+    none of the candidates the whole grid sent on, and save replays."""
+    from pathlib import Path
+
+    from tests.measurement.coarse_scan_survey import judge, read_records
+
+    recs = read_records([Path(__file__).resolve().parents[2] / "results/coarse_scan/scans_bad8e6b.jsonl.gz"])
+    j = judge(recs, D.COARSE_POINTS, True, D.COARSE_SLACK)
+    assert j["cut"] == 0 and j["replays_saved"] > 0
+
+
+def test_a_bad_record_file_is_refused_in_one_line_naming_file_and_line(tmp_path):
+    from tests.measurement.coarse_scan_survey import read_records
+
+    bad = tmp_path / "scans.jsonl"
+    bad.write_text('{"effect": "x", "values": [1.0], "grid": [1.0], "extra": [], "costs": [1.0], "null": 1.0, '
+                   '"final": 1.0}\n{"effect": \n')
+    with pytest.raises(ValueError, match=r"scans.jsonl, line 2: not JSON") as e:
+        read_records([bad])
+    assert "\n" not in str(e.value)
+    with pytest.raises(ValueError, match=r"nope.jsonl: cannot be read"):
+        read_records([tmp_path / "nope.jsonl"])
