@@ -372,6 +372,37 @@ def test_a_played_reading_is_the_play_operator_of_the_reading():
     assert get_effect("aug_play_pb_reading").in_words({"b": b * 1e5}).startswith("a play of +-0.8 bar")
 
 
+def test_a_rate_limited_reading_is_the_slew_limited_reading_and_below_its_limit_the_reading():
+    """A rate limit S of chamber B's pressure reading (a conditioner's slew-rate limit, at a place with the
+    pressure's rate) against the limiter computed here sample by sample on the plain reading (y moves toward u by at
+    most S dt a sample, from y = u at the start): within its catch-up of T_ss; with S above the reading's fastest
+    rate the reading passes unchanged (the tanh follower lagged it by T_ss u', 0.1 ms of every rate); the angle,
+    which feeds back no reading of the pressure, is the same bit for bit."""
+    plain = Plant(disc_sets=2).simulate_closed_loop(amplitude_deg=20.0, freq_hz=3.0, cycles=2)
+    u = plain.p_b_bar
+    dt = plain.t[1] - plain.t[0]
+    peak = float(np.max(np.abs(np.diff(u)))) / dt  # bar/s
+    for share in (0.5, 2.0):
+        S = share * peak
+        limited = Plant(disc_sets=2, effects={"aug_slew_pb_reading": {"S": S * 1e5}}).simulate_closed_loop(
+            amplitude_deg=20.0, freq_hz=3.0, cycles=2)
+        np.testing.assert_array_equal(limited.theta_deg, plain.theta_deg)
+        want = np.empty_like(u)
+        y = u[0]
+        for k, uk in enumerate(u):
+            y += min(max(uk - y, -S * dt), S * dt)
+            want[k] = y
+        moved = np.max(np.abs(want - u))
+        if share < 1.0:
+            assert moved > 1.0  # bar: the limit shows at every fast stretch
+            assert np.max(np.abs(limited.p_b_bar - want)) < 0.05 * moved
+        else:
+            assert moved == 0.0
+            # below its limit the reading is the pressure's to the logger's quantum (the tanh follower: 0.1 ms of
+            # a rate of some 1500 bar/s on this run, 0.15 bar)
+            assert np.max(np.abs(limited.p_b_bar - u)) <= 0.011
+
+
 def test_static_blocks_at_readings_move_their_reading_exactly():
     """An offset of chamber A's reading adds c to it, a scale error of the flow meter's multiplies it by 1 + g;
     nothing else moves (the loop feeds back states, not readings).  Every sensed output is a place of each."""
