@@ -2,6 +2,8 @@
 hand-made diagnosis JSONs: each rule is shown passing on a case built for it and failing on one built to break it."""
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from independent_rig.effects import UNLISTED
@@ -253,6 +255,30 @@ def test_a_stand_in_is_judged_by_whether_the_truths_kind_is_among_its_alternativ
     assert stand_in(rec([]), "rest", diag(["viscous_friction"])) is None
     assert stand_in(rec([]), "rest", diag(["bulk_modulus"], "unexplained")) is None
     assert stand_in({"effects": {}}, "rest", diag(["bulk_modulus"])) is None  # a clean campaign
+
+
+def test_part_c_judges_also_the_figure_of_the_model_each_diagnosis_recommends(tmp_path):
+    """Start conditions, part c: the model a diagnosis recommends is its model with the term it proposes (the
+    proposal's all-data refit), else its own; a campaign whose variants each propose the term that takes them to the
+    same figure agrees there though their figures before the term differ (a start from rest shows more of what the
+    book model lacks); a missing stored diagnosis is no verdict either way."""
+    from independent_rig.start_conditions import DIAGNOSED, _agree_recommended
+
+    (tmp_path / "diag").mkdir()
+
+    def put(cid, variant, before, after=None):
+        prop = None if after is None else {"validation": {"residual_x_noise_all_after": after}}
+        name = cid if variant == "rest" else f"{cid}.{variant}"
+        (tmp_path / "diag" / f"{name}.json").write_text(json.dumps(
+            {"residual_x_noise": before, "unexplained": None if prop is None else {"proposal": prop}}))
+
+    for v, before in zip(DIAGNOSED, (6.2, 8.6, 7.7)):
+        put("worn", v, before, 1.0 + 0.01 * len(v))
+        put("apart", v, before)
+    put("half", "fade", 1.0)
+    assert _agree_recommended({"id": "worn"}, tmp_path) is True
+    assert _agree_recommended({"id": "apart"}, tmp_path) is False
+    assert _agree_recommended({"id": "half"}, tmp_path) is None
 
 
 def test_a_drawn_block_missed_is_listed_when_its_kind_at_its_place_is_among_the_alternatives():
