@@ -45,6 +45,7 @@ from ehas_env.physics import layout as KN
 from ehas_env.simulation.control_laws import N_GAINS
 from ehas_env.measurement.campaign import Campaign, Run, reference_of
 from ehas_env.measurement.verdict import envelope_cost_block, sine_timing, unpredictable_runs
+from ehas_env.physics.c_drivers import c_drivers, wanted as c_drivers_wanted
 from ehas_env.physics.effects import resolve_effects
 from ehas_env.simulation.metrics import fit_percent
 from ehas_env.simulation.plant import TAU_MAX, Plant, RigController, at_rest
@@ -270,8 +271,12 @@ class _Job(NamedTuple):
 
     @property
     def driver(self):
-        """The compiled function that runs it: the closed loop, or the valve bench."""
-        return self.mod.run_valve_test if self.s0 is None else self.mod.closed_loop
+        """The compiled function that runs it: the closed loop, or the valve bench; the C compiler's build of it
+        where there is one (:mod:`ehas_env.physics.c_drivers`: numba's numbers, no numba compile), else
+        numba's."""
+        name = "run_valve_test" if self.s0 is None else "closed_loop"
+        built = c_drivers(self.mod)
+        return getattr(built if built is not None else self.mod, name)
 
 
 @dataclass
@@ -551,8 +556,10 @@ class Replayer:
         first = {}
         for k, job in enumerate(ready):
             given = job.case.supply is not None  # a measured supply: the driver's specialisation with it
-            if not any(("omitted" not in str(sig[-1])) == given for sig in job.driver.signatures):
-                first.setdefault((id(job.driver), given), k)
+            driver = job.driver
+            if hasattr(driver, "signatures") and not any(("omitted" not in str(sig[-1])) == given
+                                                         for sig in driver.signatures):  # numba's, not compiled yet
+                first.setdefault((id(driver), given), k)
         sims = {k: self._run_case(ready[k]) for k in first.values()}
         rest = [k for k in range(len(ready)) if k not in sims]
         runner = self._pool().map if len(rest) > 1 else map
@@ -644,8 +651,8 @@ class Replayer:
         bool
             Whether a compile runs behind (or another process of this one's already compiles that model).
         """
-        if not self.hypotheses or os.environ.get("EHAS_COMPILE_BEHIND", "") == "0":
-            return False
+        if not self.hypotheses or os.environ.get("EHAS_COMPILE_BEHIND", "") == "0" or c_drivers_wanted():
+            return False  # (the C compiler builds the drivers in under a second: nothing to compile behind)
         from ehas_env.physics.codegen import take_fresh
         from ehas_env.physics.effects import REGISTRY
         from ehas_env.physics.compile_behind import FastBuildBehind

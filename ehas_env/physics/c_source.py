@@ -17,16 +17,23 @@ Mapping (Python semantics kept where C differs):
   ``ehas_mod``); ``**`` is ``pow``; ``min``/``max`` keep Python's choice of the first of equal arguments;
   ``abs`` is ``fabs``/``labs``; ``math.degrees``/``radians`` multiply by numba's constant (``180 / pi``);
 * an array argument ``x`` is ``double *x, long x_n`` (``x.shape[0]`` and ``len(x)`` are ``x_n``); ``x[:] = v``
-  is a loop; a negative constant index counts from the end;
+  is a loop; a negative constant index counts from the end; one indexed ``x[i, j]`` is a row-major table,
+  ``double *x, long x_n, long x_m`` (``x.shape[1]`` is ``x_m``); an argument that defaults to ``None`` is an
+  array that may be left out (``NULL`` and 0; ``x is None`` and ``x is not None`` test it);
+* arrays of the function's own -- ``np.zeros(n)``, ``np.empty(n)`` of a constant ``n``, ``np.zeros_like(a)``,
+  ``np.empty_like(a)``, or a call of an *allocating helper* whose body returns a tuple of those (``rk4_work``) --
+  are C99 arrays of the function (variable-length for an array's length); ``P = P.copy()`` copies an argument
+  into such an array and points the argument at it; ``np.max(x)`` and ``np.min(x)`` of an array are loops;
 * a function returning a tuple of ``n`` numbers takes ``n`` output pointers after its arguments; ``a, b = f()``,
   ``ds[4], ds[5] = f()``, ``f()[0]`` and ``r = f()`` (then ``r[j]``) are supported, every value computed
   before any is stored (as Python does);
-* names of module constants (``N_STATES``, ``I_AREA``, ...) are replaced by their values; every function is
-  ``static`` and named ``<prefix><name>``.
+* names of module constants (``N_STATES``, ``I_AREA``, ``A, B = 0, 1``, ...) are replaced by their values; every
+  function is ``static`` and named ``<prefix><name>``.
 
-Anything else (2-D arrays, allocation, closures, comprehensions, strings) is refused with a
-:class:`TranslationError` naming the function and the line: the drivers that allocate (``closed_loop``,
-``run_open_loop``) are not translated; an export writes its own fixed-step driver around ``advance``.
+Anything else (arrays of more than two dimensions, a row of a table passed on, closures, comprehensions,
+strings) is refused with a :class:`TranslationError` naming the function and the line.  The replays' drivers
+(``closed_loop``, ``run_valve_test``) translate whole (:mod:`ehas_env.physics.c_drivers`); an export writes its
+own fixed-step driver around ``advance``.
 
 Examples
 --------
@@ -59,6 +66,7 @@ _MATH = {"sqrt": "sqrt", "sin": "sin", "cos": "cos", "tan": "tan", "asin": "asin
 
 #: helpers every translated unit starts with (Python's floor division and modulo, min/max, the first-of-equal rule)
 PRELUDE = r"""#include <math.h>
+#include <stddef.h>
 
 static inline double ehas_mod(double a, double b)
 {   /* Python's a % b for floats: the sign of b */
@@ -158,9 +166,17 @@ class _Func:
         self.node = node
         self.name = node.name
         self.params = [a.arg for a in node.args.args]
+        defaults = node.args.defaults
+        #: why the function does not translate (raised when it is asked for, :meth:`CTranslator.closure`)
+        self.refused = None
         if node.args.vararg or node.args.kwarg or node.args.kwonlyargs or node.args.posonlyargs:
-            raise TranslationError(f"{node.name} (line {node.lineno}): only plain positional arguments translate")
-        self.arrays: set[str] = set()  # array parameters
+            self.refused = f"{node.name} (line {node.lineno}): only plain positional arguments translate"
+        elif any(not (isinstance(v, ast.Constant) and v.value is None) for v in defaults):
+            self.refused = f"{node.name} (line {node.lineno}): a default other than None does not translate"
+        # an argument that defaults to None is an array that may be left out: a NULL pointer of length 0
+        self.optional: set[str] = set(self.params[len(self.params) - len(defaults):])
+        self.arrays: set[str] = set(self.optional)  # array parameters
+        self.arrays2d: set[str] = set()  # ... of those, the two-dimensional ones (row-major, ``x_m`` columns)
         self.ret = None  # None: nothing; INT / DBL: a number; int n: a tuple of n numbers
         self.locals: dict[str, object] = {}
 
@@ -193,13 +209,19 @@ class CTranslator:
                 for inner in self._lift(node):
                     self.funcs[inner.name] = _Func(inner)
                 self.funcs[node.name] = _Func(node)
-            elif isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
-                try:
-                    value = ast.literal_eval(node.value)
-                except (ValueError, SyntaxError, TypeError):
-                    continue
-                if isinstance(value, (numbers.Real, bool)):
-                    self.consts[node.targets[0].id] = value
+            elif isinstance(node, ast.Assign) and len(node.targets) == 1:
+                target = node.targets[0]
+                pairs = ([(target, node.value)] if isinstance(target, ast.Name) else
+                         list(zip(target.elts, node.value.elts))  # ``A, B = 0, 1``
+                         if isinstance(target, ast.Tuple) and isinstance(node.value, ast.Tuple)
+                         and len(target.elts) == len(node.value.elts) else [])
+                for name, v in pairs:
+                    try:
+                        value = ast.literal_eval(v)
+                    except (ValueError, SyntaxError, TypeError):
+                        continue
+                    if isinstance(name, ast.Name) and isinstance(value, (numbers.Real, bool)):
+                        self.consts[name.id] = value
 
     @staticmethod
     def _lift(node: ast.FunctionDef) -> list:
@@ -228,11 +250,39 @@ class CTranslator:
                 continue
             if name not in self.funcs:
                 raise TranslationError(f"no function {name!r} in the text")
+            if self.funcs[name].refused:
+                raise TranslationError(self.funcs[name].refused)
             seen.add(name)
             for n in ast.walk(self.funcs[name].node):
-                if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id in self.funcs:
+                if (isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id in self.funcs
+                        and self.allocator(n) is None):
                     todo.append(n.func.id)
         return [n for n in self.funcs if n in seen]
+
+    def allocator(self, call):
+        """The allocations a call of an *allocating helper* stands for -- a function of the text whose body is
+        ``return`` a tuple of allocations of its arguments (``rk4_work(s)``: five ``np.empty_like(s)``) --, with
+        the call's arguments in place of the helper's (a list of expressions); None for any other call.  Such a
+        call is not translated as a function: each target it is unpacked into becomes a local array."""
+        if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name) and call.func.id in self.funcs):
+            return None
+        f = self.funcs[call.func.id]
+        body = [b for b in f.node.body if not (isinstance(b, ast.Expr) and isinstance(b.value, ast.Constant))]
+        if len(body) != 1 or not isinstance(body[0], ast.Return) or not isinstance(body[0].value, ast.Tuple):
+            return None
+        if not all(isinstance(a, ast.Name) for a in call.args) or len(call.args) != len(f.params):
+            return None
+        names = dict(zip(f.params, (a.id for a in call.args)))
+        outs = []
+        for el in body[0].value.elts:
+            fn = ast.unparse(el.func) if isinstance(el, ast.Call) else ""
+            if fn not in self._ALLOC and not (isinstance(el, ast.Call) and isinstance(el.func, ast.Attribute)
+                                              and el.func.attr == "copy"):
+                return None
+            el = ast.fix_missing_locations(_Renamed(names).visit(ast.parse(ast.unparse(el), mode="eval").body))
+            el.lineno = call.lineno
+            outs.append(el)
+        return outs
 
     # -- analysis ---------------------------------------------------------------------------------
     def _analyse(self, names: list[str]) -> None:
@@ -241,7 +291,9 @@ class CTranslator:
             for n in ast.walk(f.node):
                 if isinstance(n, ast.Subscript) and isinstance(n.value, ast.Name) and n.value.id in f.params:
                     f.arrays.add(n.value.id)
-                if (isinstance(n, ast.Attribute) and n.attr == "shape" and isinstance(n.value, ast.Name)
+                    if isinstance(n.slice, ast.Tuple):
+                        f.arrays2d.add(n.value.id)
+                if (isinstance(n, ast.Attribute) and n.attr in ("shape", "copy") and isinstance(n.value, ast.Name)
                         and n.value.id in f.params):
                     f.arrays.add(n.value.id)
         changed = True
@@ -301,7 +353,8 @@ class CTranslator:
                     if isinstance(t, ast.Name):
                         assigns.append((t.id, n.value))
                     elif isinstance(t, ast.Tuple):
-                        vals = n.value.elts if isinstance(n.value, ast.Tuple) else [None] * len(t.elts)
+                        vals = (n.value.elts if isinstance(n.value, ast.Tuple)
+                                else self.allocator(n.value) or [None] * len(t.elts))
                         for el, v in zip(t.elts, vals):
                             if isinstance(el, ast.Name):
                                 assigns.append((el.id, v))
@@ -325,6 +378,8 @@ class CTranslator:
                     continue
                 if v is None:  # an element of a tuple-returning call
                     t = DBL
+                elif self.allocation(v, f, name) is not None:
+                    t = ("array", self.allocation(v, f, name)[0])
                 elif isinstance(v, ast.AugAssign):
                     t = DBL if isinstance(v.op, ast.Div) else self._etype(v.value, f, types, loose=True)
                 elif (isinstance(v, ast.Call) and isinstance(v.func, ast.Name) and v.func.id in self.funcs
@@ -334,13 +389,59 @@ class CTranslator:
                     t = self._etype(v, f, types, loose=True)
                 old = types[name]
                 new = old
-                if isinstance(t, tuple):  # a local holding tuples of different lengths: the longest
+                if isinstance(t, tuple) and t[0] == "array":
+                    if isinstance(old, tuple) and old != t:
+                        raise TranslationError(f"{f.name}: the local array {name!r} is allocated twice")
+                    new = t
+                elif isinstance(t, tuple):  # a local holding tuples of different lengths: the longest
                     new = t if not isinstance(old, tuple) or t[1] > old[1] else old
                 elif t == DBL and old == INT:
                     new = DBL
                 if new != old:
                     types[name], changed = new, True
         f.locals = types
+
+    #: the allocations a function may make: a local array of a constant length, or of an array's
+    _ALLOC = {"np.zeros": "zeros", "np.empty": "empty", "np.zeros_like": "zeros", "np.empty_like": "empty"}
+
+    def allocation(self, v, f: _Func, target: str):
+        """(C length, how it starts: "zeros", "empty" or the C name of the array it copies) when ``v`` allocates
+        a one-dimensional array (``np.zeros(n)``, ``np.empty(n)`` of a constant n; ``np.zeros_like(a)``,
+        ``np.empty_like(a)``, ``a.copy()`` of an array), else None.  The array is a C99 array of the function
+        (a variable-length one for an array's length), so its length must be known where the function starts."""
+        if not isinstance(v, ast.Call) or v.keywords:
+            return None
+        fn = ast.unparse(v.func)
+        if isinstance(v.func, ast.Attribute) and v.func.attr == "copy" and not v.args and isinstance(
+                v.func.value, ast.Name):
+            src = v.func.value.id
+            if src not in f.arrays:
+                raise TranslationError(f"{f.name} (line {v.lineno}): {target} = {src}.copy() of something that "
+                                       "is not an array argument")
+            return f"{_cname(src)}_n", _cname(src)
+        if fn not in self._ALLOC or len(v.args) != 1:
+            return None
+        a = v.args[0]
+        if fn.endswith("_like"):
+            if isinstance(a, ast.Name) and a.id in f.arrays:
+                return f"{_cname(a.id)}_n", self._ALLOC[fn]
+            own = self._local_array(f, a.id) if isinstance(a, ast.Name) and a.id != target else None
+            if own is None:
+                raise TranslationError(f"{f.name} (line {v.lineno}): {fn} of something that is not an array")
+            return own[0], self._ALLOC[fn]
+        if isinstance(a, ast.Constant) and isinstance(a.value, int) and not isinstance(a.value, bool):
+            return str(a.value), self._ALLOC[fn]
+        if isinstance(a, ast.Name) and isinstance(self.consts.get(a.id), numbers.Integral) and not isinstance(
+                self.consts.get(a.id), bool):
+            return str(int(self.consts[a.id])), self._ALLOC[fn]
+        raise TranslationError(f"{f.name} (line {v.lineno}): {fn} of a length that is not a constant")
+
+    def _local_array(self, f: _Func, name: str):
+        """The allocation (:meth:`allocation`) of the local array ``name`` of ``f`` (None: not one)."""
+        for n in ast.walk(f.node):
+            if isinstance(n, ast.Assign) and any(isinstance(t, ast.Name) and t.id == name for t in n.targets):
+                return self.allocation(n.value, f, name)
+        return None
 
     # -- expression types ---------------------------------------------------------------------------
     def _etype(self, n, f: _Func, types: dict, loose: bool = False):
@@ -423,7 +524,9 @@ class CTranslator:
     def _signature(self, f: _Func, static: bool) -> str:
         args = []
         for p in f.params:
-            if p in f.arrays:
+            if p in f.arrays2d:
+                args += [f"double *{_cname(p)}", f"long {_cname(p)}_n", f"long {_cname(p)}_m"]
+            elif p in f.arrays:
                 args += [f"double *{_cname(p)}", f"long {_cname(p)}_n"]
             else:
                 args.append(f"double {_cname(p)}")
@@ -440,12 +543,24 @@ class CTranslator:
         Returns
         -------
         dict
-            ``c_name``, ``params`` (Python names), ``arrays`` (those passed as ``double *, long``) and
-            ``returns`` (None, "long", "double" or the number of output pointers).
+            ``c_name``, ``params`` (Python names), ``arrays`` (those passed as ``double *, long``; a
+            two-dimensional one, of ``arrays2d``, as ``double *, long rows, long columns``, row-major),
+            ``optional`` (the arrays that may be left out: ``NULL, 0``) and ``returns`` (None, "long", "double"
+            or the number of output pointers).
         """
         f = self.funcs[name]
         return {"c_name": self.c_name(name), "params": list(f.params), "arrays": sorted(f.arrays),
-                "returns": f.ret}
+                "arrays2d": sorted(f.arrays2d), "optional": sorted(f.optional), "returns": f.ret}
+
+
+class _Renamed(ast.NodeTransformer):
+    """An expression with names replaced (an allocating helper's arguments by a call's)."""
+
+    def __init__(self, names: dict):
+        self.names = names
+
+    def visit_Name(self, node):
+        return ast.copy_location(ast.Name(self.names.get(node.id, node.id), node.ctx), node)
 
 
 def _cname(name: str) -> str:
@@ -486,7 +601,10 @@ class _FuncWriter:
         self.block(body, 1)
         decls = []
         for name, t in self.f.locals.items():
-            if isinstance(t, tuple):
+            if isinstance(t, tuple) and t[0] == "array":
+                decls.append(f"long {_cname(name)}_n = {t[1]};")
+                decls.append(f"double {_cname(name)}[{t[1]}];")
+            elif isinstance(t, tuple):
                 decls.append(f"double {_cname(name)}[{t[1]}];")
             else:
                 decls.append(f"{t} {_cname(name)} = 0;")
@@ -622,11 +740,45 @@ class _FuncWriter:
                 return r
         return None
 
+    def allocate(self, target: ast.Name, v, d: int) -> bool:
+        """Emits an allocation (:meth:`CTranslator.allocation`) stored in ``target``: a local array filled as
+        asked, or an array argument given a copy of its own (``P = P.copy()``: a buffer of the function, the
+        argument pointing at it from then on).  False when ``v`` allocates nothing."""
+        got = self.tr.allocation(v, self.f, target.id)
+        if got is None:
+            return False
+        length, how = got
+        name = _cname(target.id)
+        if target.id in self.f.params:
+            if target.id not in self.f.arrays or how in ("zeros", "empty") or how != name:
+                raise self.err(v, "an array argument given anything but a copy of itself")
+            buf = f"{name}__copy"
+            self.extra_decls.append(f"double {buf}[{length}];")
+            k = self.new_tmp("long")
+            self.emit(f"for ({k} = 0; {k} < {length}; {k}++) {buf}[{k}] = {name}[{k}];", d)
+            self.emit(f"{name} = {buf};", d)
+            return True
+        if how == "zeros":
+            k = self.new_tmp("long")
+            self.emit(f"for ({k} = 0; {k} < {name}_n; {k}++) {name}[{k}] = 0.0;", d)
+        elif how != "empty":
+            k = self.new_tmp("long")
+            self.emit(f"for ({k} = 0; {k} < {name}_n; {k}++) {name}[{k}] = {how}[{k}];", d)
+        return True
+
     def assign(self, s: ast.Assign, d: int) -> None:
         for target in s.targets:
             v = s.value
+            if isinstance(target, ast.Name) and self.allocate(target, v, d):
+                continue
             if isinstance(target, ast.Tuple):
                 n = len(target.elts)
+                allocs = self.tr.allocator(v) or (v.elts if isinstance(v, ast.Tuple) else [])
+                if len(allocs) == n and all(isinstance(el, ast.Name) for el in target.elts) and all(
+                        self.tr.allocation(a, self.f, el.id) is not None for a, el in zip(allocs, target.elts)):
+                    for el, a in zip(target.elts, allocs):
+                        self.allocate(el, a, d)
+                    continue
                 if isinstance(v, ast.Tuple):
                     if len(v.elts) != n:
                         raise self.err(s, "unpacking of a different number of values")
@@ -717,13 +869,23 @@ class _FuncWriter:
         return e if self.type_of(n) == INT else f"(long)({e})"
 
     def subscript(self, n: ast.Subscript, d: int) -> str:
+        v = n.value
+        if isinstance(n.slice, ast.Tuple) and isinstance(v, ast.Name) and v.id in self.f.arrays2d:
+            if len(n.slice.elts) != 2:
+                raise self.err(n, "an index of more than two dimensions")
+            arr = _cname(v.id)
+            i, j = (self.index(x, arr, d) for x in n.slice.elts)
+            return f"{arr}[({i}) * {arr}_m + ({j})]"
         if isinstance(n.slice, (ast.Tuple, ast.Slice)):
             raise self.err(n, "a multi-dimensional index or a slice")
-        v = n.value
         if isinstance(v, ast.Attribute) and v.attr == "shape" and isinstance(v.value, ast.Name):
+            if isinstance(n.slice, ast.Constant) and n.slice.value == 1 and v.value.id in self.f.arrays2d:
+                return f"{_cname(v.value.id)}_m"
             if not (isinstance(n.slice, ast.Constant) and n.slice.value == 0):
-                raise self.err(n, "a shape other than shape[0]")
+                raise self.err(n, "a shape other than shape[0] (or shape[1] of a two-dimensional array)")
             return f"{_cname(v.value.id)}_n"
+        if isinstance(v, ast.Name) and v.id in self.f.arrays2d:
+            raise self.err(n, "a row of a two-dimensional array")
         if isinstance(v, ast.Name):
             if v.id in self.f.arrays:
                 return f"{_cname(v.id)}[{self.index(n.slice, _cname(v.id), d)}]"
@@ -795,6 +957,11 @@ class _FuncWriter:
             ops = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
             parts, left = [], n.left
             for op, right in zip(n.ops, n.comparators):
+                if (isinstance(op, (ast.Is, ast.IsNot)) and isinstance(right, ast.Constant) and right.value is None
+                        and isinstance(left, ast.Name) and left.id in self.f.optional):
+                    parts.append(f"({_cname(left.id)} {'==' if isinstance(op, ast.Is) else '!='} NULL)")
+                    left = right
+                    continue
                 if type(op) not in ops:
                     raise self.err(n, "this comparison")
                 parts.append(f"({e(left, d)} {ops[type(op)]} {e(right, d)})")
@@ -821,7 +988,13 @@ class _FuncWriter:
                     if not isinstance(a, ast.Name):
                         raise self.err(n, f"passing {ast.unparse(a)!r} as the array {p}")
                     name = _cname(a.id)
-                    if a.id in self.f.arrays:
+                    if (a.id in self.f.arrays2d) != (p in callee.arrays2d):
+                        raise self.err(n, f"passing {a.id!r} as the array {p} of another number of dimensions")
+                    if a.id in self.f.arrays2d:
+                        parts += [name, f"{name}_n", f"{name}_m"]
+                    elif a.id in self.f.arrays:
+                        parts += [name, f"{name}_n"]
+                    elif isinstance(self.f.locals.get(a.id), tuple) and self.f.locals[a.id][0] == "array":
                         parts += [name, f"{name}_n"]
                     elif isinstance(self.f.locals.get(a.id), tuple):
                         parts += [name, str(self.f.locals[a.id][1])]
@@ -857,6 +1030,13 @@ class _FuncWriter:
             for x in a[1:]:
                 out = f"{h}({out}, {x})"
             return out
+        if fn in ("np.max", "np.min") and len(args) == 1 and isinstance(args[0], ast.Name) and (
+                args[0].id in self.f.arrays and args[0].id not in self.f.arrays2d):
+            arr, t, k = _cname(args[0].id), self.new_tmp("double"), self.new_tmp("long")
+            self.emit(f"{t} = {arr}[0];", d)
+            self.emit(f"for ({k} = 1; {k} < {arr}_n; {k}++) if ({arr}[{k}] {'>' if fn == 'np.max' else '<'} {t}) "
+                      f"{t} = {arr}[{k}];", d)
+            return t
         if fn == "abs":
             return f"labs({a[0]})" if types[0] == INT else f"fabs({a[0]})"
         if fn in ("int", "np.int64"):

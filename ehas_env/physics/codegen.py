@@ -706,6 +706,14 @@ COMPILE_CPU_S = {"inline": 90.0, "quick": 16.0, "quick, library cached": 9.0,
 COMPILE_CPU_S_PER_KB = {"quick": 0.117, "quick, library cached": 0.101}
 #: the record's key of a build's per-kilobyte rates (:data:`COMPILE_RECORD`)
 PER_KB = " per kB"
+#: the compiled functions whose first compile compiles the whole model (its right-hand side ``derivatives`` and what
+#: calls it): only such a compile is announced with the size-based estimate and recorded; a first call of another
+#: (``reference_series``, a sensor chain read in Python) compiles a small part -- the replays of a diagnosis run on
+#: the C drivers (:mod:`ehas_env.physics.c_drivers`), so only such parts of its models compile, in a fraction of
+#: a second -- and is said only if it takes longer than :data:`HEARTBEAT_S`
+WHOLE_MODEL = frozenset({"derivatives", "rates", "rk4_substep", "advance", "run_open_loop", "run_valve_test",
+                         "closed_loop", "closed_loop_batch", "run_relay", "single_reset", "single_step",
+                         "batch_reset", "batch_step_serial", "batch_step_parallel"})
 _WATCH = {"depth": 0, "start": 0.0, "name": "", "thread": None, "est": 0.0, "build": None, "scale": 1.0,
           "mods": set(), "spent": 0.0, "going": False, "first": False, "kb": None}
 HEARTBEAT_S = 10.0
@@ -895,7 +903,9 @@ def _watch_compiles(modules: list, build: str) -> None:
                 mod = getattr(fn, "__module__", "")
                 if mod in _WATCH["mods"]:  # the announced model compiles another of its functions: still its time
                     _WATCH["going"] = True
-                if mod in _FRESH:
+                if mod in _FRESH and _WATCH["name"] not in WHOLE_MODEL:
+                    _WATCH["est"] = None  # a part of a new model: not announced, not recorded (the heartbeat stays)
+                elif mod in _FRESH:
                     build, model = _FRESH[mod]
                     mods = [m for m, (_, of) in _FRESH.items() if of == model]
                     for m in mods:  # one line for one model
@@ -931,8 +941,9 @@ def _watch_compiles(modules: list, build: str) -> None:
             spent = time.monotonic() - _WATCH["start"]
             if spent >= (said + 1) * HEARTBEAT_S:
                 said = int(spent // HEARTBEAT_S)
-                print(f"ehas: still compiling the simulator ({_WATCH['name']}): {spent:.0f} s so far, "
-                      f"about {_WATCH['est']:.0f} s in all", file=sys.stderr, flush=True)
+                est = "" if _WATCH["est"] is None else f", about {_WATCH['est']:.0f} s in all"
+                print(f"ehas: still compiling the simulator ({_WATCH['name']}): {spent:.0f} s so far{est}",
+                      file=sys.stderr, flush=True)
 
     event.register("numba:compile", _Listener())
     _WATCH["thread"] = threading.Thread(target=beat, name="ehas-compile-heartbeat", daemon=True)

@@ -37,10 +37,7 @@ from __future__ import annotations
 
 import hashlib
 import io
-import os
 import re
-import shutil
-import subprocess
 import tempfile
 import uuid
 import zipfile
@@ -49,6 +46,7 @@ from xml.sax.saxutils import escape
 
 from ehas_env.output.files import atomic_write_bytes
 from ehas_env.physics import layout
+from ehas_env.physics.c_drivers import compile_shared
 from ehas_env.physics.c_source import c_array, c_literal, model_c
 from ehas_env.physics.codegen import ModelSource
 from ehas_env.physics.effects import REGISTRY
@@ -277,19 +275,7 @@ def compile_binary(source_path, out_path) -> None:
     ValueError
         No C compiler found, or it failed (its first error line).
     """
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
-    if not cc:
-        raise ValueError("no C compiler found (set CC, or install gcc); --no-binary writes the sources "
-                         "only")
-    try:
-        proc = subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-shared", "-fPIC", str(source_path),
-                               "-o", str(out_path), "-lm"], capture_output=True, text=True, stdin=subprocess.DEVNULL)
-    except OSError as exc:
-        raise ValueError(f"the C compiler {cc} does not run ({exc.strerror or exc}); set CC to a C compiler, or "
-                         "--no-binary writes the sources only") from None
-    if proc.returncode != 0:
-        first = next((ln for ln in proc.stderr.splitlines() if "error" in ln), " ".join(proc.stderr.split())[:200])
-        raise ValueError(f"the C compiler {cc} failed (status {proc.returncode}){': ' + first if first else ''}")
+    compile_shared(source_path, out_path, hint="--no-binary writes the sources only")
 
 
 def fmu_files(model=None, *, controller=None, disc_sets: int = 3, closed_loop: bool = False,

@@ -92,3 +92,64 @@ def test_every_registered_effect_and_law_translates_and_compiles(tmp_path):
     assert tr.signature("advance")["returns"] in ("long", "double")
     assert len(spec.effects) >= 13
     compile_lib(code, tmp_path, "model")
+
+
+ARRAYS_TEXT = '''
+import numpy as np
+
+N_ROW = 3
+FIRST, SECOND = 1, 2
+
+def scratch(a):
+    return np.empty_like(a), np.zeros_like(a)
+
+def fill(v, out):
+    for j in range(v.shape[0]):
+        out[j] = 2.0 * v[j]
+
+def g(s, P, table, weights=None):
+    """What a driver needs: arrays of its own, a table of rows, an argument that may be left out."""
+    row = np.zeros(N_ROW)
+    work, zero = scratch(s)
+    fill(s, work)
+    if weights is not None:
+        P = P.copy()
+        P[0] = np.max(weights)
+    total = 0.0
+    for k in range(table.shape[0]):
+        for j in range(table.shape[1]):
+            table[k, j] = work[j % work.shape[0]] * P[0] + k + zero[0]
+            row[j % N_ROW] += table[k, j]
+    if weights is None:
+        total = -1.0
+    return total + row[FIRST] + row[SECOND] + P[0]
+'''
+
+
+def test_local_arrays_tables_and_left_out_arguments_compute_what_python_computes(tmp_path):
+    code = translate(ARRAYS_TEXT, ["g"], prefix="a_")
+    code += ("\ndouble call_g(double *s, long ns, double *P, long nP, double *t, long n0, long n1, double *w, long nw)"
+             " { return a_g(s, ns, P, nP, t, n0, n1, w, nw); }\n")
+    lib = compile_lib(code, tmp_path, "arrays")
+    lib.call_g.restype = ctypes.c_double
+    lib.call_g.argtypes = [ctypes.c_void_p, ctypes.c_long] * 2 + [ctypes.c_void_p, ctypes.c_long, ctypes.c_long,
+                                                                  ctypes.c_void_p, ctypes.c_long]
+    namespace = {}
+    exec(compile(ARRAYS_TEXT, "text", "exec"), namespace)
+    rng = np.random.default_rng(2)
+    for given in (False, True):
+        s, P, w = rng.normal(size=4), rng.normal(size=2), rng.normal(size=5)
+        t_py, t_c = np.zeros((3, 5)), np.zeros((3, 5))
+        P_py, P_c = P.copy(), P.copy()
+        r_py = namespace["g"](s, P_py, t_py, w if given else None)
+        r_c = lib.call_g(s.ctypes.data, 4, P_c.ctypes.data, 2, t_c.ctypes.data, 3, 5,
+                         w.ctypes.data if given else None, 5 if given else 0)
+        assert r_py == r_c
+        assert np.array_equal(t_py, t_c)
+        assert np.array_equal(P_c, P), "P.copy() must leave the caller's array as it was"
+
+
+def test_an_array_given_anything_but_a_copy_of_itself_is_refused():
+    text = "import numpy as np\ndef h(P, Q):\n    P = Q.copy()\n    return P[0]\n"
+    with pytest.raises(TranslationError, match=r"h \(line 3\): an array argument given anything but a copy"):
+        translate(text, ["h"])

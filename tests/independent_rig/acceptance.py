@@ -130,9 +130,10 @@ def generate_campaign(case: dict, camp: Path) -> bool:
 
 
 def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool = False, log=print,
-             resolution: bool = True) -> dict:
+             resolution: bool = True, warm_again: bool = True) -> dict:
     """Generate, diagnose and (when an effect file is written) compare one case; returns its record
-    (``resolution``: run :func:`resolution_check` when a hidden effect is missed)."""
+    (``resolution``: run :func:`resolution_check` when a hidden effect is missed; ``cold_cache``: diagnose on an
+    empty model cache of its own, then, with ``warm_again``, once more on the shared one)."""
     cid = case["id"]
     wdir = work / cid
     camp = wdir / "campaign"
@@ -162,7 +163,7 @@ def run_case(case: dict, work: Path, out: Path, caps: dict, *, cold_cache: bool 
         shutil.rmtree(cache, ignore_errors=True)
     rec["steps"]["diagnose_wall_s"] = round(wall, 1)
     rec["diagnose_command"] = shlex.join(cmd)
-    if cold_cache and code == 0 and diag_json.exists():
+    if cold_cache and warm_again and code == 0 and diag_json.exists():
         # the same diagnosis again on the shared, warm model cache: the time without compiling
         warm_json = wdir / "diag_warm.json"
         wcmd = [ehas_exe(), "diagnose", str(camp), "--json", str(warm_json), "--quiet", "--overwrite"] + mopt

@@ -42,10 +42,11 @@ DEFAULT_OUT = "results/diagnosis_drawn"
 COMMAND = f"python -m tests.independent_rig.drawn --out {DEFAULT_OUT}"
 
 
-def run(case: dict, work: Path, out: Path, caps: dict) -> dict:
-    """One case: :func:`.acceptance.run_case` (which generates the case's blocks), the baseline, the judgement."""
+def run(case: dict, work: Path, out: Path, caps: dict, cold_cache: bool = False) -> dict:
+    """One case: :func:`.acceptance.run_case` (which generates the case's blocks), the baseline, the judgement
+    (``cold_cache``: the diagnosis on an empty model cache of its own, compiles included, as issue 44 times it)."""
     t0 = time.time()
-    rec = acc.run_case(case, work, out, caps, resolution=False)
+    rec = acc.run_case(case, work, out, caps, cold_cache=cold_cache, resolution=False, warm_again=False)
     if "error" in rec:
         return rec
     wdir = work / case["id"]
@@ -215,6 +216,8 @@ def main(argv=None) -> int:
     ap.add_argument("--readme-only", action="store_true",
                     help="rewrite README.md and results.json from cases/ (each case judged again from diag/)")
     ap.add_argument("--redo", action="store_true", help="rerun cases already checkpointed")
+    ap.add_argument("--cold-cache", action="store_true",
+                    help="diagnose each case on an empty model cache of its own (its time includes every compile)")
     ap.add_argument("--seed", type=int, default=SEED,
                     help=f"the draw's seed (default {SEED}, the published set; another seed draws a held-out set)")
     ap.add_argument("--singles", type=int, default=N_SINGLES, help="single campaigns drawn")
@@ -256,7 +259,7 @@ def main(argv=None) -> int:
         for k, c in enumerate(todo, 1):
             print(f"[drawn] {k}/{len(todo)} {c['id']} (rig {c['rig']}): {'; '.join(b['words'] for b in c['blocks'])}",
                   flush=True)
-            rec = run(c, work, out, caps)
+            rec = run(c, work, out, caps, cold_cache=a.cold_cache)
             rec["ehas_commit"] = acc._commit()
             _atomic(out / "cases" / f"{c['id']}.json", json.dumps(rec, indent=1) + "\n")
             times.append(rec["steps"].get("total_s") or GUESS_S)
