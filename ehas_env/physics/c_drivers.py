@@ -27,6 +27,7 @@ Examples
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import os
 import shutil
@@ -38,6 +39,8 @@ import numpy as np
 
 #: the drivers a replay calls (each also runs on numba: ``EHAS_DRIVERS=numba``)
 DRIVERS = ("closed_loop", "run_valve_test")
+#: the C names' prefix of the model's functions
+PREFIX = "ehm_"
 #: C99, optimised, every operation rounded as Python and numba round it (no fused multiply-add)
 _FLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math", "-shared", "-fPIC")
 
@@ -63,7 +66,13 @@ def compiler() -> str | None:
     -------
     str or None
     """
-    return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+    return os.environ.get("CC") or _on_path(os.environ.get("PATH", ""))
+
+
+@functools.lru_cache(maxsize=4)
+def _on_path(path: str) -> str | None:
+    # looked up once per PATH: every replay asks (a lookup is 0.1 ms, a replay of a run 4 ms)
+    return shutil.which("gcc", path=path) or shutil.which("cc", path=path)
 
 
 def compile_shared(source_path, out_path, hint: str = "") -> None:
@@ -119,21 +128,17 @@ class CDrivers:
     """
 
     def __init__(self, module):
-        from ehas_env.physics.c_source import model_c
+        from ehas_env.physics.c_source import CTranslator, layout_constants, model_c
 
         self.module_name = module.__name__
         path = _library_path(module.__name__)
         self.signatures = {}
         if not path.exists():
-            source, tr = model_c(module.SPEC, roots=DRIVERS)
+            source, tr = model_c(module.SPEC, roots=DRIVERS, prefix=PREFIX)
             _build(source, [tr.c_name(d) for d in DRIVERS], path)
-        else:
-            tr = None
-        if tr is None:  # the library was built before: the signatures only (no C text needed)
-            from ehas_env.physics.c_source import CTranslator, layout_constants
-
-            tr = CTranslator(module.SPEC.source(), layout_constants(), "ehm_")
-            tr._analyse(tr.closure(DRIVERS))
+        else:  # built before (this process or another): the drivers' signatures only, no C written
+            tr = CTranslator(module.SPEC.source(), layout_constants(), PREFIX)
+            tr.analyse(DRIVERS)
         lib = ctypes.CDLL(str(path))
         for name in DRIVERS:
             sig = tr.signature(name)

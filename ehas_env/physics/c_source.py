@@ -285,6 +285,23 @@ class CTranslator:
         return outs
 
     # -- analysis ---------------------------------------------------------------------------------
+    def analyse(self, roots) -> list[str]:
+        """Type the functions ``roots`` and every function they call (what :meth:`translate` does before it writes
+        C), so that :meth:`signature` answers without any C being written.
+
+        Parameters
+        ----------
+        roots : sequence of str
+
+        Returns
+        -------
+        list of str
+            The functions analysed (:meth:`closure`).
+        """
+        names = self.closure(roots)
+        self._analyse(names)
+        return names
+
     def _analyse(self, names: list[str]) -> None:
         fs = [self.funcs[n] for n in names]
         for f in fs:
@@ -508,8 +525,7 @@ class CTranslator:
         str
             The C text (without :data:`PRELUDE`).
         """
-        names = self.closure(roots)
-        self._analyse(names)
+        names = self.analyse(roots)
         protos, bodies = [], []
         for name in names:
             head = self._signature(self.funcs[name], static)

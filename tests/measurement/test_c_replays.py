@@ -105,3 +105,23 @@ def test_the_larger_models_replays_on_the_c_drivers_are_numbas(campaign):
     _same(_both(rep, ModelSpec(effects={"hyp_coil_lag": {"T": 2.0}, "aug_lag_force_reading": {}})))
     _same(_both(rep, ModelSpec(effects={"coulomb_friction": {"Fc": 250.0}},
                                terms={"proposal_piston_force": {"c_v": 800.0}})))
+
+
+def test_a_library_built_before_is_loaded_not_built_again(campaign, tmp_path, monkeypatch):
+    from ehas_env.physics.c_drivers import CDrivers
+
+    monkeypatch.setenv("EHAS_CACHE_DIR", str(tmp_path))
+    rep = Replayer(campaign)
+    job = rep._prepare(ModelSpec(), rep.cases[0])
+    first = CDrivers(job.mod)  # built here: the empty cache has no library
+    (lib,) = (tmp_path / "c").glob("*.so")
+    assert not [p for p in (tmp_path / "c").iterdir() if p.name.startswith(".")]  # no half-written file left
+    built_at = lib.stat().st_mtime_ns
+    again = CDrivers(job.mod)  # loaded: not built again, the signatures read from the model's text
+    assert lib.stat().st_mtime_ns == built_at and again.signatures == first.signatures
+    outs = []
+    for drivers in (first, again):
+        job = rep._prepare(ModelSpec(), rep.cases[0])
+        drivers.closed_loop(*rep._driver_args(job))
+        outs.append(job.out.copy())
+    np.testing.assert_array_equal(outs[0], outs[1])

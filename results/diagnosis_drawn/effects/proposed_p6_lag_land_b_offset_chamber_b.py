@@ -1,4 +1,4 @@
-"""proposed_p6_lag_land_b_offset_chamber_b: a term proposed by ehas diagnose for /tmp/drD2_work/p6_lag@land_b+offset@chamber_b/campaign.
+"""proposed_p6_lag_land_b_offset_chamber_b: a term proposed by ehas diagnose for /tmp/s1/work/p6_lag@land_b+offset@chamber_b/campaign.
 
 i_valve [mA] += c_sgn·tanh(i / 0.05 mA)   with c_sgn = -0.02973 mA (95 % CI -0.03708 to -0.02238)
 
