@@ -15,9 +15,10 @@ multiply and an add into one rounding, ``-ffp-contract=off``) and calls the same
 function (``tests/measurement/test_c_replays.py`` holds the replays equal to numba's, element for element).
 
 The library is kept beside numba's cache (:func:`ehas_env.physics.codegen.cache_dir`, ``c/``), named by the
-model module (whose name is the hash of its text) and the hash of this translator's and this file's own text, so
-a change to either builds it again; it is written under a temporary name and renamed, so a process never loads a
-half-written library.  ``EHAS_DRIVERS=numba`` keeps numba's drivers (as does a machine without a C compiler).
+model module (whose name is the hash of its text) and the hash of this translator's, the layout's and this file's
+own text, so a change to any builds it again; it is written under a temporary name and renamed, so a process
+never loads a half-written library.  ``EHAS_DRIVERS=numba`` keeps numba's drivers (as does a machine without a C
+compiler).
 
 Examples
 --------
@@ -188,11 +189,14 @@ def _caller(name: str, fn, sig: dict):
 
 
 def _library_path(module_name: str) -> Path:
-    from ehas_env.physics import c_source
+    from ehas_env.physics import c_source, layout
     from ehas_env.physics.codegen import cache_dir
 
     h = hashlib.sha256()
-    for part in (Path(c_source.__file__).read_bytes(), Path(__file__).read_bytes(), " ".join(_FLAGS).encode()):
+    # the model's name hashes its text; the C also holds the layout's constants, the translator's and this
+    # file's choices and the flags
+    for part in (Path(c_source.__file__).read_bytes(), Path(layout.__file__).read_bytes(),
+                 Path(__file__).read_bytes(), " ".join(_FLAGS).encode()):
         h.update(part)
     return cache_dir() / "c" / f"{module_name}_{h.hexdigest()[:16]}.so"
 
