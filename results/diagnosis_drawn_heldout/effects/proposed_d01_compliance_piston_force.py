@@ -1,4 +1,4 @@
-"""proposed_d01_compliance_piston_force: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/drHC_work/d01_compliance@piston_force/campaign.
+"""proposed_d01_compliance_piston_force: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/s1/work_ho/d01_compliance@piston_force/campaign.
 
 The load path is a spring of 79.8 N/um between piston and crank (12.5 um per kN of load), damped at 0.49 of critical with the piston's mass.
 k_load = 7.978e+07 N/m (95 % CI 7.505e+07 to 8.482e+07)

@@ -1,4 +1,4 @@
-"""proposed_d07_saturation_piston_force: a term proposed by ehas diagnose for /tmp/drHB_work/d07_saturation@piston_force/campaign.
+"""proposed_d07_saturation_piston_force: a term proposed by ehas diagnose for /tmp/s1/work_ho/d07_saturation@piston_force/campaign.
 
 F_piston [N] += c_pa·p_A   with c_pa = -1.205e-06 m^2 (95 % CI -1.825e-06 to -5.849e-07)
 

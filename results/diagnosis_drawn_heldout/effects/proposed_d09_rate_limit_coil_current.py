@@ -1,4 +1,4 @@
-"""proposed_d09_rate_limit_coil_current: a term proposed by ehas diagnose for /tmp/drHC_work/d09_rate_limit@coil_current/campaign.
+"""proposed_d09_rate_limit_coil_current: a term proposed by ehas diagnose for /tmp/s1/work_ho/d09_rate_limit@coil_current/campaign.
 
 i_valve [mA] += c_i3·i^3   with c_i3 = -8.664e-05 1/mA^2 (95 % CI -9.786e-05 to -7.542e-05)
 

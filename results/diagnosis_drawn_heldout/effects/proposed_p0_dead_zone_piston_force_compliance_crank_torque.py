@@ -1,4 +1,4 @@
-"""proposed_p0_dead_zone_piston_force_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/drHC_work/p0_dead_zone@piston_force+compliance@crank_torque/campaign.
+"""proposed_p0_dead_zone_piston_force_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/s1/work_ho/p0_dead_zone@piston_force+compliance@crank_torque/campaign.
 
 The load path is a spring of 57.5 N/um between piston and crank (17.4 um per kN of load), damped at 0.74 of critical with the piston's mass.
 k_load = 5.746e+07 N/m (95 % CI 5.268e+07 to 6.267e+07)

@@ -1,4 +1,4 @@
-"""proposed_unl_bearing_friction_strong: a term proposed by ehas diagnose for /tmp/unlL_work/unl_bearing_friction_strong/campaign.
+"""proposed_unl_bearing_friction_strong: a term proposed by ehas diagnose for /tmp/s1/work_unl/unl_bearing_friction_strong/campaign.
 
 F_piston [N] += c_plsv·|p_A - p_B| tanh(v / v_tanh)   with c_plsv = -7.553e-05 m^2 (95 % CI -7.799e-05 to -7.308e-05)
 

@@ -1,4 +1,4 @@
-"""proposed_unl_bore_wear_friction_mild: a term proposed by ehas diagnose for /tmp/unlL_work/unl_bore_wear_friction_mild/campaign.
+"""proposed_unl_bore_wear_friction_mild: a term proposed by ehas diagnose for /tmp/s1/work_unl/unl_bore_wear_friction_mild/campaign.
 
 F_piston [N] += c_x2sv·x^2 tanh(v / v_tanh)   with c_x2sv = -3.274e+05 N/m^2 (95 % CI -3.295e+05 to -3.254e+05)
 

@@ -1,8 +1,8 @@
-"""proposed_unl_pair_hose_line_bore_wear_friction: a term proposed by ehas diagnose for /tmp/drU2_work/unl_pair_hose_line+bore_wear_friction/campaign.
+"""proposed_unl_pair_hose_line_bore_wear_friction: a term proposed by ehas diagnose for /tmp/s1/work_unl/unl_pair_hose_line+bore_wear_friction/campaign.
 
 F_piston [N] += c_x2sv·x^2 tanh(v / v_tanh)   with c_x2sv = -3.575e+05 N/m^2 (95 % CI -3.732e+05 to -3.418e+05)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 11.7 -> 1.77; fit 82.2 % -> 96.1 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 11.6 -> 1.77; fit 82.2 % -> 96.1 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
@@ -15,8 +15,8 @@ class ProposedUnlPairHoseLineBoreWearFriction(Effect):
     name = "proposed_unl_pair_hose_line_bore_wear_friction"
     title = "proposed term (piston force)"
     params = (
-        Param("f_x2sv", "N/m^2", 357521, (0.0, 7.15043e+06),
-              "dry force that rises with position squared: per m^2, times sign(v) (fitted: -3.575e+05, 95 % CI -3.732e+05 to -3.418e+05)", typical=(178761, 715043)),
+        Param("f_x2sv", "N/m^2", 357523, (0.0, 7.15047e+06),
+              "dry force that rises with position squared: per m^2, times sign(v) (fitted: -3.575e+05, 95 % CI -3.732e+05 to -3.418e+05)", typical=(178762, 715047)),
     )
     main_param = "f_x2sv"
     explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_x2sv·x^2 tanh(v / v_tanh) with c_x2sv = -3.575e+05 N/m^2 (95 % CI -3.732e+05 to -3.418e+05)'

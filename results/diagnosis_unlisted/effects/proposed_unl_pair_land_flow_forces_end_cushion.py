@@ -1,8 +1,8 @@
-"""proposed_unl_pair_land_flow_forces_end_cushion: a term proposed by ehas diagnose for /tmp/unl-work/unl_pair_land_flow_forces+end_cushion/campaign.
+"""proposed_unl_pair_land_flow_forces_end_cushion: a term proposed by ehas diagnose for /tmp/s1/work_unl/unl_pair_land_flow_forces+end_cushion/campaign.
 
-(Q_A, Q_B) [m^3/s] += c_lam·each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop   with c_lam = -0.04932 - (95 % CI -0.0573 to -0.04134)
+(Q_A, Q_B) [m^3/s] += c_lam·each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop   with c_lam = -0.04932 - (95 % CI -0.05729 to -0.04134)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.79 -> 2.33; fit 93.9 % -> 94.1 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.8 -> 2.33; fit 94.7 % -> 94.8 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
@@ -15,12 +15,12 @@ class ProposedUnlPairLandFlowForcesEndCushion(Effect):
     name = "proposed_unl_pair_land_flow_forces_end_cushion"
     title = "proposed term (chamber flows)"
     params = (
-        Param("q_lam", "-", 0.0493219, (0.0, 0.986439),
-              "share of the land flow that goes with the land's drop itself, not its square root (laminar metering; relative, at the rated drop p_S / 2) (fitted: -0.04932, 95 % CI -0.0573 to -0.04134)", typical=(0.024661, 0.0986439)),
+        Param("q_lam", "-", 0.0493169, (0.0, 0.986339),
+              "share of the land flow that goes with the land's drop itself, not its square root (laminar metering; relative, at the rated drop p_S / 2) (fitted: -0.04932, 95 % CI -0.05729 to -0.04134)", typical=(0.0246585, 0.0986339)),
     )
     main_param = "q_lam"
     valve_side = True
-    explanation = "Proposed by the diagnosis, not yet a physical explanation: (Q_A, Q_B) [m^3/s] += c_lam·each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop with c_lam = -0.04932 - (95 % CI -0.0573 to -0.04134)"
+    explanation = "Proposed by the diagnosis, not yet a physical explanation: (Q_A, Q_B) [m^3/s] += c_lam·each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop with c_lam = -0.04932 - (95 % CI -0.05729 to -0.04134)"
     signature = "the residual it was fitted to: each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop"
 
     @staticmethod
