@@ -135,8 +135,8 @@ class CDrivers:
         path = _library_path(module.__name__)
         self.signatures = {}
         if not path.exists():
-            source, tr = model_c(module.SPEC, roots=DRIVERS, prefix=PREFIX)
-            _build(source, [tr.c_name(d) for d in DRIVERS], path)
+            source, tr = model_c(module.SPEC, roots=DRIVERS, prefix=PREFIX, exported=DRIVERS)
+            _build(source, path)
         else:  # built before (this process or another): the drivers' signatures only, no C written
             tr = CTranslator(module.SPEC.source(), layout_constants(), PREFIX)
             tr.analyse(DRIVERS)
@@ -201,10 +201,8 @@ def _library_path(module_name: str) -> Path:
     return cache_dir() / "c" / f"{module_name}_{h.hexdigest()[:16]}.so"
 
 
-def _build(source: str, exported: list, path: Path) -> None:
-    """Compile ``source`` (the drivers ``exported`` made visible, every other function static) into ``path``."""
-    for c_name in exported:
-        source = source.replace(f"static void {c_name}(", f"void {c_name}(")
+def _build(source: str, path: Path) -> None:
+    """Compile ``source`` into ``path`` (written under a temporary name, then renamed)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.{threading.get_ident()}")
     c_file, so_file = tmp.with_suffix(".c"), tmp.with_suffix(".so")

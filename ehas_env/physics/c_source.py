@@ -275,9 +275,7 @@ class CTranslator:
         names = dict(zip(f.params, (a.id for a in call.args)))
         outs = []
         for el in body[0].value.elts:
-            fn = ast.unparse(el.func) if isinstance(el, ast.Call) else ""
-            if fn not in self._ALLOC and not (isinstance(el, ast.Call) and isinstance(el.func, ast.Attribute)
-                                              and el.func.attr == "copy"):
+            if not self._allocates(el):
                 return None
             el = ast.fix_missing_locations(_Renamed(names).visit(ast.parse(ast.unparse(el), mode="eval").body))
             el.lineno = call.lineno
@@ -395,8 +393,8 @@ class CTranslator:
                     continue
                 if v is None:  # an element of a tuple-returning call
                     t = DBL
-                elif self.allocation(v, f, name) is not None:
-                    t = ("array", self.allocation(v, f, name)[0])
+                elif (alloc := self.allocation(v, f, name)) is not None:
+                    t = ("array", alloc[0])
                 elif isinstance(v, ast.AugAssign):
                     t = DBL if isinstance(v.op, ast.Div) else self._etype(v.value, f, types, loose=True)
                 elif (isinstance(v, ast.Call) and isinstance(v.func, ast.Name) and v.func.id in self.funcs
@@ -426,18 +424,15 @@ class CTranslator:
         a one-dimensional array (``np.zeros(n)``, ``np.empty(n)`` of a constant n; ``np.zeros_like(a)``,
         ``np.empty_like(a)``, ``a.copy()`` of an array), else None.  The array is a C99 array of the function
         (a variable-length one for an array's length), so its length must be known where the function starts."""
-        if not isinstance(v, ast.Call) or v.keywords:
+        if not self._allocates(v):
             return None
         fn = ast.unparse(v.func)
-        if isinstance(v.func, ast.Attribute) and v.func.attr == "copy" and not v.args and isinstance(
-                v.func.value, ast.Name):
+        if isinstance(v.func, ast.Attribute) and v.func.attr == "copy":
             src = v.func.value.id
             if src not in f.arrays:
                 raise TranslationError(f"{f.name} (line {v.lineno}): {target} = {src}.copy() of something that "
                                        "is not an array argument")
             return f"{_cname(src)}_n", _cname(src)
-        if fn not in self._ALLOC or len(v.args) != 1:
-            return None
         a = v.args[0]
         if fn.endswith("_like"):
             if isinstance(a, ast.Name) and a.id in f.arrays:
@@ -452,6 +447,15 @@ class CTranslator:
                 self.consts.get(a.id), bool):
             return str(int(self.consts[a.id])), self._ALLOC[fn]
         raise TranslationError(f"{f.name} (line {v.lineno}): {fn} of a length that is not a constant")
+
+    def _allocates(self, v) -> bool:
+        """Whether the expression ``v`` has an allocation's form: ``np.zeros(x)``, ``np.empty(x)``,
+        ``np.zeros_like(x)``, ``np.empty_like(x)`` (one argument) or ``name.copy()``."""
+        if not isinstance(v, ast.Call) or v.keywords:
+            return False
+        if isinstance(v.func, ast.Attribute) and v.func.attr == "copy":
+            return not v.args and isinstance(v.func.value, ast.Name)
+        return ast.unparse(v.func) in self._ALLOC and len(v.args) == 1
 
     def _local_array(self, f: _Func, name: str):
         """The allocation (:meth:`allocation`) of the local array ``name`` of ``f`` (None: not one)."""
@@ -510,7 +514,7 @@ class CTranslator:
         return DBL
 
     # -- translation ---------------------------------------------------------------------------------
-    def translate(self, roots, *, static: bool = True) -> str:
+    def translate(self, roots, *, static: bool = True, exported=()) -> str:
         """C99 of the functions ``roots`` and every function they call (prototypes first).
 
         Parameters
@@ -519,6 +523,8 @@ class CTranslator:
             Names of the Python functions wanted.
         static : bool
             Declare every function ``static`` (one translation unit per export).
+        exported : sequence of str
+            Functions declared without ``static`` even so (a shared library's entry points).
 
         Returns
         -------
@@ -528,7 +534,7 @@ class CTranslator:
         names = self.analyse(roots)
         protos, bodies = [], []
         for name in names:
-            head = self._signature(self.funcs[name], static)
+            head = self._signature(self.funcs[name], static and name not in exported)
             protos.append(head + ";")
             bodies.append(_FuncWriter(self, self.funcs[name]).write(head))
         return "\n".join(protos) + "\n\n" + "\n".join(bodies)
@@ -1192,7 +1198,7 @@ def layout_constants() -> dict:
 
 
 def model_c(spec, roots=("measure", "advance", "reference_point", "sense", "quantize", "control_law",
-                         "valve_current", "project"), prefix: str = "ehm_") -> tuple[str, CTranslator]:
+                         "valve_current", "project"), prefix: str = "ehm_", exported=()) -> tuple[str, CTranslator]:
     """The C of a generated model: ``spec.source()`` (:class:`ehas_env.physics.codegen.ModelSource`, the
     text numba compiles) translated from ``roots``.
 
@@ -1205,6 +1211,8 @@ def model_c(spec, roots=("measure", "advance", "reference_point", "sense", "quan
         ``reference_point``, ``sense``, ``quantize``, ``control_law``, ``valve_current``, ``project``).
     prefix : str
         Prefix of the C functions' names.
+    exported : sequence of str
+        Functions left visible outside the unit (:meth:`CTranslator.translate`); every other one is ``static``.
 
     Returns
     -------
@@ -1212,4 +1220,4 @@ def model_c(spec, roots=("measure", "advance", "reference_point", "sense", "quan
         The C translation unit (with :data:`PRELUDE`) and the translator (its :meth:`CTranslator.signature`).
     """
     tr = CTranslator(spec.source(), layout_constants(), prefix)
-    return PRELUDE + "\n" + tr.translate(list(roots)), tr
+    return PRELUDE + "\n" + tr.translate(list(roots), exported=exported), tr
