@@ -496,7 +496,10 @@ def proposal_stage(s: Search) -> dict:
     """The stage of the missing term: on an unexplained campaign only, a term at a place of the model fitted inside it
     and named (:func:`propose_stage`), kept when honesty rule 1 allows.  A structured residual below that (within
     twice what does not repeat) is as likely two simulators' numerics as physics, and a term fitted to it names a
-    kind of effect that may not be there.
+    kind of effect that may not be there: no term is proposed on top of it.  But where that small residual is left
+    by blocks of the state stage on a model that was unexplained without them, the term is proposed on that model
+    (:func:`_term_without_hypotheses`), and replaces the blocks when it lowers the figure on all data by
+    :data:`TERM_BEATS_KEPT` of theirs: the blocks, flexible functions of one local quantity, stood in for it.
 
     Parameters
     ----------
@@ -509,8 +512,24 @@ def proposal_stage(s: Search) -> dict:
         ``proposed`` (the term's places, or None), ``refused`` (why a term found was refused, or None).
     """
     res = s.result
-    if not s.options.get("propose", True) or res.verdict != "unexplained":
+    if not s.options.get("propose", True) or res.verdict == "explained":
         return {"proposed": None, "refused": None}
+    if res.verdict != "unexplained":
+        # a small structured residual left by the state stage's blocks: the term proposed without them may do
+        # better (a structural hypothesis kept names a physics of its own and stays)
+        added = set(s.current.model.effects) - set(s.bare[0].model.effects) if s.bare is not None else set()
+        stood_in = (_term_without_hypotheses(s, None, small=True) if added and not added & set(s.hyps) else None)
+        if stood_in is None:
+            return {"proposed": None, "refused": None}
+        prop, ps, refused = stood_in
+        res = s.result
+        if prop is not None:
+            res.proposal, res.proposal_sims = prop, ps
+            res.unexplained["proposal"] = prop.to_json()
+        if refused is not None:
+            res.unexplained["no_term"] = refused
+        res.unexplained["text"] = unexplained_text(res, res.unexplained)
+        return {"proposed": None if prop is None else res.unexplained["proposal"].get("where"), "refused": refused}
     s.say("proposing the missing term")
     prop, ps, refused = propose_stage(s.rep, s.full, s.current, res.sims_all, s.parts, s.cur_val, res.grade, s.say)
     stood_in = _term_without_hypotheses(s, prop)
@@ -529,9 +548,12 @@ def proposal_stage(s: Search) -> dict:
 #: the term proposed on the library's model (before the structural hypotheses) replaces the hypotheses kept when
 #: its all-data residual is within this share of the term's on top of them: they stood in for the missing term
 TERM_STANDS_FOR_HYPOTHESES = 0.02
+#: where the blocks kept leave a small structured residual (no term is proposed on top of them), the term proposed
+#: without them replaces them only when it lowers the all-data figure by this share of theirs
+TERM_BEATS_KEPT = 0.10
 
 
-def term_replaces_kept(prop, prop_b, x_kept: float) -> bool:
+def term_replaces_kept(prop, prop_b, x_kept: float, small: bool = False) -> bool:
     """Whether the term proposed on the library's model (``prop_b``) may replace the structural hypotheses (or the
     missing state) kept: only a term found on both models, doing as well without them as with them (within
     :data:`TERM_STANDS_FOR_HYPOTHESES`), and better than the model kept.  A model the stages kept is never set
@@ -544,6 +566,9 @@ def term_replaces_kept(prop, prop_b, x_kept: float) -> bool:
         The term proposed on top of the model kept, and on the library's model.
     x_kept : float
         The model kept's noise figure on all data (:data:`~ehas_env.measurement.verdict.FIGURE_KEY`).
+    small : bool
+        The model kept leaves a small structured residual (nothing is proposed on top of it): the term without the
+        blocks kept must then lower the figure by :data:`TERM_BEATS_KEPT` of theirs.
 
     Returns
     -------
@@ -559,15 +584,23 @@ def term_replaces_kept(prop, prop_b, x_kept: float) -> bool:
     True
     >>> term_replaces_kept(term(1.10), term(1.50), 1.33)
     False
+    >>> term_replaces_kept(None, term(1.08), 1.40, small=True)  # the blocks kept leave 1.40x; the term alone 1.08x
+    True
+    >>> term_replaces_kept(None, term(1.30), 1.40, small=True)  # 7 % lower: the blocks kept stay
+    False
     """
-    if prop is None or prop_b is None:
+    if prop_b is None:
         return False
     x_b = prop_b.validation["residual_x_noise_all_after"]
+    if small:  # a small structured residual left: nothing is proposed on top of the blocks kept
+        return x_b < x_kept * (1.0 - TERM_BEATS_KEPT)
+    if prop is None:
+        return False
     return (x_b <= prop.validation["residual_x_noise_all_after"] * (1.0 + TERM_STANDS_FOR_HYPOTHESES)
             and x_b < x_kept)
 
 
-def _term_without_hypotheses(s: Search, prop) -> tuple | None:
+def _term_without_hypotheses(s: Search, prop, small: bool = False) -> tuple | None:
     """The structural hypotheses (or a missing state) were kept and the campaign is still unexplained: the term is
     proposed again on the model the library gave before them (``s.bare``).  When it does as well there (within
     :data:`TERM_STANDS_FOR_HYPOTHESES` of the all-data residual) and better than the model kept
@@ -595,7 +628,7 @@ def _term_without_hypotheses(s: Search, prop) -> tuple | None:
         return None
     s.say("proposing the term on the library's model too (without the structural hypotheses)")
     prop_b, ps_b, refused_b = propose_stage(s.rep, s.full, b_fit, b_sims, s.parts, b_val, g, s.say)
-    if not term_replaces_kept(prop, prop_b, s.result.residual_x_noise):
+    if not term_replaces_kept(prop, prop_b, s.result.residual_x_noise, small):
         return None
     x_b = prop_b.validation["residual_x_noise_all_after"]
     why = (f"the term proposed without it leaves {x_b:.3g}x noise on all data"

@@ -693,7 +693,10 @@ def main(argv=None) -> int:
 
 def _commit() -> str:
     p = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    return p.stdout.strip()
+    # the package's own code changed and not committed: the record says so (its figures are not HEAD's)
+    dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "ehas_env"], capture_output=True,
+                           text=True).stdout.strip()
+    return p.stdout.strip() + ("+uncommitted" if dirty else "")
 
 
 def commits_of(recs: list[dict]) -> str:

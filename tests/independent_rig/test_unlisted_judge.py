@@ -302,3 +302,17 @@ def test_a_drawn_block_missed_is_listed_when_its_kind_at_its_place_is_among_the_
     assert not held(["aug_cubic_crank_rate"])["dead_zone@crank_torque"]["listed"]
     assert not held(["aug_beyond_chamber_a"])["dead_zone@crank_torque"]["listed"]
     assert held(["aug_cubic_crank_rate"], kept=("aug_beyond_crank_rate",)) == {}
+
+
+def test_a_state_kept_by_its_stage_and_set_aside_later_is_not_counted_as_named():
+    from independent_rig.judge import states_kept
+
+    stage = {"stage": "states", "kept": "aug_prop_piston_load_pressure", "more": [{"kept": "aug_cubic_crank_angle"}]}
+    d = _diag(named=[_named("chamber_flows", "chamber_flows.metering_law")])
+    d["stages"] = [stage]
+    assert states_kept(d) == ["aug_prop_piston_load_pressure", "aug_cubic_crank_angle"]  # kept, never set aside
+    d["stack"] = [{"effect": "aug_prop_piston_load_pressure", "kept": False},
+                  {"effect": "aug_cubic_crank_angle", "kept": False}]
+    assert states_kept(d) == []  # the stack reports both not kept in the end, the final model lacks them
+    d["model"] = {"effects": {"aug_cubic_crank_angle": {"c": 1.0}}}
+    assert states_kept(d) == ["aug_cubic_crank_angle"]  # in the final model: named whatever the stack says
