@@ -514,25 +514,18 @@ def proposal_stage(s: Search) -> dict:
     res = s.result
     if not s.options.get("propose", True) or res.verdict == "explained":
         return {"proposed": None, "refused": None}
-    if res.verdict != "unexplained":
+    if res.verdict == "unexplained":
+        s.say("proposing the missing term")
+        prop, ps, refused = propose_stage(s.rep, s.full, s.current, res.sims_all, s.parts, s.cur_val, res.grade,
+                                          s.say)
+        stood_in = _term_without_hypotheses(s, prop)
+    else:
         # a small structured residual left by the state stage's blocks: the term proposed without them may do
         # better (a structural hypothesis kept names a physics of its own and stays)
         added = set(s.current.model.effects) - set(s.bare[0].model.effects) if s.bare is not None else set()
         stood_in = (_term_without_hypotheses(s, None, small=True) if added and not added & set(s.hyps) else None)
         if stood_in is None:
             return {"proposed": None, "refused": None}
-        prop, ps, refused = stood_in
-        res = s.result
-        if prop is not None:
-            res.proposal, res.proposal_sims = prop, ps
-            res.unexplained["proposal"] = prop.to_json()
-        if refused is not None:
-            res.unexplained["no_term"] = refused
-        res.unexplained["text"] = unexplained_text(res, res.unexplained)
-        return {"proposed": None if prop is None else res.unexplained["proposal"].get("where"), "refused": refused}
-    s.say("proposing the missing term")
-    prop, ps, refused = propose_stage(s.rep, s.full, s.current, res.sims_all, s.parts, s.cur_val, res.grade, s.say)
-    stood_in = _term_without_hypotheses(s, prop)
     if stood_in is not None:
         prop, ps, refused = stood_in
         res = s.result
@@ -601,7 +594,8 @@ def term_replaces_kept(prop, prop_b, x_kept: float, small: bool = False) -> bool
 
 
 def _term_without_hypotheses(s: Search, prop, small: bool = False) -> tuple | None:
-    """The structural hypotheses (or a missing state) were kept and the campaign is still unexplained: the term is
+    """The structural hypotheses (or a missing state) were kept and the campaign is still unexplained (or, with
+    ``small``, the state stage's blocks leave a small structured residual): the term is
     proposed again on the model the library gave before them (``s.bare``).  When it does as well there (within
     :data:`TERM_STANDS_FOR_HYPOTHESES` of the all-data residual) and better than the model kept
     (:func:`term_replaces_kept`), the hypotheses stood in for the missing term: the library's model comes back

@@ -343,7 +343,7 @@ def states_kept(diag: dict) -> list[str]:
     """Augmentations the state stage kept: ``stages[]`` records (or their ``states``) whose ``kept`` is a name, unless
     the final stack reports it not kept in the end (a later stage set it aside and the final model lacks it), and
     ``aug_*`` effects of the final model."""
-    final = set((diag.get("model") or {}).get("effects") or {})
+    final = (diag.get("model") or {}).get("effects") or {}  # the final model's effects, in its order
     dropped = {str(e.get("effect")) for e in diag.get("stack") or [] if isinstance(e, dict) and e.get("kept") is False}
     names = []
     for st in diag.get("stages") or []:
@@ -352,7 +352,7 @@ def states_kept(diag: dict) -> list[str]:
                 if rec["kept"] in dropped and rec["kept"] not in final:
                     continue
                 names.append(rec["kept"])
-    names += [n for n in ((diag.get("model") or {}).get("effects") or {}) if str(n).startswith("aug_")]
+    names += [n for n in final if str(n).startswith("aug_")]
     return list(dict.fromkeys(names))
 
 
