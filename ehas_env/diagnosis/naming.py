@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehas_env.diagnosis.honesty import TERM_SHARE, share_removed, term_refused
+from ehas_env.physics.term_grammar import TERM_PLACES, NamedForm, named_forms
 
 #: what a named form is
 KINDS = ("friction", "leakage/flow", "compliance", "geometry/area", "valve", "sensor", "command path", "load",
@@ -43,98 +44,26 @@ FLEX_NFEV = 8  # least-squares steps of the flexible fit
 NAMED_NFEV = 8  # ... of a named set's refit
 
 
-@dataclass(frozen=True)
-class Form:
-    """One physical form: a law with units that sets some coefficients of a term class.
-
-    Attributes
-    ----------
-    key : str
-        ``<place>.<name>``, the form's name (written to the JSON's ``named[].form``).
-    place : str
-        One of :data:`PLACES`.
-    kind : str
-        One of :data:`KINDS`.
-    law : str
-        The law, in the symbols of its parameters.
-    words : str
-        What it is, in a test engineer's words.
-    params : tuple
-        (parameter name, coefficient key ``proposal_<class>.<coef>``, sign): parameter = sign x coefficient.
-    """
-
-    key: str
-    place: str
-    kind: str
-    law: str
-    words: str
-    params: tuple
-
-    @property
-    def coefs(self) -> tuple:
-        return tuple(c for _, c, _ in self.params)
+#: one physical form: a law with units that sets some coefficients of a term class (its ``key`` written to the
+#: JSON's ``named[].form``, its ``place`` one of :data:`PLACES`, its ``kind`` one of :data:`KINDS`)
+Form = NamedForm
 
 
-def _f(key, kind, law, words, *params):
+def _f(key, kind, law, words, *params, positive=()):
     place = key.split(".", 1)[0]
-    return Form(key, place, kind, law, words, tuple(params))
+    return Form(key, place, kind, law, words, tuple(params), positive)
 
 
-_PF, _CT, _CF, _LF = "proposal_piston_force", "proposal_crank_torque", "proposal_chamber_flows", "proposal_land_flows"
-_VC, _PR = "proposal_valve_current", "proposal_position_reading"
+_PF, _CT, _LF = "proposal_piston_force", "proposal_crank_torque", "proposal_land_flows"
 #: the two places of one mechanical load (the piston's force, the crank's torque through the lever r cos theta):
 #: the naming fits the flexible term at both when the proposal's terms sit at one (:func:`name_terms`)
 MECHANICAL_TWIN = {_PF: _CT, _CT: _PF}
-#: every named form: its place, kind, law, words and coefficients, in one table
-FORMS = (
-    # piston force
-    _f("piston_force.coulomb", "friction", "F = -F_c sign(v)", "dry friction on the piston, constant level",
-       ("F_c", f"{_PF}.c_sv", -1)),
-    _f("piston_force.viscous", "friction", "F = -b v", "viscous friction on the piston", ("b", f"{_PF}.c_v", -1)),
-    _f("piston_force.friction_x2", "friction", "F = -(F_0 + k x^2) sign(v)",
-       "friction whose level rises with position squared (toward the stroke's ends)",
-       ("F_0", f"{_PF}.c_sv", -1), ("k", f"{_PF}.c_x2sv", -1)),
-    _f("piston_force.viscous_x2", "friction", "F = -(b_0 + b_2 x^2) v",
-       "viscous friction whose level rises with position squared",
-       ("b_0", f"{_PF}.c_v", -1), ("b_2", f"{_PF}.c_x2v", -1)),
-    _f("piston_force.friction_load", "friction", "F = -(F_0 + a |P_L|) sign(v)",
-       "seal friction that rises with the load pressure", ("F_0", f"{_PF}.c_sv", -1), ("a", f"{_PF}.c_plsv", -1)),
-    _f("piston_force.quadratic_drag", "load", "F = -d v |v|", "a drag that grows with velocity squared",
-       ("d", f"{_PF}.c_vv", -1)),
-    _f("piston_force.spring", "load", "F = -k x", "a spring on the piston", ("k", f"{_PF}.c_x", -1)),
-    _f("piston_force.hardening_spring", "load", "F = -(k x + k_3 x^3)", "a spring on the piston that hardens",
-       ("k", f"{_PF}.c_x", -1), ("k_3", f"{_PF}.c_x3", -1)),
-    _f("piston_force.constant", "load", "F = F_0", "a constant force on the piston (an offset load)",
-       ("F_0", f"{_PF}.c_1", 1)),
-    _f("piston_force.load_x2", "load", "F = k_2 x^2", "a load that rises toward both ends of the stroke",
-       ("k_2", f"{_PF}.c_x2", 1)),
-    _f("piston_force.area_ab", "geometry/area", "F = dA_A p_A - dA_B p_B",
-       "the piston's areas differ from the model's (a single rod or an area error)",
-       ("dA_A", f"{_PF}.c_pa", 1), ("dA_B", f"{_PF}.c_pb", -1)),
-    _f("piston_force.area_b", "geometry/area", "F = -dA_B p_B", "the rod side's area differs (a single rod)",
-       ("dA_B", f"{_PF}.c_pb", -1)),
-    # crank torque
-    _f("crank_torque.coulomb", "friction", "T = -T_c sign(omega)", "dry friction at the crank",
-       ("T_c", f"{_CT}.c_sw", -1)),
-    _f("crank_torque.viscous", "friction", "T = -b omega", "viscous friction at the crank", ("b", f"{_CT}.c_w", -1)),
-    _f("crank_torque.friction_angle", "friction", "T = -(T_0 + k theta^2) sign(omega)",
-       "crank friction whose level rises with the angle squared", ("T_0", f"{_CT}.c_sw", -1),
-       ("k", f"{_CT}.c_th2sw", -1)),
-    _f("crank_torque.joint_friction", "friction", "T = -(T_0 + mu |T_joint / A|) sign(omega)",
-       "a joint's friction that rises with the torque it carries (T_joint = P_L A r cos theta)",
-       ("T_0", f"{_CT}.c_sw", -1), ("mu", f"{_CT}.c_jsw", -1)),
-    _f("crank_torque.spring", "load", "T = -k theta", "a torsion spring on the crank", ("k", f"{_CT}.c_th", -1)),
-    _f("crank_torque.hardening_spring", "load", "T = -(k theta + k_3 theta^3)", "a torsion spring that hardens",
-       ("k", f"{_CT}.c_th", -1), ("k_3", f"{_CT}.c_th3", -1)),
-    _f("crank_torque.constant", "load", "T = T_0", "a constant torque on the crank (gravity, an offset load)",
-       ("T_0", f"{_CT}.c_1", 1)),
-    # chamber flows
-    _f("chamber_flows.leak_drain", "leakage/flow", "Q_A -= C_e p_A, Q_B -= C_e p_B",
-       "leakage from each chamber to drain", ("C_e", f"{_CF}.c_ext", 1)),
-    _f("chamber_flows.leak_across", "leakage/flow", "Q_L = C_i (p_A - p_B) from A to B",
-       "laminar leakage across the piston", ("C_i", f"{_CF}.c_int", 1)),
-    _f("chamber_flows.leak_across_turbulent", "leakage/flow", "Q_L = C_t sign(P_L) sqrt|P_L| from A to B",
-       "turbulent (orifice-like) leakage across the piston", ("C_t", f"{_CF}.c_intsq", 1)),
+
+
+#: every named form: its place, kind, law, words and coefficients -- the grammar's (its places' descriptions), then
+#: the lands' derived family (the orifice law's boundaries: its gain by direction, port and load, its metering law,
+#: the lines', the supply's and the return's pressures)
+FORMS = tuple(f for place in TERM_PLACES.values() for f in named_forms(place)) + (
     _f("chamber_flows.gain_by_direction", "valve", "q (1 + g_+) for i >= 0, q (1 + g_-) for i < 0",
        "a valve flow gain that differs by spool direction", ("g_+", f"{_LF}.c_gpos", 1),
        ("g_-", f"{_LF}.c_gneg", 1)),
@@ -143,7 +72,7 @@ FORMS = (
     _f("chamber_flows.gain_load", "valve", "q (1 - c |P_L| / P_S)", "a valve flow gain that falls with load pressure",
        ("c", f"{_LF}.c_gpl", -1)),
     _f("chamber_flows.line_resistance", "leakage/flow", "p_line drop = R q", "a resistance in the lines A and B",
-       ("R", f"{_LF}.c_rline", 1)),
+       ("R", f"{_LF}.c_rline", 1), positive=("R",)),
     _f("chamber_flows.metering_law", "valve", "q ~ sqrt(drop) (1 + c (sqrt(drop / (P_S / 2)) - 1))",
        "the lands' flow departs from the orifice law with the land's drop (flow forces on the spool, a laminar "
        "share)", ("c", f"{_LF}.c_lam", 1)),
@@ -151,45 +80,18 @@ FORMS = (
     _f("supply.offset", "supply/return", "P_S += dP_S", "the supply pressure at the valve differs from the set one",
        ("dP_S", f"{_LF}.c_sup", 1)),
     _f("supply.line_drop", "supply/return", "P_S -= R_S Q_S", "a supply line whose drop rises with the supply flow",
-       ("R_S", f"{_LF}.c_rsup", 1)),
+       ("R_S", f"{_LF}.c_rsup", 1), positive=("R_S",)),
     _f("supply.line_drop_turbulent", "supply/return", "P_S -= K_S Q_S^2",
-       "a supply line (or filter) whose drop rises with the supply flow squared", ("K_S", f"{_LF}.c_rsup2", 1)),
+       "a supply line (or filter) whose drop rises with the supply flow squared", ("K_S", f"{_LF}.c_rsup2", 1),
+       positive=("K_S",)),
     _f("return.back_pressure", "supply/return", "P_T = p_t", "a return line above tank pressure",
-       ("p_t", f"{_LF}.c_ret", 1)),
-    # command path
-    _f("valve_current.bias", "command path", "i += i_0", "a current offset (null bias)", ("i_0", f"{_VC}.c_1", 1)),
-    _f("valve_current.gain", "command path", "i (1 + g)", "a current (or flow) gain off the model's",
-       ("g", f"{_VC}.c_i", 1)),
-    _f("valve_current.gain_by_direction", "valve", "i (1 + g sign(i))", "a gain that differs by spool direction",
-       ("g", f"{_VC}.c_abs", 1)),
-    _f("valve_current.saturation", "command path", "i (1 + g) - s i^3", "a command path that saturates",
-       ("g", f"{_VC}.c_i", 1), ("s", f"{_VC}.c_i3", -1)),
-    _f("valve_current.dead_band", "command path", "i - d sign(i)", "a dead band around null",
-       ("d", f"{_VC}.c_sgn", -1)),
-    # the position sensor
-    _f("position_reading.offset", "sensor", "x_read = x + x_0", "the position sensor reads with an offset",
-       ("x_0", f"{_PR}.c_1", 1)),
-    _f("position_reading.gain", "sensor", "x_read = (1 + g) x", "the position sensor's gain is off",
-       ("g", f"{_PR}.c_x", 1)),
-    _f("position_reading.bow", "sensor", "x_read = x + b x^2", "the position sensor's characteristic bows",
-       ("b", f"{_PR}.c_x2", 1)),
-    _f("position_reading.cubic", "sensor", "x_read = (1 + g) x + c x^3", "the position sensor compresses its ends",
-       ("g", f"{_PR}.c_x", 1), ("c", f"{_PR}.c_x3", 1)),
+       ("p_t", f"{_LF}.c_ret", 1), positive=("p_t",)),
 )
 assert all(f.kind in KINDS and f.place in PLACES for f in FORMS)
 #: the parameters whose sign a form's words state -- a dry friction, a damping, a leak, a resistance, a friction that
 #: *rises*, a spring that *hardens*, a path that *saturates* are positive: fitted negative, the words would say the
 #: opposite of what the data show, and the form is not named (:func:`wrong_sign`)
-POSITIVE = {
-    "piston_force.coulomb": ("F_c",), "piston_force.viscous": ("b",), "piston_force.friction_x2": ("k",),
-    "piston_force.viscous_x2": ("b_2",), "piston_force.friction_load": ("a",), "piston_force.quadratic_drag": ("d",),
-    "piston_force.hardening_spring": ("k_3",), "crank_torque.coulomb": ("T_c",), "crank_torque.viscous": ("b",),
-    "crank_torque.friction_angle": ("k",), "crank_torque.joint_friction": ("mu",),
-    "crank_torque.hardening_spring": ("k_3",), "chamber_flows.leak_drain": ("C_e",),
-    "chamber_flows.leak_across": ("C_i",), "chamber_flows.leak_across_turbulent": ("C_t",),
-    "chamber_flows.line_resistance": ("R",), "supply.line_drop": ("R_S",), "supply.line_drop_turbulent": ("K_S",),
-    "return.back_pressure": ("p_t",), "valve_current.saturation": ("s",), "valve_current.dead_band": ("d",),
-}
+POSITIVE = {f.key: f.positive for f in FORMS if f.positive}
 assert all(any(f.key == k and set(v) <= {p for p, _, _ in f.params} for f in FORMS) for k, v in POSITIVE.items())
 
 

@@ -46,6 +46,7 @@ from ehas_env.diagnosis.naming import ADD_TERM_DB, PENALTY_PER_TERM_DB, name_ter
 from ehas_env.measurement.proposal_terms import TERM_CLASSES, term_param
 from ehas_env.measurement.replay import ModelSpec, Replayer
 from ehas_env.physics.rig import BAR, LPM, RigParams
+from ehas_env.physics.term_grammar import TERM_PLACES, place_atoms, term_class
 
 FIT_TOP = 3  # screened forms fitted fully
 MAX_TERMS = 3
@@ -62,71 +63,39 @@ SCREEN_GRID = 160
 
 #: the arguments of a form at the valve's lands (proposal_terms.ProposalLand: valve_side)
 _LAND_ARGS = ("pa", "pb", "ps", "q_a", "q_b", "qc", "q_supply")
-#: place, the form in words (the coefficient multiplies it), the expression of the effect file, its arguments
-FORMS = {
-    "proposal_piston_force.c_x": ("piston_force", "x", "{c} * x", ("x",)),
-    "proposal_piston_force.c_v": ("piston_force", "v", "{c} * v", ("v",)),
-    "proposal_piston_force.c_sv": ("piston_force", "tanh(v / v_tanh)", "{c} * math.tanh(v / v_tanh)", ("v", "v_tanh")),
-    "proposal_piston_force.c_1": ("piston_force", "1", "{c}", ()),
-    "proposal_piston_force.c_pa": ("piston_force", "p_A", "{c} * pa", ("pa",)),
-    "proposal_piston_force.c_pb": ("piston_force", "p_B", "{c} * pb", ("pb",)),
-    "proposal_piston_force.c_vv": ("piston_force", "v |v|", "{c} * v * abs(v)", ("v",)),
-    "proposal_piston_force.c_x3": ("piston_force", "x^3", "{c} * x ** 3", ("x",)),
-    "proposal_piston_force.c_x2": ("piston_force", "x^2", "{c} * x ** 2", ("x",)),
-    "proposal_piston_force.c_x2sv": ("piston_force", "x^2 tanh(v / v_tanh)", "{c} * x ** 2 * math.tanh(v / v_tanh)",
-                                     ("x", "v", "v_tanh")),
-    "proposal_piston_force.c_x2v": ("piston_force", "x^2 v", "{c} * x ** 2 * v", ("x", "v")),
-    "proposal_piston_force.c_plsv": ("piston_force", "|p_A - p_B| tanh(v / v_tanh)",
-                                     "{c} * abs(pa - pb) * math.tanh(v / v_tanh)", ("pa", "pb", "v", "v_tanh")),
-    "proposal_crank_torque.c_th": ("crank_torque", "theta", "{c} * theta", ("theta",)),
-    "proposal_crank_torque.c_w": ("crank_torque", "omega", "{c} * omega", ("omega",)),
-    "proposal_crank_torque.c_sw": ("crank_torque", "tanh(r omega / v_tanh)", "{c} * math.tanh(radius * omega / v_tanh)",
-                                   ("omega", "radius", "v_tanh")),
-    "proposal_crank_torque.c_1": ("crank_torque", "1", "{c}", ()),
-    "proposal_crank_torque.c_th3": ("crank_torque", "theta^3", "{c} * theta ** 3", ("theta",)),
-    "proposal_crank_torque.c_th2sw": ("crank_torque", "theta^2 tanh(r omega / v_tanh)",
-                                      "{c} * theta ** 2 * math.tanh(radius * omega / v_tanh)",
-                                      ("theta", "omega", "radius", "v_tanh")),
-    "proposal_crank_torque.c_jsw": ("crank_torque", "|p_A - p_B| r |cos theta| tanh(r omega / v_tanh)",
-                                    "{c} * abs(pa - pb) * radius * abs(math.cos(theta)) * math.tanh(radius * omega / v_tanh)",
-                                    ("theta", "omega", "pa", "pb", "radius", "v_tanh")),
-    "proposal_chamber_flows.c_ext": ("chamber_flows", "(-p_A, -p_B)", None, ("pa", "pb")),
-    "proposal_chamber_flows.c_int": ("chamber_flows", "(-(p_A - p_B), +(p_A - p_B))", None, ("pa", "pb")),
-    "proposal_chamber_flows.c_intsq": ("chamber_flows", "(-sign(p_L) sqrt|p_L|, +sign(p_L) sqrt|p_L|)", None,
-                                       ("pa", "pb")),
-    "proposal_land_flows.c_ret": ("chamber_flows", "the outflow land's flow times -1 / (2 p_out): return back-pressure",
-                                  None, _LAND_ARGS),
-    "proposal_land_flows.c_sup": ("chamber_flows", "the inflow land's flow times 1 / (2 (p_S - p_in)): supply offset",
-                                  None, _LAND_ARGS),
-    "proposal_land_flows.c_ga": ("chamber_flows", "(q_A, 0)", None, _LAND_ARGS),
-    "proposal_land_flows.c_gb": ("chamber_flows", "(0, q_B)", None, _LAND_ARGS),
-    "proposal_land_flows.c_gpos": ("chamber_flows", "(q_A, q_B) while q_c >= 0", None, _LAND_ARGS),
-    "proposal_land_flows.c_gneg": ("chamber_flows", "(q_A, q_B) while q_c < 0", None, _LAND_ARGS),
-    "proposal_land_flows.c_gpl": ("chamber_flows", "(q_A, q_B) |p_A - p_B| / p_S", None, _LAND_ARGS),
-    "proposal_land_flows.c_rline": ("chamber_flows", "each land's flow times -|q| / (2 drop): line resistance",
-                                    None, _LAND_ARGS),
-    "proposal_land_flows.c_rsup": ("chamber_flows", "the inflow land's flow times -|q_S| / (2 (p_S - p_in)): "
-                                   "supply drop per supply flow", None, _LAND_ARGS),
-    "proposal_land_flows.c_rsup2": ("chamber_flows", "the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): "
-                                    "supply drop per supply flow squared", None, _LAND_ARGS),
-    "proposal_land_flows.c_lam": ("chamber_flows", "each land's flow times (sqrt(drop / (p_S / 2)) - 1): "
-                                  "metering that goes with the drop", None, _LAND_ARGS),
-    "proposal_valve_current.c_1": ("valve_current", "1", "{c}", ()),
-    "proposal_valve_current.c_i": ("valve_current", "i", "{c} * i", ()),
-    "proposal_valve_current.c_abs": ("valve_current", "|i|", "{c} * abs(i)", ()),
-    "proposal_valve_current.c_i3": ("valve_current", "i^3", "{c} * i ** 3", ()),
-    "proposal_valve_current.c_sgn": ("valve_current", "tanh(i / 0.05 mA)", "{c} * math.tanh(i / 0.05)", ()),
-    "proposal_position_reading.c_1": ("position_reading", "1", "{c}", ()),
-    "proposal_position_reading.c_x": ("position_reading", "x", "{c} * x", ()),
-    "proposal_position_reading.c_x2": ("position_reading", "x^2", "{c} * x ** 2", ()),
-    "proposal_position_reading.c_x3": ("position_reading", "x^3", "{c} * x ** 3", ()),
+#: the lands' coefficients (proposal_terms.ProposalLand, the derived family): the form in words
+_LAND_FORMS = {
+    "c_ret": "the outflow land's flow times -1 / (2 p_out): return back-pressure",
+    "c_sup": "the inflow land's flow times 1 / (2 (p_S - p_in)): supply offset",
+    "c_ga": "(q_A, 0)", "c_gb": "(0, q_B)", "c_gpos": "(q_A, q_B) while q_c >= 0",
+    "c_gneg": "(q_A, q_B) while q_c < 0", "c_gpl": "(q_A, q_B) |p_A - p_B| / p_S",
+    "c_rline": "each land's flow times -|q| / (2 drop): line resistance",
+    "c_rsup": "the inflow land's flow times -|q_S| / (2 (p_S - p_in)): supply drop per supply flow",
+    "c_rsup2": "the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): supply drop per supply flow squared",
+    "c_lam": "each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop",
 }
-#: flow forms as code of the effect file: (lines when q_c >= 0 and always, lines when q_c < 0)
-FLOW_CODE = {
-    "c_ext": (["dqa -= {c} * pa", "dqb -= {c} * pb"], None),
-    "c_int": (["dqa -= {c} * (pa - pb)", "dqb += {c} * (pa - pb)"], None),
-    "c_intsq": (["dqa -= {c} * math.copysign(math.sqrt(abs(pa - pb)), pa - pb)",
-                 "dqb += {c} * math.copysign(math.sqrt(abs(pa - pb)), pa - pb)"], None),
+
+
+def _grammar_forms() -> dict:
+    """{coefficient key: (place, the form in words, the effect file's expression, its arguments)} of the grammar's
+    atoms (:mod:`ehas_env.physics.term_grammar`), the lands' family after them."""
+    out = {}
+    for place in TERM_PLACES.values():
+        for a in place_atoms(place):
+            expr = None if place.form == "flow_pair" else ("{c}" if a.code == "1.0" else "{c} * " + a.code)
+            args = () if place.form == "signal" else a.args
+            out[f"{term_class(place.name)}.{a.coef}"] = (place.name, a.text, expr, args)
+    for coef, text in _LAND_FORMS.items():
+        out[f"proposal_land_flows.{coef}"] = ("chamber_flows", text, None, _LAND_ARGS)
+    return out
+
+
+#: place, the form in words (the coefficient multiplies it), the expression of the effect file, its arguments
+FORMS = _grammar_forms()
+#: flow forms as code of the effect file: (lines when q_c >= 0 and always, lines when q_c < 0); the chambers' leaks
+#: from the grammar, the lands' family after them
+FLOW_CODE = {a.coef: (list(a.flow), None) for a in place_atoms(TERM_PLACES["chamber_flows"])}
+FLOW_CODE.update({
     "c_gpl": (["dqa += {c} * abs(pa - pb) / max(ps, 1.0e5) * q_a", "dqb += {c} * abs(pa - pb) / max(ps, 1.0e5) * q_b"],
               None),
     "c_rline": (["dqa -= {c} * abs(q_a) * q_a / (2.0 * max(ps - pa, 1.0e5))",
@@ -147,7 +116,7 @@ FLOW_CODE = {
     "c_gb": (["dqb += {c} * q_b"], None),
     "c_gpos": (["dqa += {c} * q_a", "dqb += {c} * q_b"], []),
     "c_gneg": ([], ["dqa += {c} * q_a", "dqb += {c} * q_b"]),
-}
+})
 #: what the model's right-hand side returns at each place (for the equation)
 PLACE_SYMBOL = {"piston_force": "F_piston [N] +=", "crank_torque": "T_crank [N m] +=",
                 "chamber_flows": "(Q_A, Q_B) [m^3/s] +=", "valve_current": "i_valve [mA] +=",
@@ -155,20 +124,17 @@ PLACE_SYMBOL = {"piston_force": "F_piston [N] +=", "crank_torque": "T_crank [N m
 SHORT = {"piston_force": "f", "crank_torque": "t", "chamber_flows": "q", "valve_current": "i", "position_reading": "r"}
 #: the largest coefficient tried: the form's typical size on this rig times this scale
 FORCE_SCALE = 4000.0  # N on the piston (a third of the stall force)
-FIXED_RANGE = {"proposal_chamber_flows.c_ext": 2e-11, "proposal_chamber_flows.c_int": 2e-11,
-               "proposal_chamber_flows.c_intsq": 6e-8,
-               "proposal_land_flows.c_ret": 30e5, "proposal_land_flows.c_sup": 60e5,
-               "proposal_land_flows.c_ga": 0.4, "proposal_land_flows.c_gb": 0.4,
-               "proposal_land_flows.c_gpos": 0.4, "proposal_land_flows.c_gneg": 0.4,
-               "proposal_land_flows.c_gpl": 0.6, "proposal_land_flows.c_rline": 1.5e10,
-               "proposal_land_flows.c_rsup": 1.5e10, "proposal_land_flows.c_rsup2": 7.5e13,
-               "proposal_land_flows.c_lam": 0.5,
-               "proposal_valve_current.c_1": 3.0, "proposal_valve_current.c_i": 0.4,
-               "proposal_valve_current.c_abs": 0.4, "proposal_valve_current.c_i3": 1e-3,
-               "proposal_valve_current.c_sgn": 1.0,
-               # the position reading: 2 mm at the crank's radius (0.05 m) for each form
-               "proposal_position_reading.c_1": 2e-3, "proposal_position_reading.c_x": 0.04,
-               "proposal_position_reading.c_x2": 0.8, "proposal_position_reading.c_x3": 16.0}
+#: the largest coefficient tried at the signal and flow places: the place's scale over the form at the quantities'
+#: spans (term_grammar.TermPlace.scale); the lands' family by hand (assumed: 30-60 bar at the ports, 40-60 % of
+#: the gain, a drop of the supply's size at the rated flow)
+FIXED_RANGE = {f"{term_class(p.name)}.{a.coef}": p.scale / a.span_value
+               for p in TERM_PLACES.values() if p.scale for a in place_atoms(p)}
+FIXED_RANGE.update({"proposal_land_flows.c_ret": 30e5, "proposal_land_flows.c_sup": 60e5,
+                    "proposal_land_flows.c_ga": 0.4, "proposal_land_flows.c_gb": 0.4,
+                    "proposal_land_flows.c_gpos": 0.4, "proposal_land_flows.c_gneg": 0.4,
+                    "proposal_land_flows.c_gpl": 0.6, "proposal_land_flows.c_rline": 1.5e10,
+                    "proposal_land_flows.c_rsup": 1.5e10, "proposal_land_flows.c_rsup2": 7.5e13,
+                    "proposal_land_flows.c_lam": 0.5})
 
 
 #: forms refitted without one of them at each step of the proposal's backward elimination (the best ranked by the
@@ -575,12 +541,13 @@ def effect_source(proposal: Proposal, name: str, *, origin: str = "") -> str:
             else:
                 expr = FORMS[k][2].format(c=pname)
                 body.append(f"{sign}({expr})" if sign else f"({expr})")
-        first = {"valve_current": ["i"], "position_reading": ["x"]}.get(place, [])
+        tp = TERM_PLACES.get(place)
+        first = [tp.quantities[0].code] if tp is not None and tp.form == "signal" else []
         sig = ", ".join(first + args + pnames)
         lines = [f"    @staticmethod", f"    def {place}({sig}):"]
         if place == "chamber_flows":
             lines += _flow_body(body)
-        elif place in ("valve_current", "position_reading"):
+        elif first:
             lines.append(f"        return {first[0]} + " + " + ".join(body))
         else:
             lines.append("        return " + " + ".join(body))

@@ -1,30 +1,37 @@
 """The dictionary of candidate terms a diagnosis may propose, at the places where physics enters the model.
 
 When no effect of the library explains a campaign, :mod:`ehas_env.diagnosis.proposal`
-fits terms of this dictionary inside the full model.  Each place of the model
-(``ehas_env.physics.effects.base.PLACES``) gets one term class whose
-parameters are the coefficients of physically meaningful forms:
+fits terms of this dictionary inside the full model.  Each place of the model gets one term class whose
+parameters are the coefficients of physically meaningful forms.  They are **generated**
+(:mod:`ehas_env.physics.term_grammar`): each place is one description of its local quantities (position, motion,
+pressures, the load a joint carries, a signal) and a grammar of transformations makes the forms (springs and loads
+of a position, viscous, dry and quadratic friction of a motion, a friction whose level rises with a position or a
+load, area errors, a signal's offset, gain, bow, cubic bend, gain by direction and step at null, leaks to drain and
+across), each with its code, its coefficient's unit from the units' algebra, its words and its kinds:
 
 =================  ==========================================================  ==================
 place              forms (coefficient c times ...)                             coefficient unit
 =================  ==========================================================  ==================
-piston_force       x, v, tanh(v / v_tanh), 1, p_A, p_B, v|v|, x^3, x^2,        N/m, N s/m, N, ...
-                   x^2 tanh(v / v_tanh), x^2 v, |p_L| tanh(v / v_tanh)
-crank_torque       theta, omega, tanh(r omega / v_tanh), 1, theta^3,           N m/rad, ...
-                   theta^2 tanh(r omega / v_tanh),
-                   |joint torque per Pa| tanh(r omega / v_tanh)
-chamber_flows      leak to drain (-p_A, -p_B), leak across (-(p_A - p_B), +),   m^3/s/Pa, ...
-                   turbulent leak across (sign(p_L) sqrt|p_L|)
+piston_force       1, x, x^2, x^3, v, tanh(v / v_tanh), v |v|, p_A, p_B,       N, N/m, ..., m^2
+                   x^2 tanh(v / v_tanh), |p_L| tanh(v / v_tanh), x^2 v, |p_L| v
+crank_torque       1, theta, theta^2, theta^3, omega, tanh(r omega / v_tanh),  N m, N m/rad, ...
+                   omega |omega|, theta^2 and the joint's load |p_L| r |cos
+                   theta| times tanh(r omega / v_tanh) and omega
+chamber_flows      leak to drain (-p_A, -p_B) and across (-(p_A - p_B), +),    m^3/(Pa s),
+                   each laminar and turbulent (sign(p) sqrt|p|)                m^3/(Pa^0.5 s)
 land_flows         (valve side: the lands' flows, on the bench too) back-       Pa, -, Pa s/m^3, ...
                    pressure of the return line, supply pressure offset, supply
                    drop per supply flow and per its square, flow gain into A /
                    into B / by spool direction, flow gain falling with
                    |p_L| / p_S, a line resistance (drop per flow), a share of
                    the flow that goes with the land drop (laminar)
-valve_current      1 (null bias), i (gain), |i| (gain by spool direction),     mA, -, -, 1/mA^2,
-                   i^3 (saturation), tanh(i / 0.05 mA) (a step at null)        mA
+valve_current      1 (null bias), i, i^2, i^3, |i| (gain by spool direction),   mA, -, 1/mA, ...
+                   tanh(i / 0.05 mA) (a step at null)
 position_reading   1 (offset), x (gain), x^2, x^3                              m, -, 1/m, 1/m^2
 =================  ==========================================================  ==================
+
+The lands' terms (:class:`ProposalLand`) are a derived family of their own: perturbations of the orifice law at its
+boundaries (its supply and return pressures, its drop, its gain by port and direction), written once here.
 
 The classes are *not* registered effects (the registry stays the library plus
 the user's effects): :func:`extended_model` compiles them beside the registered
@@ -37,7 +44,9 @@ from __future__ import annotations
 
 import math
 
+from ehas_env.physics.effects.augmentation import term_methods
 from ehas_env.physics.effects.base import Effect, Param
+from ehas_env.physics.term_grammar import TERM_PLACES, method_source, place_atoms, term_class
 
 _WIDE = (-1.0e30, 1.0e30)
 
@@ -46,62 +55,17 @@ def _p(name, unit, doc):
     return Param(name, unit, 0.0, _WIDE, doc)
 
 
-class ProposalPiston(Effect):
-    params = (
-        _p("c_x", "N/m", "spring on the piston: force per metre of stroke"),
-        _p("c_v", "N s/m", "viscous force per m/s"),
-        _p("c_sv", "N", "dry (Coulomb-like) force times sign(v)"),
-        _p("c_1", "N", "constant force"),
-        _p("c_pa", "m^2", "force per Pa of chamber A pressure (area error on side A)"),
-        _p("c_pb", "m^2", "force per Pa of chamber B pressure (area error on side B: a single rod)"),
-        _p("c_vv", "N s^2/m^2", "quadratic damping: force per (m/s)^2, signed"),
-        _p("c_x3", "N/m^3", "hardening spring: force per m^3"),
-        _p("c_x2", "N/m^2", "force per m^2 of stroke (a load that rises toward both ends)"),
-        _p("c_x2sv", "N/m^2", "dry force that rises with position squared: per m^2, times sign(v)"),
-        _p("c_x2v", "N s/m^3", "viscous force that rises with position squared: per m^2 and per m/s"),
-        _p("c_plsv", "m^2", "dry force that rises with the load pressure: per Pa of |p_L|, times sign(v)"),
-    )
-
-    @staticmethod
-    def piston_force(x, v, pa, pb, v_tanh, c_x, c_v, c_sv, c_1, c_pa, c_pb, c_vv, c_x3, c_x2, c_x2sv, c_x2v,
-                     c_plsv):
-        sv = math.tanh(v / v_tanh)
-        return (c_x * x + c_v * v + c_sv * sv + c_1 + c_pa * pa + c_pb * pb
-                + c_vv * v * abs(v) + c_x3 * x * x * x + c_x2 * x * x + c_x2sv * x * x * sv + c_x2v * x * x * v
-                + c_plsv * abs(pa - pb) * sv)
-
-
-class ProposalCrank(Effect):
-    params = (
-        _p("c_th", "N m/rad", "spring on the crank: torque per radian"),
-        _p("c_w", "N m s/rad", "viscous torque per rad/s"),
-        _p("c_sw", "N m", "dry torque times sign(omega)"),
-        _p("c_1", "N m", "constant torque (an offset load, gravity at 0 deg)"),
-        _p("c_th3", "N m/rad^3", "hardening spring: torque per rad^3"),
-        _p("c_th2sw", "N m/rad^2", "dry torque that rises with angle squared: per rad^2, times sign(omega)"),
-        _p("c_jsw", "m^3", "dry torque that rises with the joint's load: per Pa of |p_L| r |cos theta|, "
-                           "times sign(omega) (a joint's friction, Pa x m^2 x m)"),
-    )
-
-    @staticmethod
-    def crank_torque(theta, omega, pa, pb, radius, v_tanh, c_th, c_w, c_sw, c_1, c_th3, c_th2sw, c_jsw):
-        sw = math.tanh(radius * omega / v_tanh)
-        return (c_th * theta + c_w * omega + c_sw * sw + c_1 + c_th3 * theta * theta * theta
-                + c_th2sw * theta * theta * sw + c_jsw * abs(pa - pb) * radius * abs(math.cos(theta)) * sw)
-
-
-class ProposalFlow(Effect):
-    params = (
-        _p("c_ext", "m^3/s/Pa", "leakage from each chamber to drain, per Pa"),
-        _p("c_int", "m^3/s/Pa", "leakage across the piston, per Pa of load pressure"),
-        _p("c_intsq", "m^3/s/Pa^0.5", "turbulent leakage across the piston, per sqrt(Pa) of load pressure"),
-    )
-
-    @staticmethod
-    def chamber_flows(pa, pb, c_ext, c_int, c_intsq):
-        pl = pa - pb
-        cross = c_int * pl + c_intsq * math.copysign(math.sqrt(abs(pl)), pl)
-        return -c_ext * pa - cross, -c_ext * pb + cross
+def _term_class(place) -> type:
+    """The term class of a :class:`~ehas_env.physics.term_grammar.TermPlace`: a parameter per atom of the
+    grammar there, its one method their sum (unnamed here: naming it would register it as an effect)."""
+    atoms = place_atoms(place)
+    qual = "Proposal_" + place.name
+    body = {"params": tuple(_p(a.coef, a.unit, a.words) for a in atoms), "__module__": __name__,
+            "__qualname__": qual, "__doc__": f"The grammar's terms {place.where} (generated).",
+            **term_methods(term_class(place.name), [method_source(place, atoms)])}
+    if place.chain_order is not None:
+        body["chain_order"] = place.chain_order
+    return type(Effect)(qual, (Effect,), body)
 
 
 class ProposalLand(Effect):
@@ -153,40 +117,11 @@ class ProposalLand(Effect):
         return dqa + c_ga * q_a, dqb + c_gb * q_b
 
 
-class ProposalCurrent(Effect):
-    chain_order = 1000  # after every effect of the current chain
-    params = (
-        _p("c_1", "mA", "current offset (null bias)"),
-        _p("c_i", "-", "relative flow gain change"),
-        _p("c_abs", "-", "flow gain change by spool direction: i (1 + c sign(i))"),
-        _p("c_i3", "1/mA^2", "cubic current: a gain that falls (c < 0, saturation) or rises with |i|"),
-        _p("c_sgn", "mA", "a step of the current at null: c tanh(i / 0.05 mA) (a dead band when c < 0)"),
-    )
-
-    @staticmethod
-    def valve_current(i, c_1, c_i, c_abs, c_i3, c_sgn):
-        return i + c_1 + c_i * i + c_abs * abs(i) + c_i3 * i * i * i + c_sgn * math.tanh(i / 0.05)
-
-
-class ProposalReading(Effect):
-    params = (
-        _p("c_1", "m", "offset of the position reading"),
-        _p("c_x", "-", "gain error of the position reading (relative)"),
-        _p("c_x2", "1/m", "reading error per m^2 of position (a bowed characteristic)"),
-        _p("c_x3", "1/m^2", "reading error per m^3 of position (a sensor that compresses its ends)"),
-    )
-
-    @staticmethod
-    def position_reading(x, c_1, c_x, c_x2, c_x3):
-        return x + c_1 + c_x * x + c_x2 * x * x + c_x3 * x * x * x
-
-
 #: the term classes by place; their names are set here, after the class bodies, so that
 #: defining them does not register them as effects
-TERM_CLASSES = {"piston_force": ProposalPiston, "crank_torque": ProposalCrank, "chamber_flows": ProposalFlow,
-                "land_flows": ProposalLand, "valve_current": ProposalCurrent, "position_reading": ProposalReading}
+TERM_CLASSES = {**{name: _term_class(place) for name, place in TERM_PLACES.items()}, "land_flows": ProposalLand}
 for _place, _cls in TERM_CLASSES.items():
-    _cls.name = f"proposal_{_place}"
+    _cls.name = term_class(_place)
     _cls.title = f"proposed term at {_place.replace('_', ' ')}"
 _BY_NAME = {c.name: c for c in TERM_CLASSES.values()}
 

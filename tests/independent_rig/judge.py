@@ -111,6 +111,14 @@ FORM_KIND.update({
     "position_reading.c_1": {"sensor"}, "position_reading.c_x": {"sensor"}, "position_reading.c_x2": {"sensor"},
     "position_reading.c_x3": {"sensor"},
 })
+# the grammar's atoms beyond those (ehas_env/physics/term_grammar.py), judged by their law: a viscous level that
+# rises with a load or an angle, the crank's quadratic drag and load toward both ends, a turbulent leak to drain,
+# a bow of the command path
+FORM_KIND.update({
+    "piston_force.c_plv": {"friction"}, "crank_torque.c_th2": {"load"}, "crank_torque.c_ww": {"friction"},
+    "crank_torque.c_th2w": {"friction"}, "crank_torque.c_jw": {"friction"}, "chamber_flows.c_extsq": {"leakage/flow"},
+    "valve_current.c_i2": {"valve", "command path"},
+})
 #: coefficients that act on a boundary of the lands rather than on the chambers' flows
 COEF_PLACE = {"c_sup": "supply", "c_rsup": "supply", "c_rsup2": "supply", "c_ret": "return"}
 
@@ -142,6 +150,16 @@ NAMED_FORM_KIND = {
     "valve_current.dead_band": {"valve", "command path"},
     "position_reading.offset": {"sensor"}, "position_reading.gain": {"sensor"}, "position_reading.bow": {"sensor"},
     "position_reading.cubic": {"sensor"},
+    # the grammar's named forms beyond those (ehas_env/physics/term_grammar.py: named_forms), by their law
+    "piston_force.viscous_load": {"friction"},  # F = -(b_0 + k |P_L|) v
+    "piston_force.area_a": {"geometry/area"},
+    "crank_torque.load_th2": {"load"}, "crank_torque.quadratic_drag": {"friction"},
+    "crank_torque.friction_joint": {"friction"},  # T = -(T_0 + k |P_L| r |cos theta|) sign(omega)
+    "crank_torque.viscous_angle": {"friction"}, "crank_torque.viscous_joint": {"friction"},
+    "chamber_flows.leak_drain_turbulent": {"leakage/flow"},
+    "valve_current.offset": {"valve", "command path"}, "valve_current.bow": {"command path", "valve"},
+    "valve_current.expansion": {"command path"},
+    "position_reading.saturation": {"sensor"}, "position_reading.expansion": {"sensor"},
 }
 #: the package's place names (and spellings it has used) -> the generator's (:data:`.effects.PLACES`)
 PLACE_ALIAS = {**{p: p for p in PLACES}, "land_flows": "chamber_flows", "chamber_flow": "chamber_flows",
@@ -553,6 +571,12 @@ NAMED_FORM_BLOCK = {
     "valve_current.dead_band": {"dead_zone"},
     "position_reading.offset": {"offset"}, "position_reading.gain": {"gain"}, "position_reading.bow": {"smooth"},
     "position_reading.cubic": {"smooth"},
+    "piston_force.viscous_load": {"smooth"}, "piston_force.area_a": {"gain"}, "crank_torque.load_th2": {"smooth"},
+    "crank_torque.quadratic_drag": {"smooth"}, "crank_torque.friction_joint": {"saturation"},
+    "crank_torque.viscous_angle": {"smooth"}, "crank_torque.viscous_joint": {"smooth"},
+    "chamber_flows.leak_drain_turbulent": {"smooth"}, "valve_current.offset": {"offset"},
+    "valve_current.bow": {"smooth"}, "valve_current.expansion": {"smooth"},
+    "position_reading.saturation": {"saturation"}, "position_reading.expansion": {"smooth"},
 }
 #: the block kinds of the proposal's bare terms (:data:`FORM_KIND`'s keys), for "the right kind among any form"
 FORM_BLOCK = {
@@ -571,6 +595,9 @@ FORM_BLOCK = {
     "valve_current.c_i3": {"smooth"}, "valve_current.c_sgn": {"dead_zone", "offset"},
     "position_reading.c_1": {"offset"}, "position_reading.c_x": {"gain"}, "position_reading.c_x2": {"smooth"},
     "position_reading.c_x3": {"smooth"},
+    "piston_force.c_plv": {"smooth"}, "crank_torque.c_th2": {"smooth"}, "crank_torque.c_ww": {"smooth"},
+    "crank_torque.c_th2w": {"smooth"}, "crank_torque.c_jw": {"smooth"}, "chamber_flows.c_extsq": {"smooth"},
+    "valve_current.c_i2": {"smooth"},
 }
 #: words that name one side of the actuator (a chamber, its port, land, hose or pressure reading)
 SIDE_WORDS = {"a": r"\b(chamber|port|land|side|hose|line|reading|p)[\s_]+a\b",

@@ -107,7 +107,7 @@ def test_a_supply_taken_as_a_measured_input_is_the_supply_boundary_named():
 def test_a_pair_needs_both_and_a_kept_library_effect_counts_where_it_acts():
     pair = {"bearing_friction": UNLISTED["bearing_friction"].values(0),
             "coulomb_friction": {"Fc": 250.0}}
-    both = worded_items(_diag(kept=["coulomb_friction"], named=[_named("crank_torque", "crank_torque.joint_friction")]))
+    both = worded_items(_diag(kept=["coulomb_friction"], named=[_named("crank_torque", "crank_torque.friction_joint")]))
     assert judge_place_kind(pair, both)["right"]
     # coulomb_friction alone: friction on the piston is an accepted place of the bearing friction too (the same
     # load through the lever), so that pair is right by place and kind; a sensor item beside it is wrong
@@ -115,7 +115,7 @@ def test_a_pair_needs_both_and_a_kept_library_effect_counts_where_it_acts():
     j = judge_place_kind(pair, extra)
     assert not j["right"] and any("position_reading" in w for w in j["wrong"])
     lag_pair = {"lvdt_lag": UNLISTED["lvdt_lag"].values(0), "bearing_friction": UNLISTED["bearing_friction"].values(0)}
-    only_one = worded_items(_diag(named=[_named("crank_torque", "crank_torque.joint_friction")]))
+    only_one = worded_items(_diag(named=[_named("crank_torque", "crank_torque.friction_joint")]))
     j = judge_place_kind(lag_pair, only_one)
     assert not j["right"] and not j["per_effect"]["lvdt_lag"]["right_kind"]
 

@@ -29,7 +29,8 @@ def _piston_columns(seed: int = 0):
     pb = 110e5 - 35e5 * np.sin(2 * np.pi * 1.0 * t + 0.25) + 1e5 * rng.standard_normal(t.size)
     sv = np.tanh(v / 1e-3)
     cols = {"c_x": x, "c_v": v, "c_sv": sv, "c_1": np.ones_like(x), "c_pa": pa, "c_pb": pb, "c_vv": v * np.abs(v),
-            "c_x3": x**3, "c_x2": x**2, "c_x2sv": x**2 * sv, "c_x2v": x**2 * v, "c_plsv": np.abs(pa - pb) * sv}
+            "c_x3": x**3, "c_x2": x**2, "c_x2sv": x**2 * sv, "c_x2v": x**2 * v, "c_plsv": np.abs(pa - pb) * sv,
+            "c_plv": np.abs(pa - pb) * v}
     return {f"{PISTON}.{k}": c for k, c in cols.items()}
 
 
@@ -88,9 +89,9 @@ def test_a_second_form_is_named_only_when_it_adds_enough(k, named):
 
 
 def test_a_wrong_kind_lookalike_listed_first_and_larger_is_not_named():
-    """Quadratic drag (v|v|, kind load) beside its lookalike viscous friction (v, kind friction): on a stroke
-    the two are 97 % alike, and the lookalike is listed first and carries the larger coefficient of the
-    flexible fit once scaled; the named form must be the drag, of kind load."""
+    """Quadratic drag (v|v|) beside its lookalike viscous friction (v): on a stroke the two are 97 % alike, and
+    the lookalike is listed first and carries the larger coefficient of the flexible fit once scaled; the named
+    form must be the drag (a dissipative law: friction, as the grammar kinds it)."""
     cols = _piston_columns()
     v, vv = cols[f"{PISTON}.c_v"], cols[f"{PISTON}.c_vv"]
     assert abs(np.corrcoef(v, vv)[0, 1]) > 0.95
@@ -98,7 +99,7 @@ def test_a_wrong_kind_lookalike_listed_first_and_larger_is_not_named():
     visc = next(f for f in N.FORMS if f.key == "piston_force.viscous")
     others = [f for f in N.forms_of(PISTON) if f not in (drag, visc)]
     combo, base, flex, cost, predict = _name({f"{PISTON}.c_vv": -4.0e5}, noise=60.0, forms=[visc, *others, drag])
-    assert [f.key for f in combo] == ["piston_force.quadratic_drag"] and combo[0].kind == "load"
+    assert [f.key for f in combo] == ["piston_force.quadratic_drag"] and combo[0].kind == "friction"
     # the lookalike alone explains most of it (a naming by "explains a lot" would take it) but less than the drag
     assert predict([f"{PISTON}.c_v"])[0] < 0.2 * base
     assert predict([f"{PISTON}.c_vv"])[0] < predict([f"{PISTON}.c_v"])[0]
