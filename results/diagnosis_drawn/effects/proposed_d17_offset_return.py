@@ -1,4 +1,4 @@
-"""proposed_d17_offset_return: return-line (tank) pressure at the valve, found by ehas diagnose on /tmp/s1/work/d17_offset@return/campaign.
+"""proposed_d17_offset_return: return-line (tank) pressure at the valve, found by ehas diagnose on /work/runs/drawn/d17_offset@return/campaign.
 
 The return line is at 7.44 bar at the valve's return lands (the baseline: 0 bar).
 p_t = 7.444 bar (95 % CI 7.424 to 7.464)

@@ -1,4 +1,4 @@
-"""proposed_d07_saturation_piston_force: a term proposed by ehas diagnose for /tmp/s1/work_ho/d07_saturation@piston_force/campaign.
+"""proposed_d07_saturation_piston_force: a term proposed by ehas diagnose for /work/runs/held/d07_saturation@piston_force/campaign.
 
 F_piston [N] += c_pa·p_A   with c_pa = -1.205e-06 m^2 (95 % CI -1.825e-06 to -5.849e-07)
 
@@ -14,7 +14,7 @@ class ProposedD07SaturationPistonForce(Effect):
     title = "proposed term (piston force)"
     params = (
         Param("f_pa", "m^2", 1.20501e-06, (0.0, 2.41001e-05),
-              "force per Pa of chamber A pressure (area error on side A) (fitted: -1.205e-06, 95 % CI -1.825e-06 to -5.849e-07)", typical=(6.02504e-07, 2.41001e-06)),
+              "force per N/m^2 of chamber A's pressure, on the piston (fitted: -1.205e-06, 95 % CI -1.825e-06 to -5.849e-07)", typical=(6.02504e-07, 2.41001e-06)),
     )
     main_param = "f_pa"
     explanation = 'Proposed by the diagnosis, not yet a physical explanation: F_piston [N] += c_pa·p_A with c_pa = -1.205e-06 m^2 (95 % CI -1.825e-06 to -5.849e-07)'

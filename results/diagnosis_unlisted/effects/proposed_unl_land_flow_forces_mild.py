@@ -1,8 +1,8 @@
-"""proposed_unl_land_flow_forces_mild: a term proposed by ehas diagnose for /tmp/unl-work/unl_land_flow_forces_mild/campaign.
+"""proposed_unl_land_flow_forces_mild: a term proposed by ehas diagnose for /work/runs/unl/unl_land_flow_forces_mild/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_lam·each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop   with c_lam = -0.04017 - (95 % CI -0.04155 to -0.03878)
 
-Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.56 -> 1.22; fit 95.9 % -> 96.7 %.
+Residual (geometric mean of noise-normalised residual energy, 1 = noise): 2.57 -> 1.22; fit 96.3 % -> 97.0 %.
 Rename the file, the class and ``name``, give the parameters physical names and documentation,
 then: ehas compare CAMPAIGN --effects-path DIR --effects NAME --fit
 """
@@ -15,8 +15,8 @@ class ProposedUnlLandFlowForcesMild(Effect):
     name = "proposed_unl_land_flow_forces_mild"
     title = "proposed term (chamber flows)"
     params = (
-        Param("q_lam", "-", 0.0401669, (0.0, 0.803339),
-              "share of the land flow that goes with the land's drop itself, not its square root (laminar metering; relative, at the rated drop p_S / 2) (fitted: -0.04017, 95 % CI -0.04155 to -0.03878)", typical=(0.0200835, 0.0803339)),
+        Param("q_lam", "-", 0.0401679, (0.0, 0.803358),
+              "share of the land flow that goes with the land's drop itself, not its square root (laminar metering; relative, at the rated drop p_S / 2) (fitted: -0.04017, 95 % CI -0.04155 to -0.03878)", typical=(0.0200839, 0.0803358)),
     )
     main_param = "q_lam"
     valve_side = True

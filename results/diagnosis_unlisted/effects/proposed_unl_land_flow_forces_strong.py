@@ -1,4 +1,4 @@
-"""proposed_unl_land_flow_forces_strong: a term proposed by ehas diagnose for /tmp/s1/work_unl/unl_land_flow_forces_strong/campaign.
+"""proposed_unl_land_flow_forces_strong: a term proposed by ehas diagnose for /work/runs/unl/unl_land_flow_forces_strong/campaign.
 
 (Q_A, Q_B) [m^3/s] += c_lam·each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop   with c_lam = -0.1222 - (95 % CI -0.1257 to -0.1187)
 
