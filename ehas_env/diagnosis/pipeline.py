@@ -620,7 +620,8 @@ def _term_without_hypotheses(s: Search, prop, small: bool = False) -> tuple | No
     g = grade(blocks_of(s.full, b_sims, COST_SIGNALS))
     if g["verdict"] != "unexplained":
         return None
-    s.say("proposing the term on the library's model too (without the structural hypotheses)")
+    what = "the state stage's blocks" if small else "the structural hypotheses"
+    s.say(f"proposing the term on the library's model too (without {what})")
     prop_b, ps_b, refused_b = propose_stage(s.rep, s.full, b_fit, b_sims, s.parts, b_val, g, s.say)
     if not term_replaces_kept(prop, prop_b, s.result.residual_x_noise, small):
         return None
@@ -628,8 +629,10 @@ def _term_without_hypotheses(s: Search, prop, small: bool = False) -> tuple | No
     why = (f"the term proposed without it leaves {x_b:.3g}x noise on all data"
            + ("" if prop is None else f", as well as with it ({prop.validation['residual_x_noise_all_after']:.3g}x)")
            + ": it stood in for the missing term")
+    set_aside = [st.effect for st in s.steps[len(flags):] if st.kept]
     steps_back_to(s.steps, flags, why)
-    s.say(f"  the hypotheses kept are dropped: {why}")
+    _records_set_aside(s.records, set_aside, why)
+    s.say(f"  {what} kept are dropped: {why}")
     s.current, s.cur_sims, s.cur_val, s.base = b_fit, b_sims, b_val, b_base
     # the model reported changed: measured again, and the record says so (the reported figure is the last measure's)
     measure_again(s, why)
@@ -640,6 +643,20 @@ def _term_without_hypotheses(s: Search, prop, small: bool = False) -> tuple | No
     per_run_parameters_stage(s)
     verdict_stage(s)
     return prop_b, ps_b, refused_b
+
+
+def _records_set_aside(records: list, names: list, why: str) -> None:
+    """Mark the earlier stages' records whose ``kept`` names an effect set aside in the end (``not_kept_in_the_end``:
+    {name: why}): a reader of a stage's record sees that what it kept is not in the final model."""
+    for rec in records:
+        kept = rec.get("kept")
+        kept = [kept] if isinstance(kept, str) else list(kept) if isinstance(kept, list) else []
+        for more in rec.get("more") or []:
+            if isinstance(more, dict) and isinstance(more.get("kept"), str):
+                kept.append(more["kept"])
+        gone = [n for n in kept if n in names]
+        if gone:
+            rec.setdefault("not_kept_in_the_end", {}).update({n: why for n in gone})
 
 
 def alternatives_stage(s: Search) -> dict:

@@ -28,7 +28,8 @@ The valve's lands (:mod:`ehas_env.measurement.proposal_terms`' ``ProposalLand``)
 own: perturbations of the orifice law at its boundaries, written once there.
 
 Adding a place is one :class:`TermPlace` in :data:`TERM_PLACES` (its quantities must be arguments the model
-defines at that place); adding a transformation is one :class:`Rule` in :data:`RULES` (docs/diagnosis-pipeline.md,
+defines at that place, :data:`~ehas_env.physics.effects.base.PLACE_QUANTITIES`, or baseline slots: a place the
+model cannot compute is refused); adding a transformation is one :class:`Rule` in :data:`RULES` (docs/diagnosis-pipeline.md,
 "Adding a place or a kind of term").
 
 Examples
@@ -201,6 +202,21 @@ class TermPlace:
     kind: str = ""
     scale: float = 0.0
     chain_order: int | None = None
+
+    def __post_init__(self):
+        from ehas_env.physics import layout
+        from ehas_env.physics.effects.base import PLACE_QUANTITIES
+
+        if self.name not in PLACE_QUANTITIES:
+            raise ValueError(f"term place {self.name!r}: not a place of the model; the places are "
+                             f"{', '.join(sorted(PLACE_QUANTITIES))}")
+        known = PLACE_QUANTITIES[self.name] | set(layout.BASE_SLOTS)
+        for q in self.quantities:
+            strays = [a for a in q.args + tuple(q.dry.partition("|")[2].split()) if a not in known]
+            if strays:
+                raise ValueError(f"term place {self.name!r}, quantity {q.sym!r}: {strays[0]!r} is not defined where "
+                                 f"the model calls the terms at {self.name} (its quantities: "
+                                 f"{', '.join(sorted(PLACE_QUANTITIES[self.name]))}, or a baseline slot)")
 
     def arguments(self) -> tuple:
         """The place's arguments its quantities read, in their order (a signal's own quantity first)."""

@@ -51,3 +51,17 @@ def test_without_the_measure_stage_the_diagnosis_refuses_in_one_line():
     camp = memory_campaign({}, SEED, duration=0.6, plan=((3, 20.0, 1.0),))[0]
     with pytest.raises(ValueError, match="'measure' stage"):
         diagnose_open(camp, stages=STAGES[:2], holdout=[], hypotheses=False)
+
+
+def test_a_stage_record_says_what_it_kept_was_set_aside_in_the_end():
+    """A later stage that sets aside what an earlier one kept marks that record (the JSON's stages[] no longer
+    says a block is kept that the final model lacks), and only the records that kept it."""
+    from ehas_env.diagnosis.pipeline import _records_set_aside
+
+    recs = [{"stage": "library", "kept": ["coulomb_friction"]},
+            {"stage": "states", "kept": "aug_lag_coil", "more": [{"kept": "aug_hose_b"}]},
+            {"stage": "hypotheses", "kept": ["hyp_rod_area"]}]
+    _records_set_aside(recs, ["aug_lag_coil", "aug_hose_b"], "the term stood in")
+    assert recs[1]["not_kept_in_the_end"] == {"aug_lag_coil": "the term stood in", "aug_hose_b": "the term stood in"}
+    assert "not_kept_in_the_end" not in recs[0] and "not_kept_in_the_end" not in recs[2]
+    assert recs[1]["kept"] == "aug_lag_coil" and recs[0]["kept"] == ["coulomb_friction"]  # the records' own keys stay

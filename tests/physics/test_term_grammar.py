@@ -143,3 +143,13 @@ def test_the_docs_example_runs_as_written(capsys):
     printed = re.search(r"It prints:\n\n```\n(.*?)```", section, re.S).group(1)
     exec(compile(block, "docs/diagnosis-pipeline.md", "exec"), {})
     assert capsys.readouterr().out == printed
+
+
+def test_a_place_the_model_cannot_compute_is_refused():
+    """A quantity read from an argument the model does not define at the place (the valve's current has only i
+    there), or a place that is not the model's, is refused in one line naming it."""
+    q = G.Quantity("x", "signal", "x", "x", ("x",), "m", "the position", 0.05)
+    with pytest.raises(ValueError, match=r"'valve_current', quantity 'x': 'x' is not defined"):
+        G.TermPlace("valve_current", "signal", "i", "mA", "current", "the valve's current", (q,), kind="valve")
+    with pytest.raises(ValueError, match="'rod_force': not a place of the model"):
+        G.TermPlace("rod_force", "sum", "F", "N", "force", "on the rod", (q,))
