@@ -904,8 +904,8 @@ def diagnose_open(campaign: Campaign, *, candidates=None, base_effects: dict | N
 
 def propose_stage(rep: Replayer, full: Replayer, final: Fit, sims_all: list, parts: dict, cur_val, g: dict,
                   say) -> tuple:
-    """The missing term (:func:`ehas_env.diagnosis.proposal.propose`), judged on all data and by honesty rule 1
-    (:func:`ehas_env.diagnosis.honesty.term_refused`).
+    """The missing term (:func:`ehas_env.diagnosis.proposal.propose`, built on the best try that holds on the runs
+    held out of the fit), judged on all data and by honesty rule 1 (:func:`ehas_env.diagnosis.honesty.term_refused`).
 
     Parameters
     ----------
@@ -930,7 +930,13 @@ def propose_stage(rep: Replayer, full: Replayer, final: Fit, sims_all: list, par
         The proposal kept (with its ``validation`` numbers) and its simulation of every run, or None; and why a
         term found was refused (None when none was, or none was found).
     """
-    prop = P.propose(rep, final, confidence=confidence, say=say)
+    def proven(model) -> bool:  # the term holds on the runs held out of the fit (not above the model without it)
+        if not parts or cur_val is None:
+            return True
+        v = _parts_cost(full, full.simulate(model), parts)
+        return v is None or v <= cur_val
+
+    prop = P.propose(rep, final, confidence=confidence, say=say, proven=proven)
     if prop is None:
         return None, None, None
     ps = full.simulate(prop.fit.model)

@@ -398,7 +398,7 @@ def _screen(rep: Replayer, base, keys: list[str], ranges: dict[str, float]) -> l
     return confirmed + rest
 
 
-def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None) -> Proposal | None:
+def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None, proven=None) -> Proposal | None:
     """The best sparse term for the residual of ``base`` (a diagnosis Fit), fitted inside the model, then named.
 
     Parameters
@@ -415,6 +415,11 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
         the fit data) and ``naming`` (the flexible fit, the text).
     say : callable, optional
         Progress text.
+    proven : callable, optional
+        ``proven(model)``: whether a fitted term holds on the runs held out of the fit (its residual there is not
+        above the model's without it).  The first of the tries, best scored first, that holds is the one built on;
+        one that fits the fit data better and the held-out runs worse fitted noise of the fit data (when none holds,
+        the best scored, as without ``proven``).
 
     Returns
     -------
@@ -454,7 +459,7 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
     if sparse and set(sparse) not in [set(t) for t in tries]:
         tries.append(dict(sparse))
     fits = [fit_terms(t) for t in tries]
-    best = max(fits, key=score)
+    best = _built_on(fits, score, proven, say)
     # add further forms while each lowers the residual clearly
     while len(best.model.terms) < MAX_TERMS:
         extra = [k for k, _, _ in screened if k not in best.model.terms][:2]
@@ -500,6 +505,17 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
         prop.naming = nm.to_json()
         prop.named_model = nm.fit.model if nm.named and nm.fit is not None else None
     return prop
+
+
+def _built_on(fits: list, score, proven, say):
+    """The try the proposal builds on: the best scored that holds on the runs held out (``proven``; the best
+    scored when none does or no judge is given)."""
+    ranked = sorted(fits, key=score, reverse=True)
+    best = next((f for f in ranked if proven is None or proven(f.model)), ranked[0])
+    if best is not ranked[0] and say is not None:
+        say(f"  {', '.join(ranked[0].model.terms)} fits the fit data best but not the runs held out: "
+            f"{', '.join(best.model.terms)} is built on")
+    return best
 
 
 # --- the effect file ----------------------------------------------------------------------------

@@ -116,3 +116,26 @@ def test_the_backward_elimination_ranks_the_true_term_last():
     order = _drop_order(rep, f, base)
     assert order[-1] == "proposal_crank_torque.c_th" and len(order) == 3
     assert rep.n_evals - n0 <= len(free) + 1
+
+
+def test_a_try_that_does_not_hold_on_the_held_out_runs_is_not_built_on(setup):
+    """``proven``: the best scored try is the one built on only when it holds on the runs held out of the fit; a
+    try refused there (here by the judge given) gives way to the next, and when none holds the best scored is kept,
+    as without the judge."""
+    from ehas_env.diagnosis.candidates import fit_null
+
+    rep, *_ = setup
+    base = fit_null(rep)
+    free = P.propose(rep, base, name=False)
+    first = set(free.terms)
+    seen = []
+
+    def refuse_first(model):
+        seen.append(set(model.terms))
+        return not (set(model.terms) & first)
+
+    other = P.propose(rep, base, name=False, proven=refuse_first)
+    assert seen and seen[0] & first  # the best scored was asked first ...
+    assert other is not None and not set(other.terms) <= first  # ... refused, and another built on
+    none = P.propose(rep, base, name=False, proven=lambda m: False)
+    assert set(none.terms) == set(free.terms)  # none holds: the best scored, as without the judge
