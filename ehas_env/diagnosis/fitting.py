@@ -233,6 +233,30 @@ class Fit:
     nfev: int = 0
 
 
+#: the residual, in noise standard deviations, of a sample a model's replay left not finite (it diverged there): far
+#: above any residual a replay that holds reaches, so a fit steps away from it rather than stopping on a NaN
+DIVERGED = 1.0e6
+
+
+def finite_blocks(blocks: list) -> list:
+    """The residual blocks with every sample that is not finite (a replay that diverged) at :data:`DIVERGED`.
+
+    Parameters
+    ----------
+    blocks : list of ndarray
+
+    Returns
+    -------
+    list of ndarray
+
+    Examples
+    --------
+    >>> finite_blocks([np.array([0.5, np.nan, -np.inf])])[0].tolist()
+    [0.5, 1000000.0, 1000000.0]
+    """
+    return [x if np.all(np.isfinite(x)) else np.where(np.isfinite(x), x, DIVERGED) for x in blocks]
+
+
 class Objective:
     """The fit's residuals as a function of u (the free parameters mapped to [0, 1]), memoised.
 
@@ -266,8 +290,14 @@ class Objective:
         todo = [u for u in U if u.tobytes() not in self.memo]
         if todo:
             for u, sims in zip(todo, self.rep.simulate_many([self.model(u) for u in todo])):
-                self.memo[u.tobytes()] = (self.rep.cost_blocks(sims), sims)
+                raw = self.rep.cost_blocks(sims)
+                self.memo[u.tobytes()] = (finite_blocks(raw), sims, not all(np.all(np.isfinite(x)) for x in raw))
         return [self.memo[u.tobytes()][0] for u in U]
+
+    def diverged(self, u) -> bool:
+        """Whether the replay at ``u`` left samples that are not finite (:func:`finite_blocks`)."""
+        self.blocks([u])
+        return self.memo[np.asarray(u, dtype=float).tobytes()][2]
 
     def sims(self, u) -> list:
         """The simulated runs at ``u``."""
@@ -287,17 +317,26 @@ class Objective:
         return np.concatenate([wi * x for wi, x in zip(w, self.blocks([u])[0])])
 
     def jacobian(self, u, w) -> np.ndarray:
-        """Forward-difference Jacobian of :meth:`weighted` at ``u`` (steps toward the inside of [0, 1])."""
+        """Forward-difference Jacobian of :meth:`weighted` at ``u`` (steps toward the inside of [0, 1]; a step whose
+        replay diverged where the one at ``u`` holds is taken the other way)."""
         u = np.asarray(u, dtype=float)
         f0 = self.weighted(u, w)
-        U, H = [], []
-        for i, fp in enumerate(self.free):
-            h = fp.step if u[i] + fp.step <= 1.0 else -fp.step
-            du = u.copy()
-            du[i] += h
-            U.append(du)
-            H.append(h)
-        self.blocks(U)
+
+        def steps(flip):
+            U, H = [], []
+            for i, fp in enumerate(self.free):
+                h = fp.step if u[i] + fp.step <= 1.0 else -fp.step
+                h = -h if flip[i] and 0.0 <= u[i] - h <= 1.0 else h
+                du = u.copy()
+                du[i] += h
+                U.append(du)
+                H.append(h)
+            self.blocks(U)
+            return U, H
+
+        U, H = steps([False] * len(self.free))
+        if not self.diverged(u) and any(self.diverged(du) for du in U):
+            U, H = steps([self.diverged(du) for du in U])
         return np.column_stack([(self.weighted(du, w) - f0) / h for du, h in zip(U, H)])
 
     def _unweighted(self, u) -> np.ndarray:
