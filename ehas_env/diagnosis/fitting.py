@@ -239,7 +239,9 @@ DIVERGED = 1.0e6
 
 
 def finite_blocks(blocks: list) -> list:
-    """The residual blocks with every sample that is not finite (a replay that diverged) at :data:`DIVERGED`.
+    """The residual blocks with every sample that is not finite (a replay that diverged) at :data:`DIVERGED`; a
+    block that is finite is returned as it is (the same array: :meth:`Objective.blocks` tells a diverged replay by
+    that).
 
     Parameters
     ----------
@@ -291,7 +293,8 @@ class Objective:
         if todo:
             for u, sims in zip(todo, self.rep.simulate_many([self.model(u) for u in todo])):
                 raw = self.rep.cost_blocks(sims)
-                self.memo[u.tobytes()] = (finite_blocks(raw), sims, not all(np.all(np.isfinite(x)) for x in raw))
+                fin = finite_blocks(raw)
+                self.memo[u.tobytes()] = (fin, sims, any(f is not r for f, r in zip(fin, raw)))
         return [self.memo[u.tobytes()][0] for u in U]
 
     def diverged(self, u) -> bool:

@@ -284,7 +284,7 @@ RULES = (
 LEVEL_RULES = ("dry", "identity")
 RISING = {"position": "square", "load": "identity"}
 
-#: symbol and unit of a motion's dry function in a law: ``tanh(v / v_tanh)``
+#: code that needs no brackets as a factor: a name or a dotted name
 _PAREN = re.compile(r"^[A-Za-z_][A-Za-z_0-9.]*$")
 
 
@@ -651,16 +651,17 @@ def _rise_words(r: Quantity) -> str:
 def _signal_forms(place: TermPlace, atoms: list, by: dict) -> list:
     q = place.quantities[0]
     t, o, w, k = q.text, place.out, place.where, place.kind
-    forms = [("offset", "c_1", f"{o} = {t} + {t}_0", f"{w} reads with an offset", (f"{t}_0", "c_1", 1), ()),
-             ("gain", "identity", f"{o} = (1 + g) {t}", f"{w}: a gain off the model's", ("g", None, 1), ()),
-             ("bow", "square", f"{o} = {t} + b {t}^2", f"{w}: a characteristic that bows", ("b", None, 1), ()),
-             ("gain_by_direction", "magnitude", f"{o} = {t} (1 + g sign({t}))",
-              f"{w}: a gain that differs by direction", ("g", None, 1), ()),
-             ("dead_band", "step", f"{o} = {t} - d sign({t})", f"{w}: a dead band around null", ("d", None, -1),
+    # (name, the atom's (quantity, rule), law, words, (parameter, sign), positive parameters)
+    forms = [("offset", ("", "constant"), f"{o} = {t} + {t}_0", f"{w} reads with an offset", (f"{t}_0", 1), ()),
+             ("gain", (q.sym, "identity"), f"{o} = (1 + g) {t}", f"{w}: a gain off the model's", ("g", 1), ()),
+             ("bow", (q.sym, "square"), f"{o} = {t} + b {t}^2", f"{w}: a characteristic that bows", ("b", 1), ()),
+             ("gain_by_direction", (q.sym, "magnitude"), f"{o} = {t} (1 + g sign({t}))",
+              f"{w}: a gain that differs by direction", ("g", 1), ()),
+             ("dead_band", (q.sym, "step"), f"{o} = {t} - d sign({t})", f"{w}: a dead band around null", ("d", -1),
               ("d",))]
     out = []
-    for name, rule, law, words, (p, coef, sign), pos in forms:
-        a = next((x for x in atoms if x.coef == "c_1"), None) if coef else by.get((q.sym, rule))
+    for name, key, law, words, (p, sign), pos in forms:
+        a = by.get(key)
         if a is not None:
             out.append(NamedForm(f"{place.name}.{name}", place.name, k, law, words, ((p, a.coef, sign),), pos,
                                  a.block))
