@@ -54,8 +54,8 @@ from ehas_env.diagnosis.honesty import at_bounds
 from ehas_env.diagnosis.side_by_side import side_by_side
 from ehas_env.diagnosis.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _value_of,
-    beats_noise, confidence, covering, fit, own_params, recal_params, reopens_baseline, score_db, spanning,
-    start_value)
+    beats_noise, confidence, covering, finite_blocks, fit, own_params, recal_params, reopens_baseline, score_db,
+    spanning, start_value)
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.residuals import evidence_text
 from ehas_env.measurement.verdict import blocks_of, grade, run_residual
@@ -489,14 +489,23 @@ def fit_together(rep: Replayer, effects: dict, null: Fit) -> Fit:
     Returns
     -------
     Fit
-        The fit, never costlier than its start (:func:`ehas_env.diagnosis.fitting.fit`).
+        The fit, never costlier than its start (:func:`ehas_env.diagnosis.fitting.fit`), nor than the given
+        values on the rig's own beta and K: that start is fitted too when it is the better one (the baseline's
+        recalibration can sit where the effects' valley is elsewhere: a rate limit from rest, given at its true
+        value, at 1.42x the noise on the rig's beta and K and 2.54x from the recalibrated ones).
     """
     given = {n: {p.name: float((v or {}).get(p.name, p.default)) for p in get_effect(n).params}
              for n, v in effects.items()}
     free = [covering(fp, given[n][fp.name]) for n in given for fp in own_params(n)] + recal_params(given)
-    start = {(fp.effect, fp.name): given[fp.effect][fp.name] if fp.effect else _value_of(null.model, fp)
-             for fp in free}
-    return fit(rep, free, start, dataclasses.replace(null.model, effects=given))
+    fits = []
+    for base in (null.model, ModelSpec()):
+        start = {(fp.effect, fp.name): given[fp.effect][fp.name] if fp.effect else _value_of(base, fp)
+                 for fp in free}
+        model = dataclasses.replace(base, effects=given, terms=dict(null.model.terms))
+        if fits and log_mean(finite_blocks(rep.cost_blocks(rep.simulate(model)))) >= fits[0].cost:
+            break
+        fits.append(fit(rep, free, start, model))
+    return min(fits, key=lambda f: f.cost)
 
 
 # --- open-world diagnosis: windows, hold-out, stacking, verdict, what is left, the missing term ---------------

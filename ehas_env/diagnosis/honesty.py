@@ -136,6 +136,57 @@ def size_not_shown(cls, ci: dict) -> str | None:
             " 0, where it does nothing: the data do not show it")
 
 
+def range_not_narrowed(fit, effect: str, ci: dict) -> str | None:
+    """Why a fitted block may not be kept (None when it may): the 95 % interval of its main number runs from one
+    end of its fit range to the other, so the data do not determine it (a value in the middle of a flat valley is
+    a value the fit happened to stop at, not one the data show: a dead zone of a load reading the model misses by
+    far, +-5.08 kN with the interval [0.005, 10] kN, its whole range).  A number whose range end is still its
+    block's physics (``Param.limit``) passes.
+
+    Parameters
+    ----------
+    fit : Fit
+        The fit holding the block (its ``free`` numbers give the ranges).
+    effect : str
+        The block.
+    ci : dict
+        {parameter: (lo, hi)}, the fit's 95 % intervals in the parameters' units.
+
+    Returns
+    -------
+    str or None
+        The refusal in words, with the interval.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> from ehas_env.diagnosis.fitting import FreeParam
+    >>> f = SimpleNamespace(free=[FreeParam("aug_dz_force_reading", "d", 5.0, 1.0e4, True, 2e-3)])
+    >>> range_not_narrowed(f, "aug_dz_force_reading", {"d": (5.0, 1.0e4)})[:40]
+    'the data do not determine it: the 95 % i'
+    >>> range_not_narrowed(f, "aug_dz_force_reading", {"d": (4.0e3, 6.0e3)}) is None
+    True
+    """
+    from ehas_env.physics.effects import get_effect
+
+    cls = get_effect(effect)
+    main = getattr(cls, "main_param", None)
+    for fp in getattr(fit, "free", ()):
+        if fp.effect != effect or fp.name != main or fp.name not in ci:
+            continue
+        lo, hi = ci[fp.name]
+        p = cls.param(fp.name)
+        whole = fp.u(max(lo, fp.lo)) <= NOT_NARROWED and fp.u(min(hi, fp.hi)) >= 1.0 - NOT_NARROWED
+        if whole and p.limit_at("lower") is None and p.limit_at("upper") is None:
+            return (f"the data do not determine it: the 95 % interval of {fp.name}, [{lo:.4g}, {hi:.4g}] {p.unit}, "
+                    f"is its whole range [{fp.lo:.4g}, {fp.hi:.4g}]")
+    return None
+
+
+#: an interval that reaches within this share of its range (in the fit's [0, 1] scale) of both ends is the whole range
+NOT_NARROWED = 0.02
+
+
 def at_bounds(fit, effects=None) -> list[dict]:
     """The fitted parameters of library effects that sit at an end of their fit range.
 

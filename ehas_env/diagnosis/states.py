@@ -31,7 +31,7 @@ from ehas_env.diagnosis.candidates import (
     UNEXERCISED, _parts_cost, _sane, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate,
     validation_moved)
 from ehas_env.diagnosis.fitting import MIN_SCORE, Fit, confidence, model_from, own_params, start_value
-from ehas_env.diagnosis.honesty import share_removed, size_not_shown, term_refused
+from ehas_env.diagnosis.honesty import range_not_narrowed, share_removed, size_not_shown, term_refused
 from ehas_env.diagnosis.side_by_side import side_by_side
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, ModelSpec, Replayer
 from ehas_env.measurement.verdict import BLOCK_EXPLAINED_X, blocks_of, grade
@@ -827,7 +827,7 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     record["residual_x_noise_validation_after"] = _r(val1)
     if why is None:
         entry, ci = described(rep, f, best)
-        why = size_not_shown(get_effect(best), ci)  # a block the fit cannot tell from nothing is not named
+        why = size_not_shown(get_effect(best), ci) or range_not_narrowed(f, best, ci)  # nor one it cannot size
     if why is not None:
         record["words"] = f"{get_effect(best).title} is not kept: {why}"
         say(f"  states: {record['words']}")
