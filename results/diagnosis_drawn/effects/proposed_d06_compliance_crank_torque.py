@@ -1,4 +1,4 @@
-"""proposed_d06_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/s1/work/d06_compliance@crank_torque/campaign.
+"""proposed_d06_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /work/runs/drawn/d06_compliance@crank_torque/campaign.
 
 The load path is a spring of 146 N/um between piston and crank (6.87 um per kN of load), damped at 0.75 of critical with the piston's mass.
 k_load = 1.456e+08 N/m (95 % CI 1.322e+08 to 1.605e+08)

@@ -1,4 +1,4 @@
-"""proposed_d09_dead_zone_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/s1/work/d09_dead_zone@crank_torque/campaign.
+"""proposed_d09_dead_zone_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /work/runs/drawn/d09_dead_zone@crank_torque/campaign.
 
 A drag torque on the load grows with the square of its speed: 2.38 N m at 10 rad/s.
 T_10 = 2.381 N m (95 % CI 2.312 to 2.451)

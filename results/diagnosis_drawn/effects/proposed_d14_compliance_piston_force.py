@@ -1,4 +1,4 @@
-"""proposed_d14_compliance_piston_force: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/s1/work/d14_compliance@piston_force/campaign.
+"""proposed_d14_compliance_piston_force: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /work/runs/drawn/d14_compliance@piston_force/campaign.
 
 The load path is a spring of 46.8 N/um between piston and crank (21.4 um per kN of load), damped at 0.3 of critical with the piston's mass.
 k_load = 4.678e+07 N/m (95 % CI 4.459e+07 to 4.908e+07)

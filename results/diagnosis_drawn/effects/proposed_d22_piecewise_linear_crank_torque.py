@@ -1,4 +1,4 @@
-"""proposed_d22_piecewise_linear_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /tmp/s1/work/d22_piecewise_linear@crank_torque/campaign.
+"""proposed_d22_piecewise_linear_crank_torque: drag torque growing with the square of the crank rate, found by ehas diagnose on /work/runs/drawn/d22_piecewise_linear@crank_torque/campaign.
 
 A drag torque on the load grows with the square of its speed: 12.4 N m at 10 rad/s.
 T_10 = 12.36 N m (95 % CI 11.73 to 13.03)

@@ -1,4 +1,4 @@
-"""proposed_p3_piecewise_linear_piston_force_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /tmp/s1/work/p3_piecewise_linear@piston_force+compliance@crank_torque/campaign.
+"""proposed_p3_piecewise_linear_piston_force_compliance_crank_torque: compliance in the load path (rod, pin, crank, shaft), found by ehas diagnose on /work/runs/drawn/p3_piecewise_linear@piston_force+compliance@crank_torque/campaign.
 
 The load path is a spring of 113 N/um between piston and crank (8.84 um per kN of load), damped at 0.1 of critical with the piston's mass.
 k_load = 1.132e+08 N/m (95 % CI 1.096e+08 to 1.169e+08)
