@@ -692,7 +692,10 @@ def main(argv=None) -> int:
 
 
 def _commit() -> str:
-    p = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    """The package's commit: the last one that changed ``ehas_env`` (a results-only commit made while a set runs
+    leaves it as it was), and ``+uncommitted`` when the package differs from it."""
+    p = subprocess.run(["git", "-C", str(ROOT), "log", "-1", "--format=%h", "--", "ehas_env"], capture_output=True,
+                       text=True)
     # the package's own code changed and not committed: the record says so (its figures are not HEAD's)
     dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "ehas_env"], capture_output=True,
                            text=True).stdout.strip()

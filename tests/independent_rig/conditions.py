@@ -251,7 +251,9 @@ def judge(drift: list, case: dict, follows: str) -> dict:
 
 
 def _commit() -> str:
-    p = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    """The package's commit (:func:`tests.independent_rig.acceptance._commit`, without the edited flag: kept apart)."""
+    p = subprocess.run(["git", "-C", str(ROOT), "log", "-1", "--format=%h", "--", "ehas_env"], capture_output=True,
+                       text=True)
     return p.stdout.strip()
 
 
