@@ -44,7 +44,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from ehas_env.physics.effects.augmentation import Augmentation, fmt_interval, kind_at
-from ehas_env.physics.effects.base import PLACE_QUANTITIES, Param
+from ehas_env.physics.effects.base import LOCALS, PLACE_QUANTITIES, Param
 
 
 @dataclass(frozen=True)
@@ -100,30 +100,22 @@ class BalancePlace:
     value: str = ""
 
 
-_LPM = (60000.0, "L/min")
-_BAR = (1.0e-5, "bar")
-#: the other local quantities a balance's law reads, each described once: (its name in a place's short name, SI
-#: unit, typical span on the rig, how words show it, words).  Spans (assumed, the book's rig): the piston's +-25 mm
-#: at +-30 deg of the 50 mm crank, +-30 deg of the crank, a load pressure of 100 bar, the piston's 0.5 m/s (a
-#: chamber's rate of expansion over its area)
-LOCAL_QUANTITIES = {
-    "x": ("position", "m", 0.025, (1.0e3, "mm"), "the piston position"),
-    "theta": ("angle", "rad", 0.5236, (180.0 / math.pi, "deg"), "the crank angle"),
-    "p_load": ("load_pressure", "Pa", 1.0e7, _BAR, "the load pressure p_A - p_B"),
-    "v": ("velocity", "m/s", 0.5, (1.0, "m/s"), "the piston velocity"),
-}
+_LPM = LOCALS["qc"].shown
+_BAR = LOCALS["p_load"].shown
 #: each balance's local quantities besides its own (BALANCE_PLACES' first four): what its law in the model's
 #: derivatives reads (ehas_env.physics.codegen): the piston's force A p_load moves a body whose position sets the
 #: crank's geometry; the crank's torque acts at its angle; a chamber's pressure rises with the flow in less its
 #: expansion A v and leaks across the piston with p_load.  A friction that rises with the load pressure, a spring or
-#: a cushion with the position, a leak across the piston.
+#: a cushion with the position, a leak across the piston.  Each quantity's unit, span and words:
+#: :data:`~ehas_env.physics.effects.base.LOCALS`
 OTHER_LOCALS = {"piston_velocity": ("x", "p_load"), "crank_rate": ("theta",), "chamber_a": ("p_load", "v"),
                 "chamber_b": ("p_load", "v")}
 
 
 def with_local(place: "BalancePlace", quantity: str) -> "BalancePlace":
-    """The balance of ``place`` with another of its local quantities (:data:`LOCAL_QUANTITIES`), as a place of its
-    own, ``<body>_<quantity's name>`` (e.g. ``piston_load_pressure``, ``chamber_a_velocity``).
+    """The balance of ``place`` with another of its local quantities
+    (:data:`~ehas_env.physics.effects.base.LOCALS`), as a place of its own, ``<body>_<quantity's name>`` (e.g.
+    ``piston_load_pressure``, ``chamber_a_velocity``).
 
     Parameters
     ----------
@@ -141,42 +133,47 @@ def with_local(place: "BalancePlace", quantity: str) -> "BalancePlace":
     >>> with_local(BALANCE_PLACES[0], "p_load").short
     'piston_load_pressure'
     """
-    name, unit, span, shown, words = LOCAL_QUANTITIES[quantity]
+    q = LOCALS[quantity]
     body = place.short if place.place == "chamber_flows" else place.short.split("_")[0]
-    return BalancePlace(place.place, f"{body}_{name}", quantity, unit, span, shown, place.out_unit, place.out_span,
-                        place.out_shown, place.returns, place.where, words)
+    return BalancePlace(place.place, f"{body}_{q.name}", quantity, q.unit, q.span, q.shown, place.out_unit,
+                        place.out_span, place.out_shown, place.returns, place.where, q.words)
+
+
+def _own(place: str, short: str, quantity: str, out_unit: str, out_span: float, out_shown: tuple, returns: str,
+         where: str, words: str = "", **kw) -> BalancePlace:
+    """A balance with its own rate-setting quantity, described by :data:`~ehas_env.physics.effects.base.LOCALS`
+    (``words`` where the place reads it otherwise: the lands' opening, either way)."""
+    q = LOCALS[quantity]
+    return BalancePlace(place, short, quantity, q.unit, q.span, q.shown, out_unit, out_span, out_shown, returns,
+                        where, words or q.words, **kw)
 
 
 #: every balance of the model with its own rate-setting local quantity (the piston's force with its velocity, the
 #: crank's torque with its rate, each chamber's flow with its pressure), then with the other quantities its law
 #: reads (OTHER_LOCALS)
 _OWN_PLACES = (
-    BalancePlace("piston_force", "piston_velocity", "v", "m/s", 0.5, (1.0, "m/s"), "N", 5.0e3, (1.0, "N"), "t",
-                 "the piston force balance", "the piston velocity"),
-    BalancePlace("crank_torque", "crank_rate", "omega", "rad/s", 10.0, (1.0, "rad/s"), "N m", 250.0, (1.0, "N m"),
-                 "t", "the crank torque balance", "the crank rate"),
-    BalancePlace("chamber_flows", "chamber_a", "pa", "Pa", 1.0e7, _BAR, "m^3/s", 25.0 / 60000.0, _LPM, "t, 0.0",
-                 "chamber A's flow balance", "chamber A's pressure", centred=False),
-    BalancePlace("chamber_flows", "chamber_b", "pb", "Pa", 1.0e7, _BAR, "m^3/s", 25.0 / 60000.0, _LPM, "0.0, t",
-                 "chamber B's flow balance", "chamber B's pressure", centred=False),
+    _own("piston_force", "piston_velocity", "v", "N", 5.0e3, (1.0, "N"), "t", "the piston force balance"),
+    _own("crank_torque", "crank_rate", "omega", "N m", 250.0, (1.0, "N m"), "t", "the crank torque balance"),
+    _own("chamber_flows", "chamber_a", "pa", "m^3/s", 25.0 / 60000.0, _LPM, "t, 0.0", "chamber A's flow balance",
+         centred=False),
+    _own("chamber_flows", "chamber_b", "pb", "m^3/s", 25.0 / 60000.0, _LPM, "0.0, t", "chamber B's flow balance",
+         centred=False),
     # the pressures the valve's lands meter between, each with the flow through the supply and the return line:
     # the valve's opening as no-load flow, whichever way it opens (a line's drop or a back pressure grows with the
     # flow through it, whatever its direction)
-    BalancePlace("land_pressures", "supply", "qc", "m^3/s", 25.0 / 60000.0, _LPM, "Pa", 3.0e6, _BAR,
-                 "p_sup + t, p_ret", "the supply pressure at the valve's lands",
-                 "the valve's opening (as no-load flow, either way)", centred=False, chain=("p_sup", "p_ret"),
-                 value="abs(qc)"),
-    BalancePlace("land_pressures", "return", "qc", "m^3/s", 25.0 / 60000.0, _LPM, "Pa", 3.0e6, _BAR,
-                 "p_sup, p_ret + t", "the return pressure at the valve's lands",
-                 "the valve's opening (as no-load flow, either way)", centred=False, chain=("p_sup", "p_ret"),
-                 value="abs(qc)"),
+    _own("land_pressures", "supply", "qc", "Pa", 3.0e6, _BAR, "p_sup + t, p_ret",
+         "the supply pressure at the valve's lands", "the valve's opening (as no-load flow, either way)",
+         centred=False, chain=("p_sup", "p_ret"), value="abs(qc)"),
+    _own("land_pressures", "return", "qc", "Pa", 3.0e6, _BAR, "p_sup, p_ret + t",
+         "the return pressure at the valve's lands", "the valve's opening (as no-load flow, either way)",
+         centred=False, chain=("p_sup", "p_ret"), value="abs(qc)"),
     # each land's flow out of its port (a chain after the orifice law: ``lands`` of the compiled model), with that
     # flow itself: a land that passes more or less than the law says (a worn edge, a leak past the land), which
     # the flow meter in line A sees as the chamber does
-    BalancePlace("land_flows", "land_a", "q_a", "m^3/s", 25.0 / 60000.0, _LPM, "m^3/s", 25.0 / 60000.0, _LPM,
-                 "q_a + t, q_b", "land A's flow (out of the valve's port A)", "land A's flow", chain=("q_a", "q_b")),
-    BalancePlace("land_flows", "land_b", "q_b", "m^3/s", 25.0 / 60000.0, _LPM, "m^3/s", 25.0 / 60000.0, _LPM,
-                 "q_a, q_b + t", "land B's flow (out of the valve's port B)", "land B's flow", chain=("q_a", "q_b")),
+    _own("land_flows", "land_a", "q_a", "m^3/s", 25.0 / 60000.0, _LPM, "q_a + t, q_b",
+         "land A's flow (out of the valve's port A)", chain=("q_a", "q_b")),
+    _own("land_flows", "land_b", "q_b", "m^3/s", 25.0 / 60000.0, _LPM, "q_a, q_b + t",
+         "land B's flow (out of the valve's port B)", chain=("q_a", "q_b")),
 )
 BALANCE_PLACES = _OWN_PLACES + tuple(with_local(p, q) for p in _OWN_PLACES for q in OTHER_LOCALS.get(p.short, ()))
 

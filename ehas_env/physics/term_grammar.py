@@ -49,6 +49,8 @@ import re
 from dataclasses import dataclass, replace
 from fractions import Fraction
 
+from ehas_env.physics.effects.base import LOCALS
+
 # -- units: an algebra over SI symbols (Pa reduces to N m^-2, so a force per pressure is an area) -------------------
 _BASE = ("N", "m", "s", "rad", "mA")
 _DERIVED = {"Pa": {"N": 1, "m": -2}}
@@ -677,6 +679,13 @@ def _signal_forms(place: TermPlace, atoms: list, by: dict) -> list:
 
 
 # -- the places of the model ----------------------------------------------------------------------------------------
+def _local(arg: str, sym: str, role: str, **kw) -> Quantity:
+    """A quantity the model passes to a place as one argument: its unit, words, span and law symbol from the
+    model's description of its quantities (:data:`~ehas_env.physics.effects.base.LOCALS`)."""
+    q = LOCALS[arg]
+    return Quantity(sym, role, arg, q.symbol, (arg,), q.unit, q.words, q.span, **kw)
+
+
 _V_DRY = "math.tanh(v / v_tanh)|v_tanh"
 _W_DRY = "math.tanh(radius * omega / v_tanh)|radius v_tanh"
 #: every place of the model a static term may be missing at, described once (spans: the book's rig, +-30 deg of
@@ -685,23 +694,24 @@ _W_DRY = "math.tanh(radius * omega / v_tanh)|radius v_tanh"
 #: 2e-4 m^3/s (12 L/min) at 100 bar)
 TERM_PLACES = {p.name: p for p in (
     TermPlace("piston_force", "sum", "F", "N", "force", "on the piston", (
-        Quantity("x", "position", "x", "x", ("x",), "m", "the piston position", 0.025, rise="x2"),
-        Quantity("v", "motion", "v", "v", ("v",), "m/s", "the piston velocity", 0.5, dry=_V_DRY),
-        Quantity("pa", "pressure", "pa", "p_A", ("pa",), "Pa", "chamber A's pressure", 1.0e7, key="a"),
-        Quantity("pb", "pressure", "pb", "p_B", ("pb",), "Pa", "chamber B's pressure", 1.0e7, key="b"),
+        _local("x", "x", "position", rise="x2"),
+        _local("v", "v", "motion", dry=_V_DRY),
+        _local("pa", "pa", "pressure", key="a"),
+        _local("pb", "pb", "pressure", key="b"),
         Quantity("pl", "load", "abs(pa - pb)", "|p_A - p_B|", ("pa", "pb"), "Pa", "the load pressure", 1.0e7,
                  rise="load"))),
     TermPlace("crank_torque", "sum", "T", "N m", "torque", "at the crank", (
-        Quantity("th", "position", "theta", "theta", ("theta",), "rad", "the crank angle", 0.5236, rise="angle"),
-        Quantity("w", "motion", "omega", "omega", ("omega",), "rad/s", "the crank rate", 10.0, dry=_W_DRY),
+        _local("theta", "th", "position", rise="angle"),
+        _local("omega", "w", "motion", dry=_W_DRY),
         Quantity("j", "load", "abs(pa - pb) * radius * abs(math.cos(theta))", "|p_A - p_B| r |cos theta|",
                  ("pa", "pb", "radius", "theta"), "Pa m", "the load the crank's joint carries (P_L r |cos theta|, "
                  "per unit of piston area)", 5.0e5, rise="joint"))),
     TermPlace("chamber_flows", "flow_pair", "Q", "m^3/s", "flow", "in the chambers' flow balances",
-              (Quantity("pa", "pressure", "pa", "p_A", ("pa",), "Pa", "chamber A's pressure", 1.0e7),), scale=2.0e-4),
+              (_local("pa", "pa", "pressure"),), scale=2.0e-4),
     TermPlace("valve_current", "signal", "i", "mA", "current", "the valve's current", (
-        Quantity("i", "signal", "i", "i", ("i",), "mA", "the valve current", 7.5, null=0.05, directional=True),),
+        _local("i", "i", "signal", null=0.05, directional=True),),
               kind="command path", scale=3.0, chain_order=1000),  # after every effect of the current chain
     TermPlace("position_reading", "signal", "x_read", "m", "position", "the position sensor's reading", (
+        # the reading's own quantity: the position as the sensor reads it, over its whole 50 mm range
         Quantity("x", "signal", "x", "x", ("x",), "m", "the position", 0.05),), kind="sensor", scale=2.0e-3),
 )}

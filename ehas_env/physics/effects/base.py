@@ -54,16 +54,66 @@ PLACES = {
 for _out, (_arg, _unit, _rate, _words, _span) in _SENSED.items():
     PLACES[f"{_out}_reading"] = (f"{_words}, {_unit} (gets the reading so far as argument {_arg}; it may read the "
                                  f"effect's own states: a lag of the reading)")
-#: quantities a term may take as arguments, besides its own parameters and constants and the
-#: baseline slots (``layout.BASE_SLOTS``): SI values at the current instant
-QUANTITIES = {
-    "theta": "crank angle, rad", "omega": "crank rate, rad/s", "x": "piston position, m",
-    "v": "piston velocity, m/s", "pa": "chamber A pressure, Pa", "pb": "chamber B pressure, Pa",
-    "ps": "supply pressure, Pa", "p_load": "load pressure P_A - P_B, Pa", "qc": "valve no-load flow, m^3/s",
-    "q_a": "valve flow into A, m^3/s", "q_b": "valve flow into B, m^3/s", "q_supply": "flow drawn from supply, m^3/s",
-    "i": "valve current, mA", "xp": "piston position state, m", "vp": "piston velocity state, m/s",
-    "gap": "rod-joint gap x - r sin(theta), m (joint_force)", "gap_rate": "its rate, m/s (joint_force)",
-}
+@dataclass(frozen=True)
+class Local:
+    """One quantity of the model a term may take as an argument, described once (the balances' blocks of
+    :mod:`ehas_env.physics.balance_blocks` and the proposal's grammar of :mod:`ehas_env.physics.term_grammar` read
+    their units, sizes and words from here).
+
+    Attributes
+    ----------
+    arg : str
+        Its argument name in a term (``x``, ``omega``, ``p_load``).
+    name : str
+        Its name in a place's short name (``position``, ``load_pressure``).
+    unit : str
+        Its SI unit (the valve's current: mA, as everywhere in the model).
+    words : str
+        What it is.
+    symbol : str
+        Its symbol in a law (``x``, ``p_A``).
+    span : float
+        Its typical size on the book's rig (0: not sized; a term of it is not tried).
+    shown : tuple
+        How words show it: (factor from the SI unit, unit).
+    """
+
+    arg: str
+    name: str
+    unit: str
+    words: str
+    symbol: str = ""
+    span: float = 0.0
+    shown: tuple = (1.0, "")
+
+
+_BAR_SHOWN = (1.0e-5, "bar")
+_LPM_SHOWN = (60000.0, "L/min")
+#: every quantity a term may take as an argument, besides its own parameters and constants and the baseline slots
+#: (``layout.BASE_SLOTS``): SI values at the current instant.  Spans (assumed, the book's rig): the piston's +-25 mm
+#: at +-30 deg of the 50 mm crank, 0.5 m/s at 3 Hz; the crank's +-30 deg and 10 rad/s; a load and a chamber's
+#: pressure of 100 bar; the valve's rated 25 L/min; its current's 7.5 mA of a 10 mA rating
+LOCALS = {q.arg: q for q in (
+    Local("theta", "angle", "rad", "the crank angle", "theta", 0.5236, (180.0 / math.pi, "deg")),
+    Local("omega", "rate", "rad/s", "the crank rate", "omega", 10.0, (1.0, "rad/s")),
+    Local("x", "position", "m", "the piston position", "x", 0.025, (1.0e3, "mm")),
+    Local("v", "velocity", "m/s", "the piston velocity", "v", 0.5, (1.0, "m/s")),
+    Local("pa", "pressure_a", "Pa", "chamber A's pressure", "p_A", 1.0e7, _BAR_SHOWN),
+    Local("pb", "pressure_b", "Pa", "chamber B's pressure", "p_B", 1.0e7, _BAR_SHOWN),
+    Local("ps", "supply_pressure", "Pa", "the supply pressure", "p_S", 1.0e7, _BAR_SHOWN),
+    Local("p_load", "load_pressure", "Pa", "the load pressure p_A - p_B", "p_L", 1.0e7, _BAR_SHOWN),
+    Local("qc", "opening", "m^3/s", "the valve's no-load flow", "q_c", 25.0 / 60000.0, _LPM_SHOWN),
+    Local("q_a", "flow_a", "m^3/s", "land A's flow", "q_A", 25.0 / 60000.0, _LPM_SHOWN),
+    Local("q_b", "flow_b", "m^3/s", "land B's flow", "q_B", 25.0 / 60000.0, _LPM_SHOWN),
+    Local("q_supply", "supply_flow", "m^3/s", "the flow drawn from the supply", "q_S"),
+    Local("i", "current", "mA", "the valve current", "i", 7.5, (1.0, "mA")),
+    Local("xp", "position_state", "m", "the piston position state", "x_p"),
+    Local("vp", "velocity_state", "m/s", "the piston velocity state", "v_p"),
+    Local("gap", "gap", "m", "the rod-joint gap x - r sin(theta) (joint_force)", "g"),
+    Local("gap_rate", "gap_rate", "m/s", "the rod-joint gap's rate (joint_force)", "g'"),
+)}
+#: the same in one line each (the registry's messages)
+QUANTITIES = {q.arg: f"{q.words}, {q.unit}" for q in LOCALS.values()}
 #: the quantities the compiled model has defined where each place's terms are called (a term's arguments resolve
 #: through :meth:`Effect.arg_kind`, in the check at registration and in :mod:`ehas_env.physics.codegen`)
 _AT_RATES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "i", "p_load", "q_a", "q_b", "q_supply",
