@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehas_env.diagnosis.honesty import TERM_SHARE, share_removed, term_refused
+from ehas_env.physics.land_terms import LAND_FORMS
 from ehas_env.physics.term_grammar import TERM_PLACES, NamedForm, named_forms
 
 #: what a named form is
@@ -49,44 +50,16 @@ NAMED_NFEV = 8  # ... of a named set's refit
 Form = NamedForm
 
 
-def _f(key, kind, law, words, *params, positive=()):
-    place = key.split(".", 1)[0]
-    return Form(key, place, kind, law, words, tuple(params), positive)
-
-
-_PF, _CT, _LF = "proposal_piston_force", "proposal_crank_torque", "proposal_land_flows"
+_PF, _CT = "proposal_piston_force", "proposal_crank_torque"
 #: the two places of one mechanical load (the piston's force, the crank's torque through the lever r cos theta):
 #: the naming fits the flexible term at both when the proposal's terms sit at one (:func:`name_terms`)
 MECHANICAL_TWIN = {_PF: _CT, _CT: _PF}
 
 
 #: every named form: its place, kind, law, words and coefficients -- the grammar's (its places' descriptions), then
-#: the lands' derived family (the orifice law's boundaries: its gain by direction, port and load, its metering law,
-#: the lines', the supply's and the return's pressures)
-FORMS = tuple(f for place in TERM_PLACES.values() for f in named_forms(place)) + (
-    _f("chamber_flows.gain_by_direction", "valve", "q (1 + g_+) for i >= 0, q (1 + g_-) for i < 0",
-       "a valve flow gain that differs by spool direction", ("g_+", f"{_LF}.c_gpos", 1),
-       ("g_-", f"{_LF}.c_gneg", 1)),
-    _f("chamber_flows.gain_by_port", "valve", "q_A (1 + g_A), q_B (1 + g_B)", "a flow gain that differs by port",
-       ("g_A", f"{_LF}.c_ga", 1), ("g_B", f"{_LF}.c_gb", 1)),
-    _f("chamber_flows.gain_load", "valve", "q (1 - c |P_L| / P_S)", "a valve flow gain that falls with load pressure",
-       ("c", f"{_LF}.c_gpl", -1)),
-    _f("chamber_flows.line_resistance", "leakage/flow", "p_line drop = R q", "a resistance in the lines A and B",
-       ("R", f"{_LF}.c_rline", 1), positive=("R",)),
-    _f("chamber_flows.metering_law", "valve", "q ~ sqrt(drop) (1 + c (sqrt(drop / (P_S / 2)) - 1))",
-       "the lands' flow departs from the orifice law with the land's drop (flow forces on the spool, a laminar "
-       "share)", ("c", f"{_LF}.c_lam", 1)),
-    # supply and return
-    _f("supply.offset", "supply/return", "P_S += dP_S", "the supply pressure at the valve differs from the set one",
-       ("dP_S", f"{_LF}.c_sup", 1)),
-    _f("supply.line_drop", "supply/return", "P_S -= R_S Q_S", "a supply line whose drop rises with the supply flow",
-       ("R_S", f"{_LF}.c_rsup", 1), positive=("R_S",)),
-    _f("supply.line_drop_turbulent", "supply/return", "P_S -= K_S Q_S^2",
-       "a supply line (or filter) whose drop rises with the supply flow squared", ("K_S", f"{_LF}.c_rsup2", 1),
-       positive=("K_S",)),
-    _f("return.back_pressure", "supply/return", "P_T = p_t", "a return line above tank pressure",
-       ("p_t", f"{_LF}.c_ret", 1), positive=("p_t",)),
-)
+#: the lands' (:data:`ehas_env.physics.land_terms.LAND_FORMS`: the orifice law's gain by direction, port and load,
+#: its metering law, the lines', the supply's and the return's pressures)
+FORMS = tuple(f for place in TERM_PLACES.values() for f in named_forms(place)) + LAND_FORMS
 assert all(f.kind in KINDS and f.place in PLACES for f in FORMS)
 #: the parameters whose sign a form's words state -- a dry friction, a damping, a leak, a resistance, a friction that
 #: *rises*, a spring that *hardens*, a path that *saturates* are positive: fitted negative, the words would say the

@@ -38,6 +38,7 @@ import math
 import textwrap
 import warnings
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -45,6 +46,7 @@ from ehas_env.diagnosis import fitting as D
 from ehas_env.diagnosis.naming import ADD_TERM_DB, PENALTY_PER_TERM_DB, name_terms
 from ehas_env.measurement.proposal_terms import TERM_CLASSES, term_param
 from ehas_env.measurement.replay import ModelSpec, Replayer
+from ehas_env.physics.land_terms import LAND_ARGS, LAND_TERMS, flow_body
 from ehas_env.physics.rig import BAR, LPM, RigParams
 from ehas_env.physics.term_grammar import TERM_PLACES, place_atoms, term_class
 
@@ -61,21 +63,6 @@ SCREEN_CONFIRM = 2 * (FIT_TOP + 2 * (MAX_TERMS - 1))
 #: coefficients of the linearised cost's scan: this many magnitudes per sign over the range's four decades
 SCREEN_GRID = 160
 
-#: the arguments of a form at the valve's lands (proposal_terms.ProposalLand: valve_side)
-_LAND_ARGS = ("pa", "pb", "ps", "q_a", "q_b", "qc", "q_supply")
-#: the lands' coefficients (proposal_terms.ProposalLand, the derived family): the form in words
-_LAND_FORMS = {
-    "c_ret": "the outflow land's flow times -1 / (2 p_out): return back-pressure",
-    "c_sup": "the inflow land's flow times 1 / (2 (p_S - p_in)): supply offset",
-    "c_ga": "(q_A, 0)", "c_gb": "(0, q_B)", "c_gpos": "(q_A, q_B) while q_c >= 0",
-    "c_gneg": "(q_A, q_B) while q_c < 0", "c_gpl": "(q_A, q_B) |p_A - p_B| / p_S",
-    "c_rline": "each land's flow times -|q| / (2 drop): line resistance",
-    "c_rsup": "the inflow land's flow times -|q_S| / (2 (p_S - p_in)): supply drop per supply flow",
-    "c_rsup2": "the inflow land's flow times -q_S^2 / (2 (p_S - p_in)): supply drop per supply flow squared",
-    "c_lam": "each land's flow times (sqrt(drop / (p_S / 2)) - 1): metering that goes with the drop",
-}
-
-
 def _grammar_forms() -> dict:
     """{coefficient key: (place, the form in words, the effect file's expression, its arguments)} of the grammar's
     atoms (:mod:`ehas_env.physics.term_grammar`), the lands' family after them."""
@@ -85,38 +72,18 @@ def _grammar_forms() -> dict:
             expr = None if place.form == "flow_pair" else ("{c}" if a.code == "1.0" else "{c} * " + a.code)
             args = () if place.form == "signal" else a.args
             out[f"{term_class(place.name)}.{a.coef}"] = (place.name, a.text, expr, args)
-    for coef, text in _LAND_FORMS.items():
-        out[f"proposal_land_flows.{coef}"] = ("chamber_flows", text, None, _LAND_ARGS)
+    for t in LAND_TERMS:
+        out[f"{term_class('land_flows')}.{t.coef}"] = ("chamber_flows", t.form, None, LAND_ARGS)
     return out
 
 
 #: place, the form in words (the coefficient multiplies it), the expression of the effect file, its arguments
 FORMS = _grammar_forms()
-#: flow forms as code of the effect file: (lines when q_c >= 0 and always, lines when q_c < 0); the chambers' leaks
-#: from the grammar, the lands' family after them
-FLOW_CODE = {a.coef: (list(a.flow), None) for a in place_atoms(TERM_PLACES["chamber_flows"])}
-FLOW_CODE.update({
-    "c_gpl": (["dqa += {c} * abs(pa - pb) / max(ps, 1.0e5) * q_a", "dqb += {c} * abs(pa - pb) / max(ps, 1.0e5) * q_b"],
-              None),
-    "c_rline": (["dqa -= {c} * abs(q_a) * q_a / (2.0 * max(ps - pa, 1.0e5))",
-                 "dqb -= {c} * abs(q_b) * q_b / (2.0 * max(pb, 1.0e5))"],
-                ["dqb -= {c} * abs(q_b) * q_b / (2.0 * max(ps - pb, 1.0e5))",
-                 "dqa -= {c} * abs(q_a) * q_a / (2.0 * max(pa, 1.0e5))"]),
-    "c_rsup": (["dqa -= {c} * abs(q_supply) * q_a / (2.0 * max(ps - pa, 1.0e5))"],
-               ["dqb -= {c} * abs(q_supply) * q_b / (2.0 * max(ps - pb, 1.0e5))"]),
-    "c_rsup2": (["dqa -= {c} * q_supply ** 2 * q_a / (2.0 * max(ps - pa, 1.0e5))"],
-                ["dqb -= {c} * q_supply ** 2 * q_b / (2.0 * max(ps - pb, 1.0e5))"]),
-    "c_lam": (["dqa += {c} * q_a * (math.sqrt(max(ps - pa, 1.0e5) / (0.5 * max(ps, 1.0e5))) - 1.0)",
-               "dqb += {c} * q_b * (math.sqrt(max(pb, 1.0e5) / (0.5 * max(ps, 1.0e5))) - 1.0)"],
-              ["dqb += {c} * q_b * (math.sqrt(max(ps - pb, 1.0e5) / (0.5 * max(ps, 1.0e5))) - 1.0)",
-               "dqa += {c} * q_a * (math.sqrt(max(pa, 1.0e5) / (0.5 * max(ps, 1.0e5))) - 1.0)"]),
-    "c_ret": (["dqb -= {c} * q_b / (2.0 * max(pb, 1.0e5))"], ["dqa -= {c} * q_a / (2.0 * max(pa, 1.0e5))"]),
-    "c_sup": (["dqa += {c} * q_a / (2.0 * max(ps - pa, 1.0e5))"], ["dqb += {c} * q_b / (2.0 * max(ps - pb, 1.0e5))"]),
-    "c_ga": (["dqa += {c} * q_a"], None),
-    "c_gb": (["dqb += {c} * q_b"], None),
-    "c_gpos": (["dqa += {c} * q_a", "dqb += {c} * q_b"], []),
-    "c_gneg": ([], ["dqa += {c} * q_a", "dqb += {c} * q_b"]),
-})
+#: flow forms as code of the effect file (:func:`ehas_env.physics.land_terms.flow_body`): the chambers' leaks from the
+#: grammar (whatever the spool's direction), the lands' family by direction where it depends on it
+FLOW_CODE = {a.coef: SimpleNamespace(always=tuple(a.flow), pos=(), neg=())
+             for a in place_atoms(TERM_PLACES["chamber_flows"])}
+FLOW_CODE.update({t.coef: t for t in LAND_TERMS})
 #: what the model's right-hand side returns at each place (for the equation)
 PLACE_SYMBOL = {"piston_force": "F_piston [N] +=", "crank_torque": "T_crank [N m] +=",
                 "chamber_flows": "(Q_A, Q_B) [m^3/s] +=", "valve_current": "i_valve [mA] +=",
@@ -125,16 +92,10 @@ SHORT = {"piston_force": "f", "crank_torque": "t", "chamber_flows": "q", "valve_
 #: the largest coefficient tried: the form's typical size on this rig times this scale
 FORCE_SCALE = 4000.0  # N on the piston (a third of the stall force)
 #: the largest coefficient tried at the signal and flow places: the place's scale over the form at the quantities'
-#: spans (term_grammar.TermPlace.scale); the lands' family by hand (assumed: 30-60 bar at the ports, 40-60 % of
-#: the gain, a drop of the supply's size at the rated flow)
+#: spans (term_grammar.TermPlace.scale); the lands' family its own (land_terms.LandTerm.span)
 FIXED_RANGE = {f"{term_class(p.name)}.{a.coef}": p.scale / a.span_value
                for p in TERM_PLACES.values() if p.scale for a in place_atoms(p)}
-FIXED_RANGE.update({"proposal_land_flows.c_ret": 30e5, "proposal_land_flows.c_sup": 60e5,
-                    "proposal_land_flows.c_ga": 0.4, "proposal_land_flows.c_gb": 0.4,
-                    "proposal_land_flows.c_gpos": 0.4, "proposal_land_flows.c_gneg": 0.4,
-                    "proposal_land_flows.c_gpl": 0.6, "proposal_land_flows.c_rline": 1.5e10,
-                    "proposal_land_flows.c_rsup": 1.5e10, "proposal_land_flows.c_rsup2": 7.5e13,
-                    "proposal_land_flows.c_lam": 0.5})
+FIXED_RANGE.update({f"{term_class('land_flows')}.{t.coef}": t.span for t in LAND_TERMS})
 
 
 #: forms refitted without one of them at each step of the proposal's backward elimination (the best ranked by the
@@ -603,22 +564,8 @@ def _flow_body(body: list) -> list[str]:
     """The lines of an effect file's ``chamber_flows`` method for the flow terms ``body`` ((coefficient, sign,
     parameter name) each; :data:`FLOW_CODE` holds each form's code, by the spool's direction where it depends on
     it)."""
-    lines = ["        dqa = 0.0", "        dqb = 0.0"]
-    pos, neg = [], []
-    for coef, sign, pname in body:
-        c = f"{sign}{pname}" if not sign else f"(-{pname})"
-        always, negl = FLOW_CODE[coef]
-        if negl is None:
-            lines += ["        " + ln.format(c=c) for ln in always]
-        else:
-            pos += [ln.format(c=c) for ln in always]
-            neg += [ln.format(c=c) for ln in negl]
-    if pos or neg:
-        lines.append("        if qc >= 0.0:")
-        lines += ["            " + ln for ln in pos] or ["            pass"]
-        lines.append("        else:")
-        lines += ["            " + ln for ln in neg] or ["            pass"]
-    return lines + ["        return dqa, dqb"]
+    return flow_body(((FLOW_CODE[coef], f"{sign}{pname}" if not sign else f"(-{pname})") for coef, sign, pname in body),
+                     indent="        ")
 
 
 def write_effect(path, proposal: Proposal, *, origin: str = "", overwrite: bool = False) -> "Path":

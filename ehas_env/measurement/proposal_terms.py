@@ -30,8 +30,9 @@ valve_current      1 (null bias), i, i^2, i^3, |i| (gain by spool direction),   
 position_reading   1 (offset), x (gain), x^2, x^3                              m, -, 1/m, 1/m^2
 =================  ==========================================================  ==================
 
-The lands' terms (:class:`ProposalLand`) are a derived family of their own: perturbations of the orifice law at its
-boundaries (its supply and return pressures, its drop, its gain by port and direction), written once here.
+The lands' terms (:class:`ProposalLand`) are a family of their own: perturbations of the orifice law at its
+boundaries (its supply and return pressures, its drop, its gain by port and direction), each described once in
+:mod:`ehas_env.physics.land_terms` and generated from there like the rest.
 
 The classes are *not* registered effects (the registry stays the library plus
 the user's effects): :func:`extended_model` compiles them beside the registered
@@ -46,6 +47,7 @@ import math
 
 from ehas_env.physics.effects.augmentation import term_methods
 from ehas_env.physics.effects.base import Effect, Param
+from ehas_env.physics.land_terms import LAND_TERMS, land_method_source
 from ehas_env.physics.term_grammar import TERM_PLACES, method_source, place_atoms, term_class
 
 _WIDE = (-1.0e30, 1.0e30)
@@ -69,52 +71,12 @@ def _term_class(place) -> type:
 
 
 class ProposalLand(Effect):
-    """Terms at the valve's lands and its supply and return ports: they act wherever a flow is metered (the
-    runs' chambers and the valve bench, ``valve_side``)."""
+    """Terms at the valve's lands and its supply and return ports (:mod:`ehas_env.physics.land_terms`, generated):
+    they act wherever a flow is metered (the runs' chambers and the valve bench, ``valve_side``)."""
 
     valve_side = True
-    params = (
-        _p("c_ret", "Pa", "back-pressure of the return line (tank above 0)"),
-        _p("c_sup", "Pa", "supply pressure offset at the valve"),
-        _p("c_ga", "-", "extra flow gain into or out of chamber A (relative)"),
-        _p("c_gb", "-", "extra flow gain into or out of chamber B (relative)"),
-        _p("c_gpos", "-", "extra flow gain when the spool is open positive (relative)"),
-        _p("c_gneg", "-", "extra flow gain when the spool is open negative (relative)"),
-        _p("c_gpl", "-", "flow gain change per unit of |p_L| / p_S (relative)"),
-        _p("c_rline", "Pa s/m^3", "resistance of the lines between valve and chambers: pressure drop per flow"),
-        _p("c_rsup", "Pa s/m^3", "resistance of the supply line: supply pressure drop per supply flow"),
-        _p("c_rsup2", "Pa s^2/m^6", "turbulent supply drop: supply pressure drop per supply flow squared"),
-        _p("c_lam", "-", "share of the land flow that goes with the land's drop itself, not its square root "
-                         "(laminar metering; relative, at the rated drop p_S / 2)"),
-    )
-
-    @staticmethod
-    def chamber_flows(pa, pb, ps, q_a, q_b, qc, q_supply, c_ret, c_sup, c_ga, c_gb, c_gpos, c_gneg, c_gpl,
-                      c_rline, c_rsup, c_rsup2, c_lam):
-        # 1e5 Pa: the least pressure drop a land form divides by (finite where a land closes)
-        if qc >= 0.0:
-            d_in = max(ps - pa, 1.0e5)
-            d_out = max(pb, 1.0e5)
-            q_in, q_out = q_a, q_b
-            g = c_gpos
-        else:
-            d_in = max(ps - pb, 1.0e5)
-            d_out = max(pa, 1.0e5)
-            q_in, q_out = q_b, q_a
-            g = c_gneg
-        # a pressure change dp at a land changes its flow by q dp / (2 drop) (q ~ sqrt(drop))
-        rel_in = (c_sup - c_rsup * abs(q_supply) - c_rsup2 * q_supply * q_supply - c_rline * abs(q_in)) / (2.0 * d_in)
-        rel_out = (-c_ret - c_rline * abs(q_out)) / (2.0 * d_out)
-        rel = g + c_gpl * abs(pa - pb) / max(ps, 1.0e5)
-        lam_in = c_lam * (math.sqrt(d_in / (0.5 * max(ps, 1.0e5))) - 1.0)
-        lam_out = c_lam * (math.sqrt(d_out / (0.5 * max(ps, 1.0e5))) - 1.0)
-        dq_in = q_in * (rel_in + rel + lam_in)
-        dq_out = q_out * (rel_out + rel + lam_out)
-        if qc >= 0.0:
-            dqa, dqb = dq_in, dq_out
-        else:
-            dqa, dqb = dq_out, dq_in
-        return dqa + c_ga * q_a, dqb + c_gb * q_b
+    params = tuple(_p(t.coef, t.unit, t.words) for t in LAND_TERMS)
+    locals().update(term_methods(term_class("land_flows"), [land_method_source()]))
 
 
 #: the term classes by place; their names are set here, after the class bodies, so that

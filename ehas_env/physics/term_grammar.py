@@ -24,8 +24,8 @@ Both dictionaries come from here, and nothing in them is typed form by form:
 * **Named forms** (what a test engineer reads) are the atoms with their law and words, the pairs "a level and a
   part that rises with ...", a spring and its hardening, both areas, a gain and its saturation.
 
-The valve's lands (:mod:`ehas_env.measurement.proposal_terms`' ``ProposalLand``) stay a derived family of their
-own: perturbations of the orifice law at its boundaries, written once there.
+The valve's lands are a family of their own (:mod:`ehas_env.physics.land_terms`): perturbations of the orifice law
+at its boundaries, each described once there and generated the same way.
 
 Adding a place is one :class:`TermPlace` in :data:`TERM_PLACES` (its quantities must be arguments the model
 defines at that place, :data:`~ehas_env.physics.effects.base.PLACE_QUANTITIES`, or baseline slots: a place the
