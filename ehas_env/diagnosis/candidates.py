@@ -54,7 +54,7 @@ from ehas_env.diagnosis.honesty import at_bounds
 from ehas_env.diagnosis.side_by_side import side_by_side
 from ehas_env.diagnosis.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _value_of,
-    beats_noise, confidence, covering, finite_blocks, fit, own_params, recal_params, reopens_baseline, score_db,
+    beats_noise, confidence, costed, covering, finite_blocks, fit, own_params, recal_params, reopens_baseline, score_db,
     spanning, start_value)
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.residuals import evidence_text
@@ -332,8 +332,11 @@ def fit_candidate(rep: Replayer, effect: str, null: Fit, base_effects: dict | No
 def _screened_and_refined(rep: Replayer, names: list, null: Fit, base_effects: dict, progress: bool) -> dict:
     """Stage 1 and 2 of :func:`diagnose`: every effect of ``names`` screened on ``null`` (side by side, in waves: a
     nested effect after the one it extends), and the best within :data:`REFINE_WITHIN_DB` refined (at most
-    :data:`REFINE_TOP`): {name: Fit}."""
-    fits = {}
+    :data:`REFINE_TOP`): {name: Fit}.  A campaign of many runs screens on the runs that span its conditions
+    (:func:`screening_runs`), each screen then costed on every fitted run."""
+    scr = screening_runs(rep)
+    null_s = null if scr is rep else costed(scr, null)
+    fits, screens = {}, {}
     bar = None
     if progress:
         from tqdm import tqdm
@@ -343,7 +346,7 @@ def _screened_and_refined(rep: Replayer, names: list, null: Fit, base_effects: d
         bar = tqdm(total=len(names), desc="diagnose: screening", unit="fit")
 
     def screen(n):  # one effect's screen (the bar counts each as it ends)
-        f = screen_candidate(rep, n, null, fits)
+        f = screen_candidate(scr, n, null_s, screens)
         if bar:
             bar.update()
         return f
@@ -354,11 +357,16 @@ def _screened_and_refined(rep: Replayer, names: list, null: Fit, base_effects: d
     try:
         while left:
             wave = [n for n in left if NESTED.get(n, (None,))[0] not in left]
-            fits.update(zip(wave, side_by_side(screen, wave)))
+            screens.update(zip(wave, side_by_side(screen, wave)))
             left = [n for n in left if n not in wave]
     finally:  # a bar ends its line, a Ctrl-C's included
         if bar:
             bar.close()
+    if scr is rep:
+        fits = screens
+    else:
+        fits = dict(zip(screens, side_by_side(lambda f: costed(rep, f), list(screens.values()))))
+        rep.n_evals += scr.n_evals
     helpful = [n for n in sorted(fits, key=lambda n: fits[n].cost) if fits[n].cost < null.cost * (1.0 - SKIP_MARGIN)]
     # refine the best, and whoever screened within REFINE_WITHIN_DB of it (a close call is decided
     # after beta and K have been refitted with each)
@@ -699,6 +707,42 @@ def windowed(campaign: Campaign, window_s: float = FIT_WINDOW_S) -> Campaign:
     return Campaign(campaign.path, runs, list(campaign.ignored), list(campaign.warnings))
 
 
+#: a screen of many candidates replays at most this many of the fit data's closed-loop runs (and every valve
+#: bench run): those that span the conditions (:func:`screening_runs`); what it keeps is refitted on all of them
+SCREEN_CLOSED_LOOP = 4
+
+
+def screening_runs(rep: Replayer) -> Replayer:
+    """The fit data a screen of many candidates replays: ``rep`` itself when it holds at most
+    :data:`SCREEN_CLOSED_LOOP` closed-loop runs; else that many that span the campaign's conditions (disc sets,
+    amplitude, frequency; standardised, each next the farthest from those taken, from the most extreme) and every
+    other run (the valve bench's: it alone shows the valve).  A campaign of 20 runs screens on 4 and refits what
+    passes on its 15: the screens cost a quarter (issue 44: time grows at most 3x for 4x the runs).
+
+    Parameters
+    ----------
+    rep : Replayer
+        The fit data.
+
+    Returns
+    -------
+    Replayer
+    """
+    cl = [i for i, c in enumerate(rep.cases) if c.run.kind == "closed_loop"]
+    if len(cl) <= SCREEN_CLOSED_LOOP:
+        return rep
+    feats = np.array([[rep.cases[i].run.meta["disc_sets"], rep.cases[i].run.meta["reference"]["amplitude_deg"],
+                       rep.cases[i].run.meta["reference"]["freq_hz"]] for i in cl], dtype=float)
+    sd = feats.std(axis=0)
+    z = (feats - feats.mean(axis=0)) / np.where(sd > 0, sd, 1.0)
+    taken = [int(np.argmax(np.sum(z**2, axis=1)))]
+    while len(taken) < SCREEN_CLOSED_LOOP:
+        gap = np.min([np.sum((z - z[t]) ** 2, axis=1) for t in taken], axis=0)
+        taken.append(int(np.argmax(gap)))
+    keep = {cl[t] for t in taken} | {i for i, c in enumerate(rep.cases) if c.run.kind != "closed_loop"}
+    return rep.subset(sorted(keep))
+
+
 def default_holdout(campaign: Campaign) -> list[str]:
     """Runs kept out of the fit when none are named: with at least 4 runs, one closed-loop run per 4 runs
     (the most central in disc sets, amplitude and frequency: validation interpolates, it does not
@@ -933,8 +977,7 @@ def stands_in(rep: Replayer, f: Fit, effect: str) -> str | None:
     start = {(fp.effect, fp.name): _value_of(f.model, fp) for fp in free}
     ests: dict[str, list] = {}
     for g in groups:
-        sub = Replayer(Campaign(rep.campaign.path, [rep.cases[i].run for i in g]), substeps=rep.substeps,
-                       model=rep.model, hypotheses=rep.hypotheses)
+        sub = rep.subset(g)  # a logged supply the diagnosis took as an input stays one
         gf = fit(sub, free, start, f.model, max_nfev=SCREEN_NFEV * len(free), tol=1e-3)
         ci = confidence(sub, gf)
         rep.n_evals += sub.n_evals

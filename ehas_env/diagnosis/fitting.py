@@ -266,6 +266,24 @@ def finite_blocks(blocks: list) -> list:
     return [x if np.all(np.isfinite(x)) else np.where(np.isfinite(x), x, DIVERGED) for x in blocks]
 
 
+def costed(rep: Replayer, f: Fit) -> Fit:
+    """``f``'s model and fitted numbers with its cost, simulation and table on ``rep`` (other runs than those it was
+    fitted on: a screen's subset of the fit data, or the whole fit data after a screen on a subset).
+
+    Parameters
+    ----------
+    rep : Replayer
+    f : Fit
+
+    Returns
+    -------
+    Fit
+    """
+    sims = rep.simulate(f.model)
+    return Fit(model=f.model, cost=log_mean(finite_blocks(rep.cost_blocks(sims))), free=f.free, sims=sims,
+               table=rep.fit_table(sims), nfev=f.nfev)
+
+
 class Objective:
     """The fit's residuals as a function of u (the free parameters mapped to [0, 1]), memoised.
 

@@ -29,8 +29,8 @@ import numpy as np
 
 from ehas_env.diagnosis.candidates import (
     UNEXERCISED, _parts_cost, _sane, lowers_validation, refine_candidate, refit_without, sanity, screen_candidate,
-    validation_moved)
-from ehas_env.diagnosis.fitting import MIN_SCORE, Fit, confidence, model_from, own_params, start_value
+    screening_runs, validation_moved)
+from ehas_env.diagnosis.fitting import MIN_SCORE, Fit, confidence, costed, model_from, own_params, start_value
 from ehas_env.diagnosis.honesty import range_not_narrowed, share_removed, size_not_shown, term_refused
 from ehas_env.diagnosis.side_by_side import side_by_side
 from ehas_env.measurement.replay import COST_SIGNALS, SENSED_COLUMNS, ModelSpec, Replayer
@@ -464,6 +464,24 @@ def _screen_all(rep: Replayer, full: Replayer, final: Fit, sims0, names: list, b
     return screened
 
 
+def _screened_on(scr: Replayer, rep: Replayer, full: Replayer, final: Fit, sims0, names: list, bases: list,
+                 trigger: float, tried: list, say) -> dict:
+    """:func:`_screen_all` on ``scr``, the runs of the fit data ``rep`` that span its conditions
+    (:func:`~ehas_env.diagnosis.candidates.screening_runs`): the final model and the bases costed there, each screen
+    that lowers the final model's cost there costed again on ``rep`` (with its base as given); one that does not
+    explains nothing on the runs that span the campaign and is left out.  ``tried`` holds the screens' costs on
+    ``scr``.  When ``scr`` is ``rep`` (a campaign of few runs), :func:`_screen_all` on it."""
+    if scr is rep:
+        return _screen_all(rep, full, final, sims0, names, bases, trigger, tried, say)
+    final_s = costed(scr, final)
+    on = [(costed(scr, b), dropped, recal) for b, dropped, recal in bases]
+    back = {id(b_s): b for (b_s, _, _), (b, _, _) in zip(on, bases)}
+    got = _screen_all(scr, full, final_s, sims0, names, on, trigger, tried, say)
+    out = {key: (costed(rep, f), back[id(b_s)]) for key, (f, b_s) in got.items() if f.cost < final_s.cost}
+    rep.n_evals += scr.n_evals  # the diagnosis counts the screens' replays (of fewer runs) with its own
+    return out
+
+
 #: a screened block whose fit data's cost is within this many dB of the kept one's: the fitted runs cannot part them
 #: (what a candidate must score to beat the noise at all, :data:`~ehas_env.diagnosis.fitting.MIN_SCORE`)
 WITHIN_DB = MIN_SCORE
@@ -789,7 +807,8 @@ def state_stage(rep: Replayer, full: Replayer, final: Fit, parts: dict, say, nam
     if null is not None and set(null.model.effects) != held and (bare is None or set(bare.model.effects) != set(
             null.model.effects)):
         bases.append((null, sorted(held - set(null.model.effects)), True))
-    screened = _screen_all(rep, full, final, sims0, names, bases, trigger, record["tried"], say)
+    screened = _screened_on(screening_runs(rep), rep, full, final, sims0, names, bases, trigger, record["tried"],
+                            say)
     lower = {key: fb for key, fb in screened.items() if fb[0].cost < final.cost}
     better = {key: fb for key, fb in lower.items() if sanity(fb[0], key[0]) is None}
     if not better:

@@ -478,6 +478,24 @@ class Replayer:
             out[pos[name]] = s[k]
         return at_rest(mod, out)
 
+    def subset(self, indices) -> "Replayer":
+        """A replayer of some of this one's runs: the same substeps, model file, hypotheses, threads and measured
+        inputs (each run's own).
+
+        Parameters
+        ----------
+        indices : iterable of int
+            Indices into :attr:`cases`.
+
+        Returns
+        -------
+        Replayer
+        """
+        runs = [self.cases[i].run for i in indices]
+        return Replayer(Campaign(self.campaign.path, runs), substeps=self.substeps, model=self.model,
+                        hypotheses=self.hypotheses, threads=self.threads,
+                        inputs={r.name: self.inputs[r.name] for r in runs if r.name in self.inputs})
+
     def absolute(self, model: ModelSpec) -> ModelSpec:
         """``model`` with the bulk modulus (Pa) and valve gain (LPM/mA) the plant runs (see ``model=``)."""
         if self.model is None:
