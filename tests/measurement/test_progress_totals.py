@@ -55,7 +55,7 @@ def test_each_bar_keeps_the_total_it_started_with(monkeypatch, screened, refined
     RecordingBar.made = []
     monkeypatch.setattr(tqdm, "tqdm", RecordingBar)
     rep = SimpleNamespace(simulate=lambda spec: [], log_cost=lambda sims: 1.0,
-                          fit_table=lambda sims: SimpleNamespace(overall=80.0), n_evals=0)
+                          fit_table=lambda sims: SimpleNamespace(overall=80.0), n_evals=0, cases=[])
     monkeypatch.setattr(D, "fit_null", lambda rep, base: fit(1.0))
     monkeypatch.setattr(D, "screen_candidate", lambda rep, n, null, fits: fit(screened[n], {n: {}}))
     monkeypatch.setattr(D, "refine_candidate", lambda rep, n, f, null, base: fit(f.cost * 0.9, {n: {}}))

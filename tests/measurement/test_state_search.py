@@ -652,6 +652,7 @@ def test_a_block_whose_size_the_fit_cannot_tell_from_nothing_is_not_kept(monkeyp
     monkeypatch.setattr(states, "grade", lambda sims: {"residual_x_noise": 1.28 if sims == "before" else 1.09})
     monkeypatch.setattr(states, "_quiet", lambda g, trigger: False)
     monkeypatch.setattr(states, "_parts_cost", lambda full, sims, parts: None)
+    monkeypatch.setattr(states, "screening_runs", lambda rep: rep)
     monkeypatch.setattr(states, "_screen_all", lambda *a: {(name, None): (kept_fit, final)})
     monkeypatch.setattr(states, "_refined_choice", lambda *a: ((name, None), {(name, None): kept_fit}, []))
     monkeypatch.setattr(states, "sanity", lambda f, n: None)
