@@ -54,7 +54,7 @@ from ehas_env.diagnosis.honesty import at_bounds
 from ehas_env.diagnosis.side_by_side import side_by_side
 from ehas_env.diagnosis.fitting import (
     MIN_GAIN, MIN_SCORE, SCREEN_NFEV, SKIP_MARGIN, Fit, FreeParam, _value_of,
-    beats_noise, confidence, costed, covering, finite_blocks, fit, own_params, recal_params, reopens_baseline, score_db,
+    beats_noise, confidence, costed, covering, fit, own_params, recal_params, reopens_baseline, replay_cost, score_db,
     spanning, start_value)
 from ehas_env.measurement.replay import COST_SIGNALS, ModelSpec, Replayer, log_mean
 from ehas_env.measurement.residuals import evidence_text
@@ -510,7 +510,7 @@ def fit_together(rep: Replayer, effects: dict, null: Fit) -> Fit:
         start = {(fp.effect, fp.name): given[fp.effect][fp.name] if fp.effect else _value_of(base, fp)
                  for fp in free}
         model = dataclasses.replace(base, effects=given, terms=dict(null.model.terms))
-        if fits and log_mean(finite_blocks(rep.cost_blocks(rep.simulate(model)))) >= fits[0].cost:
+        if fits and replay_cost(rep, rep.simulate(model)) >= fits[0].cost:
             break
         fits.append(fit(rep, free, start, model))
     return min(fits, key=lambda f: f.cost)

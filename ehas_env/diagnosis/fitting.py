@@ -266,6 +266,23 @@ def finite_blocks(blocks: list) -> list:
     return [x if np.all(np.isfinite(x)) else np.where(np.isfinite(x), x, DIVERGED) for x in blocks]
 
 
+def replay_cost(rep: Replayer, sims: list) -> float:
+    """The fit's cost of the replayed runs ``sims`` of ``rep``: :meth:`Objective.cost`'s measure (the log cost, a
+    sample left not finite at :data:`DIVERGED`), for a model replayed outside a fit.
+
+    Parameters
+    ----------
+    rep : Replayer
+    sims : list
+        :meth:`Replayer.simulate`'s runs.
+
+    Returns
+    -------
+    float
+    """
+    return log_mean(finite_blocks(rep.cost_blocks(sims)))
+
+
 def costed(rep: Replayer, f: Fit) -> Fit:
     """``f``'s model and fitted numbers with its cost, simulation and table on ``rep`` (other runs than those it was
     fitted on: a screen's subset of the fit data, or the whole fit data after a screen on a subset).
@@ -280,8 +297,8 @@ def costed(rep: Replayer, f: Fit) -> Fit:
     Fit
     """
     sims = rep.simulate(f.model)
-    return Fit(model=f.model, cost=log_mean(finite_blocks(rep.cost_blocks(sims))), free=f.free, sims=sims,
-               table=rep.fit_table(sims), nfev=f.nfev)
+    return Fit(model=f.model, cost=replay_cost(rep, sims), free=f.free, sims=sims, table=rep.fit_table(sims),
+               nfev=f.nfev)
 
 
 class Objective:

@@ -171,7 +171,7 @@ def range_not_narrowed(fit, effect: str, ci: dict) -> str | None:
 
     cls = get_effect(effect)
     main = getattr(cls, "main_param", None)
-    for fp in getattr(fit, "free", ()):
+    for fp in fit.free:
         if fp.effect != effect or fp.name != main or fp.name not in ci:
             continue
         lo, hi = ci[fp.name]

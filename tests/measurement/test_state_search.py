@@ -645,7 +645,7 @@ def test_a_block_whose_size_the_fit_cannot_tell_from_nothing_is_not_kept(monkeyp
     from types import SimpleNamespace as NS
 
     name = "aug_offset_pb_reading"
-    kept_fit = NS(cost=0.5, model=states.ModelSpec(effects={name: {"c": -184.0}}))
+    kept_fit = NS(cost=0.5, model=states.ModelSpec(effects={name: {"c": -184.0}}), free=[])
     final = NS(cost=1.0, model=states.ModelSpec(effects={}))
     full = NS(simulate=lambda model: "after" if model.effects else "before")
     monkeypatch.setattr(states, "blocks_of", lambda full, sims, signals: sims)
