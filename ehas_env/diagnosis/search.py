@@ -30,7 +30,7 @@ from ehas_env.diagnosis.candidates import (
     _quiet_measure, _rival_hypotheses, _sane, _share_needed, coulomb_from_stribeck, default_holdout,
     degenerate_stribeck, diagnose, fit_candidate, fit_null, fit_window_samples, hypothesis_effects, library_effects,
     lowers_validation, stands_in, windowed, with_defaults, hypotheses_trigger)
-from ehas_env.diagnosis.fitting import MIN_GAIN, Fit
+from ehas_env.diagnosis.fitting import MIN_GAIN, MIN_SCORE, Fit
 from ehas_env.diagnosis.honesty import worse_than_bare
 from ehas_env.measurement.replay import COST_SIGNALS, Replayer
 from ehas_env.measurement.verdict import blocks_of, grade
@@ -337,17 +337,26 @@ def hypotheses_stage(s: Search) -> dict:
     s.bare = (s.current, s.cur_sims, s.cur_val, {k: dict(v) for k, v in s.base.items()},
               [(st.kept, st.reason) for st in s.steps])
     n0 = len(s.steps)
-    while _rounds_left(s):
-        kept = search_round(s)
-        if kept is not None and s.grade()["verdict"] == "explained":
-            break  # a structural hypothesis explains the campaign: no round of every candidate again on top of it
-        if kept is not None and s.stack:
-            continue
-        if kept is None and s.swap is None and s.grade()["verdict"] != "explained" and _swap_branch(s):
-            continue
-        break
-    if s.swap is not None:
-        _settle_swap(s)
+    # when the rounds find nothing more and the campaign is not explained, two branches, each once: a hypothesis
+    # that lost to a kept library effect in its place, then the best hypothesis alone in place of all of them
+    branches = [_swap_branch, _restart_branch]
+    while True:
+        kept = None
+        while _rounds_left(s):
+            kept = search_round(s)
+            if kept is not None and s.grade()["verdict"] == "explained":
+                break  # a structural hypothesis explains the campaign: no round of every candidate again on top
+            if kept is None or not s.stack:
+                break
+        if s.swap is not None:
+            _settle_swap(s)
+            s.swap = None
+        if kept is not None or s.ended or s.grade()["verdict"] == "explained":
+            break
+        while branches and not branches.pop(0)(s):
+            pass
+        if s.swap is None:
+            break
     s.current, s.cur_sims, s.cur_val, s.base = keep_no_worse(s.full, s.bare, (s.current, s.cur_sims, s.cur_val,
                                                                              s.base), s.steps, s.say)
     return {"tried_because": s.hyp_because, "kept": [st.effect for st in s.steps[n0:] if st.kept]}
@@ -374,13 +383,56 @@ def _swap_branch(s: Search) -> bool:
     return True
 
 
+#: the share of the library's model's fit-data cost a structural hypothesis alone must leave (at most) for the
+#: search to start again from it (:func:`_restart_branch`): what a candidate must score to beat the noise
+RESTART_RATIO = 10.0 ** (-MIN_SCORE / 10.0)
+
+
+def _restart_branch(s: Search) -> bool:
+    """Nothing more found on top of the library's effects: the structural hypotheses are screened (and the best
+    refined) on the recalibrated baseline without them.  One that alone leaves less than the library's model does
+    on the fit data (:data:`RESTART_RATIO` of its cost at most) shows that the library's effects stood in for it
+    (a return line's back pressure taken for an internal leakage and a piston mass, a rod's area for a soft oil,
+    on campaigns that start from rest, where the first round sees the start's large error alone): the search goes
+    on from it, the library's effects set aside and tried again on top; the branch is kept only when it ends
+    better on the validation data (:func:`_settle_swap`).  Returns whether it started."""
+    lib = tuple(st.effect for st in s.steps if st.kept and st.effect in s.base
+                and get_effect(st.effect).kind != "hypothesis")
+    hyps = [n for n in s.hyps if n not in s.base]
+    if not lib or not hyps or len(s.rounds) >= MAX_ROUNDS - 1:
+        return False
+    d = diagnose(s.rep.campaign, base_effects={}, candidates=hyps, progress=s.progress, replayer=s.rep)
+    s.rounds.append(d)
+    best = next((e for e in d.ranking if e.beats_noise and e.effect in hyps), None)
+    if best is None or not best.fit.cost <= RESTART_RATIO * s.current.cost:
+        s.say(f"round {len(s.rounds)}: the hypotheses without {', '.join(lib)}: none leaves less alone than they do")
+        return False
+    h = best.effect
+    f, why = _sane(s.rep, best.fit, h)
+    if why is not None:
+        return False
+    s.swap = (lib, h, s.current, s.cur_sims, s.cur_val, {k: dict(v) for k, v in s.base.items()}, len(s.steps))
+    sims = s.full.simulate(f.model)
+    val = _parts_cost(s.full, sims, s.parts)
+    s.steps.append(Step(h, True, get_effect(h).in_words(f.model.effects[h]) + f"; alone it leaves less than "
+                        f"{', '.join(lib)} together ({f.cost:.4g} against {s.current.cost:.4g} sensor-noise variances "
+                        "on the fit data): put in their place to search again on top of it", f, f.cost, val, None))
+    s.say(f"  {h}: alone it leaves less than {', '.join(lib)}; put in their place, searching again on top of it")
+    s.keep(f, sims, val)
+    s.pool = list(s.candidates or library_effects()) + [n for n in s.hyps if n != h]
+    return True
+
+
 def _settle_swap(s: Search) -> None:
-    """The branch of :func:`_swap_branch` ended: kept when better on the validation data, else undone."""
+    """The branch of :func:`_swap_branch` or :func:`_restart_branch` ended: kept when better on the validation
+    data, else undone."""
     e_lib, h, s_cur, s_sims, s_val, s_base, n_steps = s.swap
+    names = (e_lib,) if isinstance(e_lib, str) else tuple(e_lib)
+    e_lib = ", ".join(names)
     now, was = (s.cur_val, s_val) if s.cur_val is not None and s_val is not None else (s.current.cost, s_cur.cost)
     if lowers_validation(was, now, strict=True):
         for st in s.steps[:n_steps]:
-            if st.effect == e_lib and st.kept:
+            if st.effect in names and st.kept:
                 st.kept = False
                 st.reason = (f"stands in for {h} ({get_effect(h).title}): with {h} in its place the search "
                              f"found more, and the residual fell to {now:.4g} sensor-noise variances "
