@@ -77,7 +77,7 @@ class Search:
     paired: bool = False  # the pair of hypotheses was tried (once)
     inconsistent: list = field(default_factory=list)  # library effects that fit differently on groups of runs
     lost_rivals: list = field(default_factory=list)  # (library effect kept, hypothesis that lost to it)
-    swap: tuple | None = None  # the state before a lost rival was put in its effect's place
+    swap: tuple | None = None  # the state before a branch put a hypothesis in the place of effects kept (_start_branch)
     bare: tuple | None = None  # the model before the hypotheses (honesty rule 2 compares with it)
     ended: bool = False  # the rounds ran out (MAX_ROUNDS) or no candidate is left
     records: list = field(default_factory=list)  # one record per stage run: name, elapsed_s, what it found
@@ -370,17 +370,25 @@ def _swap_branch(s: Search) -> bool:
     if not pending:
         return False
     e_lib, h = pending[0]
-    s.swap = (e_lib, h, s.current, s.cur_sims, s.cur_val, {k: dict(v) for k, v in s.base.items()}, len(s.steps))
     rest = {k: dict(v) for k, v in s.base.items() if k != e_lib}
     f = fit_candidate(s.rep, h, fit_null(s.rep, rest), rest)
-    sims = s.full.simulate(f.model)
-    val = _parts_cost(s.full, sims, s.parts)
-    s.steps.append(Step(h, True, get_effect(h).in_words(f.model.effects[h]) + f"; put in place of {e_lib} "
-                        "to search again on top of it", f, f.cost, val, None))
-    s.say(f"  {h}: put in place of {e_lib}, searching the hypotheses again on top of it")
-    s.keep(f, sims, val)
+    _start_branch(s, (e_lib,), h, f, f"put in place of {e_lib} to search again on top of it",
+                  f"put in place of {e_lib}, searching the hypotheses again on top of it")
     s.pool = [n for n in s.hyps if n != h]
     return True
+
+
+def _start_branch(s: Search, set_aside: tuple, h: str, f, step_words: str, said: str) -> None:
+    """Start a branch (:func:`_swap_branch`, :func:`_restart_branch`): the state before it kept in ``s.swap`` (with
+    the effects ``set_aside`` for the hypothesis ``h``), ``f`` (the model with ``h`` in their place, on the fit data)
+    made the model kept, its step said with ``step_words`` after ``h``'s own words, ``said`` on the progress."""
+    s.swap = (set_aside, h, s.current, s.cur_sims, s.cur_val, {k: dict(v) for k, v in s.base.items()}, len(s.steps))
+    sims = s.full.simulate(f.model)
+    val = _parts_cost(s.full, sims, s.parts)
+    s.steps.append(Step(h, True, get_effect(h).in_words(f.model.effects[h]) + "; " + step_words, f, f.cost, val,
+                        None))
+    s.say(f"  {h}: {said}")
+    s.keep(f, sims, val)
 
 
 #: the share of the library's model's fit-data cost a structural hypothesis alone must leave (at most) for the
@@ -411,14 +419,10 @@ def _restart_branch(s: Search) -> bool:
     f, why = _sane(s.rep, best.fit, h)
     if why is not None:
         return False
-    s.swap = (lib, h, s.current, s.cur_sims, s.cur_val, {k: dict(v) for k, v in s.base.items()}, len(s.steps))
-    sims = s.full.simulate(f.model)
-    val = _parts_cost(s.full, sims, s.parts)
-    s.steps.append(Step(h, True, get_effect(h).in_words(f.model.effects[h]) + f"; alone it leaves less than "
-                        f"{', '.join(lib)} together ({f.cost:.4g} against {s.current.cost:.4g} sensor-noise variances "
-                        "on the fit data): put in their place to search again on top of it", f, f.cost, val, None))
-    s.say(f"  {h}: alone it leaves less than {', '.join(lib)}; put in their place, searching again on top of it")
-    s.keep(f, sims, val)
+    _start_branch(s, lib, h, f, f"alone it leaves less than {', '.join(lib)} together ({f.cost:.4g} against "
+                  f"{s.current.cost:.4g} sensor-noise variances on the fit data): put in their place to search again "
+                  "on top of it",
+                  f"alone it leaves less than {', '.join(lib)}; put in their place, searching again on top of it")
     s.pool = list(s.candidates or library_effects()) + [n for n in s.hyps if n != h]
     return True
 
@@ -426,8 +430,7 @@ def _restart_branch(s: Search) -> bool:
 def _settle_swap(s: Search) -> None:
     """The branch of :func:`_swap_branch` or :func:`_restart_branch` ended: kept when better on the validation
     data, else undone."""
-    e_lib, h, s_cur, s_sims, s_val, s_base, n_steps = s.swap
-    names = (e_lib,) if isinstance(e_lib, str) else tuple(e_lib)
+    names, h, s_cur, s_sims, s_val, s_base, n_steps = s.swap
     e_lib = ", ".join(names)
     now, was = (s.cur_val, s_val) if s.cur_val is not None and s_val is not None else (s.current.cost, s_cur.cost)
     if lowers_validation(was, now, strict=True):
