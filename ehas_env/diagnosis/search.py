@@ -409,7 +409,9 @@ def _restart_branch(s: Search) -> bool:
     hyps = [n for n in s.hyps if n not in s.base]
     if not lib or not hyps or len(s.rounds) >= MAX_ROUNDS - 1:
         return False
-    d = diagnose(s.rep.campaign, base_effects={}, candidates=hyps, progress=s.progress, replayer=s.rep)
+    # the effects the search started from (the user's ``--with``) stay: only the library's are set aside
+    d = diagnose(s.rep.campaign, base_effects=s.rounds[0].base_effects, candidates=hyps, progress=s.progress,
+                 replayer=s.rep)
     s.rounds.append(d)
     best = next((e for e in d.ranking if e.beats_noise and e.effect in hyps), None)
     if best is None or not best.fit.cost <= RESTART_RATIO * s.current.cost:

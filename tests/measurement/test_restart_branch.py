@@ -28,6 +28,8 @@ from tests.independent_rig.start_conditions import options  # noqa: E402
 HYPS = ["hyp_rod_area", "hyp_return_pressure", "hyp_coil_lag"]
 #: the library's effects the test lets the first rounds keep
 LIBRARY = ["internal_leakage", "piston_mass"]
+#: the effect the user gives the diagnosis (``--with``)
+GIVEN = {"coulomb_friction": {"Fc": 20.0}}
 
 
 def _from_rest(tmp_path: Path, effects: dict) -> Path:
@@ -35,20 +37,21 @@ def _from_rest(tmp_path: Path, effects: dict) -> Path:
     return gen.write(tmp_path / "camp", runs, truth, overwrite=True)
 
 
-def _library_kept(camp: Path):
-    s = data_stage(read_campaign(camp), window_s=FIT_WINDOW_S, candidates=LIBRARY)
+def _library_kept(camp: Path, given=None):
+    s = data_stage(read_campaign(camp), window_s=FIT_WINDOW_S, candidates=LIBRARY, base_effects=given)
     library_stage(s)
     s.hyps = list(HYPS)
     return s
 
 
 def test_a_return_pressure_the_library_stood_in_for_is_found_from_the_baseline(tmp_path):
-    s = _library_kept(_from_rest(tmp_path, {"return_pressure": {"p_t": 15.0}}))
+    # the effect the user gave (``--with``) stays through the restart: only the library's are set aside
+    s = _library_kept(_from_rest(tmp_path, {"return_pressure": {"p_t": 15.0}}), given=GIVEN)
     kept = [st.effect for st in s.steps if st.kept]
     assert kept and set(kept) <= set(LIBRARY), kept  # the stand-ins the search keeps first
     lib_cost = s.current.cost
     assert _restart_branch(s)
-    assert list(s.base) == ["hyp_return_pressure"], s.base
+    assert set(s.base) == {"coulomb_friction", "hyp_return_pressure"}, s.base
     assert s.base["hyp_return_pressure"]["p_t"] == pytest.approx(15.0, rel=0.1)
     assert s.current.cost < 0.2 * lib_cost, (s.current.cost, lib_cost)
     assert s.swap[0] == tuple(kept)  # the branch sets all of them aside, and may be undone (_settle_swap)
