@@ -98,6 +98,77 @@ FIXED_RANGE = {f"{term_class(p.name)}.{a.coef}": p.scale / a.span_value
 FIXED_RANGE.update({f"{term_class('land_flows')}.{t.coef}": t.span for t in LAND_TERMS})
 
 
+#: a set of forms whose summed response is less than this share of the sum of their responses' sizes cancels
+#: (:func:`net_share`): their coefficients mostly undo one another, the data determine only a combination of them,
+#: not each, and a set of them is refused.  Measured on the screen's tangents at the model the term is added to, in
+#: the start-conditions campaigns of a crank bearing's friction and an end cushion from rest (results at 1226881):
+#: the piston's and the crank's load-proportional friction fitted as -0.00348 and +0.00340 m^2, 0.049 (their net,
+#: 8e-5 m^2, is what the faded-in campaign's proposal fitted with the piston's form alone); four damping forms at the
+#: piston and the crank, each about 1700 times their net, 0.0003; a pair at the two places 0.086.  Two forms of equal
+#: size whose responses are at right angles give 0.71, three 0.58
+CANCEL_SHARE = 0.25
+#: forms whose features (the piston-equivalent force per unit coefficient over the campaign's closed-loop runs)
+#: correlate this closely (uncentred) are one column to the sparse regression, the first listed kept: a form at the
+#: crank and its twin at the piston (a torque is a force through the lever r cos theta) correlate 0.990-1.000 on the
+#: book rig's +-10-35 deg (the same campaign of a crank bearing's friction), and STLSQ given both fitted the twins'
+#: difference with cancelling coefficients (-0.00347 and +0.00344 m^2, 5070 N and -258 N m), its ridge
+#: notwithstanding; the closest pair of one place there 0.985 (a constant and chamber A's pressure)
+TWIN_R = 0.99
+
+
+def net_share(terms: dict[str, float], tangents: dict[str, np.ndarray]) -> float:
+    """The size of a set of forms' summed response over the sum of their responses' sizes, each response its
+    coefficient times its tangent (:func:`_screen`'s): 1 for one form or forms that add up, near 0 for forms that
+    cancel (:data:`CANCEL_SHARE`).  A form without a tangent (its probe diverged) makes the set count as not
+    cancelling: 1.
+
+    Parameters
+    ----------
+    terms : dict
+        {form: coefficient}.
+    tangents : dict
+        {form: residual change per unit coefficient}.
+
+    Returns
+    -------
+    float
+        In [0, 1].
+
+    Examples
+    --------
+    >>> t = {"a": np.array([1.0, 0.0]), "b": np.array([1.0, 0.1]), "c": np.array([0.0, 1.0])}
+    >>> round(net_share({"a": 1.0, "b": -1.0}, t), 3), round(net_share({"a": 1.0, "c": 1.0}, t), 3)
+    (0.05, 0.707)
+    """
+    if len(terms) < 2 or any(k not in tangents for k in terms):
+        return 1.0
+    parts = [c * tangents[k] for k, c in terms.items()]
+    size = sum(float(np.linalg.norm(x)) for x in parts)
+    return 1.0 if size <= 0.0 else min(float(np.linalg.norm(sum(parts))) / size, 1.0)
+
+
+def without_twins(columns: dict[str, np.ndarray], r: float = TWIN_R) -> list[str]:
+    """The keys of ``columns`` in their order, each left out whose column correlates (uncentred) at least ``r`` with
+    one kept before it: what a regression can part.
+
+    Examples
+    --------
+    >>> x = np.linspace(0.1, 1.0, 50)
+    >>> without_twins({"x": x, "x_twin": 2.0 * x + 1e-4, "x3": x ** 3})
+    ['x', 'x3']
+    """
+    kept, unit = [], {}
+    for k, col in columns.items():
+        n = float(np.linalg.norm(col))
+        if n <= 0.0:
+            continue
+        u = col / n
+        if all(abs(float(u @ unit[j])) < r for j in kept):
+            kept.append(k)
+            unit[k] = u
+    return kept
+
+
 #: forms refitted without one of them at each step of the proposal's backward elimination (the best ranked by the
 #: fit's linearisation, :func:`_drop_order`)
 DROP_REFITS = 2
@@ -185,6 +256,7 @@ def sparse_force_terms(rep: Replayer, sims, threshold: float = 0.08) -> dict[str
     y = np.concatenate(ys)
     keys = [k for k in X if np.ptp(np.concatenate(X[k])) > 0 or k.endswith(".c_1")]
     keys = [k for k in keys if not k.startswith("proposal_crank_torque.c_1")]  # the piston's constant stands for it
+    keys = without_twins({k: np.concatenate(X[k]) for k in keys})
     A = np.column_stack([np.concatenate(X[k]) for k in keys])
     scale = np.sqrt(np.mean(A**2, axis=0))
     ys_ = float(np.sqrt(np.mean(y**2))) or 1.0
@@ -225,6 +297,8 @@ class Proposal:
     fit: object  # diagnosis.Fit of the model with the term (on the fit data)
     screened: list = field(default_factory=list)  # [(form, J after screening)], best first
     sparse: dict = field(default_factory=dict)  # the STLSQ selection on the residual force
+    #: fitted sets refused because their forms cancel: [{terms, net_share, residual_x_noise}] (:data:`CANCEL_SHARE`)
+    cancelling: list = field(default_factory=list)
     validation: dict = field(default_factory=dict)  # filled by the caller: J and fit % on all data
     #: the named physical forms (ehas_env.diagnosis.naming: JSON entries) and the naming's record
     named: list = field(default_factory=list)
@@ -255,7 +329,8 @@ class Proposal:
                "residual_x_noise_before": round(self.cost_before, 3), "residual_x_noise_after": round(self.cost_after, 3),
                "fit_percent_before": round(self.fit_before, 2), "fit_percent_after": round(self.fit_after, 2),
                "sparse_regression": {k: _r(v) for k, v in self.sparse.items()},
-               "screened": [[k, round(c, 3)] for k, c in self.screened[:6]]}
+               "screened": [[k, round(c, 3)] for k, c in self.screened[:6]],
+               "refused_cancelling": list(self.cancelling)}
         out["named"] = list(self.named)
         if self.naming:
             out["naming"] = self.naming
@@ -296,7 +371,8 @@ def _linear_costs(r0: list, dr: list, coefs: np.ndarray) -> np.ndarray:
     return np.exp(total / n)
 
 
-def _screen(rep: Replayer, base, keys: list[str], ranges: dict[str, float]) -> list[tuple[str, float, float]]:
+def _screen(rep: Replayer, base, keys: list[str], ranges: dict[str, float],
+            tangents: dict | None = None) -> list[tuple[str, float, float]]:
     """Each form alone on top of ``base``, screened on the model's linearisation, the best confirmed by replays.
 
     The replayed scan this replaces (every form's coefficient over both signs and SCREEN_MAGS magnitudes: 336
@@ -307,6 +383,9 @@ def _screen(rep: Replayer, base, keys: list[str], ranges: dict[str, float]) -> l
     then replayed over SCREEN_MAGS magnitudes of their predicted sign (the replayed scan's magnitudes), which
     gives their cost and coefficient as the replayed scan did; a form the tangent misranks below them is not
     fitted (the sparse regression's set is fitted whatever the screen says, :func:`propose`).
+
+    ``tangents``, when given, receives each form's tangent: the change of the residual per unit coefficient, every
+    block weighted as the log cost's gradient at ``base`` (1 / its RMS), concatenated (:func:`net_share`).
 
     Returns
     -------
@@ -331,6 +410,9 @@ def _screen(rep: Replayer, base, keys: list[str], ranges: dict[str, float]) -> l
         if len(blocks) != len(r0) or not all(np.all(np.isfinite(b)) for b in blocks):
             continue  # the probe failed (a diverging replay): the form is screened by replays below
         dr = [(b - a) / steps[k] for a, b in zip(r0, blocks)]
+        if tangents is not None:
+            tangents[k] = np.concatenate([d / math.sqrt(max(float(a @ a) / max(a.size, 1), 1e-300))
+                                          for a, d in zip(r0, dr)])
         coefs = np.concatenate([-mags[::-1], mags]) * ranges[k]
         costs = _linear_costs(r0, dr, coefs - ref[k])
         j = int(np.argmin(costs))
@@ -392,7 +474,8 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
     ranges = {k: coefficient_range(k, rep, base.sims) for k in keys}
     keys = [k for k in keys if ranges[k] > 0]
     sparse = sparse_force_terms(rep, base.sims)
-    screened = _screen(rep, base, keys, ranges)
+    tangents: dict[str, np.ndarray] = {}
+    screened = _screen(rep, base, keys, ranges, tangents)
     screened = [s for s in screened if s[1] < base.cost * (1.0 - D.SKIP_MARGIN)]
     if not screened and not sparse:
         return None
@@ -419,14 +502,32 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
     tries = [{k: c} for k, _, c in screened[:FIT_TOP]]
     if sparse and set(sparse) not in [set(t) for t in tries]:
         tries.append(dict(sparse))
-    fits = [fit_terms(t) for t in tries]
+    cancelling = []  # fitted sets refused: their forms undo one another (net_share below CANCEL_SHARE)
+
+    def holds(f) -> bool:
+        share = net_share(f.model.terms, tangents)
+        if share >= CANCEL_SHARE:
+            return True
+        cancelling.append({"terms": {k: _r(v) for k, v in f.model.terms.items()}, "net_share": round(share, 4),
+                           "residual_x_noise": round(f.cost, 3)})
+        if say is not None:
+            say(f"  {', '.join(f.model.terms)} refused: their responses cancel (the sum {100 * share:.2g} % of the "
+                "parts), the data fix only a combination of them")
+        return False
+
+    fits = [f for f in (fit_terms(t) for t in tries) if holds(f)]
+    if not fits:
+        return None
     best = _built_on(fits, score, proven, say)
     # add further forms while each lowers the residual clearly
     while len(best.model.terms) < MAX_TERMS:
         extra = [k for k, _, _ in screened if k not in best.model.terms][:2]
         if not extra:
             break
-        cands = [fit_terms({**best.model.terms, k: next(c for kk, _, c in screened if kk == k)}) for k in extra]
+        cands = [f for f in (fit_terms({**best.model.terms, k: next(c for kk, _, c in screened if kk == k)})
+                             for k in extra) if holds(f)]
+        if not cands:
+            break
         cand = max(cands, key=score)
         if 10.0 * math.log10(best.cost / cand.cost) < ADD_TERM_DB:
             break
@@ -448,6 +549,9 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
             if keep in fitted and fitted[keep].cost < f.cost:
                 f = fitted[keep]
             subs.append(f)
+        subs = [f for f in subs if holds(f)]
+        if not subs:
+            break
         sub = min(subs, key=lambda f: f.cost)
         if 10.0 * math.log10(sub.cost / best.cost) >= ADD_TERM_DB:
             break
@@ -459,7 +563,7 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
                 ci[name] = lohi
     prop = Proposal(terms=dict(best.model.terms), ci=ci, cost_before=base.cost, cost_after=best.cost,
                     fit_before=base.table.overall, fit_after=best.table.overall, fit=best,
-                    screened=[(k, j) for k, j, _ in screened], sparse=sparse)
+                    screened=[(k, j) for k, j, _ in screened], sparse=sparse, cancelling=cancelling)
     if name:
         nm = name_terms(rep, base, prop.terms, ranges, fixed_model=best.model, confidence=confidence, say=say)
         prop.named = nm.named
