@@ -629,7 +629,7 @@ def _findings_lines(res) -> list[str]:
     from ehas_env.diagnosis.honesty import at_bound_lines, at_bounds
 
     return (drift_lines(res.drift, res.per_run) + disturbance_lines(res.disturbances)
-            + at_bound_lines(at_bounds(res.fit_train, res.model.effects)))
+            + at_bound_lines(at_bounds(res.fit_train, res.model.effects, baseline=True)))
 
 
 def _stack_text(res) -> str:

@@ -11,7 +11,8 @@
    numbers, nothing at 0) each have a 95 % interval that holds 0 is not kept: the data do not show it acts.
 4. **A fit on a bound says so** (:func:`at_bounds`): every fitted parameter of a library effect that sits at the
    end of its fit range (and so is no point estimate) is listed, with the range and whether that end is the
-   parameter's physical bound, in the JSON (``model.at_bound``, ``ranking[].at_bound``).
+   parameter's physical bound, in the JSON (``model.at_bound``, ``ranking[].at_bound``); so are the final model's
+   recalibrated beta and K at an end of their recalibration range (``model.at_bound``).
 
 Examples
 --------
@@ -187,7 +188,7 @@ def range_not_narrowed(fit, effect: str, ci: dict) -> str | None:
 NOT_NARROWED = 0.02
 
 
-def at_bounds(fit, effects=None) -> list[dict]:
+def at_bounds(fit, effects=None, baseline: bool = False) -> list[dict]:
     """The fitted parameters of library effects that sit at an end of their fit range.
 
     Parameters
@@ -195,8 +196,11 @@ def at_bounds(fit, effects=None) -> list[dict]:
     fit : Fit
         A fit (:class:`ehas_env.diagnosis.fitting.Fit`): its ``free`` parameters and ``model``.
     effects : iterable of str, optional
-        Only these effects (default: every effect of the fit; the baseline's beta and K and proposed terms are
-        not library effects and are left out).
+        Only these effects (default: every effect of the fit; proposed terms are not library effects and are left
+        out).
+    baseline : bool
+        Also the recalibrated beta and K (:func:`baseline_at_bound`), listed first: the final model's, not each
+        candidate's.
 
     Returns
     -------
@@ -209,6 +213,9 @@ def at_bounds(fit, effects=None) -> list[dict]:
     out = []
     if fit is None:
         return out
+    if baseline:
+        out += [b for b in (baseline_at_bound(fp, _value_of(fit.model, fp)) for fp in fit.free if fp.effect is None)
+                if b is not None]
     wanted = None if effects is None else set(effects)
     for fp in fit.free:
         if fp.effect in (None, TERM) or (wanted is not None and fp.effect not in wanted):
@@ -230,6 +237,49 @@ def at_bounds(fit, effects=None) -> list[dict]:
                     "range": [float(f"{fp.lo:.4g}"), float(f"{fp.hi:.4g}")], "physical_bound": bool(physical),
                     "text": text})
     return out
+
+
+def baseline_at_bound(fp, value: float) -> dict | None:
+    """The entry of :func:`at_bounds` for the baseline's recalibrated beta or K (``fp``, fitted at ``value``) when it
+    sits at an end of its recalibration range, else None.
+
+    The recalibration range keeps one value for the whole campaign near the book's (+-7 % for beta, +-3 % for K:
+    :data:`~ehas_env.diagnosis.fitting.BETA_RANGE`, :data:`~ehas_env.diagnosis.fitting.K_RANGE`); a value pinned at
+    its end is no point estimate: the data ask for one beyond it, which the effect that re-opens the number
+    (``bulk_modulus``, ``valve_dynamics``) would fit, or which a kept effect stands in for.
+
+    Parameters
+    ----------
+    fp : FreeParam
+        ``beta`` (Pa) or ``K`` (LPM/mA) of the baseline (its ``effect`` None).
+    value : float
+        Its fitted value.
+
+    Returns
+    -------
+    dict or None
+
+    Examples
+    --------
+    >>> from ehas_env.diagnosis.fitting import baseline_params
+    >>> beta, K = baseline_params()
+    >>> baseline_at_bound(beta, beta.hi)["text"]
+    'beta = 1.07 GPa sits at the upper end of its recalibration range [0.93, 1.07] GPa: no point estimate, the data ask for a value beyond it (bulk_modulus re-opens it)'
+    >>> baseline_at_bound(K, 0.5 * (K.lo + K.hi)) is None
+    True
+    """
+    from ehas_env.diagnosis.fitting import REOPENED_BY
+
+    end = fp.end(value)
+    if end is None:
+        return None
+    scale, unit = (1e-9, "GPa") if fp.name == "beta" else (1.0, "LPM/mA")
+    text = (f"{fp.name} = {value * scale:.4g} {unit} sits at the {end} end of its recalibration range "
+            f"[{fp.lo * scale:.4g}, {fp.hi * scale:.4g}] {unit}: no point estimate, the data ask for a value beyond "
+            f"it ({REOPENED_BY[fp.name]} re-opens it)")
+    return {"effect": "baseline", "param": fp.name, "value": float(f"{value * scale:.4g}"), "unit": unit,
+            "end": end, "range": [float(f"{fp.lo * scale:.4g}"), float(f"{fp.hi * scale:.4g}")],
+            "physical_bound": False, "text": text}
 
 
 def at_bound_lines(at_bound: list) -> list[str]:

@@ -146,7 +146,7 @@ class OpenDiagnosis:
                                   "low": _round(rig_scale(e, n) * lo), "high": _round(rig_scale(e, n) * hi), "unit": _unit(e, n)}
                                  for fp in self.fit_train.free for (e, n), (lo, hi) in self.ci.items()
                                  if (fp.effect, fp.name) == (e, n)],
-                        "at_bound": at_bounds(self.fit_train, self.model.effects)}  # honesty rule 3
+                        "at_bound": at_bounds(self.fit_train, self.model.effects, baseline=True)}  # honesty rule 4
         doc["stack"] = [{"effect": s.effect, "kept": s.kept, "reason": s.reason,
                          "params": {k: _round(v) for k, v in (s.fit.model.effects.get(s.effect, {}) if s.fit else {}).items()},
                          "residual_x_noise_fit": round(s.cost_train, 3),

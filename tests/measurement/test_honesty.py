@@ -157,6 +157,23 @@ def test_a_fit_on_the_end_of_its_range_says_so():
     assert (b["effect"], b["param"], b["end"]) == ("coulomb_friction", "Fc", "lower")
 
 
+def test_a_recalibrated_beta_at_the_end_of_its_range_says_so():
+    """The final model's beta pinned at an end of its recalibration range is no point estimate: listed (the
+    campaigns of a hose line and of entrained air ended there, 9 of 254 stored diagnoses, printed as if fitted);
+    K inside its range is not, and a candidate's row (no ``baseline``) lists no baseline number."""
+    from ehas_env.diagnosis.fitting import Fit, baseline_params
+    from ehas_env.measurement.replay import ModelSpec
+
+    beta, K = baseline_params()
+    f = Fit(ModelSpec(beta=beta.hi, K=0.5 * (K.lo + K.hi)), 1.0, [beta, K], [], None)
+    (b,) = H.at_bounds(f, {}, baseline=True)
+    assert (b["effect"], b["param"], b["end"], b["unit"]) == ("baseline", "beta", "upper", "GPa")
+    assert b["value"] == pytest.approx(beta.hi * 1e-9) and "no point estimate" in b["text"]
+    assert H.at_bounds(f, {}) == []
+    inside = Fit(ModelSpec(beta=0.5 * (beta.lo + beta.hi), K=K.lo), 1.0, [beta, K], [], None)
+    assert [x["param"] for x in H.at_bounds(inside, {}, baseline=True)] == ["K"]
+
+
 @pytest.mark.parametrize("x_without, dropped", [(1.2, True), (1.9, False)])
 def test_effects_dropped_beside_a_hypothesis_put_in_place_at_the_end_go_only_when_the_figure_is_not_worse(
         monkeypatch, x_without, dropped):
