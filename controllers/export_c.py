@@ -46,7 +46,7 @@ from ehas_controllers.learning import CycleLearner, CycleTable, condition_key
 from ehas_controllers.piff import PIFF, GainSchedule
 from ehas_env.output.files import atomic_write_text
 from ehas_env.physics.c_source import PRELUDE, CTranslator, c_array, c_literal, function_source, methods_source
-from ehas_env.physics.codegen import _compiled_sections
+from ehas_env.physics.model_source import _compiled_sections
 from ehas_env.simulation.control_laws import N_GAINS, N_MEM, all_laws
 from ehas_env.simulation.pi_ff_law import GAIN_NAMES, GAIN_UNITS
 

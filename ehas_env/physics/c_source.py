@@ -1110,7 +1110,7 @@ def function_source(fn, name: str) -> str:
     str
         Python text.
     """
-    from ehas_env.physics.codegen import _term_source
+    from ehas_env.physics.model_source import _term_source
 
     holder = type("law", (), {"name": name, "law": staticmethod(getattr(fn, "__func__", fn))})
     return _term_source(holder, "law", name).replace('@njit(cache=True, inline="always")\n', "")
@@ -1199,7 +1199,7 @@ def layout_constants() -> dict:
 
 def model_c(spec, roots=("measure", "advance", "reference_point", "sense", "quantize", "control_law",
                          "valve_current", "project"), prefix: str = "ehm_", exported=()) -> tuple[str, CTranslator]:
-    """The C of a generated model: ``spec.source()`` (:class:`ehas_env.physics.codegen.ModelSource`, the
+    """The C of a generated model: ``spec.source()`` (:class:`ehas_env.physics.model_source.ModelSource`, the
     text numba compiles) translated from ``roots``.
 
     Parameters

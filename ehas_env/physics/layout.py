@@ -100,6 +100,8 @@ SENSED = {
     "flow_a": ("q", "m^3/s", "", "the flow meter's reading (line A)", 25.0 / 60000.0),
     "force": ("f", "N", "A * (ds[4] - ds[5])", "the load reading (A (P_A - P_B))", 5.0e4),
 }
+#: the sensed outputs' rates a state's rate may take (``<argument>_rate``: where the model has one)
+RATE_QUANTITIES = tuple(f"{arg}_rate" for arg, _, rate, _, _ in SENSED.values() if rate)
 
 
 def history_length(tau_max: float, dt: float) -> int:

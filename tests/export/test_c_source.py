@@ -83,7 +83,7 @@ def test_outside_the_subset_is_refused_naming_function_and_line():
 
 
 def test_every_registered_effect_and_law_translates_and_compiles(tmp_path):
-    from ehas_env.physics.codegen import ModelSource
+    from ehas_env.physics.model_source import ModelSource
     from ehas_env.physics.effects import REGISTRY
     from ehas_env.simulation.control_laws import all_laws
 

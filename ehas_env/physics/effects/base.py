@@ -18,6 +18,8 @@ import types
 from dataclasses import dataclass
 from typing import ClassVar
 
+from ehas_env.physics.layout import RATE_QUANTITIES as _RATE_QUANTITIES
+from ehas_env.physics.model_source import place_scopes as _place_scopes
 from ehas_env.physics.layout import SENSED as _SENSED
 from ehas_env.physics.layout import STATE_NAMES as _BASELINE_STATES
 
@@ -111,30 +113,36 @@ LOCALS = {q.arg: q for q in (
     Local("vp", "velocity_state", "m/s", "the piston velocity state", "v_p"),
     Local("gap", "gap", "m", "the rod-joint gap x - r sin(theta) (joint_force)", "g"),
     Local("gap_rate", "gap_rate", "m/s", "the rod-joint gap's rate (joint_force)", "g'"),
+    Local("qc_dot", "opening_rate", "m^3/s^2", "the rate of the valve's no-load flow", "q_c'"),
+    Local("q", "metered_flow", "m^3/s", "the flow the meter in line A meters, before its reading chain", "q"),
 )}
 #: the same in one line each (the registry's messages)
 QUANTITIES = {q.arg: f"{q.words}, {q.unit}" for q in LOCALS.values()}
-#: the quantities the compiled model has defined where each place's terms are called (a term's arguments resolve
-#: through :meth:`Effect.arg_kind`, in the check at registration and in :mod:`ehas_env.physics.codegen`)
-_AT_RATES = ("theta", "omega", "qc", "qc_dot", "pa", "pb", "ps", "xp", "vp", "i", "p_load", "q_a", "q_b", "q_supply",
-             "x", "v")
-PLACE_QUANTITIES = {place: frozenset(_AT_RATES) for place in PLACES}
-PLACE_QUANTITIES["valve_current"] = frozenset({"i"})
-PLACE_QUANTITIES["position_reading"] = frozenset({"x"})
-PLACE_QUANTITIES["coil_current"] = frozenset({"i"})
-PLACE_QUANTITIES["port_pressures"] = frozenset({"pa", "pb"})
-PLACE_QUANTITIES["land_pressures"] = frozenset({"qc", "ps", "p_sup", "p_ret"})
-PLACE_QUANTITIES["land_flows"] = frozenset({"qc", "pa", "pb", "ps", "q_a", "q_b"})
-PLACE_QUANTITIES["joint_force"] = frozenset(_AT_RATES + ("gap", "gap_rate"))
 #: the sensed outputs' rates, known where the effects' state rates are computed (after the balances)
-RATE_QUANTITIES = tuple(f"{arg}_rate" for arg, _, rate, _, _ in _SENSED.values() if rate)
-#: and the flow meter's reading before its chain (``q``: computed for the state rates only when a term takes it)
-PLACE_QUANTITIES["state_rates"] = frozenset(_AT_RATES + RATE_QUANTITIES + ("q",))
-for _out, (_arg, *_rest) in _SENSED.items():
-    PLACE_QUANTITIES[f"{_out}_reading"] = frozenset({_arg})
+RATE_QUANTITIES = _RATE_QUANTITIES
+
+
+def _place_quantities(site) -> frozenset:
+    """The quantities a term may take at a place: the values its chain passes on and every quantity the model
+    describes (:data:`LOCALS`, :data:`RATE_QUANTITIES`) that the generated model has bound where the place's terms
+    are called (:func:`ehas_env.physics.model_source.place_scopes`); the model's other names there (the piston force
+    summed so far, sin theta) are its own workings, not quantities."""
+    return frozenset(site.chain) | (site.bound & (set(LOCALS) | set(RATE_QUANTITIES)))
+
+
+_SITES = _place_scopes()
+_UNCALLED = sorted(set(PLACES) - set(_SITES))
+if _UNCALLED:  # a place the generated model never calls would take terms that never act
+    raise RuntimeError(f"places the generated model calls no term at: {', '.join(_UNCALLED)} "
+                       "(ehas_env.physics.model_source.ModelSource._assembled)")
+#: the quantities the compiled model has defined where each place's terms are called, read from the generated model
+#: itself (:func:`_place_quantities`; a term's arguments resolve through :meth:`Effect.arg_kind`, in the check at
+#: registration and in :mod:`ehas_env.physics.codegen`): a quantity the assembled right-hand side computes before a
+#: place is one a term there may take, without a list beside it
+PLACE_QUANTITIES = {place: _place_quantities(_SITES[place]) for place in PLACES}
 #: the quantities a valve-side chamber_flows term (``Effect.valve_side``) may take: the valve's own, known
-#: wherever a flow is metered (a run's line A, the valve bench)
-VALVE_SIDE_QUANTITIES = ("qc", "pa", "pb", "ps", "p_load", "q_a", "q_b", "q_supply")
+#: wherever a flow is metered (a run's line A, the valve bench): what ``valve_side_flows`` of the generated model has
+VALVE_SIDE_QUANTITIES = tuple(sorted(_place_quantities(_SITES["valve_side"])))
 #: what an effect is (Effect.kind)
 KINDS = ("physical", "recalibration", "hypothesis")
 #: how many numbers a term returns at each place (state_rates: one per state, a number for one state)
@@ -258,7 +266,7 @@ class Param:
                                            and self.limit[1]):
             return (f"limit must be None or (end, words) with end 'lower' or 'upper' and words what the block is "
                     f"there, got {self.limit!r}")
-        if self.name in QUANTITIES or self.name in _AT_RATES:
+        if self.name in QUANTITIES:
             return (f"name {self.name!r} is a model quantity a term can take ({QUANTITIES.get(self.name, self.name)}); "
                     "a parameter needs a name of its own")
         return None
