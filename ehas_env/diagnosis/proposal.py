@@ -147,6 +147,22 @@ def net_share(terms: dict[str, float], tangents: dict[str, np.ndarray]) -> float
     return 1.0 if size <= 0.0 else min(float(np.linalg.norm(sum(parts))) / size, 1.0)
 
 
+def _distinct(keys: list, tangents: dict, n: int, taken=()) -> list:
+    """The first ``n`` of ``keys`` whose tangents (:func:`_screen`'s) are no twin of one taken before them or of
+    ``taken``'s (:func:`without_twins`); a key without a tangent is taken as it comes."""
+    known = [k for k in taken if k in tangents]
+    out = []
+    for k in keys:
+        if len(out) >= n:
+            break
+        if k not in tangents:
+            out.append(k)
+        elif without_twins({j: tangents[j] for j in known + [k]})[-1:] == [k]:
+            out.append(k)
+            known.append(k)
+    return out
+
+
 def without_twins(columns: dict[str, np.ndarray], r: float = TWIN_R) -> list[str]:
     """The keys of ``columns`` in their order, each left out whose column correlates (uncentred) at least ``r`` with
     one kept before it: what a regression can part.
@@ -499,7 +515,10 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
     def score(f) -> float:
         return 10.0 * math.log10(base.cost / f.cost) - PENALTY_PER_TERM_DB * len(f.model.terms)
 
-    tries = [{k: c} for k, _, c in screened[:FIT_TOP]]
+    coef = {k: c for k, _, c in screened}
+    # a form whose screen tangent is a twin of a better one's fits as that one does (the piston's and the crank's
+    # load friction screened alike, 5.497 and 5.497): the tries and the forms added are distinct ones
+    tries = [{k: coef[k]} for k in _distinct(list(coef), tangents, FIT_TOP)]
     if sparse and set(sparse) not in [set(t) for t in tries]:
         tries.append(dict(sparse))
     cancelling = []  # fitted sets refused: their forms undo one another (net_share below CANCEL_SHARE)
@@ -521,7 +540,7 @@ def propose(rep: Replayer, base, *, confidence=None, name: bool = True, say=None
     best = _built_on(fits, score, proven, say)
     # add further forms while each lowers the residual clearly
     while len(best.model.terms) < MAX_TERMS:
-        extra = [k for k, _, _ in screened if k not in best.model.terms][:2]
+        extra = _distinct([k for k in coef if k not in best.model.terms], tangents, 2, taken=best.model.terms)
         if not extra:
             break
         cands = [f for f in (fit_terms({**best.model.terms, k: next(c for kk, _, c in screened if kk == k)})
